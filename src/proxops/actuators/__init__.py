@@ -1,0 +1,73 @@
+"""Thruster models between the controller's command and the truth (all effects optional)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from proxops.core.constants import G0
+
+
+@dataclass
+class IdealActuator:
+    """Applies the command unchanged."""
+
+    def apply(self, t: float, u: np.ndarray, kind: str, rng: np.random.Generator) -> np.ndarray:
+        return np.array(u, dtype=float)
+
+
+@dataclass
+class ThrusterModel:
+    """Limits and execution errors of a translational thruster set.
+
+    Units follow the command kind: m/s^2 for ``acceleration``, m/s for ``impulse``.
+
+    - ``max_per_axis``: per-axis saturation (|u_i| <= max_per_axis), ``None`` = none.
+    - ``max_norm``: saturation of the 2-norm (direction kept), ``None`` = none.
+    - ``min_impulse``: commands whose norm is below this fire nothing (minimum impulse
+      bit; same unit as the command).
+    - ``magnitude_sigma``: relative 1-sigma magnitude error (e.g. 0.01 = 1 %).
+    - ``pointing_sigma_rad``: 1-sigma pointing error (rad), a random small rotation.
+    - ``missed_probability``: probability that a command is not executed at all.
+    (cortex-convex-guidance.md Alg. 3 / Table 3 execution-error model.)
+    """
+
+    max_per_axis: float | None = None
+    max_norm: float | None = None
+    min_impulse: float = 0.0
+    magnitude_sigma: float = 0.0
+    pointing_sigma_rad: float = 0.0
+    missed_probability: float = 0.0
+
+    def apply(self, t: float, u: np.ndarray, kind: str, rng: np.random.Generator) -> np.ndarray:
+        u = np.array(u, dtype=float)
+        if self.max_per_axis is not None:
+            u = np.clip(u, -self.max_per_axis, self.max_per_axis)
+        norm = float(np.linalg.norm(u))
+        if self.max_norm is not None and norm > self.max_norm:
+            u *= self.max_norm / norm
+            norm = self.max_norm
+        if norm == 0.0 or norm < self.min_impulse:
+            return np.zeros_like(u)
+        if self.missed_probability > 0.0 and rng.random() < self.missed_probability:
+            return np.zeros_like(u)
+        if self.magnitude_sigma > 0.0:
+            u *= 1.0 + self.magnitude_sigma * rng.standard_normal()
+        if self.pointing_sigma_rad > 0.0 and u.size == 3:
+            u = _rotate_small(u, self.pointing_sigma_rad * rng.standard_normal(3))
+        return u
+
+
+def _rotate_small(v: np.ndarray, rotation_vector: np.ndarray) -> np.ndarray:
+    """Rotate ``v`` by the rotation vector (rad) with Rodrigues' formula."""
+    angle = float(np.linalg.norm(rotation_vector))
+    if angle == 0.0:
+        return v
+    k = rotation_vector / angle
+    return v * np.cos(angle) + np.cross(k, v) * np.sin(angle) + k * np.dot(k, v) * (1 - np.cos(angle))
+
+
+def propellant_mass_kg(dv_mps: float, wet_mass_kg: float, isp_s: float) -> float:
+    """Rocket equation: propellant used for ``dv_mps`` from ``wet_mass_kg`` at ``isp_s``."""
+    return wet_mass_kg * (1.0 - np.exp(-dv_mps / (isp_s * G0)))

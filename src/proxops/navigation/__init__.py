@@ -1,0 +1,38 @@
+"""Navigation models: what the controller sees of the true relative state."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+
+@dataclass
+class PerfectNavigation:
+    """The controller sees the true state."""
+
+    def measure(self, t: float, x_true: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+        return np.array(x_true, dtype=float)
+
+
+@dataclass
+class GaussianNavigation:
+    """Zero-mean white Gaussian errors on a Hill state [x, y, z, vx, vy, vz].
+
+    ``position_sigma_m`` and ``velocity_sigma_mps`` are per-axis 1-sigma values. States
+    longer than 6 (or planar ones) get the position sigma on the first half and the
+    velocity sigma on the second half.
+    """
+
+    position_sigma_m: float = 0.0
+    velocity_sigma_mps: float = 0.0
+
+    def measure(self, t: float, x_true: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+        x = np.array(x_true, dtype=float)
+        half = x.size // 2
+        sigma = np.concatenate(
+            [np.full(half, self.position_sigma_m), np.full(x.size - half, self.velocity_sigma_mps)]
+        )
+        if not sigma.any():
+            return x
+        return x + sigma * rng.standard_normal(x.size)

@@ -1,0 +1,177 @@
+"""Load, override and validate scenario files; find built-in scenarios by name.
+
+Every problem becomes one :class:`ProxopsInputError` line naming the key, the value,
+its unit (from the key's suffix) and what is allowed.
+"""
+
+from __future__ import annotations
+
+import tomllib
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from pydantic import BaseModel, ValidationError
+
+from proxops.errors import ProxopsInputError
+from proxops.scenarios.registry import get_system
+
+BUILTIN_DIR = Path(__file__).parent / "builtin"
+
+UNIT_SUFFIXES = (
+    ("_deg_s", "deg/s"),
+    ("_mps2", "m/s^2"),
+    ("_mps", "m/s"),
+    ("_deg", "deg"),
+    ("_rad", "rad"),
+    ("_km", "km"),
+    ("_kg", "kg"),
+    ("_m", "m"),
+    ("_s", "s"),
+    ("_N", "N"),
+)
+
+
+def unit_of(key: str) -> str:
+    """Unit named by a key's suffix ('' when it has none)."""
+    for suffix, unit in UNIT_SUFFIXES:
+        if key.endswith(suffix):
+            return unit
+    return ""
+
+
+@dataclass
+class LoadedScenario:
+    """A validated scenario, the system that runs it and where it came from."""
+
+    scenario: Any  # the system's pydantic Scenario model
+    system: Any
+    source: str
+
+
+def builtin_names() -> list[str]:
+    return sorted(p.stem for p in BUILTIN_DIR.glob("*.toml"))
+
+
+def list_builtin() -> list[dict]:
+    """``[{name, description, system}]`` of the built-in scenarios (files are not validated here)."""
+    out = []
+    for path in sorted(BUILTIN_DIR.glob("*.toml")):
+        data = tomllib.loads(path.read_text())
+        out.append({"name": path.stem, "description": data.get("description", ""), "system": data.get("system", "")})
+    return out
+
+
+def resolve(name_or_path: str) -> Path:
+    path = Path(name_or_path)
+    if path.is_file():
+        return path
+    builtin = BUILTIN_DIR / f"{name_or_path}.toml"
+    if builtin.is_file():
+        return builtin
+    raise ProxopsInputError(
+        f"scenario {name_or_path!r}: no such file and no built-in scenario of that name "
+        f"('proxops scenarios' lists the {len(builtin_names())} built-ins)"
+    )
+
+
+def read_toml(path: Path) -> dict:
+    try:
+        return tomllib.loads(path.read_text())
+    except tomllib.TOMLDecodeError as exc:
+        raise ProxopsInputError(f"{path}: not valid TOML: {exc}") from None
+
+
+def load_scenario(name_or_path: str, overrides: list[str] | tuple[str, ...] = ()) -> LoadedScenario:
+    """Read a file or built-in, apply ``key.path=value`` overrides, validate with its system."""
+    path = resolve(name_or_path)
+    data = read_toml(path)
+    return validate_scenario(data, overrides, source=str(path))
+
+
+def validate_scenario(data: dict, overrides=(), source: str = "<dict>") -> LoadedScenario:
+    system_name = data.get("system")
+    if not isinstance(system_name, str):
+        raise ProxopsInputError(f"{source}: missing top-level key 'system' (the system that runs this scenario)")
+    system = get_system(system_name)
+    for item in overrides:
+        apply_override(data, item, system.Scenario)
+    try:
+        scenario = system.Scenario.model_validate(data)
+    except ValidationError as exc:
+        raise ProxopsInputError(f"{source}: {format_validation_error(exc, data)}") from None
+    return LoadedScenario(scenario=scenario, system=system, source=source)
+
+
+def parse_value(text: str) -> Any:
+    """A ``--set`` value as TOML (numbers, booleans, arrays, quoted strings), else a bare string."""
+    try:
+        return tomllib.loads(f"v = {text}")["v"]
+    except tomllib.TOMLDecodeError:
+        return text
+
+
+def apply_override(data: dict, item: str, model: type[BaseModel]) -> None:
+    """Apply one ``a.b.c=value`` override; the key must be a field of the scenario model
+    (or, inside a free-form table such as ``dispersions``, already be in the file)."""
+    if "=" not in item:
+        raise ProxopsInputError(f"--set {item!r}: expected key=value, e.g. --set sim.duration_s=600")
+    key, _, text = item.partition("=")
+    parts = key.strip().split(".")
+    node, node_model = data, model
+    for depth, part in enumerate(parts):
+        fields = _fields_of(node_model)
+        known = part in fields if fields is not None else part in node
+        if not known:
+            allowed = sorted(fields) if fields is not None else sorted(node)
+            where = ".".join(parts[:depth]) or "the top level"
+            raise ProxopsInputError(f"--set {key}: no key {part!r} in {where}; allowed: {', '.join(allowed) or '(none)'}")
+        if depth == len(parts) - 1:
+            node[part] = parse_value(text.strip())
+            return
+        node = node.setdefault(part, {})
+        if not isinstance(node, dict):
+            raise ProxopsInputError(f"--set {key}: {'.'.join(parts[: depth + 1])} is a value, not a table")
+        node_model = fields.get(part) if fields is not None else None
+
+
+def _fields_of(model) -> dict | None:
+    """Field name -> nested model (or None) of a pydantic model class; None if not a model."""
+    import typing
+
+    if model is None:
+        return None
+    if isinstance(model, type) and issubclass(model, BaseModel):
+        out = {}
+        for name, info in model.model_fields.items():
+            ann = info.annotation
+            nested = None
+            candidates = typing.get_args(ann) or (ann,)
+            for c in candidates:
+                if isinstance(c, type) and issubclass(c, BaseModel):
+                    nested = c
+            out[name] = nested
+        return out
+    return None
+
+
+def format_validation_error(exc: ValidationError, data: dict) -> str:
+    """First pydantic error as ``key = value unit: what is allowed``."""
+    err = exc.errors()[0]
+    loc = [p for p in err["loc"] if not str(p).startswith("function-")]
+    names = [str(p) for p in loc if not isinstance(p, int)]
+    key = "".join(f"[{p}]" if isinstance(p, int) else f".{p}" for p in loc).lstrip(".")
+    msg = err["msg"]
+    if msg.startswith("Value error, "):
+        msg = msg[len("Value error, ") :]
+    if err["type"] == "extra_forbidden":
+        return f"unknown key {key!r}: remove it or check its spelling"
+    if err["type"] == "missing":
+        return f"missing key {key!r}: it is required"
+    value = err.get("input")
+    if isinstance(value, dict):  # model-level error
+        return f"{key or 'scenario'}: {msg}" if key else msg
+    unit = unit_of(names[-1]) if names else ""
+    allowed = msg[0].lower() + msg[1:] if msg else "not allowed"
+    unit_text = f" {unit}" if unit else ""
+    return f"{key} = {value!r}{unit_text}: {allowed}"

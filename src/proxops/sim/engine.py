@@ -1,0 +1,175 @@
+"""The one closed-loop engine: navigation -> controller -> actuator -> truth.
+
+Each sample k at t_k = k * controller.dt:
+
+1. x_true = plant.relative_state(state); x_est = navigation.measure(t, x_true, rng)
+2. cmd = controller.step(t, x_est)                  (Command: u, kind, status, ...)
+3. u = actuator.apply(t, cmd.u, cmd.kind, rng)     (limits, min impulse, errors)
+4. impulse: state = plant.apply_impulse(...) then coast dt; acceleration: ZOH over dt
+   (split into ``check_substeps`` pieces so constraints are checked between samples)
+
+Constraint violations, mode changes, solver failures and stops become events.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+from typing import Callable, Sequence
+
+import numpy as np
+
+from proxops.actuators import IdealActuator
+from proxops.navigation import PerfectNavigation
+from proxops.sim.protocols import Controller, Plant
+from proxops.sim.result import SimResult
+
+
+@dataclass
+class Setup:
+    """Everything one closed-loop run needs (built from a scenario by its system)."""
+
+    plant: Plant
+    controller: Controller
+    duration_s: float
+    navigation: object = field(default_factory=PerfectNavigation)
+    actuator: object = field(default_factory=IdealActuator)
+    constraints: Sequence = ()
+    stop_condition: Callable[[float, np.ndarray], str | None] | None = None
+    check_substeps: int = 1
+    meta: dict = field(default_factory=dict)
+
+
+def simulate(setup: Setup, seed: int = 0, progress: bool = False) -> SimResult:
+    """Run one closed loop to ``setup.duration_s`` (or an earlier stop) and return its SimResult."""
+    plant, ctrl = setup.plant, setup.controller
+    rng = np.random.default_rng(seed)
+    dt = float(ctrl.dt)
+    n_steps = int(round(setup.duration_s / dt))
+    position_slice = getattr(plant, "position_slice", (0, 3))
+
+    state = plant.initial_state()
+    n_x, n_u = plant.n_x, plant.n_u
+    t_rec = np.zeros(n_steps + 1)
+    x_true = np.zeros((n_steps + 1, n_x))
+    x_est = np.zeros((n_steps + 1, n_x))
+    u_cmd = np.zeros((n_steps + 1, n_u))
+    u_app = np.zeros((n_steps + 1, n_u))
+    dv_cum = np.zeros(n_steps + 1)
+    solve_t = np.zeros(n_steps + 1)
+    status: list[str] = []
+    modes: list[str] = []
+    info: dict[str, np.ndarray] = {}
+    events: list[tuple[float, str, str]] = []
+    max_violation: dict[str, float] = {}
+    in_violation: dict[str, bool] = {}
+
+    def check_constraints(t: float, xr: np.ndarray) -> None:
+        for con in setup.constraints:
+            v = float(con.violation(t, xr))
+            name = con.name
+            if v > max_violation.get(name, 0.0):
+                max_violation[name] = v
+            if v > 0.0 and not in_violation.get(name, False):
+                events.append((t, "violation", f"{name} violated by {v:.3g}"))
+            in_violation[name] = v > 0.0
+
+    bar = _progress_bar(n_steps, progress)
+    wall0 = time.perf_counter()
+    x0 = plant.relative_state(state)
+    ctrl.reset(0.0, x0)
+    outcome = "completed"
+    last_mode = None
+    k = 0
+    for k in range(n_steps + 1):
+        t = k * dt
+        xr = plant.relative_state(state)
+        xe = setup.navigation.measure(t, xr, rng)
+        t_rec[k], x_true[k], x_est[k] = t, xr, xe
+        check_constraints(t, xr)
+        reason = setup.stop_condition(t, xr) if setup.stop_condition else None
+        if reason:
+            outcome = reason
+            events.append((t, "stop", reason))
+            status.append("")
+            modes.append(last_mode or "")
+            break
+        if k == n_steps:
+            status.append("")
+            modes.append(last_mode or "")
+            break
+        cmd = ctrl.step(t, xe)
+        if cmd.stop:
+            outcome = cmd.mode or "stopped"
+            events.append((t, "stop", outcome))
+            status.append(cmd.status)
+            modes.append(cmd.mode)
+            break
+        u = setup.actuator.apply(t, cmd.u, cmd.kind, rng)
+        u_cmd[k], u_app[k], solve_t[k] = cmd.u, u, cmd.solve_time_s
+        status.append(cmd.status)
+        modes.append(cmd.mode)
+        if cmd.status not in ("ok", "optimal"):
+            events.append((t, "solver", cmd.status))
+        if cmd.mode != last_mode and last_mode is not None:
+            events.append((t, "mode", f"{last_mode} -> {cmd.mode}"))
+        last_mode = cmd.mode
+        for kind, msg in cmd.events:
+            events.append((t, kind, msg))
+        for key, val in cmd.info.items():
+            info.setdefault(key, np.full(n_steps + 1, np.nan))[k] = val
+        norm_u = float(np.linalg.norm(u))
+        if cmd.kind == "impulse":
+            dv_cum[k + 1] = dv_cum[k] + norm_u
+            if norm_u > 0.0:
+                state = plant.apply_impulse(t, state, u)
+            u_hold = np.zeros(n_u)
+        else:
+            dv_cum[k + 1] = dv_cum[k] + norm_u * dt
+            u_hold = u
+        sub_dt = dt / setup.check_substeps
+        for j in range(setup.check_substeps):
+            state = plant.propagate(t + j * sub_dt, state, u_hold, sub_dt)
+            if j < setup.check_substeps - 1:
+                check_constraints(t + (j + 1) * sub_dt, plant.relative_state(state))
+        bar.update(1)
+    bar.close()
+    n = k + 1
+    meta = dict(setup.meta)
+    meta.update(
+        outcome=outcome,
+        seed=seed,
+        dt_s=dt,
+        wall_time_s=time.perf_counter() - wall0,
+        position_slice=list(position_slice),
+        velocity_slice=list(getattr(plant, "velocity_slice", (3, 6))),
+        max_violation=max_violation,
+    )
+    return SimResult(
+        t=t_rec[:n],
+        x_true=x_true[:n],
+        x_est=x_est[:n],
+        u_cmd=u_cmd[:n],
+        u_applied=u_app[:n],
+        dv_cum=dv_cum[:n],
+        status=status[:n],
+        solve_time_s=solve_t[:n],
+        mode=modes[:n],
+        info={key: arr[:n] for key, arr in info.items()},
+        events=events,
+        meta=meta,
+    )
+
+
+class _NoBar:
+    def update(self, n: int) -> None: ...
+
+    def close(self) -> None: ...
+
+
+def _progress_bar(total: int, enabled: bool):
+    if not enabled:
+        return _NoBar()
+    from tqdm import tqdm
+
+    return tqdm(total=total, unit="step", desc="simulating", leave=False, mininterval=0.5, delay=2.0)

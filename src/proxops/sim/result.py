@@ -1,0 +1,138 @@
+"""SimResult: the time series and events of one closed-loop run, saved as Parquet.
+
+On-disk layout of ``result.save(dir)``::
+
+    dir/steps.parquet   one row per sample: t, x_true_<i>, x_est_<i>, u_cmd_<i>, u_applied_<i>,
+                        dv_cum, status, solve_time_s, mode, info_<key>
+    dir/events.parquet  t, kind, message
+    dir/meta.json       scenario name, seed, sizes, position/velocity slices, summary extras
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+
+@dataclass
+class SimResult:
+    t: np.ndarray  # (n,) s
+    x_true: np.ndarray  # (n, n_x) true relative state
+    x_est: np.ndarray  # (n, n_x) navigation estimate
+    u_cmd: np.ndarray  # (n, n_u) commanded control (m/s^2 or m/s)
+    u_applied: np.ndarray  # (n, n_u) after the actuator model
+    dv_cum: np.ndarray  # (n,) cumulative delta-v, m/s
+    status: list[str]  # (n,) controller/solver status
+    solve_time_s: np.ndarray  # (n,)
+    mode: list[str]  # (n,)
+    info: dict[str, np.ndarray] = field(default_factory=dict)
+    events: list[tuple[float, str, str]] = field(default_factory=list)
+    meta: dict = field(default_factory=dict)
+
+    # --- derived quantities -------------------------------------------------------
+    @property
+    def position(self) -> np.ndarray:
+        lo, hi = self.meta.get("position_slice", (0, 3))
+        return self.x_true[:, lo:hi]
+
+    @property
+    def velocity(self) -> np.ndarray:
+        lo, hi = self.meta.get("velocity_slice", (3, 6))
+        return self.x_true[:, lo:hi]
+
+    @property
+    def range_m(self) -> np.ndarray:
+        return np.linalg.norm(self.position, axis=1)
+
+    def events_of(self, kind: str) -> list[tuple[float, str, str]]:
+        return [e for e in self.events if e[1] == kind]
+
+    def summary(self) -> dict:
+        """The standard run summary (``proxops run --json`` keys)."""
+        solved = self.solve_time_s[self.solve_time_s > 0]
+        rng_m = self.range_m
+        counts: dict[str, int] = {}
+        for _, kind, _ in self.events:
+            counts[kind] = counts.get(kind, 0) + 1
+        return {
+            "status": self.meta.get("outcome", "completed"),
+            "final_range_m": float(rng_m[-1]),
+            "final_speed_mps": float(np.linalg.norm(self.velocity[-1])),
+            "total_dv_mps": float(self.dv_cum[-1]),
+            "min_range_m": float(rng_m.min()),
+            "sim_time_s": float(self.t[-1] - self.t[0]),
+            "wall_time_s": float(self.meta.get("wall_time_s", 0.0)),
+            "steps": int(len(self.t) - 1),
+            "solver_failures": int(sum(s not in ("ok", "optimal", "") for s in self.status)),
+            "solve_time_ms": {
+                "median": float(np.median(solved) * 1e3) if solved.size else 0.0,
+                "p95": float(np.percentile(solved, 95) * 1e3) if solved.size else 0.0,
+                "max": float(solved.max() * 1e3) if solved.size else 0.0,
+            },
+            "events": counts,
+        }
+
+    # --- persistence --------------------------------------------------------------
+    def to_frame(self) -> pd.DataFrame:
+        cols: dict[str, np.ndarray | list] = {"t": self.t}
+        for name, arr in (("x_true", self.x_true), ("x_est", self.x_est), ("u_cmd", self.u_cmd), ("u_applied", self.u_applied)):
+            for i in range(arr.shape[1]):
+                cols[f"{name}_{i}"] = arr[:, i]
+        cols["dv_cum"] = self.dv_cum
+        cols["status"] = list(self.status)
+        cols["solve_time_s"] = self.solve_time_s
+        cols["mode"] = list(self.mode)
+        for key, arr in self.info.items():
+            cols[f"info_{key}"] = arr
+        return pd.DataFrame(cols)
+
+    def save(self, directory: str | Path) -> Path:
+        d = Path(directory)
+        d.mkdir(parents=True, exist_ok=True)
+        self.to_frame().to_parquet(d / "steps.parquet", index=False)
+        ev = pd.DataFrame(self.events, columns=["t", "kind", "message"]) if self.events else pd.DataFrame(
+            {"t": pd.Series(dtype=float), "kind": pd.Series(dtype=str), "message": pd.Series(dtype=str)}
+        )
+        ev.to_parquet(d / "events.parquet", index=False)
+        (d / "meta.json").write_text(json.dumps(self.meta, indent=2, default=_jsonable))
+        return d
+
+    @classmethod
+    def load(cls, directory: str | Path) -> "SimResult":
+        d = Path(directory)
+        df = pd.read_parquet(d / "steps.parquet")
+        ev = pd.read_parquet(d / "events.parquet")
+        meta = json.loads((d / "meta.json").read_text())
+
+        def block(prefix: str) -> np.ndarray:
+            names = sorted((c for c in df.columns if c.startswith(prefix + "_") and c[len(prefix) + 1 :].isdigit()),
+                           key=lambda c: int(c.rsplit("_", 1)[1]))
+            return df[names].to_numpy()
+
+        info = {c[5:]: df[c].to_numpy() for c in df.columns if c.startswith("info_")}
+        return cls(
+            t=df["t"].to_numpy(),
+            x_true=block("x_true"),
+            x_est=block("x_est"),
+            u_cmd=block("u_cmd"),
+            u_applied=block("u_applied"),
+            dv_cum=df["dv_cum"].to_numpy(),
+            status=df["status"].tolist(),
+            solve_time_s=df["solve_time_s"].to_numpy(),
+            mode=df["mode"].tolist(),
+            info=info,
+            events=[(float(r.t), str(r.kind), str(r.message)) for r in ev.itertuples()],
+            meta=meta,
+        )
+
+
+def _jsonable(obj):
+    if isinstance(obj, np.generic):
+        return obj.item()
+    if isinstance(obj, np.ndarray):
+        return obj.tolist()
+    return str(obj)
