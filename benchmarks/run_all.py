@@ -1,0 +1,36 @@
+"""Run every benchmark (``make bench``): each benchmarks/bench_*.py has a main() that prints
+its figures and the ratios against the papers' numbers. ``python benchmarks/run_all.py srf los``
+runs a subset."""
+
+from __future__ import annotations
+
+import importlib.util
+import sys
+import time
+from pathlib import Path
+
+HERE = Path(__file__).parent
+
+
+def main(selected: list[str]) -> int:
+    failures = 0
+    for path in sorted(HERE.glob("bench_*.py")):
+        name = path.stem[len("bench_"):]
+        if selected and name not in selected:
+            continue
+        print(f"\n=== {name} " + "=" * (60 - len(name)), flush=True)
+        spec = importlib.util.spec_from_file_location(path.stem, path)
+        module = importlib.util.module_from_spec(spec)
+        t0 = time.perf_counter()
+        try:
+            spec.loader.exec_module(module)
+            module.main()
+        except Exception as exc:  # one broken benchmark must not hide the others
+            failures += 1
+            print(f"benchmark {name} failed: {exc!r}")
+        print(f"[{name}: {time.perf_counter() - t0:.1f} s]", flush=True)
+    return 1 if failures else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main(sys.argv[1:]))

@@ -1,0 +1,354 @@
+"""Clarabel adapter: conic QP / SOCP by an interior-point method.
+
+Problem (Clarabel's native form)::
+
+    minimize    1/2 x' P x + q' x
+    subject to  A x + s = b,   s in K = K_1 x ... x K_p
+
+with cones given as ``(kind, dim)``: ``("zero", m)`` (s = 0, equalities),
+``("nonneg", m)`` (s >= 0, i.e. A x <= b) and ``("soc", m)`` (s[0] >= ||s[1:]||).
+:func:`build_conic_problem` assembles (A, b, cones) from equalities, inequalities,
+bounds and second-order cones ``||F x + g|| <= c'x + d``.
+
+Clarabel's presolve is switched off so data can be updated in place (its
+``update`` keeps the symbolic factorisation); Clarabel has no warm start. Rows of a
+``nonneg`` cone with ``b = +inf`` (no constraint) are removed before Clarabel sees
+them (with presolve off Clarabel mis-reports such problems as dual infeasible);
+an update that makes such a row finite again, or changes a matrix's sparsity
+pattern, sets the solver up again (``info["rebuilt"] = True``).
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+import scipy.sparse as sp
+
+from proxops.errors import input_error
+from proxops.solvers import _util
+from proxops.solvers.result import SolverResult, SolveStatus, error_message, failed_result
+
+CONE_KINDS = ("zero", "nonneg", "soc")
+
+# clarabel.SolverStatus names.
+STATUS_MAP = {
+    "Solved": SolveStatus.OPTIMAL,
+    "AlmostSolved": SolveStatus.OPTIMAL_INACCURATE,
+    "PrimalInfeasible": SolveStatus.INFEASIBLE,
+    "AlmostPrimalInfeasible": SolveStatus.INFEASIBLE,
+    "DualInfeasible": SolveStatus.UNBOUNDED,
+    "AlmostDualInfeasible": SolveStatus.UNBOUNDED,
+    "MaxIterations": SolveStatus.MAX_ITER,
+    "MaxTime": SolveStatus.TIME_LIMIT,
+    "NumericalError": SolveStatus.NUMERICAL_ERROR,
+    "InsufficientProgress": SolveStatus.NUMERICAL_ERROR,
+    "Unsolved": SolveStatus.NUMERICAL_ERROR,
+    "CallbackTerminated": SolveStatus.NUMERICAL_ERROR,
+}
+
+
+@dataclass
+class ConicProblem:
+    """``min 1/2 x'Px + q'x s.t. A x + s = b, s in cones`` with named row blocks.
+
+    blocks maps "eq", "ineq", "lb", "ub", "soc0", "soc1", ... to row slices of A/b,
+    so callers can update parts of ``b`` (e.g. ``b[prob.blocks["ineq"]] = h_new``).
+    """
+
+    P: sp.csc_matrix | None
+    q: np.ndarray
+    A: sp.csc_matrix
+    b: np.ndarray
+    cones: list[tuple[str, int]]
+    blocks: dict[str, slice] = field(default_factory=dict)
+
+
+def build_conic_problem(q, P=None, *, eq=None, ineq=None, lb=None, ub=None, soc=()) -> ConicProblem:
+    """Assemble a :class:`ConicProblem`.
+
+    q: (n,) cost; P: (n, n) PSD or None;
+    eq: (A_eq, b_eq) for A_eq x = b_eq;
+    ineq: (G, h) for G x <= h (h may hold +inf: no constraint on that row);
+    lb, ub: (n,) variable bounds (+-inf allowed);
+    soc: sequence of (F, g, c, d) for ||F x + g||_2 <= c'x + d with F (k, n), g (k,),
+    c (n,), d scalar. As a cone row block: s = [c'x + d; F x + g] = b - A x, so
+    A = -[c'; F] and b = [d; g] (Clarabel form).
+    """
+    q = _util.vector("q", q, np.size(q))
+    n = q.shape[0]
+    rows, rhs, cones, blocks = [], [], [], {}
+    start = 0
+
+    def add(name, M, v, kind):
+        nonlocal start
+        k = M.shape[0]
+        if k == 0:
+            return
+        rows.append(sp.csc_matrix(M))
+        rhs.append(v)
+        if cones and cones[-1][0] == kind and kind != "soc":
+            cones[-1] = (kind, cones[-1][1] + k)
+        else:
+            cones.append((kind, k))
+        blocks[name] = slice(start, start + k)
+        start += k
+
+    if eq is not None:
+        A_eq, b_eq = eq
+        m = _util.rows_of("eq[0]", A_eq)
+        add("eq", _util.csc_matrix("eq[0]", A_eq, (m, n)), _util.vector("eq[1]", b_eq, m), "zero")
+    if ineq is not None:
+        G, h = ineq
+        m = _util.rows_of("ineq[0]", G)
+        add("ineq", _util.csc_matrix("ineq[0]", G, (m, n)), _util.vector("ineq[1]", h, m, allow_inf=True), "nonneg")
+    if lb is not None:  # -x <= -lb
+        add("lb", -sp.identity(n, format="csc"), -_util.vector("lb", lb, n, allow_inf=True), "nonneg")
+    if ub is not None:  # x <= ub
+        add("ub", sp.identity(n, format="csc"), _util.vector("ub", ub, n, allow_inf=True), "nonneg")
+    for i, cone in enumerate(soc):
+        if len(cone) != 4:
+            raise input_error(f"soc[{i}]", f"{len(cone)} items", "must be (F, g, c, d) for ||F x + g|| <= c'x + d")
+        F, g, c, d = cone
+        k = _util.rows_of(f"soc[{i}].F", F)
+        F = _util.csc_matrix(f"soc[{i}].F", F, (k, n))
+        c = _util.vector(f"soc[{i}].c", c, n)
+        M = sp.vstack([-sp.csc_matrix(c.reshape(1, n)), -F], format="csc")
+        v = np.concatenate([[float(d)], _util.vector(f"soc[{i}].g", g, k)])
+        add(f"soc{i}", M, v, "soc")
+    A = sp.vstack(rows, format="csc") if rows else sp.csc_matrix((0, n))
+    b = np.concatenate(rhs) if rhs else np.zeros(0)
+    P_mat = None if P is None else _util.csc_matrix("P", P, (n, n))
+    return ConicProblem(P=P_mat, q=q, A=A, b=b, cones=cones, blocks=blocks)
+
+
+def conic_from_qp(P, q, A=None, bl=None, bu=None, lb=None, ub=None) -> ConicProblem:
+    """Conic form of ``min 1/2 x'Px + q'x s.t. bl <= A x <= bu, lb <= x <= ub``.
+
+    Rows with bl == bu become equalities; the others give ``A x <= bu`` and
+    ``-A x <= -bl`` rows (infinite sides become ignored +inf rows).
+    """
+    q = _util.vector("q", q, np.size(q))
+    n = q.shape[0]
+    m = _util.rows_of("A", A)
+    A = _util.csc_matrix("A", A, (m, n))
+    bl = _util.vector("bl", bl, m, fill=-np.inf, allow_inf=True)
+    bu = _util.vector("bu", bu, m, fill=np.inf, allow_inf=True)
+    is_eq = bl == bu
+    A_csr = A.tocsr()
+    eq = (A_csr[is_eq], bu[is_eq]) if is_eq.any() else None
+    rest = ~is_eq
+    G = sp.vstack([A_csr[rest], -A_csr[rest]], format="csc")
+    h = np.concatenate([bu[rest], -bl[rest]])
+    return build_conic_problem(q, P, eq=eq, ineq=(G, h) if G.shape[0] else None, lb=lb, ub=ub)
+
+
+class ClarabelSOCP:
+    """Persistent Clarabel solver for ``min 1/2 x'Px + q'x s.t. A x + s = b, s in K``.
+
+    Settings: ``max_iter``, ``time_limit_s``, ``tol_gap_rel``, ``tol_feas``, ``verbose``;
+    ``settings`` passes native ``clarabel.DefaultSettings`` attributes.
+    """
+
+    name = "clarabel"
+
+    def __init__(self, *, max_iter: int | None = None, time_limit_s: float | None = None,
+                 tol_gap_rel: float | None = None, tol_feas: float | None = None,
+                 verbose: bool = False, settings: dict | None = None):
+        self._clarabel = _util.import_solver("clarabel", "clarabel")
+        native = {"verbose": bool(verbose), "presolve_enable": False, "input_sparse_dropzeros": False}
+        if max_iter is not None:
+            native["max_iter"] = int(max_iter)
+        if time_limit_s is not None:
+            native["time_limit"] = float(time_limit_s)
+        if tol_gap_rel is not None:
+            native["tol_gap_rel"] = float(tol_gap_rel)
+        if tol_feas is not None:
+            native["tol_feas"] = float(tol_feas)
+        native.update(settings or {})
+        allowed = {k for k in dir(self._clarabel.DefaultSettings()) if not k.startswith("_")}
+        unknown = sorted(set(native) - allowed)
+        if unknown:
+            raise input_error("clarabel settings", unknown, f"allowed keys: {sorted(allowed)}")
+        self._native = native
+        self._solver = None
+        self._data: dict | None = None
+
+    # ------------------------------------------------------------------ set-up
+    def setup_problem(self, problem: ConicProblem) -> None:
+        """``setup`` from a :class:`ConicProblem`."""
+        self.setup(problem.P, problem.q, problem.A, problem.b, problem.cones)
+
+    def setup(self, P, q, A, b, cones) -> None:
+        """Set up the problem; cones is a sequence of (kind, dim), kind in zero/nonneg/soc,
+        dims summing to the rows of A. P may be None (LP/SOCP); only its upper triangle is used."""
+        q = _util.vector("q", q, np.size(q), allow_nan=True)
+        n = q.shape[0]
+        if n == 0:
+            raise input_error("q", "empty", "the problem needs at least one variable")
+        m = _util.rows_of("A", A)
+        cones = [(str(kind), int(dim)) for kind, dim in cones]
+        for kind, dim in cones:
+            if kind not in CONE_KINDS:
+                raise input_error("cone kind", kind, f"allowed: {', '.join(CONE_KINDS)}")
+            if dim < 1 or (kind == "soc" and dim < 2):
+                raise input_error(f"{kind} cone dim", dim, "must be >= 1 (>= 2 for soc)")
+        if sum(dim for _, dim in cones) != m:
+            raise input_error("cones", cones, f"dimensions must add up to the {m} rows of A")
+        self.n, self.m, self.cones = n, m, cones
+        self._bad = _util.BadData()
+        kind_of_row = np.concatenate([[kind] * dim for kind, dim in cones]) if cones else np.zeros(0, str)
+        self._nonneg_row = kind_of_row == "nonneg"
+        self._data = {
+            "P": _util.csc_matrix("P", P, (n, n), upper=True, allow_nonfinite=True),
+            "q": q,
+            "A": _util.csc_matrix("A", A, (m, n), allow_nonfinite=True),
+            "b": _util.vector("b", b, m, allow_inf=True, allow_nan=True),
+        }
+        for key in ("P", "q", "A"):
+            self._bad.check(key, self._data[key])
+        self._check_b()
+        self._build()
+        self._rebuilt = False
+
+    def _check_b(self) -> None:
+        """Validate b: NaN anywhere or inf in zero/soc rows is bad data; -inf in a nonneg row is infeasible."""
+        b = self._data["b"]
+        bad = np.isnan(b) | (np.isinf(b) & ~self._nonneg_row)
+        if bad.any():
+            self._bad.fields.add("b")
+        else:
+            self._bad.fields.discard("b")
+        neg = np.flatnonzero(np.isneginf(b) & self._nonneg_row)
+        self._crossed = f"b[{int(neg[0])}] = -inf in a nonneg row (A x <= -inf)" if neg.size else None
+
+    def _row_mask(self) -> np.ndarray:
+        return ~(np.isposinf(self._data["b"]) & self._nonneg_row)
+
+    def _reduced(self):
+        """Data with the +inf nonneg rows removed, and the matching cone list."""
+        keep = self._row_mask()
+        A = self._data["A"][np.flatnonzero(keep)] if not keep.all() else self._data["A"]
+        A = sp.csc_matrix(A)
+        A.sort_indices()
+        cones, row = [], 0
+        for kind, dim in self.cones:
+            kept = int(keep[row : row + dim].sum())
+            if kept:
+                cones.append((kind, kept))
+            row += dim
+        return keep, A, self._data["b"][keep], cones
+
+    def _build(self) -> None:
+        """(Re)create the Clarabel solver from the stored data."""
+        cl = self._clarabel
+        self._solver_error = None
+        self._rebuilt = True
+        self._solver = None
+        if self._bad.fields or self._crossed is not None:
+            self._keep = None  # built once the data are usable
+            return
+        keep, A, b, cones = self._reduced()
+        self._keep, self._A_red = keep, A
+        makers = {"zero": cl.ZeroConeT, "nonneg": cl.NonnegativeConeT, "soc": cl.SecondOrderConeT}
+        try:
+            settings = cl.DefaultSettings()
+            for key, value in self._native.items():
+                setattr(settings, key, value)
+            self._solver = cl.DefaultSolver(
+                self._data["P"], self._data["q"], A, b, [makers[k](d) for k, d in cones], settings
+            )
+        except Exception as exc:
+            self._solver_error = error_message(exc)
+
+    # ------------------------------------------------------------------ update
+    def update(self, *, P=None, q=None, A=None, b=None) -> None:
+        """Change data in place (same sizes and cones). A new sparsity pattern in P or A,
+        or a nonneg row switching between finite and +inf b, sets the solver up again."""
+        if self._data is None:
+            raise input_error("ClarabelSOCP.update", "called before setup", "call setup() first")
+        d = self._data
+        rebuild = self._solver is None or self._solver_error is not None
+        changed = {}
+        if P is not None:
+            new = _util.csc_matrix("P", P, (self.n, self.n), upper=True, allow_nonfinite=True)
+            rebuild |= not _util.same_pattern(new, d["P"])
+            d["P"] = new
+            if self._bad.check("P", new):
+                changed["P"] = new.data
+        if q is not None:
+            d["q"] = _util.vector("q", q, self.n, allow_nan=True)
+            if self._bad.check("q", d["q"]):
+                changed["q"] = d["q"]
+        if A is not None:
+            new = _util.csc_matrix("A", A, (self.m, self.n), allow_nonfinite=True)
+            d["A"] = new
+            self._bad.check("A", new)
+        if b is not None:
+            d["b"] = _util.vector("b", b, self.m, allow_inf=True, allow_nan=True)
+            self._check_b()
+        if self._bad.fields or self._crossed is not None:
+            return  # solve() reports the problem; the solver is rebuilt once data are usable
+        keep = self._row_mask()
+        if self._keep is None or not np.array_equal(keep, self._keep):
+            rebuild = True
+        if not rebuild and A is not None:
+            A_red = sp.csc_matrix(d["A"][np.flatnonzero(keep)]) if not keep.all() else d["A"]
+            A_red.sort_indices()
+            if _util.same_pattern(A_red, self._A_red):
+                self._A_red = A_red
+                changed["A"] = A_red.data
+            else:
+                rebuild = True
+        if b is not None:
+            changed["b"] = d["b"][keep]
+        if rebuild or not self._solver.is_data_update_allowed():
+            self._build()
+            return
+        if changed:
+            try:
+                self._solver.update(**changed)
+            except Exception as exc:
+                self._solver_error = error_message(exc)
+
+    # ------------------------------------------------------------------ solve
+    def solve(self) -> SolverResult:
+        """Solve the current problem and return a :class:`SolverResult`."""
+        if self._data is None:
+            raise input_error("ClarabelSOCP.solve", "called before setup", "call setup() first")
+        bad = self._bad.message()
+        if bad is not None:
+            return failed_result(self.name, bad)
+        if self._crossed is not None:
+            return SolverResult(SolveStatus.INFEASIBLE, None, math.nan, 0, 0.0, self.name,
+                                {"raw_status": "infinite_rhs", "reason": self._crossed})
+        if self._solver is None or self._solver_error is not None:
+            return failed_result(self.name, self._solver_error or "clarabel solver was not set up")
+        rebuilt, self._rebuilt = self._rebuilt, False
+        try:
+            t0 = time.perf_counter()
+            sol = self._solver.solve()
+            wall = time.perf_counter() - t0
+            raw = str(sol.status)
+            x = np.array(sol.x, dtype=float)
+            objective = float(sol.obj_val)
+            iterations = int(sol.iterations)
+            z = np.full(self.m, 0.0)
+            z[self._keep] = np.asarray(sol.z, dtype=float)
+            solver_time = float(sol.solve_time)
+        except Exception as exc:
+            return failed_result(self.name, error_message(exc), rebuilt=rebuilt)
+        status = STATUS_MAP.get(raw, SolveStatus.NUMERICAL_ERROR)
+        has_x = status in (SolveStatus.OPTIMAL, SolveStatus.OPTIMAL_INACCURATE, SolveStatus.MAX_ITER,
+                           SolveStatus.TIME_LIMIT) and bool(np.isfinite(x).all())
+        return SolverResult(
+            status=status,
+            x=x if has_x else None,
+            objective=objective if has_x else math.nan,
+            iterations=iterations,
+            solve_time_s=wall,
+            solver=self.name,
+            info={"raw_status": raw, "rebuilt": rebuilt, "solver_time_s": solver_time, "dual": z},
+        )

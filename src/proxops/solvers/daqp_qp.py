@@ -1,0 +1,271 @@
+"""DAQP adapter: dense QP with a persistent, warm-started active set.
+
+Problem (DAQP's native form)::
+
+    minimize    1/2 x' H x + f' x
+    subject to  bl <= A x <= bu        (general rows; bl == bu makes an equality)
+                lb <= x <= ub          (simple bounds, optional)
+
+``setup`` builds one ``daqp.Model`` (memory allocated once); ``update`` changes data
+in place and keeps DAQP's working set, so the next ``solve`` starts from the previous
+active set (warm start). This is the solver for condensed linear MPC (issue #2 item 7:
+0.09 ms per step at N = 40). H must be positive definite or semidefinite; DAQP's
+default automatic proximal regularisation (``eps_prox < 0``) handles singular H, so
+LPs (H = 0) also solve, but prefer HiGHS or PIQP for real LPs.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+
+import numpy as np
+
+from proxops.errors import input_error
+from proxops.solvers import _util
+from proxops.solvers.result import SolverResult, SolveStatus, error_message, failed_result
+
+DAQP_INF = 1e30  # DAQP treats |bound| >= 1e30 as absent (DAQP_INF in constants.h)
+
+# Exit flags from daqp include/constants.h (DAQP_EXIT_*).
+STATUS_MAP = {
+    2: SolveStatus.OPTIMAL,  # SOFT_OPTIMAL: optimal with some soft rows relaxed
+    1: SolveStatus.OPTIMAL,
+    -1: SolveStatus.INFEASIBLE,
+    -2: SolveStatus.NUMERICAL_ERROR,  # CYCLE
+    -3: SolveStatus.UNBOUNDED,
+    -4: SolveStatus.MAX_ITER,
+    -5: SolveStatus.NUMERICAL_ERROR,  # NONCONVEX (H not positive (semi)definite)
+    -6: SolveStatus.NUMERICAL_ERROR,  # OVERDETERMINED_INITIAL working set
+    -7: SolveStatus.TIME_LIMIT,
+    -8: SolveStatus.NUMERICAL_ERROR,  # UNSUPPORTED
+}
+RAW_NAMES = {
+    2: "soft_optimal", 1: "optimal", -1: "infeasible", -2: "cycle", -3: "unbounded",
+    -4: "iterlimit", -5: "nonconvex", -6: "overdetermined_initial", -7: "timelimit",
+    -8: "unsupported",
+}
+SENSE_EQUALITY = 5  # DAQP: ACTIVE | IMMUTABLE
+SENSE_SOFT = 8
+
+
+class DaqpQP:
+    """Persistent DAQP solver for ``min 1/2 x'Hx + f'x s.t. bl <= Ax <= bu, lb <= x <= ub``.
+
+    Settings: ``max_iter`` (DAQP iter_limit), ``time_limit_s``, ``primal_tol``;
+    ``warm_start=False`` resets the working set before every solve (for comparisons);
+    ``settings`` passes native DAQP settings (keys of ``daqp.Model().settings``, e.g.
+    ``dual_tol``, ``eps_prox``, ``rho_soft``, ``w_soft``).
+    """
+
+    name = "daqp"
+
+    def __init__(self, *, max_iter: int | None = None, time_limit_s: float | None = None,
+                 primal_tol: float | None = None, warm_start: bool = True,
+                 settings: dict | None = None):
+        self._daqp = _util.import_solver("daqp", "daqp")
+        native = dict(settings or {})
+        if max_iter is not None:
+            native["iter_limit"] = int(max_iter)
+        if time_limit_s is not None:
+            native["time_limit"] = float(time_limit_s)
+        if primal_tol is not None:
+            native["primal_tol"] = float(primal_tol)
+        allowed = set(self._daqp.Model().settings)
+        unknown = sorted(set(native) - allowed)
+        if unknown:
+            raise input_error("daqp settings", unknown, f"allowed keys: {sorted(allowed)}")
+        self._native = native
+        self.warm_start = bool(warm_start)
+        self._model = None
+
+    # ------------------------------------------------------------------ set-up
+    def setup(self, H, f, A=None, bl=None, bu=None, lb=None, ub=None, *, soft_rows=None) -> None:
+        """Allocate the DAQP workspace for this problem.
+
+        H: (n, n) dense/sparse, symmetric PSD; f: (n,); A: (m, n) or None;
+        bl, bu: (m,) row bounds (default -inf / +inf); lb, ub: (n,) variable bounds
+        (give at least one of them, possibly infinite, if you want to ``update`` bounds later);
+        soft_rows: optional (m,) bool mask of general rows DAQP may relax (DAQP soft
+        constraints, penalised by the ``rho_soft`` / ``w_soft`` settings; the result's
+        ``info["soft_relaxed"]`` tells when one was relaxed).
+        Shape errors raise ProxopsInputError; NaN data makes ``solve`` return NUMERICAL_ERROR.
+        """
+        f = _util.vector("f", f, np.size(f), allow_nan=True)
+        n = f.shape[0]
+        if n == 0:
+            raise input_error("f", "empty", "the problem needs at least one variable")
+        self.n = n
+        self._bad = _util.BadData()
+        self._H = _util.dense_matrix("H", H, (n, n), allow_nonfinite=True)
+        self._f = f
+        m = _util.rows_of("A", A)
+        self.m = m
+        self._A = _util.dense_matrix("A", A, (m, n), allow_nonfinite=True) if m else np.zeros((0, n))
+        self._bl = _util.vector("bl", bl, m, fill=-np.inf, allow_inf=True, allow_nan=True)
+        self._bu = _util.vector("bu", bu, m, fill=np.inf, allow_inf=True, allow_nan=True)
+        self.has_bounds = lb is not None or ub is not None
+        self._lb = _util.vector("lb", lb, n, fill=-np.inf, allow_inf=True, allow_nan=True)
+        self._ub = _util.vector("ub", ub, n, fill=np.inf, allow_inf=True, allow_nan=True)
+        for name in ("H", "f", "A"):
+            self._bad.check(name, getattr(self, "_" + name))
+        for name in ("bl", "bu", "lb", "ub"):
+            self._bad.check(name, getattr(self, "_" + name), allow_inf=True)
+        soft = np.zeros(m, bool) if soft_rows is None else np.asarray(soft_rows, bool).reshape(-1)
+        if soft.shape != (m,):
+            raise input_error("soft_rows.shape", soft.shape, f"must be ({m},) like the rows of A")
+        self._soft = soft
+        self._build()
+
+    def _build(self) -> None:
+        """(Re)create the DAQP model from the stored data (NaN replaced by 0 until updated)."""
+        self._assemble_bounds()
+        self._sense = self._base_sense()
+        self._model = self._daqp.Model()
+        self._model.settings = self._native
+        self._solver_error = None
+        self._solver_flag = 0
+        clean = lambda a: np.nan_to_num(a, nan=0.0, posinf=DAQP_INF, neginf=-DAQP_INF)  # noqa: E731
+        try:
+            flag, _ = self._model.setup(clean(self._H), clean(self._f), clean(self._A),
+                                        clean(self._upper), clean(self._lower), self._sense.copy())
+        except Exception as exc:  # solver failure -> status at solve time, never a crash
+            self._solver_error = error_message(exc)
+            return
+        self._solver_flag = int(flag)
+
+    def _assemble_bounds(self) -> None:
+        """Full DAQP bound vectors [variable bounds; row bounds], clipped to +-DAQP_INF."""
+        if self.has_bounds:
+            upper = np.concatenate([self._ub, self._bu])
+            lower = np.concatenate([self._lb, self._bl])
+        else:
+            upper, lower = self._bu.copy(), self._bl.copy()
+        self._upper = np.clip(upper, -DAQP_INF, DAQP_INF)
+        self._lower = np.clip(lower, -DAQP_INF, DAQP_INF)
+        self._check_crossed()
+
+    def _set_bounds(self, name: str, arr: np.ndarray) -> None:
+        """Write one of bl/bu/lb/ub into the full bound vectors in place (fast path of update)."""
+        off = self.n if self.has_bounds else 0
+        target = self._lower if name in ("bl", "lb") else self._upper
+        part = target[off:] if name in ("bl", "bu") else target[:off]
+        np.clip(arr, -DAQP_INF, DAQP_INF, out=part)
+
+    def _check_crossed(self) -> None:
+        crossed = self._lower > self._upper
+        self._crossed = int(np.argmax(crossed)) if crossed.any() else None
+
+    def _base_sense(self) -> np.ndarray:
+        sense = np.zeros(self._upper.shape[0], dtype=np.intc)
+        sense[(self._lower == self._upper) & (np.abs(self._upper) < DAQP_INF)] = SENSE_EQUALITY
+        offset = self.n if self.has_bounds else 0
+        sense[offset:][self._soft] |= SENSE_SOFT
+        return sense
+
+    # ------------------------------------------------------------------ update
+    def update(self, *, H=None, f=None, A=None, bl=None, bu=None, lb=None, ub=None) -> None:
+        """Change problem data in place (same sizes); the working set is kept (warm start).
+
+        Changing which rows are equalities (bl == bu) resets the working set. After a
+        failed set-up (e.g. crossed bounds or NaN data) the model is rebuilt instead.
+        """
+        if self._model is None:
+            raise input_error("DaqpQP.update", "called before setup", "call setup() first")
+        kwargs = {}
+        if H is not None:
+            self._H = _util.dense_matrix("H", H, (self.n, self.n), allow_nonfinite=True)
+            if self._bad.check("H", self._H):
+                kwargs["H"] = self._H
+        if f is not None:
+            self._f = _util.vector("f", f, self.n, allow_nan=True)
+            if self._bad.check("f", self._f):
+                kwargs["f"] = self._f
+        if A is not None:
+            self._A = _util.dense_matrix("A", A, (self.m, self.n), allow_nonfinite=True)
+            if self._bad.check("A", self._A):
+                kwargs["A"] = self._A
+        if (lb is not None or ub is not None) and not self.has_bounds:
+            raise input_error("lb/ub", "update without bounds at setup",
+                              "pass lb and/or ub (may be infinite) to setup() to update them later")
+        if bl is not None or bu is not None or lb is not None or ub is not None:
+            for name, value, size in (("bl", bl, self.m), ("bu", bu, self.m), ("lb", lb, self.n), ("ub", ub, self.n)):
+                if value is not None:
+                    arr = _util.vector(name, value, size, allow_inf=True, allow_nan=True)
+                    setattr(self, "_" + name, arr)
+                    self._bad.check(name, arr, allow_inf=True)
+                    self._set_bounds(name, arr)
+            self._check_crossed()
+            if not ({"bl", "bu", "lb", "ub"} & self._bad.fields):
+                # copies: DAQP keeps pointers to the arrays it is given
+                kwargs["bupper"] = self._upper.copy()
+                kwargs["blower"] = self._lower.copy()
+                sense = self._base_sense()
+                if not np.array_equal(sense, self._sense):
+                    self._sense = sense
+                    kwargs["sense"] = sense.copy()
+        if self._solver_error is not None or self._solver_flag < 0:
+            if not self._bad.fields:
+                self._build()
+            return
+        if not kwargs:
+            return
+        try:
+            self._solver_flag = int(self._model.update(**kwargs))
+        except Exception as exc:
+            self._solver_error = error_message(exc)
+
+    # ------------------------------------------------------------------ solve
+    def solve(self) -> SolverResult:
+        """Solve from the current working set and return a :class:`SolverResult`."""
+        if self._model is None:
+            raise input_error("DaqpQP.solve", "called before setup", "call setup() first")
+        bad = self._bad.message()
+        if bad is not None:
+            return failed_result(self.name, bad)
+        if self._crossed is not None:
+            return _crossed_result(self.name, self._crossed, self.n if self.has_bounds else 0)
+        if self._solver_error is not None:
+            return failed_result(self.name, self._solver_error)
+        if self._solver_flag < 0:
+            flag = self._solver_flag
+            return SolverResult(
+                status=STATUS_MAP.get(flag, SolveStatus.NUMERICAL_ERROR), x=None, objective=math.nan,
+                iterations=0, solve_time_s=0.0, solver=self.name,
+                info={"raw_status": f"{flag} ({RAW_NAMES.get(flag, 'unknown')})",
+                      "error": "daqp rejected the problem data at setup/update"},
+            )
+        try:
+            if not self.warm_start:
+                self._model.update(sense=self._sense.copy())
+            t0 = time.perf_counter()
+            x, fval, flag, info = self._model.solve()
+            wall = time.perf_counter() - t0
+        except Exception as exc:
+            return failed_result(self.name, error_message(exc))
+        flag = int(flag)
+        status = STATUS_MAP.get(flag, SolveStatus.NUMERICAL_ERROR)
+        has_x = status in (SolveStatus.OPTIMAL, SolveStatus.MAX_ITER, SolveStatus.TIME_LIMIT)
+        return SolverResult(
+            status=status,
+            x=np.asarray(x, float) if has_x else None,
+            objective=float(fval) if has_x else math.nan,
+            iterations=int(info.get("iterations", 0)),
+            solve_time_s=wall,
+            solver=self.name,
+            info={
+                "raw_status": f"{flag} ({RAW_NAMES.get(flag, 'unknown')})",
+                "solver_time_s": float(info.get("solve_time", math.nan)),
+                "dual": info.get("lam"),
+                "soft_relaxed": flag == 2,
+            },
+        )
+
+
+def _crossed_result(solver: str, index: int, n_bounds: int) -> SolverResult:
+    what = f"bound of x[{index}]" if index < n_bounds else f"row {index - n_bounds}"
+    return SolverResult(
+        status=SolveStatus.INFEASIBLE, x=None, objective=math.nan, iterations=0,
+        solve_time_s=0.0, solver=solver,
+        info={"raw_status": "crossed_bounds", "reason": f"lower > upper on {what}"},
+    )

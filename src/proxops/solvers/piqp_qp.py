@@ -1,0 +1,219 @@
+"""PIQP adapter: sparse QP / LP by a proximal interior-point method.
+
+Problem (PIQP's native form, piqp >= 0.5)::
+
+    minimize    1/2 x' P x + c' x
+    subject to  A x = b
+                h_l <= G x <= h_u
+                x_lb <= x <= x_ub
+
+``setup`` builds one ``piqp.SparseSolver``; ``update`` passes new vectors and, when
+the sparsity pattern is unchanged, new matrix values in place, so PIQP reuses its
+memory, ordering and symbolic factorisation. PIQP 0.7 is an interior-point method
+with no primal/dual warm start (upstream PR #39 adds it): every solve restarts from
+PIQP's own initial point, which is what interior-point methods do well. If a matrix
+update changes the sparsity pattern, the solver is set up again
+(``info["rebuilt"] = True``). Only the upper triangle of P is used (PIQP convention).
+Scale the variables (issue #4: u in units of u_max, positions in km) for speed.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+
+import numpy as np
+
+from proxops.errors import input_error
+from proxops.solvers import _util
+from proxops.solvers.result import SolverResult, SolveStatus, error_message, failed_result
+
+# piqp.Status values (docs/_common/status_code_table.md of PREDICT-EPFL/piqp).
+STATUS_MAP = {
+    "PIQP_SOLVED": SolveStatus.OPTIMAL,
+    "PIQP_MAX_ITER_REACHED": SolveStatus.MAX_ITER,
+    "PIQP_PRIMAL_INFEASIBLE": SolveStatus.INFEASIBLE,
+    "PIQP_DUAL_INFEASIBLE": SolveStatus.UNBOUNDED,
+    "PIQP_NUMERICS": SolveStatus.NUMERICAL_ERROR,
+    "PIQP_UNSOLVED": SolveStatus.NUMERICAL_ERROR,
+    "PIQP_INVALID_SETTINGS": SolveStatus.NUMERICAL_ERROR,
+}
+
+_MATRICES = ("P", "A", "G")
+_VECTORS = ("c", "b", "h_l", "h_u", "x_lb", "x_ub")
+
+
+class PiqpQP:
+    """Persistent PIQP sparse solver for ``min 1/2 x'Px + c'x s.t. Ax = b, h_l <= Gx <= h_u, x_lb <= x <= x_ub``.
+
+    Settings: ``max_iter``, ``eps_abs``, ``eps_rel``, ``verbose``; ``settings`` passes
+    native ``piqp.Settings`` attributes (e.g. ``preconditioner_iter``, ``kkt_solver``).
+    """
+
+    name = "piqp"
+
+    def __init__(self, *, max_iter: int | None = None, eps_abs: float | None = None,
+                 eps_rel: float | None = None, verbose: bool = False, settings: dict | None = None):
+        self._piqp = _util.import_solver("piqp", "piqp")
+        native = dict(settings or {})
+        if max_iter is not None:
+            native["max_iter"] = int(max_iter)
+        if eps_abs is not None:
+            native["eps_abs"] = float(eps_abs)
+        if eps_rel is not None:
+            native["eps_rel"] = float(eps_rel)
+        native["verbose"] = bool(verbose)
+        allowed = {k for k in dir(self._piqp.Settings) if not k.startswith("_")}
+        unknown = sorted(set(native) - allowed)
+        if unknown:
+            raise input_error("piqp settings", unknown, f"allowed keys: {sorted(allowed)}")
+        self._native = native
+        self._solver = None
+        self._data: dict | None = None
+
+    # ------------------------------------------------------------------ set-up
+    def setup(self, P, c, A=None, b=None, G=None, h_l=None, h_u=None, x_lb=None, x_ub=None) -> None:
+        """Set up the problem. P may be None (LP); A/b and G/(h_l, h_u) come in pairs.
+
+        Matrices may be dense or scipy.sparse; vectors allow +-inf in h_l, h_u, x_lb,
+        x_ub (an infinite side is no constraint). Shape errors raise ProxopsInputError;
+        NaN data makes ``solve`` return NUMERICAL_ERROR.
+        """
+        c = _util.vector("c", c, np.size(c), allow_nan=True)
+        n = c.shape[0]
+        if n == 0:
+            raise input_error("c", "empty", "the problem needs at least one variable")
+        p = _util.rows_of("A", A)
+        m = _util.rows_of("G", G)
+        if A is None and b is not None:
+            raise input_error("b", "given without A", "pass A with b (equality rows A x = b)")
+        if G is None and (h_l is not None or h_u is not None):
+            raise input_error("h_l/h_u", "given without G", "pass G with h_l/h_u")
+        self.n, self.p, self.m = n, p, m
+        self._bad = _util.BadData()
+        d = {
+            "P": _util.csc_matrix("P", P, (n, n), upper=True, allow_nonfinite=True),
+            "A": _util.csc_matrix("A", A, (p, n), allow_nonfinite=True),
+            "G": _util.csc_matrix("G", G, (m, n), allow_nonfinite=True),
+            "c": c,
+            "b": _util.vector("b", b, p, fill=0.0 if p == 0 else None, allow_nan=True),
+            "h_l": _util.vector("h_l", h_l, m, fill=-np.inf, allow_inf=True, allow_nan=True),
+            "h_u": _util.vector("h_u", h_u, m, fill=np.inf, allow_inf=True, allow_nan=True),
+            "x_lb": _util.vector("x_lb", x_lb, n, fill=-np.inf, allow_inf=True, allow_nan=True),
+            "x_ub": _util.vector("x_ub", x_ub, n, fill=np.inf, allow_inf=True, allow_nan=True),
+        }
+        for key, value in d.items():
+            self._bad.check(key, value, allow_inf=key in ("h_l", "h_u", "x_lb", "x_ub"))
+        self._data = d
+        self._build()
+        self._rebuilt = False
+
+    def _build(self) -> None:
+        """(Re)create the PIQP solver from the stored data."""
+        d = self._data
+        self._check_crossed()
+        self._solver_error = None
+        self._rebuilt = True
+        try:
+            solver = self._piqp.SparseSolver()
+            for key, value in self._native.items():
+                setattr(solver.settings, key, value)
+            solver.setup(
+                d["P"], d["c"],
+                d["A"] if self.p else None, d["b"] if self.p else None,
+                d["G"] if self.m else None, d["h_l"] if self.m else None, d["h_u"] if self.m else None,
+                d["x_lb"], d["x_ub"],
+            )
+        except Exception as exc:
+            self._solver = None
+            self._solver_error = error_message(exc)
+            return
+        self._solver = solver
+
+    def _check_crossed(self) -> None:
+        d = self._data
+        self._crossed = None
+        for lo, hi, label in (("h_l", "h_u", "G row"), ("x_lb", "x_ub", "bound of x")):
+            i = _util.first_crossed(d[lo], d[hi])
+            if i is not None:
+                self._crossed = f"{lo} > {hi} on {label} {i}"
+                return
+
+    # ------------------------------------------------------------------ update
+    def update(self, *, P=None, c=None, A=None, b=None, G=None, h_l=None, h_u=None,
+               x_lb=None, x_ub=None) -> None:
+        """Change data in place (same sizes). A matrix with a new sparsity pattern
+        triggers a full set-up (reported as ``info["rebuilt"]`` on the next result)."""
+        if self._data is None:
+            raise input_error("PiqpQP.update", "called before setup", "call setup() first")
+        d = self._data
+        shapes = {"P": (self.n, self.n), "A": (self.p, self.n), "G": (self.m, self.n)}
+        sizes = {"c": self.n, "b": self.p, "h_l": self.m, "h_u": self.m, "x_lb": self.n, "x_ub": self.n}
+        given = {"P": P, "A": A, "G": G, "c": c, "b": b, "h_l": h_l, "h_u": h_u, "x_lb": x_lb, "x_ub": x_ub}
+        changed, rebuild = {}, False
+        for key, value in given.items():
+            if value is None:
+                continue
+            if key in _MATRICES:
+                new = _util.csc_matrix(key, value, shapes[key], upper=key == "P", allow_nonfinite=True)
+                if not _util.same_pattern(new, d[key]):
+                    rebuild = True
+            else:
+                new = _util.vector(key, value, sizes[key], allow_inf=key not in ("c", "b"), allow_nan=True)
+            d[key] = new
+            if self._bad.check(key, new, allow_inf=key in ("h_l", "h_u", "x_lb", "x_ub")):
+                changed[key] = new
+        self._check_crossed()
+        if self._bad.fields:
+            return  # solve() reports NUMERICAL_ERROR; data are passed once they are finite again
+        if rebuild or self._solver is None:
+            self._build()
+            return
+        if not changed:
+            return
+        kwargs = {k: v for k, v in changed.items() if not ((k in ("A", "b") and not self.p)
+                                                            or (k in ("G", "h_l", "h_u") and not self.m))}
+        try:
+            self._solver.update(**kwargs)
+        except Exception as exc:
+            self._solver_error = error_message(exc)
+
+    # ------------------------------------------------------------------ solve
+    def solve(self) -> SolverResult:
+        """Solve the current problem and return a :class:`SolverResult`."""
+        if self._data is None:
+            raise input_error("PiqpQP.solve", "called before setup", "call setup() first")
+        bad = self._bad.message()
+        if bad is not None:
+            return failed_result(self.name, bad)
+        if self._crossed is not None:
+            return SolverResult(SolveStatus.INFEASIBLE, None, math.nan, 0, 0.0, self.name,
+                                {"raw_status": "crossed_bounds", "reason": self._crossed})
+        if self._solver is None or self._solver_error is not None:
+            return failed_result(self.name, self._solver_error or "piqp solver was not set up")
+        rebuilt, self._rebuilt = self._rebuilt, False
+        try:
+            t0 = time.perf_counter()
+            raw = self._solver.solve()
+            wall = time.perf_counter() - t0
+            res = self._solver.result
+            info = res.info
+            x = np.array(res.x, dtype=float)
+            objective = float(info.primal_obj)
+            iterations = int(info.iter)
+            dual = {"y": np.array(res.y), "z_l": np.array(res.z_l), "z_u": np.array(res.z_u)}
+        except Exception as exc:
+            return failed_result(self.name, error_message(exc), rebuilt=rebuilt)
+        raw_name = getattr(raw, "name", str(raw))
+        status = STATUS_MAP.get(raw_name, SolveStatus.NUMERICAL_ERROR)
+        has_x = status in (SolveStatus.OPTIMAL, SolveStatus.MAX_ITER) and bool(np.isfinite(x).all())
+        return SolverResult(
+            status=status,
+            x=x if has_x else None,
+            objective=objective if has_x else math.nan,
+            iterations=iterations,
+            solve_time_s=wall,
+            solver=self.name,
+            info={"raw_status": raw_name, "rebuilt": rebuilt, "dual": dual,
+                  "primal_res": float(info.primal_res), "dual_res": float(info.dual_res)},
+        )
