@@ -1,0 +1,418 @@
+"""Numba kernels of the truth propagator: Encke relative right-hand side, Hill-state
+extraction, and an adaptive Dormand-Prince 8(5,3) integrator (the fast path).
+
+State ``y`` (12,): target ECI position and velocity ``[r_t, v_t]`` followed by the
+chaser ECI offset ``[dr, dv] = chaser - target`` (m, m/s). Parameters ``p`` (3,):
+``[mu, j2, re]`` (``j2 = 0`` for two-body only). Control ``u`` (3,): chaser
+acceleration in Hill axes (m/s^2), rotated to ECI with the current target state.
+
+    r_t'' = g(r_t)
+    dr''  = g(r_t + dr) - g(r_t) + C(r_t, v_t)^T u          (Encke, see core.twobody)
+
+DOP853: coefficients of Hairer, Norsett & Wanner, *Solving Ordinary Differential
+Equations I*, sec. II.10 (dop853.f; identical to scipy's ``dop853_coefficients``, which a
+test checks), with scipy's error norm and step-size control (safety 0.9, factor in
+[0.2, 10], exponent -1/8), i.e. the same accept/reject logic as
+``scipy.integrate.solve_ivp(method="DOP853")``; only the first trial step differs
+(see :func:`initial_step_orbit`).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+from proxops.core.twobody import accel_differential, accel_gravity
+
+# ---------------------------------------------------------------- DOP853 tableau
+N_STAGES = 12
+C = np.array(
+    [
+        0.0,
+        0.526001519587677318785587544488e-01,
+        0.789002279381515978178381316732e-01,
+        0.118350341907227396726757197510,
+        0.281649658092772603273242802490,
+        0.333333333333333333333333333333,
+        0.25,
+        0.307692307692307692307692307692,
+        0.651282051282051282051282051282,
+        0.6,
+        0.857142857142857142857142857142,
+        1.0,
+    ]
+)
+
+A = np.zeros((N_STAGES + 1, N_STAGES))
+A[1, 0] = 5.26001519587677318785587544488e-2
+A[2, 0] = 1.97250569845378994544595329183e-2
+A[2, 1] = 5.91751709536136983633785987549e-2
+A[3, 0] = 2.95875854768068491816892993775e-2
+A[3, 2] = 8.87627564304205475450678981324e-2
+A[4, 0] = 2.41365134159266685502369798665e-1
+A[4, 2] = -8.84549479328286085344864962717e-1
+A[4, 3] = 9.24834003261792003115737966543e-1
+A[5, 0] = 3.7037037037037037037037037037e-2
+A[5, 3] = 1.70828608729473871279604482173e-1
+A[5, 4] = 1.25467687566822425016691814123e-1
+A[6, 0] = 3.7109375e-2
+A[6, 3] = 1.70252211019544039314978060272e-1
+A[6, 4] = 6.02165389804559606850219397283e-2
+A[6, 5] = -1.7578125e-2
+A[7, 0] = 3.70920001185047927108779319836e-2
+A[7, 3] = 1.70383925712239993810214054705e-1
+A[7, 4] = 1.07262030446373284651809199168e-1
+A[7, 5] = -1.53194377486244017527936158236e-2
+A[7, 6] = 8.27378916381402288758473766002e-3
+A[8, 0] = 6.24110958716075717114429577812e-1
+A[8, 3] = -3.36089262944694129406857109825
+A[8, 4] = -8.68219346841726006818189891453e-1
+A[8, 5] = 2.75920996994467083049415600797e1
+A[8, 6] = 2.01540675504778934086186788979e1
+A[8, 7] = -4.34898841810699588477366255144e1
+A[9, 0] = 4.77662536438264365890433908527e-1
+A[9, 3] = -2.48811461997166764192642586468
+A[9, 4] = -5.90290826836842996371446475743e-1
+A[9, 5] = 2.12300514481811942347288949897e1
+A[9, 6] = 1.52792336328824235832596922938e1
+A[9, 7] = -3.32882109689848629194453265587e1
+A[9, 8] = -2.03312017085086261358222928593e-2
+A[10, 0] = -9.3714243008598732571704021658e-1
+A[10, 3] = 5.18637242884406370830023853209
+A[10, 4] = 1.09143734899672957818500254654
+A[10, 5] = -8.14978701074692612513997267357
+A[10, 6] = -1.85200656599969598641566180701e1
+A[10, 7] = 2.27394870993505042818970056734e1
+A[10, 8] = 2.49360555267965238987089396762
+A[10, 9] = -3.0467644718982195003823669022
+A[11, 0] = 2.27331014751653820792359768449
+A[11, 3] = -1.05344954667372501984066689879e1
+A[11, 4] = -2.00087205822486249909675718444
+A[11, 5] = -1.79589318631187989172765950534e1
+A[11, 6] = 2.79488845294199600508499808837e1
+A[11, 7] = -2.85899827713502369474065508674
+A[11, 8] = -8.87285693353062954433549289258
+A[11, 9] = 1.23605671757943030647266201528e1
+A[11, 10] = 6.43392746015763530355970484046e-1
+# row 12 holds the 8th-order weights B
+A[12, 0] = 5.42937341165687622380535766363e-2
+A[12, 5] = 4.45031289275240888144113950566
+A[12, 6] = 1.89151789931450038304281599044
+A[12, 7] = -5.8012039600105847814672114227
+A[12, 8] = 3.1116436695781989440891606237e-1
+A[12, 9] = -1.52160949662516078556178806805e-1
+A[12, 10] = 2.01365400804030348374776537501e-1
+A[12, 11] = 4.47106157277725905176885569043e-2
+B = A[N_STAGES].copy()
+
+# error estimators over the 13 stages (12 + the FSAL derivative at the new point)
+E3 = np.zeros(N_STAGES + 1)
+E3[:-1] = B
+E3[0] -= 0.244094488188976377952755905512
+E3[8] -= 0.733846688281611857341361741547
+E3[11] -= 0.220588235294117647058823529412e-1
+
+E5 = np.zeros(N_STAGES + 1)
+E5[0] = 0.1312004499419488073250102996e-1
+E5[5] = -0.1225156446376204440720569753e1
+E5[6] = -0.4957589496572501915214079952
+E5[7] = 0.1664377182454986536961530415e1
+E5[8] = -0.3503288487499736816886487290
+E5[9] = 0.3341791187130174790297318841
+E5[10] = 0.8192320648511571246570742613e-1
+E5[11] = -0.2235530786388629525884427845e-1
+
+SAFETY = 0.9
+MIN_FACTOR = 0.2
+MAX_FACTOR = 10.0
+ERROR_EXPONENT = -1.0 / 8.0
+MAX_STEPS = 1_000_000
+
+STATUS_OK = 0
+STATUS_STEP_TOO_SMALL = 1
+STATUS_TOO_MANY_STEPS = 2
+STATUS_NOT_FINITE = 3
+
+
+# ---------------------------------------------------------------- right-hand side
+@njit(cache=True)
+def hill_axes(y: np.ndarray):
+    """Hill unit vectors (x_hat, y_hat, z_hat) as 9 floats from the target part of y."""
+    rx, ry, rz, vx, vy, vz = y[0], y[1], y[2], y[3], y[4], y[5]
+    rn = math.sqrt(rx * rx + ry * ry + rz * rz)
+    hx = ry * vz - rz * vy
+    hy = rz * vx - rx * vz
+    hz = rx * vy - ry * vx
+    hn = math.sqrt(hx * hx + hy * hy + hz * hz)
+    xx, xy, xz = rx / rn, ry / rn, rz / rn
+    zx, zy, zz = hx / hn, hy / hn, hz / hn
+    yx = zy * xz - zz * xy
+    yy = zz * xx - zx * xz
+    yz = zx * xy - zy * xx
+    return xx, xy, xz, yx, yy, yz, zx, zy, zz
+
+
+@njit(cache=True)
+def rhs_relative(y: np.ndarray, u: np.ndarray, p: np.ndarray, out: np.ndarray) -> None:
+    """Encke relative RHS written into ``out`` (12,) (autonomous: no time argument)."""
+    mu, j2, re = p[0], p[1], p[2]
+    ax, ay, az = accel_gravity(y[0], y[1], y[2], mu, j2, re)
+    dax, day, daz = accel_differential(y[0], y[1], y[2], y[6], y[7], y[8], mu, j2, re)
+    if u[0] != 0.0 or u[1] != 0.0 or u[2] != 0.0:
+        xx, xy, xz, yx, yy, yz, zx, zy, zz = hill_axes(y)
+        dax += xx * u[0] + yx * u[1] + zx * u[2]
+        day += xy * u[0] + yy * u[1] + zy * u[2]
+        daz += xz * u[0] + yz * u[1] + zz * u[2]
+    out[0] = y[3]
+    out[1] = y[4]
+    out[2] = y[5]
+    out[3] = ax
+    out[4] = ay
+    out[5] = az
+    out[6] = y[9]
+    out[7] = y[10]
+    out[8] = y[11]
+    out[9] = dax
+    out[10] = day
+    out[11] = daz
+
+
+@njit(cache=True)
+def rhs_relative_alloc(y: np.ndarray, u: np.ndarray, p: np.ndarray) -> np.ndarray:
+    """Allocating version of :func:`rhs_relative` (for scipy's solve_ivp)."""
+    out = np.empty(12)
+    rhs_relative(y, u, p, out)
+    return out
+
+
+# ---------------------------------------------------------------- Hill extraction
+@njit(cache=True)
+def _frame_rate_x(y: np.ndarray, p: np.ndarray) -> float:
+    """x component of the Hill frame rate, r (a_t . h_hat) / |h| (non-zero only with J2)."""
+    if p[1] == 0.0:
+        return 0.0
+    rx, ry, rz, vx, vy, vz = y[0], y[1], y[2], y[3], y[4], y[5]
+    ax, ay, az = accel_gravity(rx, ry, rz, p[0], p[1], p[2])
+    hx = ry * vz - rz * vy
+    hy = rz * vx - rx * vz
+    hz = rx * vy - ry * vx
+    h2 = hx * hx + hy * hy + hz * hz
+    rn = math.sqrt(rx * rx + ry * ry + rz * rz)
+    return rn * (ax * hx + ay * hy + az * hz) / h2
+
+
+@njit(cache=True)
+def hill_from_y(y: np.ndarray, p: np.ndarray) -> np.ndarray:
+    """Exact Hill relative state (6,) of the chaser: rho = C dr, rho' = C dv - w x rho
+    (frame rate w incl. the J2 x part; see proxops.frames.hill)."""
+    xx, xy, xz, yx, yy, yz, zx, zy, zz = hill_axes(y)
+    rn2 = y[0] * y[0] + y[1] * y[1] + y[2] * y[2]
+    hx = y[1] * y[5] - y[2] * y[4]
+    hy = y[2] * y[3] - y[0] * y[5]
+    hz = y[0] * y[4] - y[1] * y[3]
+    wz = math.sqrt(hx * hx + hy * hy + hz * hz) / rn2
+    wx = _frame_rate_x(y, p)
+    px = xx * y[6] + xy * y[7] + xz * y[8]
+    py = yx * y[6] + yy * y[7] + yz * y[8]
+    pz = zx * y[6] + zy * y[7] + zz * y[8]
+    out = np.empty(6)
+    out[0] = px
+    out[1] = py
+    out[2] = pz
+    # w x rho with w = (wx, 0, wz): (-wz py, wz px - wx pz, wx py)
+    out[3] = xx * y[9] + xy * y[10] + xz * y[11] + wz * py
+    out[4] = yx * y[9] + yy * y[10] + yz * y[11] - (wz * px - wx * pz)
+    out[5] = zx * y[9] + zy * y[10] + zz * y[11] - wx * py
+    return out
+
+
+@njit(cache=True)
+def y_from_hill(target: np.ndarray, hill: np.ndarray, p: np.ndarray) -> np.ndarray:
+    """12-state from target ECI state (6,) and chaser Hill state (6,); inverse of hill_from_y."""
+    y = np.zeros(12)
+    for i in range(6):
+        y[i] = target[i]
+    xx, xy, xz, yx, yy, yz, zx, zy, zz = hill_axes(y)
+    rn2 = y[0] * y[0] + y[1] * y[1] + y[2] * y[2]
+    hx = y[1] * y[5] - y[2] * y[4]
+    hy = y[2] * y[3] - y[0] * y[5]
+    hz = y[0] * y[4] - y[1] * y[3]
+    wz = math.sqrt(hx * hx + hy * hy + hz * hz) / rn2
+    wx = _frame_rate_x(y, p)
+    px, py, pz = hill[0], hill[1], hill[2]
+    # rho' + w x rho
+    qx = hill[3] - wz * py
+    qy = hill[4] + wz * px - wx * pz
+    qz = hill[5] + wx * py
+    y[6] = xx * px + yx * py + zx * pz
+    y[7] = xy * px + yy * py + zy * pz
+    y[8] = xz * px + yz * py + zz * pz
+    y[9] = xx * qx + yx * qy + zx * qz
+    y[10] = xy * qx + yy * qy + zy * qz
+    y[11] = xz * qx + yz * qy + zz * qz
+    return y
+
+
+@njit(cache=True)
+def apply_hill_impulse(y: np.ndarray, dv: np.ndarray) -> np.ndarray:
+    """Copy of y with a Hill-axes velocity change ``dv`` (m/s) added to the chaser."""
+    out = y.copy()
+    xx, xy, xz, yx, yy, yz, zx, zy, zz = hill_axes(y)
+    out[9] += xx * dv[0] + yx * dv[1] + zx * dv[2]
+    out[10] += xy * dv[0] + yy * dv[1] + zy * dv[2]
+    out[11] += xz * dv[0] + yz * dv[1] + zz * dv[2]
+    return out
+
+
+# ---------------------------------------------------------------- DOP853 integrator
+@njit(cache=True)
+def initial_step_orbit(y, p, rtol) -> float:
+    """First trial step rtol^(1/8) / n_local (s), n_local = sqrt(mu / r_t^3): ~50 s in LEO at
+    rtol = 1e-10, about a third of the accepted step size there. Used instead of Hairer's
+    heuristic (scipy's select_initial_step), which the tiny atol-scaled chaser components
+    drive down to ~0.05 s and which costs an extra RHS call on every short control step."""
+    r2 = y[0] * y[0] + y[1] * y[1] + y[2] * y[2]
+    n_local = math.sqrt(p[0] / (r2 * math.sqrt(r2)))
+    return rtol ** (1.0 / 8.0) / n_local
+
+
+@njit(cache=True)
+def dop853_step(y, f0, h, u, p, K, work, y_new) -> None:
+    """One DOP853 step of size h from (y, f0): y_new and all 13 stage derivatives in K
+    (K[12] = f(y_new), the FSAL derivative)."""
+    n = y.size
+    for i in range(n):
+        K[0, i] = f0[i]
+    for s in range(1, N_STAGES):
+        for i in range(n):
+            acc = 0.0
+            for j in range(s):
+                acc += A[s, j] * K[j, i]
+            work[i] = y[i] + h * acc
+        rhs_relative(work, u, p, K[s])
+    for i in range(n):
+        acc = 0.0
+        for j in range(N_STAGES):
+            acc += B[j] * K[j, i]
+        y_new[i] = y[i] + h * acc
+    rhs_relative(y_new, u, p, K[N_STAGES])
+
+
+@njit(cache=True)
+def dop853_error_norm(y, y_new, K, h, rtol, atol) -> float:
+    """scipy's DOP853 error norm (blend of the 5th- and 3rd-order estimators)."""
+    n = y.size
+    err5 = 0.0
+    err3 = 0.0
+    for i in range(n):
+        e5 = 0.0
+        e3 = 0.0
+        for j in range(N_STAGES + 1):
+            e5 += E5[j] * K[j, i]
+            e3 += E3[j] * K[j, i]
+        sc = atol + max(abs(y[i]), abs(y_new[i])) * rtol
+        err5 += (e5 / sc) ** 2
+        err3 += (e3 / sc) ** 2
+    if err5 == 0.0 and err3 == 0.0:
+        return 0.0
+    denom = err5 + 0.01 * err3
+    return abs(h) * err5 / math.sqrt(denom * n)
+
+
+@njit(cache=True)
+def integrate_grid(y0, times, u, p, rtol, atol, out) -> tuple:
+    """Integrate the relative problem through increasing ``times`` (times[0] is the
+    start), storing the state at each time in ``out`` (len(times), 12).
+
+    Steps are shortened to land on each sample time; after such a shortened step the
+    controller's unshortened proposal is kept. Returns (status, n_steps, n_rejected)."""
+    n = y0.size
+    m = times.size
+    K = np.empty((N_STAGES + 1, n))
+    work = np.empty(n)
+    y = y0.copy()
+    y_new = np.empty(n)
+    f0 = np.empty(n)
+    for i in range(n):
+        out[0, i] = y0[i]
+    if m == 1:
+        return STATUS_OK, 0, 0
+    rhs_relative(y, u, p, f0)
+    span = times[m - 1] - times[0]
+    if span <= 0.0:
+        for k in range(1, m):
+            for i in range(n):
+                out[k, i] = y0[i]
+        return STATUS_OK, 0, 0
+    h_abs = min(span, initial_step_orbit(y, p, rtol))
+    t = times[0]
+    n_steps = 0
+    n_rej = 0
+    for k in range(1, m):
+        t_end = times[k]
+        while t < t_end:
+            rejected = False
+            while True:
+                if n_steps + n_rej >= MAX_STEPS:
+                    return STATUS_TOO_MANY_STEPS, n_steps, n_rej
+                min_step = 10.0 * (np.nextafter(abs(t), np.inf) - abs(t))
+                if h_abs < min_step:
+                    return STATUS_STEP_TOO_SMALL, n_steps, n_rej
+                clipped = t + h_abs >= t_end
+                h = t_end - t if clipped else h_abs
+                dop853_step(y, f0, h, u, p, K, work, y_new)
+                err = dop853_error_norm(y, y_new, K, h, rtol, atol)
+                if not math.isfinite(err):
+                    return STATUS_NOT_FINITE, n_steps, n_rej
+                if err < 1.0:
+                    if err == 0.0:
+                        factor = MAX_FACTOR
+                    else:
+                        factor = min(MAX_FACTOR, SAFETY * err**ERROR_EXPONENT)
+                    if rejected:
+                        factor = min(1.0, factor)
+                    # a step shortened to hit a sample time keeps the current proposal
+                    h_abs = max(h * factor, h_abs) if clipped else h * factor
+                    break
+                h_abs = h * max(MIN_FACTOR, SAFETY * err**ERROR_EXPONENT)
+                rejected = True
+                n_rej += 1
+            n_steps += 1
+            t = t_end if clipped else t + h
+            for i in range(n):
+                y[i] = y_new[i]
+                f0[i] = K[N_STAGES, i]
+        for i in range(n):
+            out[k, i] = y[i]
+    return STATUS_OK, n_steps, n_rej
+
+
+@njit(cache=True)
+def propagate_dop853(y0, dt, u, p, rtol, atol) -> tuple:
+    """State after ``dt`` s (>= 0) under constant Hill acceleration ``u``: (y, status, n_steps)."""
+    times = np.empty(2)
+    times[0] = 0.0
+    times[1] = dt
+    out = np.empty((2, y0.size))
+    status, n_steps, _ = integrate_grid(y0, times, u, p, rtol, atol, out)
+    y = np.empty(y0.size)
+    for i in range(y0.size):
+        y[i] = out[1, i]
+    return y, status, n_steps
+
+
+@njit(cache=True)
+def free_drift_hill(y0, times, p, rtol, atol) -> tuple:
+    """Uncontrolled Hill relative states (len(times), 6) at ``times`` (increasing, from
+    times[0] = start) and the integrator status."""
+    u = np.zeros(3)
+    ys = np.empty((times.size, y0.size))
+    status, _, _ = integrate_grid(y0, times, u, p, rtol, atol, ys)
+    out = np.empty((times.size, 6))
+    for k in range(times.size):
+        rel = hill_from_y(ys[k], p)
+        for i in range(6):
+            out[k, i] = rel[i]
+    return out, status
