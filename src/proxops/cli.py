@@ -1,0 +1,197 @@
+"""The ``proxops`` command line: a thin layer over scenarios, the simulator and analysis.
+
+Every command prints a readable summary, or with ``--json`` exactly one JSON object
+on stdout. Input errors print one line and exit with code 2 (traceback with --debug).
+"""
+
+from __future__ import annotations
+
+import os
+
+# The MPCs solve many small dense problems: BLAS threads only compete for the cores
+# (measured: closed-loop DAQP update+solve 0.4 ms -> 0.24 ms with one thread).
+for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ.setdefault(_var, "1")
+
+import functools  # noqa: E402
+import json
+import sys
+from pathlib import Path
+from typing import Annotated, Optional
+
+import typer
+
+from proxops import __version__
+from proxops.errors import ProxopsInputError
+
+app = typer.Typer(
+    name="proxops",
+    help="Spacecraft rendezvous and proximity operations: guidance, MPC, closed-loop simulation, Monte Carlo.",
+    no_args_is_help=True,
+    add_completion=False,
+    pretty_exceptions_enable=False,
+)
+
+_STATE = {"debug": False}
+
+
+def _version(value: bool):
+    if value:
+        typer.echo(f"proxops {__version__}")
+        raise typer.Exit()
+
+
+@app.callback()
+def main(
+    version: Annotated[Optional[bool], typer.Option("--version", callback=_version, is_eager=True, help="Print the version.")] = None,
+    debug: Annotated[bool, typer.Option("--debug", help="Show tracebacks for errors.")] = False,
+):
+    _STATE["debug"] = debug
+
+
+def friendly_errors(func):
+    """Turn input errors into one line on stderr and exit code 2."""
+
+    @functools.wraps(func)
+    def wrapper(*args, **kwargs):
+        try:
+            return func(*args, **kwargs)
+        except ProxopsInputError as exc:
+            if _STATE["debug"]:
+                raise
+            typer.echo(f"error: {exc}", err=True)
+            raise typer.Exit(2)
+
+    return wrapper
+
+
+def emit(obj: dict, as_json: bool, text: str) -> None:
+    """Print ``obj`` as one JSON object, or ``text`` for people."""
+    if as_json:
+        sys.stdout.write(json.dumps(obj, default=_json_default) + "\n")
+    else:
+        typer.echo(text)
+
+
+def _json_default(obj):
+    import numpy as np
+
+    if isinstance(obj, np.generic):
+        return obj.item()
+    if isinstance(obj, np.ndarray):
+        return obj.tolist()
+    if isinstance(obj, Path):
+        return str(obj)
+    return str(obj)
+
+
+# --------------------------------------------------------------------------- scenarios
+@app.command()
+@friendly_errors
+def scenarios(as_json: Annotated[bool, typer.Option("--json", help="Machine-readable output.")] = False):
+    """List the built-in scenarios."""
+    from proxops.scenarios.loader import list_builtin
+
+    items = list_builtin()
+    rows = [{"name": i["name"], "description": i["description"], "system": i["system"]} for i in items]
+    width = max((len(r["name"]) for r in rows), default=4)
+    text = "\n".join(f"{r['name']:<{width}}  {r['description']}" for r in rows)
+    if as_json:
+        sys.stdout.write(json.dumps(rows) + "\n")
+    else:
+        typer.echo(text)
+
+
+@app.command()
+@friendly_errors
+def validate(
+    scenario: Annotated[str, typer.Argument(help="Scenario file or built-in name.")],
+    set_: Annotated[list[str], typer.Option("--set", help="Override a key: --set sim.duration_s=600.")] = [],
+    as_json: Annotated[bool, typer.Option("--json")] = False,
+):
+    """Validate a scenario file (exit 0 if valid, 2 with a one-line error otherwise)."""
+    from proxops.scenarios.loader import load_scenario
+
+    loaded = load_scenario(scenario, set_)
+    sc = loaded.scenario
+    emit({"valid": True, "name": sc.name, "system": sc.system, "source": loaded.source}, as_json,
+         f"{loaded.source}: valid ({sc.system} scenario '{sc.name}')")
+
+
+# --------------------------------------------------------------------------- run
+@app.command()
+@friendly_errors
+def run(
+    scenario: Annotated[str, typer.Argument(help="Scenario file or built-in name.")],
+    out: Annotated[Optional[Path], typer.Option("--out", help="Write time series (Parquet), summary and figures here.")] = None,
+    set_: Annotated[list[str], typer.Option("--set", help="Override a key: --set sim.duration_s=600.")] = [],
+    seed: Annotated[Optional[int], typer.Option("--seed", help="Random seed (default: sim.seed).")] = None,
+    figures: Annotated[bool, typer.Option("--figures/--no-figures", help="Draw figures when --out is given.")] = True,
+    as_json: Annotated[bool, typer.Option("--json", help="One JSON object on stdout.")] = False,
+):
+    """Run one closed-loop simulation and print its summary."""
+    from proxops.runner import run_scenario
+
+    summary = run_scenario(scenario, overrides=set_, seed=seed, out=out, figures=figures, progress=not as_json)
+    emit(summary, as_json, format_summary(summary))
+
+
+def format_summary(s: dict) -> str:
+    lines = [
+        f"scenario      {s.get('scenario', '')} ({s.get('system', '')})",
+        f"status        {s['status']}",
+        f"final range   {s['final_range_m']:.3f} m, speed {s['final_speed_mps']:.4f} m/s",
+        f"min range     {s['min_range_m']:.3f} m",
+        f"total dv      {s['total_dv_mps']:.4f} m/s",
+        f"sim time      {s['sim_time_s']:.1f} s in {s['wall_time_s']:.2f} s wall",
+        f"solve time    median {s['solve_time_ms']['median']:.3f} ms, p95 {s['solve_time_ms']['p95']:.3f} ms",
+        f"events        {s['events'] or 'none'}",
+    ]
+    skip = {"scenario", "system", "status", "final_range_m", "final_speed_mps", "min_range_m", "total_dv_mps",
+            "sim_time_s", "wall_time_s", "solve_time_ms", "events", "steps", "solver_failures"}
+    for key, val in s.items():
+        if key not in skip and not isinstance(val, (list, dict)):
+            lines.append(f"{key:<13} {val}")
+    if "out" in s:
+        lines.append(f"written to    {s['out']}")
+    return "\n".join(lines)
+
+
+# --------------------------------------------------------------------------- demo
+@app.command()
+@friendly_errors
+def demo(out: Annotated[Path, typer.Option("--out", help="Output folder.")] = Path("out")):
+    """Run the built-in demonstration scenarios and write a report under OUT."""
+    from proxops.runner import run_demo
+
+    report = run_demo(out)
+    typer.echo(f"demo report written to {report}")
+
+
+def _mount_optional() -> None:
+    """Mount the subcommands that systems provide (kept in their own modules)."""
+    import importlib
+
+    for module, attr, name, kind in (
+        ("proxops.cli_srf", "hop_times", "hop-times", "command"),
+        ("proxops.cli_reach", "reach_app", "reach", "group"),
+        ("proxops.cli_campaign", "mc", "mc", "command"),
+        ("proxops.cli_campaign", "report", "report", "command"),
+    ):
+        try:
+            mod = importlib.import_module(module)
+        except ModuleNotFoundError as exc:
+            if exc.name == module:
+                continue
+            raise
+        obj = getattr(mod, attr)
+        if kind == "group":
+            app.add_typer(obj, name=name)
+        else:
+            app.command(name=name)(friendly_errors(obj))
+
+
+_mount_optional()
+
+if __name__ == "__main__":
+    app()

@@ -1,0 +1,60 @@
+"""The proxops command line: JSON contracts, exit codes and one-line errors."""
+
+import json
+
+import pytest
+from typer.testing import CliRunner
+
+from proxops import __version__
+from proxops.cli import app
+
+runner = CliRunner()
+
+
+def invoke(*args):
+    return runner.invoke(app, list(args))
+
+
+def test_version():
+    res = invoke("--version")
+    assert res.exit_code == 0 and __version__ in res.stdout
+
+
+def test_scenarios_json_lists_names_and_descriptions():
+    res = invoke("scenarios", "--json")
+    assert res.exit_code == 0
+    items = json.loads(res.stdout)
+    names = {i["name"] for i in items}
+    assert "station-keeping" in names
+    assert all(i["description"] for i in items)
+
+
+def test_validate_ok_and_bad(tmp_path):
+    assert invoke("validate", "station-keeping").exit_code == 0
+    bad = tmp_path / "bad.toml"
+    bad.write_text('name = "x"\nsystem = "station-keeping"\n[sim]\nduration_s = -5.0\n'
+                   '[orbit]\naltitude_km = 500.0\n[initial]\nposition_m = [0.0, -100.0, 0.0]\n')
+    res = invoke("validate", str(bad))
+    assert res.exit_code == 2
+    assert "sim.duration_s = -5.0 s" in res.stderr and "Traceback" not in res.stderr
+    assert len(res.stderr.strip().splitlines()) == 1
+
+
+def test_unknown_name_and_bad_set_exit_2():
+    res = invoke("run", "nope")
+    assert res.exit_code == 2 and "no built-in scenario" in res.stderr
+    res = invoke("run", "station-keeping", "--set", "orbit.bogus_km=3")
+    assert res.exit_code == 2 and "no key 'bogus_km'" in res.stderr
+
+
+def test_run_json_contract(tmp_path):
+    res = invoke("run", "station-keeping", "--set", "sim.duration_s=600", "--json", "--out", str(tmp_path / "o"))
+    assert res.exit_code == 0, res.stderr
+    s = json.loads(res.stdout)
+    for key in ("status", "final_range_m", "final_speed_mps", "total_dv_mps", "min_range_m", "sim_time_s",
+                "wall_time_s", "solve_time_ms", "events"):
+        assert key in s
+    assert set(s["solve_time_ms"]) >= {"median", "p95"}
+    assert s["sim_time_s"] == pytest.approx(600.0)
+    assert (tmp_path / "o" / "run" / "steps.parquet").is_file()
+    assert (tmp_path / "o" / "summary.json").is_file()
