@@ -1,0 +1,217 @@
+"""Guidance regimes for the approach to a tumbling target (tumbling-target-reachability.md §7)
+with the eq.-(11) MPC as safety filter; one Controller for the closed-loop engine.
+
+Regimes, by range r = |r_B| against r_sync = 2 a_max / w_t^2 (eq. 14):
+
+1. far approach (r > r_sync): LVLH-frame PD on a spiral reference - the docking-axis
+   point p_ref = r_ref y_B seen from LVLH, which spirals in as r_ref shrinks - with the
+   reference velocity limited to v_achv = min(a_max t_far / 2, v_max) (t_far: time
+   since the regime began).
+2. close approach (r <= r_sync): body-frame PD on the same axis point; the command adds
+   the body-frame fictitious accelerations (2 W x v_B + W x (W x r_B), W = (w_t - n) z)
+   so that the loop co-rotates, then the CW feed-forward of eq. (12).
+3. hold (|r - r_h| <= eps_h and |v_B| < v_switch, then latched): body-frame PD on the hold
+   point r_h y_B with the same compensation and eq. (12).
+
+The reference range r_ref moves toward r_h at min(v_achv, sqrt(a_max (r_ref - r_h)))
+(a braking profile at a_max / 2). The MPC (11) tracks the regime's body-frame
+reference (a trajectory over the horizon along the axis in close approach / hold, the
+constant velocity-limited state in far approach, as the paper's single x_ref) subject
+to the corridor and input box; only u_0 is applied. The PD command is the nominal law:
+it is what is applied with ``use_mpc=False``, and the fallback (clipped) when the QP
+fails in soft mode. With hard constraints an infeasible QP is reported as status
+``"infeasible"`` and, with ``stop_on_infeasible``, ends the run (paper §9.3: a failed
+run).
+
+Chaser inputs are body-axes accelerations at the sample instant (the box +-a_max is on
+those axes), converted to LVLH components for the plant and held over the step.
+Documented defaults (the paper gives no values): r_h = min(10, max(2, a_max / (2 w_t^2))) m
+(:func:`auto_hold_range`), eps_h = 1 m,
+v_switch = 0.05 m/s, v_max = 1 m/s, PD natural frequency 0.05 rad/s, damping 1.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from proxops.constraints.los_corridor import LosCorridor
+from proxops.control.los_mpc import LosMpc, LosMpcConfig
+from proxops.dynamics.tumbling_target import BodyFrameModel, cross3, rot_z
+from proxops.errors import input_error
+from proxops.sim.protocols import Command
+
+
+def sync_range(a_max: float, tumble_rate_rad_s: float) -> float:
+    """r_sync = 2 a_max / w_t^2 (m), eq. (14)."""
+    if tumble_rate_rad_s == 0.0:
+        return float("inf")
+    return 2.0 * a_max / tumble_rate_rad_s**2
+
+
+def auto_hold_range(a_max: float, tumble_rate_rad_s: float) -> float:
+    """Default hold range (m): min(10, max(2, 0.5 a_max / w_t^2)).
+
+    Holding at r on the docking axis needs the centripetal acceleration w_t^2 r; the
+    default keeps that at or below a_max / 2 (never closer than 2 m, never beyond 10 m)."""
+    if tumble_rate_rad_s == 0.0:
+        return 10.0
+    return float(min(10.0, max(2.0, 0.5 * a_max / tumble_rate_rad_s**2)))
+
+
+def cw_feedforward(n: float, x_hill: np.ndarray) -> np.ndarray:
+    """Eq. (12): a_ff = -[3 n^2 x + 2 n yd, -2 n xd, -n^2 z] (m/s^2, LVLH)."""
+    x = x_hill
+    return -np.array([3 * n * n * x[0] + 2 * n * x[4], -2 * n * x[3], -n * n * x[2]])
+
+
+@dataclass
+class LosGuidanceConfig:
+    """Guidance parameters (SI). See module doc for the defaults' provenance."""
+
+    hold_range_m: float | None = None  # None: auto_hold_range(a_max, w_t)
+    hold_band_m: float = 1.0
+    v_switch_mps: float = 0.05
+    v_max_mps: float = 1.0
+    pd_natural_frequency_rad_s: float = 0.05
+    pd_damping: float = 1.0
+    use_mpc: bool = True
+    stop_on_infeasible: bool = True
+    stop_at_hold: bool = False  # end the run when hold is reached (faster campaigns)
+
+    def check(self) -> None:
+        if self.hold_range_m is not None and not (np.isfinite(self.hold_range_m) and self.hold_range_m > 0):
+            raise input_error("guidance.hold_range_m", self.hold_range_m, "must be finite and > 0 (or None for auto)", "m")
+        for name in ("hold_band_m", "v_switch_mps", "v_max_mps", "pd_natural_frequency_rad_s", "pd_damping"):
+            v = getattr(self, name)
+            if not (np.isfinite(v) and v > 0):
+                raise input_error(f"guidance.{name}", v, "must be finite and > 0")
+
+
+class LosGuidanceController:
+    """Controller (proxops.sim.protocols): §7 regimes + eq.-(11) MPC safety filter.
+
+    Works on the body-frame relative state [r_B, v_B] (what
+    :class:`proxops.dynamics.tumbling_target.TumblingTargetTruth` reports) and returns an
+    LVLH acceleration. ``info`` per step: range_m, r_ref_m, mpc_iterations,
+    mpc_build_ms, u_body_0..2, slack_m.
+    """
+
+    def __init__(self, model: BodyFrameModel, a_max: float, corridor: LosCorridor | None = None,
+                 mpc_config: LosMpcConfig | None = None, guidance: LosGuidanceConfig | None = None):
+        if not a_max > 0:
+            raise input_error("chaser.a_max_mps2", a_max, "must be > 0", "m/s^2")
+        self.model = model
+        self.dt = model.dt
+        self.a_max = float(a_max)
+        self.corridor = corridor or LosCorridor()
+        self.g = guidance or LosGuidanceConfig()
+        self.g.check()
+        self.mpc = LosMpc(model, self.corridor, a_max, mpc_config) if self.g.use_mpc else None
+        self.r_sync = sync_range(a_max, model.tumble_rate_rad_s)
+        self.hold_range = (self.g.hold_range_m if self.g.hold_range_m is not None
+                           else auto_hold_range(a_max, model.tumble_rate_rad_s))
+        self.kp = self.g.pd_natural_frequency_rad_s**2
+        self.kd = 2.0 * self.g.pd_damping * self.g.pd_natural_frequency_rad_s
+        self.W = np.array([0.0, 0.0, model.w_rel])
+        self.reset(0.0, np.zeros(6))
+
+    # ------------------------------------------------------------------ protocol
+    def reset(self, t0: float, x0: np.ndarray) -> None:
+        self.r_ref = max(float(np.linalg.norm(np.asarray(x0, float)[:3])), self.hold_range)
+        self.mode = ""
+        self.mode_start = t0
+        self.hold_reached = False
+        self.u_prev = np.zeros(3)  # body axes
+        if self.mpc is not None:
+            self.mpc.reset()
+
+    def step(self, t: float, x_est: np.ndarray) -> Command:
+        x = np.asarray(x_est, float)
+        p, v = x[:3], x[3:6]
+        r = float(np.sqrt(p @ p))
+        mode = self._regime(r, float(np.sqrt(v @ v)))
+        if mode != self.mode:
+            self.mode, self.mode_start = mode, t
+        v_achv = min(self.a_max * (t - self.mode_start + self.dt) / 2.0, self.g.v_max_mps)
+        r_h = self.hold_range
+        # reference range along +y_B
+        if mode == "hold":
+            self.r_ref, v_ref = r_h, 0.0
+        else:
+            v_ref = min(v_achv, np.sqrt(self.a_max * max(self.r_ref - r_h, 0.0)))
+            self.r_ref = max(self.r_ref - v_ref * self.dt, r_h)
+        p_ref = np.array([0.0, self.r_ref, 0.0])
+        R_LB = rot_z(self.model.theta0_rad + self.model.w_rel * t)
+        if mode == "far":
+            v_ref_L = self._spiral_velocity(p_ref, v_ref, v_achv, R_LB)
+            x_ref = np.concatenate([p_ref, R_LB.T @ v_ref_L - cross3(self.W, p_ref)])  # limited ref in F_B
+        else:
+            x_ref = self._axis_trajectory(v_ref) if self.mpc is not None else None
+
+        def nominal_body() -> np.ndarray:
+            """The §7 PD law of the current regime (body axes, clipped to the box)."""
+            x_hill = self.model.hill_from_body(t, x)
+            if mode == "far":
+                u_hill = (self.kp * (R_LB @ p_ref - x_hill[:3]) + self.kd * (v_ref_L - x_hill[3:6])
+                          + cw_feedforward(self.model.n, x_hill))
+            else:
+                a_des = self.kp * (p_ref - p) + self.kd * (np.array([0.0, -v_ref, 0.0]) - v)
+                a_body = a_des + 2.0 * cross3(self.W, v) + cross3(self.W, cross3(self.W, p))
+                u_hill = R_LB @ a_body + cw_feedforward(self.model.n, x_hill)
+            return np.minimum(np.maximum(R_LB.T @ u_hill, -self.a_max), self.a_max)
+
+        info = {"range_m": r, "r_ref_m": self.r_ref}
+        events: list = []
+        stop = False
+        if self.mpc is None:
+            u_body, status, solve_time = nominal_body(), "ok", 0.0
+        else:
+            sol = self.mpc.solve(t, x, x_ref, self.u_prev)
+            status, solve_time = sol.status, sol.solve_time_s
+            info.update(mpc_iterations=sol.iterations, mpc_build_ms=sol.build_time_s * 1e3, slack_m=sol.max_slack_m)
+            if sol.ok:
+                u_body = sol.u0
+            elif self.mpc.soft:
+                u_body = nominal_body()
+            else:
+                u_body = sol.u0  # shifted previous plan
+                if self.g.stop_on_infeasible:
+                    stop = True
+                    mode = "qp_infeasible"
+        info.update(u_body_0=u_body[0], u_body_1=u_body[1], u_body_2=u_body[2])
+        self.u_prev = u_body
+        if mode == "hold" and not self.hold_reached:
+            self.hold_reached = True
+            events.append(("hold", f"hold reached at range {r:.2f} m"))
+        if self.hold_reached and self.g.stop_at_hold:
+            stop, mode = True, "hold_reached"
+        return Command(u=R_LB @ u_body, status=status, solve_time_s=solve_time, mode=mode, events=events,
+                       info=info, stop=stop)
+
+    # ------------------------------------------------------------------ pieces
+    def _regime(self, r: float, speed: float) -> str:
+        if self.mode == "hold":
+            return "hold"
+        if abs(r - self.hold_range) <= self.g.hold_band_m and speed < self.g.v_switch_mps:
+            return "hold"
+        return "far" if r > self.r_sync else "close"
+
+    def _spiral_velocity(self, p_ref_B, v_ref, v_achv, R_LB) -> np.ndarray:
+        """LVLH velocity of the spiral reference (axis point moving in at v_ref and
+        co-rotating), limited in magnitude to v_achv (§7 far approach)."""
+        v_ref_L = R_LB @ (np.array([0.0, -v_ref, 0.0]) + cross3(self.W, p_ref_B))
+        speed = float(np.sqrt(v_ref_L @ v_ref_L))
+        if speed > v_achv:
+            v_ref_L *= v_achv / speed
+        return v_ref_L
+
+    def _axis_trajectory(self, v_ref: float) -> np.ndarray:
+        """Reference x_1..x_N along +y_B: range r_ref - v j dt (not below r_h), co-rotating."""
+        N, dt, r_h = self.mpc.N, self.dt, self.hold_range
+        ranges = np.maximum(self.r_ref - v_ref * dt * np.arange(1, N + 1), r_h)
+        ref = np.zeros((N, 6))
+        ref[:, 1] = ranges
+        ref[:, 4] = np.where(ranges > r_h, -v_ref, 0.0)
+        return ref

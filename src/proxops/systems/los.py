@@ -1,0 +1,366 @@
+"""System ``los``: approach to a tumbling target through its rotating LOS corridor
+(tumbling-target-reachability.md §2-7, §10.6).
+
+Scenario ``los-tumble`` (src/proxops/scenarios/builtin/los-tumble.toml), e.g.::
+
+    proxops run los-tumble --set target.tumble_rate_deg_s=2 --set chaser.a_max_mps2=0.1 --json
+
+Truth: two-body + J2 (RelativeTruth, Encke, DOP853) on the 500 km circular orbit of
+Table 1 plus the target quaternion (eq. 2); the measured relative state is the
+body-frame state of eqs. (7)-(8). Controller: §7 regimes + eq.-(11) MPC
+(:class:`proxops.guidance.los_regimes.LosGuidanceController`).
+
+Programmatic use (Monte Carlo, issue 6)::
+
+    from proxops.systems.los import run_case
+    out = run_case(tumble_rate_deg_s=2, a_max_mps2=0.1, initial_body_position_m=[0, 80, 0],
+                   mpc_config="monte-carlo")       # dict: feasible, los_violations, ...
+
+``feasible`` follows §9.3: no violation above 1e-3 m, no QP infeasibility, no early
+termination.
+
+Table 3 sweep (§10.6): scenario ``los-sweep`` (grid dispersions, 15 combinations x hard/soft
+constraints) through the campaign engine; ``run_sweep()`` runs it and ``sweep_table()``
+prints the paper's layout with our columns next to the paper's. Standalone:
+``python -m proxops.systems.los sweep [--workers 2] [--out DIR] [--no-campaign]``.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Annotated, Literal
+
+import numpy as np
+from pydantic import Field
+
+from proxops.core.cw import mean_motion
+from proxops.scenarios.registry import register_system
+from proxops.scenarios.schema import OrbitSection, ScenarioBase, Section, TruthSection, Vector3
+from proxops.sim.engine import Setup
+
+VIOLATION_TOLERANCE_M = 1e-3  # §9 step 3
+
+
+class TargetSection(Section):
+    """Tumbling target and its docking corridor (Table 1)."""
+
+    tumble_rate_deg_s: Annotated[float, Field(ge=0.0, le=30.0)] = 2.0
+    initial_angle_deg: float = 0.0  # angle of F_B about the orbit normal from F_L at t = 0
+    corridor_half_angle_deg: Annotated[float, Field(gt=0.0, lt=90.0)] = 30.0
+    corridor_faces: Annotated[int, Field(ge=3, le=64)] = 8
+    corridor_floor_m: Annotated[float, Field(ge=0.0)] = 1.0
+
+
+class ChaserSection(Section):
+    """Thrust authority and initial state. ``initial_velocity_frame``: "body" means the
+    velocity is given in F_B (zero = co-rotating with the target, §9 IC sampling);
+    "lvlh" means it is the Hill-frame relative velocity (zero = LVLH-stationary)."""
+
+    a_max_mps2: Annotated[float, Field(gt=0.0, le=10.0)] = 0.1
+    initial_body_position_m: Vector3 = [0.0, 150.0, 0.0]
+    initial_velocity_mps: Vector3 = [0.0, 0.0, 0.0]
+    initial_velocity_frame: Literal["body", "lvlh"] = "body"
+
+
+class MpcSection(Section):
+    """Eq. (11). ``config``: "single" (N_p = 40, R_du = 1e4 I) or "monte-carlo"
+    (N_p = 20, R_du = diag(1e5, 1e4, 1e5)), §6; ``horizon`` overrides N_p."""
+
+    config: Literal["single", "monte-carlo"] = "single"
+    horizon: Annotated[int, Field(ge=1, le=200)] | None = None
+    constraint_mode: Literal["hard", "soft"] = "hard"
+    slack_penalty: Annotated[float, Field(gt=0.0)] = 1e7
+
+
+class GuidanceSection(Section):
+    """§7 regimes (documented defaults; the paper gives no values)."""
+
+    hold_range_m: Annotated[float, Field(gt=0.0)] | None = None  # None: min(10, max(2, a_max / (2 w_t^2)))
+    hold_band_m: Annotated[float, Field(gt=0.0)] = 1.0
+    v_switch_mps: Annotated[float, Field(gt=0.0)] = 0.05
+    v_max_mps: Annotated[float, Field(gt=0.0)] = 1.0
+    pd_period_s: Annotated[float, Field(gt=0.0)] = 2 * np.pi / 0.05  # natural period of the PD loops
+    use_mpc: bool = True
+    stop_on_infeasible: bool = True
+    stop_at_hold: bool = False
+
+
+class LosScenario(ScenarioBase):
+    orbit: OrbitSection
+    truth: TruthSection = TruthSection()
+    target: TargetSection = TargetSection()
+    chaser: ChaserSection = ChaserSection()
+    mpc: MpcSection = MpcSection()
+    guidance: GuidanceSection = GuidanceSection()
+
+
+def default_scenario(**sections) -> LosScenario:
+    """A LosScenario with Table 1 defaults (500 km circular, 51.6 deg); keyword
+    arguments are section dicts, e.g. ``chaser={"a_max_mps2": 0.05}``."""
+    data = {
+        "name": "los-tumble",
+        "system": "los",
+        "sim": {"duration_s": 600.0, "dt_s": 1.0},
+        "orbit": {"altitude_km": 500.0, "inc_deg": 51.6},
+    }
+    for key, value in sections.items():
+        data[key] = {**data.get(key, {}), **value}
+    return LosScenario.model_validate(data)
+
+
+def build_setup(sc: LosScenario) -> Setup:
+    """Plant (J2 truth + tumbling target), controller, corridor check for one scenario."""
+    from proxops.constraints.los_corridor import LosCorridor
+    from proxops.control.los_mpc import LosMpcConfig
+    from proxops.dynamics.tumbling_target import BodyFrameModel, TumblingTarget, TumblingTargetTruth
+    from proxops.frames.elements import OrbitalElements, elements_to_eci
+    from proxops.guidance.los_regimes import LosGuidanceConfig, LosGuidanceController
+    from proxops.errors import input_error
+    from proxops.propagation.truth import RelativeTruth
+    from proxops.systems.common import actuator_model, navigation_model
+
+    o = sc.orbit
+    elements = OrbitalElements(o.sma_m, o.ecc, np.radians(o.inc_deg), np.radians(o.raan_deg),
+                               np.radians(o.argp_deg), np.radians(o.nu_deg))
+    dt = sc.sim.dt_s or 1.0
+    w_t = np.radians(sc.target.tumble_rate_deg_s)
+    theta0 = np.radians(sc.target.initial_angle_deg)
+    target_eci = elements_to_eci(elements)
+    target = TumblingTarget.aligned_with_hill(w_t, target_eci, theta0)
+    n = mean_motion(o.sma_m)
+    model = BodyFrameModel(n, w_t, dt, theta0)
+    x0_body = np.array(sc.chaser.initial_body_position_m + sc.chaser.initial_velocity_mps, float)
+    if sc.chaser.initial_velocity_frame == "lvlh":
+        x_hill = model.hill_from_body(0.0, np.concatenate([x0_body[:3], np.zeros(3)]))
+        x_hill[3:6] = x0_body[3:6]
+        x0_body = model.body_from_hill(0.0, x_hill)
+    if sc.truth.model == "cw":
+        raise input_error("truth.model", "cw", "the los system needs an ECI truth for the target attitude: "
+                          "allowed: j2, two-body")
+    inner = RelativeTruth(elements, np.zeros(6), j2=sc.truth.model == "j2", integrator=sc.truth.integrator)
+    plant = TumblingTargetTruth(inner, target, x0_body)
+    corridor = LosCorridor(np.radians(sc.target.corridor_half_angle_deg), sc.target.corridor_floor_m,
+                           sc.target.corridor_faces, VIOLATION_TOLERANCE_M)
+    m = sc.mpc
+    base = LosMpcConfig.single_run if m.config == "single" else LosMpcConfig.monte_carlo
+    mpc_cfg = base(constraint_mode=m.constraint_mode, slack_penalty=m.slack_penalty)
+    if m.horizon is not None:
+        mpc_cfg.horizon = m.horizon
+    g = sc.guidance
+    guidance = LosGuidanceConfig(hold_range_m=g.hold_range_m, hold_band_m=g.hold_band_m, v_switch_mps=g.v_switch_mps,
+                                 v_max_mps=g.v_max_mps, pd_natural_frequency_rad_s=2 * np.pi / g.pd_period_s,
+                                 use_mpc=g.use_mpc, stop_on_infeasible=g.stop_on_infeasible,
+                                 stop_at_hold=g.stop_at_hold)
+    ctrl = LosGuidanceController(model, sc.chaser.a_max_mps2, corridor, mpc_cfg, guidance)
+    meta = {"system": "los", "r_sync_m": ctrl.r_sync, "frame": "target body (eqs. 7-8)"}
+    return Setup(plant=plant, controller=ctrl, duration_s=sc.sim.duration_s,
+                 navigation=navigation_model(sc.navigation), actuator=actuator_model(sc.actuator),
+                 constraints=(corridor,), check_substeps=sc.sim.check_substeps, meta=meta)
+
+
+def summarize_result(sc: LosScenario, result) -> dict:
+    """Extra JSON keys: los_violations, max_violation_m, r_sync_m, hold_reached, ..."""
+    from proxops.constraints.los_corridor import LosCorridor
+
+    corridor = LosCorridor(np.radians(sc.target.corridor_half_angle_deg), sc.target.corridor_floor_m,
+                           sc.target.corridor_faces, VIOLATION_TOLERANCE_M)
+    viol = np.asarray(corridor.violation_body(result.x_true[:, :3]))
+    outcome = result.meta.get("outcome", "completed")
+    n_viol = int(np.sum(viol > VIOLATION_TOLERANCE_M))
+    qp_infeasible = outcome == "qp_infeasible" or any(s == "infeasible" for s in result.status)
+    hold = any(kind == "hold" for _, kind, _ in result.events) or outcome == "hold_reached"
+    w = np.radians(sc.target.tumble_rate_deg_s)
+    r_sync = 2 * sc.chaser.a_max_mps2 / w**2 if w > 0 else float("inf")
+    r0 = float(np.linalg.norm(sc.chaser.initial_body_position_m))
+    early = outcome not in ("completed", "hold_reached")
+    return {
+        "los_violations": n_viol,
+        "max_violation_m": float(viol.max()) if viol.size else 0.0,
+        "r_sync_m": float(r_sync),
+        "hold_reached": bool(hold),
+        "r_min_m": float(np.min(np.linalg.norm(result.x_true[:, :3], axis=1))),
+        "initial_range_m": r0,
+        "starts_inside_r_sync": bool(r0 <= r_sync),
+        "qp_infeasible": bool(qp_infeasible),
+        "feasible": bool(n_viol == 0 and not qp_infeasible and not early),
+        "outcome": outcome,
+    }
+
+
+def run_case(tumble_rate_deg_s: float, a_max_mps2: float, initial_body_position_m, *,
+             mpc_config: str = "monte-carlo", duration_s: float | None = None, truth: str = "j2",
+             constraint_mode: str = "hard", initial_velocity_frame: str = "body",
+             guidance: dict | None = None, seed: int = 0) -> dict:
+    """One closed-loop run (J2 truth by default) -> summary dict (``summarize_result`` keys
+    plus the engine summary's min_range_m, total_dv_mps, wall_time_s, solve_time_ms).
+
+    Defaults follow the paper's Monte Carlo (§9): MC MPC configuration, 400 s, zero
+    body-frame initial velocity, hard constraints (infeasible QP = failed run)."""
+    from proxops.sim.engine import simulate
+
+    if duration_s is None:
+        duration_s = 600.0 if mpc_config == "single" else 400.0
+    sc = default_scenario(
+        sim={"duration_s": float(duration_s), "dt_s": 1.0, "seed": seed},
+        truth={"model": truth},
+        target={"tumble_rate_deg_s": float(tumble_rate_deg_s)},
+        chaser={"a_max_mps2": float(a_max_mps2), "initial_body_position_m": [float(c) for c in initial_body_position_m],
+                "initial_velocity_frame": initial_velocity_frame},
+        mpc={"config": mpc_config, "constraint_mode": constraint_mode},
+        guidance=guidance or {},
+    )
+    result = simulate(build_setup(sc), seed=seed)
+    out = result.summary()
+    out.update(summarize_result(sc, result))
+    return out
+
+
+# --------------------------------------------------------------------------------------
+# Table 3 sweep (§10.6)
+# --------------------------------------------------------------------------------------
+SWEEP_RATES_DEG_S = (1.0, 2.0, 3.0, 4.0, 5.0)
+SWEEP_A_MAX_MPS2 = (0.10, 0.05, 0.02)
+# tumbling-target-reachability.md Table 3: (w_t deg/s, a_max) -> (r_sync m, hold, r_min m)
+PAPER_TABLE3 = {
+    (1.0, 0.10): (656.6, False, 0.0), (1.0, 0.05): (328.3, False, 143.7), (1.0, 0.02): (131.3, False, 145.3),
+    (2.0, 0.10): (164.1, False, 143.0), (2.0, 0.05): (82.1, False, 141.9), (2.0, 0.02): (32.8, False, 111.8),
+    (3.0, 0.10): (73.0, False, 138.2), (3.0, 0.05): (36.5, False, 111.4), (3.0, 0.02): (14.6, False, 67.1),
+    (4.0, 0.10): (41.0, False, 113.2), (4.0, 0.05): (20.5, False, 67.3), (4.0, 0.02): (8.2, False, 62.1),
+    (5.0, 0.10): (26.3, False, 75.0), (5.0, 0.05): (13.1, False, 63.9), (5.0, 0.02): (5.3, False, 51.1),
+}
+_SWEEP_METRICS = ("r_sync_m", "hold_reached", "r_min_m", "los_violations", "max_violation_m", "outcome", "feasible",
+                  "initial_range_m", "total_dv_mps")
+
+
+def run_sweep(scenario: str = "los-sweep", workers: int | None = 1, out=None, use_campaign: bool = True,
+              overrides=(), progress: bool = False):
+    """Run the Table 3 sweep; returns a DataFrame with one row per (w_t, a_max, mode).
+
+    With ``use_campaign`` (default) the runs go through the campaign engine
+    (:func:`proxops.analysis.campaign.run_campaign`, grid dispersions of los-sweep.toml;
+    ``out`` keeps them on disk, ``workers`` > 1 runs in parallel); otherwise a plain loop
+    over the same grid (no dependency on the campaign engine)."""
+    import pandas as pd
+
+    if use_campaign:
+        from proxops.analysis.campaign import run_campaign
+
+        res = run_campaign(scenario, workers=workers, out=out, overrides=list(overrides), progress=progress)
+        return sweep_frame(res.table)
+    from proxops.scenarios.loader import load_scenario
+    from proxops.sim.engine import simulate
+
+    base = load_scenario(scenario, list(overrides)).scenario
+    rows = []
+    for mode in ("hard", "soft"):
+        for w in SWEEP_RATES_DEG_S:
+            for a in SWEEP_A_MAX_MPS2:
+                sc = base.model_copy(deep=True)
+                sc.target.tumble_rate_deg_s = w
+                sc.chaser.a_max_mps2 = a
+                sc.mpc.constraint_mode = mode
+                result = simulate(build_setup(sc), seed=sc.sim.seed)
+                summ = summarize_result(sc, result)
+                rows.append({"tumble_rate_deg_s": w, "a_max_mps2": a, "mode": mode,
+                             **{k: summ.get(k, result.summary().get(k)) for k in _SWEEP_METRICS if k != "total_dv_mps"},
+                             "total_dv_mps": float(result.dv_cum[-1])})
+    return pd.DataFrame(rows)
+
+
+def sweep_frame(table):
+    """Campaign rows (``disp.*``/``metric.*`` columns) -> the sweep DataFrame of :func:`run_sweep`."""
+    import pandas as pd
+
+    if not isinstance(table, pd.DataFrame):  # a campaign folder
+        from proxops.analysis.campaign import load_campaign
+
+        table = load_campaign(table).table
+    out = pd.DataFrame({
+        "tumble_rate_deg_s": table["disp.target.tumble_rate_deg_s"].astype(float),
+        "a_max_mps2": table["disp.chaser.a_max_mps2"].astype(float),
+        "mode": table["disp.mpc.constraint_mode"].astype(str) if "disp.mpc.constraint_mode" in table else "hard",
+    })
+    for key in _SWEEP_METRICS:
+        col = "metric." + key
+        out[key] = table[col] if col in table else np.nan
+    return out
+
+
+def sweep_table(source) -> str:
+    """Table 3 in the paper's layout (Markdown), ours next to the paper's columns.
+
+    ``source``: DataFrame from :func:`run_sweep` or a campaign folder. Hold / r_min /
+    violations are given for the hard (QP infeasible = failed run, §9.3) and the soft
+    (exact-penalty slack, the run continues) constraint modes."""
+    import pandas as pd
+
+    df = source if isinstance(source, pd.DataFrame) and "mode" in source else sweep_frame(source)
+    lines = [
+        "| w_t (deg/s) | a_max (m/s^2) | r_sync (m) | paper r_sync | start (m) | Hold hard/soft | paper Hold "
+        "| r_min (m) hard/soft | paper r_min | hard outcome | soft violations (steps, max m) |",
+        "|---|---|---|---|---|---|---|---|---|---|---|",
+    ]
+    yn = lambda b: "Yes" if bool(b) else "No"  # noqa: E731
+    for w in SWEEP_RATES_DEG_S:
+        for a in SWEEP_A_MAX_MPS2:
+            sel = df[np.isclose(df.tumble_rate_deg_s, w) & np.isclose(df.a_max_mps2, a)]
+            hard = sel[sel["mode"] == "hard"]
+            soft = sel[sel["mode"] == "soft"]
+            h = hard.iloc[0] if len(hard) else None
+            so = soft.iloc[0] if len(soft) else None
+            any_row = h if h is not None else so
+            if any_row is None:
+                continue
+            paper = PAPER_TABLE3.get((w, a), (np.nan, None, np.nan))
+            hold = f"{yn(h.hold_reached) if h is not None else '-'}/{yn(so.hold_reached) if so is not None else '-'}"
+            rmin = (f"{h.r_min_m:.1f}" if h is not None else "-") + "/" + (f"{so.r_min_m:.1f}" if so is not None else "-")
+            hard_out = "-" if h is None else ("feasible" if bool(h.feasible) else str(h.outcome))
+            viol = "-" if so is None else f"{int(so.los_violations)}, {so.max_violation_m:.3g}"
+            lines.append(
+                f"| {w:g} | {a:.2f} | {any_row.r_sync_m:.1f} | {paper[0]:.1f} | {any_row.initial_range_m:.0f} | {hold} "
+                f"| {'No' if paper[1] is False else '-'} | {rmin} | {paper[2]:.1f} | {hard_out} | {viol} |"
+            )
+    return "\n".join(lines)
+
+
+@register_system("los")
+class LosSystem:
+    Scenario = LosScenario
+
+    def build(self, sc: LosScenario) -> Setup:
+        return build_setup(sc)
+
+    def summarize(self, sc: LosScenario, result) -> dict:
+        return summarize_result(sc, result)
+
+    def success(self, sc: LosScenario, summary: dict) -> bool:
+        """Campaign classification (§9.3): zero violations > 1e-3 m, no QP infeasibility, no early stop."""
+        return bool(summary.get("feasible", False))
+
+    def figures(self, sc: LosScenario, results, out_dir) -> list[Path]:
+        from proxops.plotting.los import los_figures
+
+        if isinstance(results, dict):  # runner passes {label: SimResult}
+            results = next(iter(results.values()))
+        return los_figures(sc, results, Path(out_dir))
+
+
+def main(argv=None) -> None:
+    """``python -m proxops.systems.los sweep [--workers N] [--out DIR] [--no-campaign]``:
+    run the Table 3 sweep and print it in the paper's layout."""
+    import argparse
+
+    parser = argparse.ArgumentParser(prog="python -m proxops.systems.los")
+    parser.add_argument("command", choices=["sweep"])
+    parser.add_argument("--workers", type=int, default=1)
+    parser.add_argument("--out", default=None)
+    parser.add_argument("--no-campaign", action="store_true", help="plain loop instead of the campaign engine")
+    parser.add_argument("--set", action="append", default=[], help="scenario override key=value")
+    args = parser.parse_args(argv)
+    df = run_sweep(workers=args.workers, out=args.out, use_campaign=not args.no_campaign, overrides=args.set,
+                   progress=True)
+    print(sweep_table(df))
+
+
+if __name__ == "__main__":
+    main()

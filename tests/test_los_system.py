@@ -1,0 +1,97 @@
+"""The ``los`` system end to end (tumbling-target-reachability.md §7, §9, §10.6).
+
+References: Table 3's r_sync column; the paper's finding that starts inside r_sync
+approach without corridor violations and starts outside do not (§10.6, checked
+against J2 truth with the corridor's 1e-3 m tolerance)."""
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from proxops.errors import ProxopsInputError
+from proxops.guidance.los_regimes import auto_hold_range, cw_feedforward, sync_range
+from proxops.systems.los import PAPER_TABLE3, SWEEP_A_MAX_MPS2, SWEEP_RATES_DEG_S, run_case, sweep_table
+
+
+def test_r_sync_column_of_table_3_is_exact():
+    for (w, a), (r_sync_paper, _, _) in PAPER_TABLE3.items():
+        assert round(sync_range(a, np.radians(w)), 1) == pytest.approx(r_sync_paper, abs=1e-9)
+
+
+def test_cw_feedforward_cancels_cw_drift():
+    from proxops.core.cw import cw_rhs
+
+    n = 1.1e-3
+    x = np.array([3.0, -20.0, 5.0, 0.1, -0.2, 0.3])
+    acc = cw_rhs(0.0, x, cw_feedforward(n, x), n)[3:]
+    np.testing.assert_allclose(acc, 0.0, atol=1e-15)  # eq. (12) removes the CW terms
+
+
+def test_auto_hold_range_keeps_centripetal_demand_within_half_a_max():
+    for w in SWEEP_RATES_DEG_S:
+        for a in SWEEP_A_MAX_MPS2:
+            r_h = auto_hold_range(a, np.radians(w))
+            assert 2.0 <= r_h <= 10.0
+            if r_h > 2.0:
+                assert np.radians(w) ** 2 * r_h <= 0.5 * a + 1e-12
+
+
+def test_start_inside_r_sync_has_zero_violations_against_j2_truth():
+    w, a = 3.0, 0.05  # r_sync = 36.5 m
+    r0 = 0.4 * sync_range(a, np.radians(w))
+    out = run_case(w, a, [0.0, r0, 0.0], mpc_config="monte-carlo", duration_s=200.0)
+    assert out["los_violations"] == 0 and out["max_violation_m"] <= 1e-3
+    assert out["feasible"] and not out["qp_infeasible"]
+    assert out["hold_reached"]
+
+
+def test_start_outside_r_sync_fails_hard_and_violates_soft():
+    w, a = 3.0, 0.05
+    r0 = 1.5 * sync_range(a, np.radians(w))
+    hard = run_case(w, a, [0.0, r0, 0.0], mpc_config="monte-carlo", duration_s=60.0)
+    assert hard["qp_infeasible"] and not hard["feasible"]  # §9.3: infeasible QP = failed run
+    soft = run_case(w, a, [0.0, r0, 0.0], mpc_config="monte-carlo", duration_s=60.0, constraint_mode="soft")
+    assert soft["los_violations"] > 0 and soft["max_violation_m"] > 1e-3 and not soft["feasible"]
+
+
+def test_scenario_runs_through_the_runner_and_rejects_bad_settings():
+    from proxops.runner import execute
+    from proxops.scenarios.loader import load_scenario
+
+    loaded = load_scenario("los-tumble", ["sim.duration_s=30", "target.tumble_rate_deg_s=2",
+                                          "chaser.a_max_mps2=0.1"])
+    summary, results = execute(loaded)
+    for key in ("los_violations", "max_violation_m", "r_sync_m", "hold_reached"):
+        assert key in summary
+    assert summary["r_sync_m"] == pytest.approx(164.14, abs=0.01)
+    with pytest.raises(ProxopsInputError):
+        load_scenario("los-tumble", ["target.tumble_rate_deg_s=-1"])
+    with pytest.raises(ProxopsInputError):
+        load_scenario("los-tumble", ["chaser.a_max_mps=0.1"])
+
+
+def test_sweep_table_has_paper_layout():
+    rows = []
+    for mode in ("hard", "soft"):
+        for w in SWEEP_RATES_DEG_S:
+            for a in SWEEP_A_MAX_MPS2:
+                rows.append(dict(tumble_rate_deg_s=w, a_max_mps2=a, mode=mode, r_sync_m=sync_range(a, np.radians(w)),
+                                 hold_reached=False, r_min_m=150.0, los_violations=0, max_violation_m=0.0,
+                                 outcome="completed", feasible=True, initial_range_m=150.0, total_dv_mps=0.0))
+    text = sweep_table(pd.DataFrame(rows))
+    lines = text.splitlines()
+    assert len(lines) == 2 + 15
+    assert lines[2].startswith("| 1 | 0.10 | 656.6 | 656.6 |")
+    assert lines[-1].startswith("| 5 | 0.02 | 5.3 | 5.3 |")
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("w", SWEEP_RATES_DEG_S)
+def test_inside_versus_outside_r_sync_all_combinations(w):
+    """All 15 Table 3 combinations, single-run MPC, 600 s, co-rotating starts on the axis."""
+    for a in SWEEP_A_MAX_MPS2:
+        r_sync = sync_range(a, np.radians(w))
+        inside = run_case(w, a, [0.0, 0.4 * r_sync, 0.0], mpc_config="single")
+        assert inside["los_violations"] == 0 and inside["feasible"]
+        outside = run_case(w, a, [0.0, 1.5 * r_sync, 0.0], mpc_config="single", constraint_mode="soft")
+        assert outside["los_violations"] > 0
