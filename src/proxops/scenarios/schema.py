@@ -118,3 +118,12 @@ class ScenarioBase(Section):
     navigation: NavigationSection = NavigationSection()
     actuator: ActuatorSection = ActuatorSection()
     dispersions: dict[str, Any] = {}  # validated by proxops.analysis.campaign
+
+    @model_validator(mode="after")
+    def _dispersions_address_existing_keys(self):
+        """Each [dispersions] entry must name a key of this scenario (proxops.analysis.dispersions)."""
+        if self.dispersions:
+            from proxops.analysis.dispersions import parse_dispersions
+
+            parse_dispersions(self)
+        return self

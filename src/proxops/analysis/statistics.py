@@ -1,0 +1,144 @@
+"""Campaign statistics: per-metric mean, std, quartiles and P99 (the layout of
+cortex-convex-guidance.md Table 4), success / failure / violation counts.
+
+Conventions: ``std`` is the sample standard deviation (ddof = 1; 0 for one run);
+quantiles use numpy's default linear interpolation. Statistics are taken over the runs
+that did not raise (``outcome != "error"``) unless ``subset="success"``.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pandas as pd
+
+METRIC_PREFIX = "metric."
+DISP_PREFIX = "disp."
+STAT_COLUMNS = ("n", "mean", "std", "q1", "median", "q3", "p99", "min", "max")
+
+
+def metric_columns(table: pd.DataFrame) -> list[str]:
+    """Numeric metric columns of a campaign table (booleans excluded)."""
+    out = []
+    for col in table.columns:
+        if not col.startswith(METRIC_PREFIX):
+            continue
+        s = table[col]
+        if pd.api.types.is_numeric_dtype(s) and not pd.api.types.is_bool_dtype(s):
+            out.append(col)
+    return out
+
+
+def describe(values) -> dict:
+    """``{n, mean, std, q1, median, q3, p99, min, max}`` of finite values (NaN when empty)."""
+    v = np.asarray(values, dtype=float)
+    v = v[np.isfinite(v)]
+    if v.size == 0:
+        return {"n": 0, **{k: math.nan for k in STAT_COLUMNS[1:]}}
+    q1, q2, q3, p99 = np.percentile(v, [25, 50, 75, 99])
+    return {
+        "n": int(v.size),
+        "mean": float(v.mean()),
+        "std": float(v.std(ddof=1)) if v.size > 1 else 0.0,
+        "q1": float(q1),
+        "median": float(q2),
+        "q3": float(q3),
+        "p99": float(p99),
+        "min": float(v.min()),
+        "max": float(v.max()),
+    }
+
+
+def metric_statistics(table: pd.DataFrame, metrics: list[str] | None = None, subset: str = "completed",
+                      by: str | list[str] | None = None) -> pd.DataFrame:
+    """One row per metric (index = metric name without the ``metric.`` prefix).
+
+    ``subset``: ``"completed"`` (every run that did not raise) or ``"success"``.
+    ``by``: group by these columns first (e.g. a grid axis); the result then has a
+    MultiIndex (group..., metric)."""
+    if subset not in ("completed", "success", "all"):
+        raise ValueError(f"subset = {subset!r}: allowed completed, success, all")
+    rows = table
+    if "outcome" in table and subset != "all":
+        rows = table[table["outcome"] != "error"] if subset == "completed" else table[table["outcome"] == "success"]
+    metrics = metric_columns(table) if metrics is None else [m if m.startswith(METRIC_PREFIX) else METRIC_PREFIX + m for m in metrics]
+    if by is None:
+        stats = {m[len(METRIC_PREFIX):]: describe(rows[m]) if m in rows else describe([]) for m in metrics}
+        return pd.DataFrame.from_dict(stats, orient="index", columns=list(STAT_COLUMNS))
+    parts = []
+    for key, group in rows.groupby(by, sort=True):
+        st = metric_statistics(group, metrics, subset="all")
+        keys = key if isinstance(key, tuple) else (key,)
+        st.index = pd.MultiIndex.from_tuples([(*keys, m) for m in st.index])
+        parts.append(st)
+    return pd.concat(parts) if parts else pd.DataFrame(columns=list(STAT_COLUMNS))
+
+
+def outcome_counts(table: pd.DataFrame) -> dict:
+    """``runs, succeeded, failed, errors, with_violations`` and violation runs per constraint.
+
+    ``failed`` counts every run that did not succeed (``errors`` of them raised)."""
+    n = int(len(table))
+    if n == 0:
+        return {"runs": 0, "succeeded": 0, "failed": 0, "errors": 0, "with_violations": 0, "violations_by_constraint": {}}
+    outcome = table["outcome"]
+    succeeded = int((outcome == "success").sum())
+    errors = int((outcome == "error").sum())
+    by_con: dict[str, int] = {}
+    any_violation = np.zeros(n, dtype=bool)
+    for col in table.columns:
+        if col.startswith(METRIC_PREFIX + "max_violation."):
+            hit = table[col].fillna(0.0).to_numpy(dtype=float) > 0.0
+            by_con[col[len(METRIC_PREFIX + "max_violation."):]] = int(hit.sum())
+            any_violation |= hit
+    ev = METRIC_PREFIX + "events.violation"
+    if ev in table:
+        any_violation |= table[ev].fillna(0).to_numpy(dtype=float) > 0
+    return {
+        "runs": n,
+        "succeeded": succeeded,
+        "failed": n - succeeded,
+        "errors": errors,
+        "with_violations": int(any_violation.sum()),
+        "violations_by_constraint": by_con,
+    }
+
+
+def statistics_dict(stats: pd.DataFrame) -> dict:
+    """``{metric: {n, mean, std, q1, median, q3, p99, min, max}}`` for JSON (NaN -> None)."""
+    out = {}
+    for metric, row in stats.iterrows():
+        out[str(metric)] = {k: (None if isinstance(v, float) and not math.isfinite(v) else (int(v) if k == "n" else float(v)))
+                            for k, v in row.items()}
+    return out
+
+
+def format_table4(stats: pd.DataFrame, digits: int = 4) -> str:
+    """Markdown table in the layout of cortex-convex-guidance.md Table 4:
+    ``| metric | mu | sigma | [Q1, Q2, Q3, P99] |``."""
+
+    def f(x):
+        return "nan" if not math.isfinite(x) else f"{x:.{digits}g}"
+
+    lines = ["| metric | n | μ | σ | [Q1, Q2, Q3, P99] |", "| --- | --- | --- | --- | --- |"]
+    for metric, r in stats.iterrows():
+        lines.append(
+            f"| {metric} | {int(r['n'])} | {f(r['mean'])} | {f(r['std'])} | "
+            f"[{f(r['q1'])}, {f(r['median'])}, {f(r['q3'])}, {f(r['p99'])}] |"
+        )
+    return "\n".join(lines)
+
+
+def format_text_table(stats: pd.DataFrame, digits: int = 4) -> str:
+    """Fixed-width text version of :func:`format_table4` for the terminal."""
+
+    def f(x):
+        return "nan" if not math.isfinite(x) else f"{x:.{digits}g}"
+
+    rows = [(str(m), f(r["mean"]), f(r["std"]), f"[{f(r['q1'])}, {f(r['median'])}, {f(r['q3'])}, {f(r['p99'])}]")
+            for m, r in stats.iterrows()]
+    head = ("metric", "mean", "std", "[Q1, Q2, Q3, P99]")
+    widths = [max(len(x[i]) for x in rows + [head]) for i in range(4)]
+    fmt = "  ".join(f"{{:<{w}}}" for w in widths)
+    return "\n".join([fmt.format(*head)] + [fmt.format(*r) for r in rows])

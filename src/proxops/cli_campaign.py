@@ -1,0 +1,102 @@
+"""``proxops mc`` and ``proxops report``: Monte Carlo campaigns from the command line.
+
+Mounted by :func:`proxops.cli._mount_optional` (input errors -> one line, exit code 2).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import sys
+from pathlib import Path
+from typing import Annotated, Optional
+
+import typer
+
+from proxops.errors import ProxopsError
+
+
+def mc(
+    scenario: Annotated[str, typer.Argument(help="Scenario file or built-in name (its dispersions table says what varies).")],
+    runs: Annotated[Optional[int], typer.Option("--runs", "-n", help="Number of runs (default: the grid size when the dispersions declare grids; on --resume the folder's).")] = None,
+    workers: Annotated[Optional[int], typer.Option("--workers", "-w", help="Local worker processes (default: usable CPUs; 1 = in this process).")] = None,
+    scheduler: Annotated[Optional[str], typer.Option("--scheduler", help="Dask scheduler tcp://HOST:PORT or scheduler file (JSON).")] = None,
+    seed: Annotated[Optional[int], typer.Option("--seed", help="Campaign seed (default: the scenario's sim.seed).")] = None,
+    out: Annotated[Optional[Path], typer.Option("--out", help="Results folder (default: out/mc-<scenario>).")] = None,
+    resume: Annotated[bool, typer.Option("--resume", help="Complete the campaign in --out: run only what is missing.")] = False,
+    set_: Annotated[list[str], typer.Option("--set", help="Override a key: --set sim.duration_s=600.")] = [],
+    series: Annotated[bool, typer.Option("--series/--no-series", help="Keep every run's time series (Parquet) for overlays.")] = False,
+    report_: Annotated[bool, typer.Option("--report/--no-report", help="Write tables and figures under OUT/report when done.")] = False,
+    connect_timeout_s: Annotated[float, typer.Option("--connect-timeout-s", help="Give up connecting to --scheduler after this many seconds.")] = 5.0,
+    progress: Annotated[bool, typer.Option("--progress/--no-progress", help="Progress bar on stderr (done, failed, ETA).")] = True,
+    as_json: Annotated[bool, typer.Option("--json", help="One JSON object on stdout: runs, succeeded, failed, wall_time_s, statistics.")] = False,
+):
+    """Run a Monte Carlo campaign of a scenario (local processes or Dask) and print its statistics."""
+    from proxops.analysis.campaign import run_campaign, write_report
+    from proxops.errors import ProxopsInputError
+
+    if runs is not None and runs < 1:
+        raise ProxopsInputError(f"--runs {runs}: give a whole number of runs >= 1")
+    if workers is not None and workers < 1:
+        raise ProxopsInputError(f"--workers {workers}: give a whole number >= 1 (1 runs in this process)")
+    if connect_timeout_s <= 0:
+        raise ProxopsInputError(f"--connect-timeout-s {connect_timeout_s}: give a positive number of seconds")
+    out = out if out is not None else Path("out") / f"mc-{Path(scenario).stem}"
+    try:
+        result = run_campaign(scenario, n_runs=runs, workers=workers, scheduler=scheduler, seed=seed, out=out,
+                              resume=resume, overrides=set_, progress=progress, keep_series=series,
+                              connect_timeout_s=connect_timeout_s)
+    except KeyboardInterrupt:
+        typer.echo(f"campaign interrupted; finished runs are in {out}: `proxops mc {scenario} --out {out} --resume` "
+                   "completes it", err=True)
+        raise typer.Exit(130)
+    except ProxopsError as exc:
+        if isinstance(exc, ProxopsInputError):
+            raise
+        typer.echo(f"error: {exc}", err=True)
+        raise typer.Exit(1)
+    summary = result.summary()
+    if report_:
+        summary["report"] = write_report(result)["report_dir"]
+    if as_json:
+        sys.stdout.write(json.dumps(summary, default=str) + "\n")
+        return
+    typer.echo(format_campaign(summary, result.statistics()))
+
+
+def report(
+    folder: Annotated[Path, typer.Argument(help="Campaign folder written by `proxops mc`.")],
+    report_dir: Annotated[Optional[Path], typer.Option("--report-dir", help="Where to write (default: FOLDER/report).")] = None,
+    figures: Annotated[bool, typer.Option("--figures/--no-figures", help="Draw the figures.")] = True,
+    max_overlay: Annotated[int, typer.Option("--max-overlay", help="Trajectories drawn in the overlay (saved series only).")] = 100,
+    as_json: Annotated[bool, typer.Option("--json", help="One JSON object on stdout.")] = False,
+):
+    """Rebuild the statistics tables, report.md and figures of a campaign folder."""
+    from proxops.analysis.campaign import load_campaign, write_report
+
+    result = load_campaign(folder)
+    done = write_report(result, report_dir, figures=figures, max_overlay=max_overlay)
+    if as_json:
+        sys.stdout.write(json.dumps(done, default=str) + "\n")
+        return
+    text = format_campaign(done["summary"], result.statistics())
+    typer.echo(text + f"\nreport written to {done['report_dir']} ({len(done['files'])} files)")
+
+
+def format_campaign(summary: dict, stats) -> str:
+    from proxops.analysis.statistics import format_text_table
+
+    wall = summary.get("wall_time_s")
+    wall_text = f" ({summary.get('new_runs', 0)} new in {wall:.1f} s)" if isinstance(wall, (int, float)) and math.isfinite(wall) else ""
+    lines = [
+        f"campaign      {summary.get('scenario')}  seed {summary.get('seed')}",
+        f"runs          {summary['runs']} of {summary['n_runs']}{wall_text}",
+        f"succeeded     {summary['succeeded']}",
+        f"failed        {summary['failed']} ({summary['errors']} raised)",
+        f"violations    {summary['with_violations']} runs {summary.get('violations_by_constraint') or ''}",
+        "",
+        format_text_table(stats) if len(stats) else "(no completed runs)",
+    ]
+    if summary.get("out"):
+        lines.append(f"\nresults in {summary['out']}; `proxops report {summary['out']}` draws tables and figures")
+    return "\n".join(lines)
