@@ -1,0 +1,386 @@
+"""Monte Carlo feasibility maps of the tumbling-target approach (tumbling-target-reachability.md §9-10.5).
+
+1. Initial conditions (§9.1): 15 values of y_B in [20, 300] m times 13 values of x_B in
+   [-0.95 tan(30 deg) y_B, +0.95 tan(30 deg) y_B], z_B = 0, zero body-frame velocity.
+2. Closed loop (§9.2): the ``los`` system (J2 truth, quaternion target, body-frame MPC in
+   its Monte Carlo configuration, 400 s), one run per (w_t, a_max, IC), run as a campaign
+   (:func:`proxops.analysis.campaign.run_campaign`: local process pool or Dask, Parquet
+   rows written as runs finish, ``resume`` completes an interrupted campaign).
+3. Classification (§9.3): feasible = no corridor violation above 1e-3 m, the QP never
+   infeasible, no early termination. A run that raised is not feasible and is counted
+   separately (``n_error``).
+4. Interpolation (§9.4) onto the analytical grid: natural-neighbour (Sibson) inside the
+   convex hull of the ICs, nearest neighbour outside. scipy has no natural-neighbour
+   interpolant; :func:`natural_neighbour` computes exact Sibson coordinates from the
+   Delaunay triangulation (scipy.spatial.Delaunay) with the Bowyer-Watson cavity of each
+   query, compiled with numba. The binary map is the interpolant >= 0.5.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from pathlib import Path
+from typing import NamedTuple
+
+import numba
+import numpy as np
+import pandas as pd
+from scipy.spatial import Delaunay, cKDTree
+
+from proxops.analysis.reach import PAPER_A_MAX_MPS2, PAPER_OMEGAS_DEG_S, BodyGrid
+from proxops.errors import input_error
+
+MC_Y_RANGE_M = (20.0, 300.0)
+MC_N_Y = 15
+MC_N_X = 13
+MC_FILL = 0.95  # x_B spans +-0.95 tan(alpha_c) y_B
+MC_DURATION_S = 400.0
+VIOLATION_TOLERANCE_M = 1e-3  # §9.3
+POSITION_KEY = "chaser.initial_body_position_m"
+OMEGA_KEY = "target.tumble_rate_deg_s"
+A_MAX_KEY = "chaser.a_max_mps2"
+
+
+def mc_initial_positions(
+    half_angle_rad: float = math.radians(30.0),
+    y_range_m: tuple[float, float] = MC_Y_RANGE_M,
+    n_y: int = MC_N_Y,
+    n_x: int = MC_N_X,
+    fill: float = MC_FILL,
+) -> np.ndarray:
+    """§9.1 structured IC grid, (n_y * n_x, 3) body-frame positions (m), y slow, x fast."""
+    if n_y < 1 or n_x < 1 or int(n_y) != n_y or int(n_x) != n_x:
+        raise input_error("mc grid", (n_y, n_x), "n_y and n_x must be whole numbers >= 1")
+    if not (0.0 < fill <= 1.0):
+        raise input_error("mc fill", fill, "must be in (0, 1]")
+    ys = np.linspace(y_range_m[0], y_range_m[1], int(n_y))
+    out = []
+    for y in ys:
+        half = fill * math.tan(half_angle_rad) * y
+        for x in np.linspace(-half, half, int(n_x)):
+            out.append((x, y, 0.0))
+    return np.array(out)
+
+
+# --------------------------------------------------------------------------------------
+# campaign
+# --------------------------------------------------------------------------------------
+def mc_scenario(
+    omegas_deg_s=PAPER_OMEGAS_DEG_S,
+    a_max_mps2=PAPER_A_MAX_MPS2,
+    positions: np.ndarray | None = None,
+    duration_s: float = MC_DURATION_S,
+    truth: str = "j2",
+    seed: int = 0,
+) -> dict:
+    """Scenario data of the §9 campaign: the ``los`` system in its Monte Carlo configuration
+    with the grid (w_t x a_max x IC) declared as dispersion grid axes (last axis fastest)."""
+    from proxops.systems.los import default_scenario
+
+    positions = mc_initial_positions() if positions is None else np.asarray(positions, float)
+    sc = default_scenario(
+        sim={"duration_s": float(duration_s), "dt_s": 1.0, "seed": int(seed)},
+        truth={"model": truth},
+        chaser={"initial_velocity_frame": "body", "initial_velocity_mps": [0.0, 0.0, 0.0]},
+        mpc={"config": "monte-carlo", "constraint_mode": "hard"},
+    )
+    data = sc.model_dump(mode="json", exclude_none=True)
+    data["name"] = "reach-mc"
+    data["description"] = "tumbling-target-reachability.md §9 feasibility sweep"
+    data["dispersions"] = {
+        OMEGA_KEY: {"grid": [float(w) for w in omegas_deg_s]},
+        A_MAX_KEY: {"grid": [float(a) for a in a_max_mps2]},
+        POSITION_KEY: {"grid": [[float(c) for c in p] for p in positions]},
+    }
+    return data
+
+
+def run_mc(
+    out: str | Path | None,
+    omegas_deg_s=PAPER_OMEGAS_DEG_S,
+    a_max_mps2=PAPER_A_MAX_MPS2,
+    positions: np.ndarray | None = None,
+    duration_s: float = MC_DURATION_S,
+    workers: int | None = None,
+    scheduler=None,
+    resume: bool = False,
+    progress: bool = True,
+    truth: str = "j2",
+) -> "McRun":
+    """Run (or with ``resume`` complete) the §9 campaign. See :func:`outcome_table` for the table."""
+    from proxops.analysis.campaign import run_campaign
+
+    data = mc_scenario(omegas_deg_s, a_max_mps2, positions, duration_s, truth)
+    res = run_campaign(data, workers=workers, scheduler=scheduler, out=out, resume=resume, progress=progress)
+    return McRun(outcome_table(res.table), float(res.wall_time_s), int(res.new_runs))
+
+
+class McRun(NamedTuple):
+    """table: one row per run (all runs in the folder); wall_time_s and new_runs: this call only."""
+
+    table: pd.DataFrame
+    wall_time_s: float
+    new_runs: int
+
+
+def classify_rows(table: pd.DataFrame) -> np.ndarray:
+    """§9.3 rule on campaign rows: no violation > 1e-3 m, no QP infeasibility, no early stop."""
+    def col(name, default):
+        return table[name] if name in table else pd.Series(default, index=table.index)
+
+    viol = pd.to_numeric(col("metric.los_violations", 1), errors="coerce").fillna(1).to_numpy()
+    vmax = pd.to_numeric(col("metric.max_violation_m", np.inf), errors="coerce").fillna(np.inf).to_numpy()
+    qp_bad = col("metric.qp_infeasible", True).fillna(True).astype(bool).to_numpy()
+    outcome = col("metric.outcome", "").fillna("").astype(str).to_numpy()
+    ran = col("outcome", "error").astype(str).to_numpy() != "error"
+    completed = np.isin(outcome, ("completed", "hold_reached"))
+    return ran & (viol == 0) & (vmax <= VIOLATION_TOLERANCE_M) & ~qp_bad & completed
+
+
+def outcome_table(table: pd.DataFrame) -> pd.DataFrame:
+    """Campaign rows -> columns omega_deg_s, a_max_mps2, x_m, y_m, z_m, feasible, outcome,
+    los_violations, max_violation_m, error, run_wall_s (one row per run)."""
+    out = pd.DataFrame(
+        {
+            "run_id": table["run_id"].to_numpy(),
+            "omega_deg_s": table["disp." + OMEGA_KEY].astype(float).to_numpy(),
+            "a_max_mps2": table["disp." + A_MAX_KEY].astype(float).to_numpy(),
+            "x_m": table[f"disp.{POSITION_KEY}[0]"].astype(float).to_numpy(),
+            "y_m": table[f"disp.{POSITION_KEY}[1]"].astype(float).to_numpy(),
+            "z_m": table[f"disp.{POSITION_KEY}[2]"].astype(float).to_numpy(),
+            "feasible": classify_rows(table),
+            "outcome": table.get("metric.outcome", pd.Series("", index=table.index)).fillna("").astype(str).to_numpy(),
+            "error": table["outcome"].astype(str).to_numpy() == "error",
+        }
+    )
+    for src, dst in (("metric.los_violations", "los_violations"), ("metric.max_violation_m", "max_violation_m"),
+                     ("metric.sim_time_s", "sim_time_s"), ("run_wall_s", "run_wall_s")):
+        out[dst] = pd.to_numeric(table[src], errors="coerce").to_numpy() if src in table else np.nan
+    return out.sort_values("run_id").reset_index(drop=True)
+
+
+# --------------------------------------------------------------------------------------
+# natural-neighbour interpolation onto the analytical grid
+# --------------------------------------------------------------------------------------
+@numba.njit(cache=True)
+def _circumcentre(ax, ay, bx, by, cx, cy):  # pragma: no cover - compiled
+    bx -= ax
+    by -= ay
+    cx -= ax
+    cy -= ay
+    d = 2.0 * (bx * cy - by * cx)
+    b2 = bx * bx + by * by
+    c2 = cx * cx + cy * cy
+    return ax + (cy * b2 - by * c2) / d, ay + (bx * c2 - cx * b2) / d
+
+
+@numba.njit(cache=True)
+def _sibson_kernel(pts, vals, simplices, neighbors, cc, r2, queries, start):  # pragma: no cover - compiled
+    """Sibson interpolation at queries inside the hull (start = containing simplex, >= 0)."""
+    n_q = queries.shape[0]
+    out = np.empty(n_q)
+    stamp = np.zeros(simplices.shape[0], np.int64)
+    stack = np.empty(simplices.shape[0], np.int64)
+    conf = np.empty(simplices.shape[0], np.int64)
+    max_e = 3 * simplices.shape[0]
+    ea = np.empty(max_e, np.int64)
+    eb = np.empty(max_e, np.int64)
+    ex = np.empty(max_e)
+    ey = np.empty(max_e)
+    px = np.empty(max_e + 2)
+    py = np.empty(max_e + 2)
+    ang = np.empty(max_e + 2)
+    for iq in range(n_q):
+        qx, qy = queries[iq, 0], queries[iq, 1]
+        # q on a data site: its value
+        t0 = start[iq]
+        hit = -1
+        for k in range(3):
+            v = simplices[t0, k]
+            if (pts[v, 0] - qx) ** 2 + (pts[v, 1] - qy) ** 2 <= 1e-18 * (1.0 + qx * qx + qy * qy):
+                hit = v
+        if hit >= 0:
+            out[iq] = vals[hit]
+            continue
+        # Bowyer-Watson cavity: triangles whose circumcircle contains q
+        tag = iq + 1
+        n_conf = 0
+        top = 0
+        stack[top] = t0
+        top += 1
+        stamp[t0] = tag
+        while top > 0:
+            top -= 1
+            t = stack[top]
+            conf[n_conf] = t
+            n_conf += 1
+            for k in range(3):
+                nb = neighbors[t, k]
+                if nb >= 0 and stamp[nb] != tag:
+                    if (qx - cc[nb, 0]) ** 2 + (qy - cc[nb, 1]) ** 2 < r2[nb]:
+                        stamp[nb] = tag
+                        stack[top] = nb
+                        top += 1
+        # cavity boundary edges and the new circumcentres (vertices of q's new Voronoi cell)
+        n_e = 0
+        for i in range(n_conf):
+            t = conf[i]
+            for k in range(3):
+                nb = neighbors[t, k]
+                if nb < 0 or stamp[nb] != tag:
+                    a = simplices[t, (k + 1) % 3]
+                    b = simplices[t, (k + 2) % 3]
+                    ea[n_e] = a
+                    eb[n_e] = b
+                    ex[n_e], ey[n_e] = _circumcentre(qx, qy, pts[a, 0], pts[a, 1], pts[b, 0], pts[b, 1])
+                    n_e += 1
+        # stolen area per natural neighbour v = area of the convex polygon V_q ∩ V_v, whose vertices
+        # are the old circumcentres of the conflicting triangles around v and the two new ones on edges at v
+        num = 0.0
+        den = 0.0
+        for i in range(n_e):
+            v = ea[i]
+            m = 0
+            for j in range(n_conf):
+                t = conf[j]
+                if simplices[t, 0] == v or simplices[t, 1] == v or simplices[t, 2] == v:
+                    px[m] = cc[t, 0]
+                    py[m] = cc[t, 1]
+                    m += 1
+            for j in range(n_e):
+                if ea[j] == v or eb[j] == v:
+                    px[m] = ex[j]
+                    py[m] = ey[j]
+                    m += 1
+            mx = 0.0
+            my = 0.0
+            for j in range(m):
+                mx += px[j]
+                my += py[j]
+            mx /= m
+            my /= m
+            for j in range(m):
+                ang[j] = math.atan2(py[j] - my, px[j] - mx)
+            order = np.argsort(ang[:m])
+            area = 0.0
+            for j in range(m):
+                a_i = order[j]
+                b_i = order[(j + 1) % m]
+                area += px[a_i] * py[b_i] - px[b_i] * py[a_i]
+            area = 0.5 * abs(area)
+            num += area * vals[v]
+            den += area
+        out[iq] = num / den if den > 0.0 else vals[simplices[t0, 0]]
+    return out
+
+
+def natural_neighbour(sites: np.ndarray, values: np.ndarray, queries: np.ndarray) -> np.ndarray:
+    """Sibson natural-neighbour interpolation at ``queries`` (q, 2); nearest neighbour outside the hull.
+
+    Exact Sibson coordinates (Sibson 1980): the area each site's Voronoi cell loses when the
+    query is inserted, from the Bowyer-Watson cavity of the Delaunay triangulation (as in
+    Liang & Hale 2010 / MetPy), compiled with numba."""
+    sites = np.asarray(sites, float)[:, :2]
+    values = np.asarray(values, float)
+    q = np.atleast_2d(np.asarray(queries, float))[:, :2]
+    if sites.shape[0] != values.shape[0] or sites.shape[0] < 1:
+        raise input_error("sites", sites.shape, f"need one value per site (got {values.shape[0]} values)")
+    _, idx = cKDTree(sites).query(q)
+    out = values[idx].astype(float)
+    if sites.shape[0] < 3:
+        return out
+    try:
+        tri = Delaunay(sites)
+    except Exception:  # collinear sites: no 2-D hull, nearest neighbour everywhere
+        return out
+    start = tri.find_simplex(q)
+    inside = start >= 0
+    if not inside.any():
+        return out
+    simp = tri.simplices.astype(np.int64)
+    P = tri.points
+    a, b, c = P[simp[:, 0]], P[simp[:, 1]], P[simp[:, 2]]
+    cc = np.empty((len(simp), 2))
+    for i in range(len(simp)):
+        cc[i] = _circumcentre(a[i, 0], a[i, 1], b[i, 0], b[i, 1], c[i, 0], c[i, 1])
+    r2 = np.sum((cc - a) ** 2, axis=1)
+    out[inside] = _sibson_kernel(np.ascontiguousarray(P), values, simp, tri.neighbors.astype(np.int64), cc, r2,
+                                 np.ascontiguousarray(q[inside]), start[inside].astype(np.int64))
+    return out
+
+
+def natural_neighbour_grid(sites: np.ndarray, values: np.ndarray, x: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """:func:`natural_neighbour` on the grid x (nx,) by y (ny,) -> (ny, nx) (§9.4)."""
+    X, Y = np.meshgrid(np.asarray(x, float), np.asarray(y, float))
+    return natural_neighbour(sites, values, np.column_stack([X.ravel(), Y.ravel()])).reshape(X.shape)
+
+
+# --------------------------------------------------------------------------------------
+# maps and comparison with the certified regions
+# --------------------------------------------------------------------------------------
+@dataclass
+class FeasibilityMap:
+    """MC map of one combination on the analytical grid. value (n,) in [0, 1], mask = value >= 0.5."""
+
+    omega_deg_s: float
+    a_max_mps2: float
+    value: np.ndarray
+    mask: np.ndarray
+    sites: np.ndarray
+    feasible: np.ndarray
+
+    @property
+    def pct_ics_feasible(self) -> float:
+        return 100.0 * float(np.mean(self.feasible)) if self.feasible.size else float("nan")
+
+
+def feasibility_map(outcomes: pd.DataFrame, grid: BodyGrid, omega_deg_s: float, a_max_mps2: float) -> FeasibilityMap:
+    """Interpolate one combination's outcomes (rows of :func:`outcome_table`) onto the grid."""
+    sel = outcomes[np.isclose(outcomes["omega_deg_s"], omega_deg_s) & np.isclose(outcomes["a_max_mps2"], a_max_mps2)]
+    if sel.empty:
+        raise input_error("combination", (omega_deg_s, a_max_mps2), "no Monte Carlo runs for it")
+    sites = sel[["x_m", "y_m"]].to_numpy()
+    feas = sel["feasible"].to_numpy(bool)
+    value = natural_neighbour_grid(sites, feas.astype(float), grid.x_m, grid.y_m).ravel()
+    return FeasibilityMap(float(omega_deg_s), float(a_max_mps2), value, value >= 0.5, sites, feas)
+
+
+def certification_check(fmap: FeasibilityMap, grid: BodyGrid, nominal: np.ndarray, sites_nominal: np.ndarray) -> dict:
+    """How often Monte Carlo contradicts the nominal certificate (it should be ~never).
+
+    ``nominal`` (n,) grid mask; ``sites_nominal`` (m,) nominal certificate evaluated at the
+    ICs themselves. Returns counts and fractions on the grid (interpolated map) and at the ICs."""
+    cert = nominal & grid.inside
+    n_cert = int(cert.sum())
+    bad_grid = int(np.count_nonzero(cert & ~fmap.mask))
+    try:  # inside the hull of the ICs the map is interpolated, outside it is extrapolated
+        in_hull = Delaunay(fmap.sites).find_simplex(grid.points[:, :2]) >= 0
+    except Exception:
+        in_hull = np.zeros(len(grid.points), bool)
+    n_cert_hull = int(np.count_nonzero(cert & in_hull))
+    bad_hull = int(np.count_nonzero(cert & in_hull & ~fmap.mask))
+    n_sites_cert = int(np.count_nonzero(sites_nominal))
+    bad_sites = int(np.count_nonzero(sites_nominal & ~fmap.feasible))
+    return {
+        "nominal_grid_points": n_cert,
+        "nominal_grid_points_mc_infeasible": bad_grid,
+        "frac_nominal_grid_mc_infeasible": bad_grid / n_cert if n_cert else 0.0,
+        "nominal_grid_points_in_ic_hull": n_cert_hull,
+        "nominal_grid_points_in_ic_hull_mc_infeasible": bad_hull,
+        "frac_nominal_grid_in_ic_hull_mc_infeasible": bad_hull / n_cert_hull if n_cert_hull else 0.0,
+        "nominal_ics": n_sites_cert,
+        "nominal_ics_mc_infeasible": bad_sites,
+        "frac_nominal_ics_mc_infeasible": bad_sites / n_sites_cert if n_sites_cert else 0.0,
+        "mc_pct_grid": grid.percent(fmap.mask),
+        "mc_pct_ics": fmap.pct_ics_feasible,
+    }
+
+
+def read_outcomes(out: str | Path) -> pd.DataFrame:
+    """Outcome table of a finished (or partial) campaign folder."""
+    from proxops.analysis.campaign import load_campaign
+
+    return outcome_table(load_campaign(out).table)
+
+

@@ -1,0 +1,67 @@
+"""`proxops reach` command group: JSON layout, files, bad input (exit code 2)."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+from typer.testing import CliRunner
+
+from proxops.analysis import reach as R
+from proxops.cli_reach import reach_app
+
+runner = CliRunner()
+
+
+def test_table_json_layout_and_paper_cells():
+    res = runner.invoke(reach_app, ["table", "--grid", "300", "--no-backward", "--json"])
+    assert res.exit_code == 0, res.output
+    out = json.loads(res.stdout)
+    combos = out["combinations"]
+    assert len(combos) == 20
+    keys = {"omega_deg_s", "a_max_mps2", "nominal_pct", "stochastic_pct", "robust_pct", "backward_pct",
+            "hierarchy_violations"}
+    assert keys.issubset(combos[0])
+    table = np.array([c["nominal_pct"] for c in combos]).reshape(5, 4)
+    np.testing.assert_allclose(table, R.PAPER_TABLE2_PCT, atol=0.2)  # Table 2
+    assert out["hierarchy_violations_total"] == 0
+
+
+def test_table_with_backward_writes_figures(tmp_path):
+    res = runner.invoke(reach_app, ["table", "--grid", "40", "--out", str(tmp_path), "--json"])
+    assert res.exit_code == 0, res.output
+    out = json.loads(res.stdout)
+    assert all(c["backward_pct"] is not None for c in out["combinations"])
+    for name in ("fig1_hierarchy.png", "scaling.png", "double_integrator.png", "table.json"):
+        assert (tmp_path / name).stat().st_size > 0
+
+
+def test_map_command(tmp_path):
+    res = runner.invoke(reach_app, ["map", "--omega-deg", "2", "--amax", "0.1", "--out", str(tmp_path), "--grid", "60",
+                                    "--json"])
+    assert res.exit_code == 0, res.output
+    out = json.loads(res.stdout)
+    assert out["r_sync_m"] == round(2 * 0.1 / np.radians(2) ** 2, 3)  # eq. (14)
+    assert (tmp_path / "reach_w2_a0.1.png").exists()
+
+
+def test_bad_inputs_exit_2(tmp_path):
+    for args in (["table", "--grid", "2"], ["map", "--omega-deg", "0", "--amax", "0.1", "--out", str(tmp_path)],
+                 ["map", "--omega-deg", "2", "--amax", "-1", "--out", str(tmp_path)],
+                 ["table", "--backward-start", "sideways"], ["mc", "--out", str(tmp_path), "--workers", "0"]):
+        res = runner.invoke(reach_app, args)
+        assert res.exit_code == 2, (args, res.output)
+        assert "error:" in res.output
+
+
+def test_mc_command_small(tmp_path):
+    """4 ICs x 1 combination, 30 s: the campaign, maps, figures and summary JSON."""
+    res = runner.invoke(reach_app, ["mc", "--out", str(tmp_path), "--workers", "1", "--duration-s", "30",
+                                    "--n-y", "2", "--n-x", "2", "--omega-deg", "2", "--amax", "0.1", "--grid", "40",
+                                    "--no-progress", "--json"])
+    assert res.exit_code == 0, res.output
+    out = json.loads(res.stdout.strip().splitlines()[-1])
+    assert out["runs"] == 4 and out["new_runs"] == 4 and out["errors"] == 0
+    assert len(out["combinations"]) == 1
+    for name in ("fig2_mc_sweep.png", "fig3_overlay.png", "mc_summary.json"):
+        assert (tmp_path / name).exists()
