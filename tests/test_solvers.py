@@ -483,3 +483,18 @@ def test_bad_input_raises_clear_errors():
         solve_qp(QuadraticProgram(P=None, q=[1.0]), "osqp")
     with pytest.raises(ProxopsInputError, match="LPs only"):
         solve_qp(QuadraticProgram(P=np.eye(1), q=[1.0]), "highs")
+
+
+def test_piqp_bound_update_in_place():
+    """min 1/2 |x - c|^2 s.t. lb <= x <= ub: the optimum is clip(c, lb, ub) (projection onto a box).
+    Updating only the bounds must reuse the solver (no error, no rebuild) and move the optimum."""
+    c = np.array([2.0, -3.0, 0.5])
+    qp = PiqpQP()
+    qp.setup(np.eye(3), -c, x_lb=-np.ones(3), x_ub=np.ones(3))
+    first = qp.solve()
+    assert first.status is SolveStatus.OPTIMAL
+    np.testing.assert_allclose(first.x, np.clip(c, -1, 1), atol=1e-6)
+    qp.update(x_lb=np.array([-5.0, -5.0, 0.8]), x_ub=np.array([1.5, 5.0, 5.0]))
+    second = qp.solve()
+    assert second.status is SolveStatus.OPTIMAL and not second.info.get("error")
+    np.testing.assert_allclose(second.x, [1.5, -3.0, 0.8], atol=1e-6)

@@ -173,6 +173,8 @@ class PiqpQP:
             return
         kwargs = {k: v for k, v in changed.items() if not ((k in ("A", "b") and not self.p)
                                                             or (k in ("G", "h_l", "h_u") and not self.m))}
+        # piqp's update names the bounds x_l / x_u (setup takes them positionally)
+        kwargs = {{"x_lb": "x_l", "x_ub": "x_u"}.get(k, k): v for k, v in kwargs.items()}
         try:
             self._solver.update(**kwargs)
         except Exception as exc:
