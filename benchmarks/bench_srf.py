@@ -1,0 +1,93 @@
+"""srf benchmark (srf-hopping-mpc.md): MPC solve time per approach, single-run wall time, the
+R-bar / V-bar time and dv ratios (paper §5.2: R-bar "roughly five times faster ... approximately
+ten times more" fuel), hop timing checks, and the 50-run campaign wall times on 2 workers.
+
+    python benchmarks/bench_srf.py            # single runs + campaigns
+    python benchmarks/bench_srf.py --quick    # single runs only
+
+Goals (issue 4): median solve < 3 ms; a 50-run campaign < 30 s on 2 cores. The machine is
+shared: the load average is printed with the numbers.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import sys
+import time
+
+for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ.setdefault(_var, "1")
+
+import numpy as np  # noqa: E402
+
+SINGLE = ("srf-vbar", "srf-rbar", "srf-glideslope-20", "srf-glideslope-40", "srf-glideslope-250", "srf-cbf-demo")
+CAMPAIGNS = ("srf-vbar-mc", "srf-rbar-mc", "srf-glideslope-40-mc")
+
+
+def run_one(name: str, overrides=()):
+    from proxops.runner import execute
+    from proxops.scenarios.loader import load_scenario
+
+    loaded = load_scenario(name, list(overrides))
+    t0 = time.perf_counter()
+    summary, results = execute(loaded)
+    wall = time.perf_counter() - t0
+    res = next(iter(results.values()))
+    solved = np.nan_to_num(res.info["solved"]) > 0
+    st = res.solve_time_s[solved] * 1e3
+    return summary, res, wall, st
+
+
+def main(quick: bool = False) -> None:
+    from proxops.guidance.hop_times import rbar_phi
+
+    print(f"load average {os.getloadavg()[0]:.2f} on {len(os.sched_getaffinity(0))} usable cpus")
+    phi0 = rbar_phi(0.0)
+    print(f"R-bar phi(rho = 0) = {phi0:.6f} rad = {phi0 / (2 * math.pi):.4f} t_orb (paper: ~1.27 rad, 0.21 t_orb)")
+    run_one("srf-rbar")  # warm-up (imports, numba)
+    print(f"\n{'scenario':<20} {'solve med ms':>12} {'p95 ms':>8} {'solves':>6} {'run s':>6} {'dv m/s':>7} "
+          f"{'t_arr/t_orb':>11} {'err m':>6} {'along %':>7} {'KOZ m':>6} {'abort':>5}")
+    rows = {}
+    for name in SINGLE:
+        s, res, wall, st = run_one(name)
+        rows[name] = s
+        print(f"{name:<20} {np.median(st):12.2f} {np.percentile(st, 95):8.2f} {st.size:6d} {wall:6.2f} "
+              f"{s['total_dv_mps']:7.3f} {s['arrival_time_orbits']:11.3f} {s['arrival_error_m']:6.2f} "
+              f"{100 * s['dv_share_along_track']:7.2f} {s['koz_min_distance_m']:6.1f} {str(s['abort_safe_all']):>5}")
+    v = rows["srf-vbar"]
+    print(f"\nV-bar hop intervals (s): {np.round(v['hop_intervals_s'], 2).tolist()} = "
+          f"{np.round(np.array(v['hop_intervals_s']) / v['period_s'], 4).tolist()} t_orb (paper: 0.5)")
+    print(f"V-bar along-track share of |dv|_1: {100 * v['dv_share_along_track']:.2f} % (paper: all radial)")
+    cbf = rows["srf-cbf-demo"]
+    print(f"CBF demo: free-drift KOZ distance per hop, no CBF {np.round(cbf['without_cbf']['abort_koz_distance_m'], 1).tolist()} m, "
+          f"CBF {np.round(cbf['with_cbf_abort_koz_distance_m'], 1).tolist()} m (negative = inside the KOZ)")
+    # same number of hops for the ratio (paper Figs. 5 and 7: 5 hops each), no dispersion
+    s5v, *_ = run_one("srf-vbar", ["approach.hops=5", "sim.duration_s=18400"])
+    s5r = rows["srf-rbar"]
+    t_ratio = s5v["arrival_time_s"] / s5r["arrival_time_s"]
+    dv_ratio = s5r["total_dv_mps"] / s5v["total_dv_mps"]
+    print(f"5-hop R-bar vs V-bar: {t_ratio:.2f}x faster (paper ~5x), {dv_ratio:.2f}x the dv (paper ~10x)")
+    v3 = rows["srf-vbar"]
+    print(f"(3-hop V-bar vs 5-hop R-bar: {v3['arrival_time_s'] / s5r['arrival_time_s']:.2f}x time, "
+          f"{s5r['total_dv_mps'] / v3['total_dv_mps']:.2f}x dv)")
+    if quick:
+        return
+    from proxops.analysis.campaign import run_campaign
+
+    print(f"\n{'campaign (50 runs, 2 workers)':<32} {'wall s':>7} {'ok':>4} {'arr err max m':>13} {'KOZ viol':>8} "
+          f"{'abort safe':>10} {'solve med ms':>12}")
+    for name in CAMPAIGNS:
+        t0 = time.perf_counter()
+        result = run_campaign(name, n_runs=50, workers=2, progress=False)
+        wall = time.perf_counter() - t0
+        table = result.table
+        ok = int(table["success"].sum())
+        print(f"{name:<32} {wall:7.1f} {ok:4d} {table['metric.arrival_error_m'].max():13.2f} "
+              f"{int(table['metric.koz_violation_samples'].sum()):8d} {int(table['metric.abort_safe_all'].sum()):10d} "
+              f"{table['metric.mpc_solve_ms.median'].median():12.2f}")
+    print(f"load average after: {os.getloadavg()[0]:.2f}")
+
+
+if __name__ == "__main__":
+    main(quick="--quick" in sys.argv)

@@ -1,0 +1,600 @@
+"""Short Range Framework MPC (srf-hopping-mpc.md §4.4, problem 29) on impulsive CW.
+
+Problem solved at every MPC node ``i`` (shrinking horizon ``i..N``, impulses ``u_i..u_N``;
+``x_j`` is the state *before* the impulse at node ``j``, ``x_{j+1} = Phi(t_{j+1}-t_j)(x_j + [0; u_j])``)::
+
+    min  1/2 (p_N - p_d)' Q (p_N - p_d) + R sum_j 1'(u+_j + u-_j)            (29a)
+    s.t. x_i = x_hat (29b), impulsive CW (29c), u = u+ - u-
+         |p_N - p_d|_inf <= pos_tol,  |v_N + u_N|_inf <= vel_tol             (29d) terminal set
+         0 <= u+_j, u-_j <= u_max                                             (29e-f)
+         sum_j 1'(u+_j + u-_j) <= u_budget - (dv already used)                (29g)
+         x_u(tau) = Phi(tau)(x_i + [0; u_i]) for tau in the free-drift grid   (29h-i)
+         hdot(x_u) + alpha h(x_u) >= 0 and |p_u - c| >= r at those taus       (29j) (convexified, below)
+         at every future hop node j: |b . p_j| <= r_tol, |a . v_j| <= w_tol   (29k-m)
+         V-bar only, hop lengths L_m = a.p(J_{m-1}) - a.p(J_m):
+             h_min <= L_m <= h_max                                            (29n)
+             L_{m+1} <= L_m - eps                                             (29o, corrected)
+
+``a`` is the approach axis and ``b`` the in-plane perpendicular of eq. (20)
+(``e_A``, ``e_perp2``) expressed in Hill; Hill is the only frame here.
+
+Corrections / choices (also in the report):
+
+* (29m) is printed on ``v_x``; it must be the rotated along-axis velocity ``w_x`` (eq. 29k
+  defines w = R v and (23) requires w_xt = 0).
+* (29o) as printed, ``r_{j+1} - r_j <= r_j - r_{j-1} + eps``, reads ``L_{j+1} >= L_j - eps``:
+  a lower bound that does not make hops decrease. The text says it "enforces a decrease of
+  hop sizes"; implemented as ``L_{j+1} <= L_j - eps``.
+* Free drift (29h-j): the paper samples x_u on the remaining MPC nodes (empty at the end of a
+  shrinking horizon). Here x_u is sampled on a fixed grid of ``free_drift_nodes`` points over
+  ``free_drift_s`` (default one orbit, the passive-abort horizon), which does not shrink.
+* (29j) is non-convex. Convexification: (1) supporting half-spaces
+  ``n_f . (p_u(tau_f) - c) >= r`` with n_f from the reference unforced trajectory (sound:
+  every such point is outside the sphere) and (2) the CBF condition linearised about the
+  same reference (g is an indefinite quadratic, so this row alone is not conservative). The
+  reference is the unforced trajectory of the previous plan's impulse for this node. Every
+  solution is then checked against the TRUE conditions (|p_u - c| >= r and
+  hdot + alpha h >= 0 at every tau_f); if the check fails the problem is re-linearised about
+  the new solution (at most ``cbf_iterations`` solves); if it still fails the solution is
+  rejected (status ``cbf_violation``) and the fallback is applied.
+* Linearisation references: the previous plan's impulse for this node, replaced by the "hold"
+  impulse (drift-free CW state: a closed ellipse about the current along-track position) when
+  the former's drift fails the true check and the hold drift passes -- half-spaces taken on an
+  unsafe drift can point across the orbit plane and buy safety with large out-of-plane
+  impulses, or be empty. If that fails and the CBF rows are suspect, the problem without them is
+  solved once; when it is feasible the hold impulse and its solution are tried as references.
+* Fallback (any failure): the previous plan's impulse for this node if its free drift passes
+  the true check, else the hold impulse if its drift passes, else no impulse. (The drift window
+  slides with time, so "no impulse" is certified only up to the previous window's end.)
+* Margin: the system passes a KOZ inflated by ``keep_out.margin_m`` (default 10 m) because
+  the CW prediction from the estimated state differs from the J2 truth.
+* Relaxation ladder when the problem is infeasible (noise, J2, dispersions): (1) drop the
+  design rows -- the V-bar decrease (29o) and the guidance hop-distance bands -- (event
+  ``design_rows_relaxed``); (2) also drop the terminal position box (``terminal_set_relaxed``);
+  (3) also drop the hop rows (29l)-(29n) (``hops_relaxed``). The CBF rows are never dropped.
+* V-bar: hop lengths cost the same fuel whatever the split ((w/2) sum L for radial hops), so
+  the optimiser lands on a vertex of (29n)-(29o) where any disturbance makes the next problem
+  infeasible. ``hop_distance_weight_per_m2`` adds 1/2 w (a.p(J_m) - d_m)^2 towards Algorithm 1's
+  distances d_m (hop-end positions are extra variables), which picks a robust interior split.
+
+QP (solved by :class:`proxops.solvers.PiqpQP`, Clarabel as fallback): condensed in the
+impulses, variables scaled to z = u / u_max in [0, 1] plus the terminal position error in km.
+The prediction blocks Phi(t_j - t_l) of the whole node grid are built once at construction;
+the shrinking horizon keeps one sparsity pattern (past impulses fixed to 0 by their bounds,
+past hop rows switched off), so a single PIQP solver is set up once and updated in place.
+Every accepted solution is checked for feasibility against its own rows.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+import scipy.sparse as sp
+
+from proxops.constraints.keep_out import KeepOutSphere
+from proxops.core.cw import cw_stm
+from proxops.errors import input_error
+from proxops.sim.protocols import Command
+from proxops.solvers import PiqpQP, SolveStatus, solve_qp
+from proxops.solvers.front import QuadraticProgram
+
+KM = 1000.0
+OFF = 1e3  # bound of rows that are switched off (scaled units: km or m/s; both sides infinite makes PIQP zero the row)
+
+
+@dataclass
+class SrfMpcConfig:
+    """Weights, limits and tolerances of problem (29) (SI units)."""
+
+    q_terminal_per_m2: float = 1e-3  # Q = q I on the terminal position error (cost in m/s units)
+    r_fuel: float = 1.0  # R on the l1 norm of the impulses
+    u_max_mps: float = 2.0  # per axis per impulse (29e-f)
+    u_budget_mps: float = math.inf  # cumulative l1 budget (29g)
+    terminal_pos_tol_m: float = 2.0  # X_f position box half-width (29d)
+    terminal_vel_tol_mps: float = 0.005  # X_f velocity box after the final (braking) impulse
+    r_tol_m: float = 1.0  # (29l)
+    w_tol_mps: float = 0.002  # (29m)
+    vbar_rows: bool = False  # add (29n)-(29o)
+    h_min_m: float = 0.0
+    h_max_m: float = math.inf
+    epsilon_m: float = 0.0
+    hop_distance_tol_m: list[float] | None = None  # per hop: |a . p(J_m) - d_m| <= tol_m (not in the paper)
+    mid_hop_fuel_weight: float = 1.0  # R multiplier for impulses between hop instants (1 = paper)
+    hop_distance_weight_per_m2: float = 0.0  # 1/2 w (a.p(J_m) - d_m)^2 towards Algorithm 1's distances (0 = paper)
+    cbf: bool = True
+    cbf_alpha_per_s: float = 0.01
+    free_drift_s: float | None = None  # None: one orbital period
+    free_drift_nodes: int = 72
+    cbf_iterations: int = 3
+    feasibility_tol: float = 1e-5  # on the scaled rows (km, m/s, u/u_max)
+    solver: str = "piqp"
+
+
+@dataclass
+class NodeSchedule:
+    """MPC nodes on the engine grid: node ``j`` is engine step ``steps[j]`` (t = steps[j] dt).
+    ``hop_nodes[m]`` is the node where hop m+1 ends (the last one is the terminal node N)."""
+
+    dt: float
+    steps: np.ndarray  # (N+1,) int, increasing, steps[0] = 0
+    hop_nodes: np.ndarray  # (n_hops,) int indices into steps
+
+    @property
+    def times(self) -> np.ndarray:
+        return self.steps * self.dt
+
+    @property
+    def n(self) -> int:
+        return len(self.steps) - 1
+
+
+def build_schedule(hop_durations_s, steps_per_hop: int, dt: float) -> NodeSchedule:
+    """Nodes: each hop duration rounded to whole engine steps ``dt`` and split into
+    ``steps_per_hop`` MPC intervals (as equal as the engine grid allows)."""
+    durations = np.asarray(hop_durations_s, dtype=float)
+    if steps_per_hop < 1:
+        raise input_error("mpc.steps_per_hop", steps_per_hop, "must be >= 1")
+    steps, hop_nodes, k0 = [0], [], 0
+    for m, dur in enumerate(durations):
+        n_eng = int(round(dur / dt))
+        if n_eng < steps_per_hop:
+            raise input_error(
+                "sim.dt_s", dt,
+                f"hop {m + 1} lasts {dur:.1f} s, too short for {steps_per_hop} MPC steps of at least one engine "
+                f"step each: use dt_s <= {dur / steps_per_hop:.3g} or fewer mpc.steps_per_hop", "s")
+        offsets = np.round(np.linspace(0, n_eng, steps_per_hop + 1)).astype(int)[1:]
+        steps += list(k0 + offsets)
+        k0 += n_eng
+        hop_nodes.append(len(steps) - 1)
+    return NodeSchedule(float(dt), np.array(steps, dtype=int), np.array(hop_nodes, dtype=int))
+
+
+@dataclass
+class _Qp:
+    """``min 1/2 z'Pz + q'z  s.t.  A_eq z = b_eq,  g_lo <= G z <= g_hi,  lb <= z <= ub``."""
+
+    P: sp.csc_matrix
+    q: np.ndarray
+    A_eq: sp.csc_matrix
+    b_eq: np.ndarray
+    G: sp.csc_matrix
+    g_lo: np.ndarray
+    g_hi: np.ndarray
+    lb: np.ndarray
+    ub: np.ndarray
+    n_imp: int  # impulses in this horizon (N - i + 1)
+
+    def as_program(self) -> QuadraticProgram:
+        A = sp.vstack([self.A_eq, self.G], format="csc")
+        return QuadraticProgram(self.P, self.q, A, np.concatenate([self.b_eq, self.g_lo]),
+                                np.concatenate([self.b_eq, self.g_hi]), self.lb, self.ub)
+
+    def max_violation(self, z: np.ndarray) -> float:
+        """Largest violation of any row or bound at ``z`` (scaled units)."""
+        eq = np.abs(self.A_eq @ z - self.b_eq)
+        gz = self.G @ z
+        with np.errstate(invalid="ignore"):
+            ineq = np.maximum(np.maximum(self.g_lo - gz, gz - self.g_hi), 0.0)
+            bnd = np.maximum(np.maximum(self.lb - z, z - self.ub), 0.0)
+        return float(max(eq.max(initial=0.0), ineq.max(initial=0.0), bnd.max(initial=0.0)))
+
+
+@dataclass
+class _Solve:
+    u: np.ndarray | None  # (M, 3) impulses u_i..u_N (m/s) or None
+    status: str
+    solve_time_s: float
+    iterations: int = 0
+    relax: int = 0
+    cbf_min: float = math.nan
+    drift_min_range_m: float = math.nan
+    events: list = field(default_factory=list)
+
+
+class SrfMpc:
+    """SRF MPC controller (Controller protocol) issuing impulses at its nodes.
+
+    mean_motion: n (rad/s) of the CW model; schedule: MPC nodes on the engine grid;
+    axis_hill: approach direction a (unit, Hill, from the target towards the start);
+    perp_hill: in-plane perpendicular b of eq. (20) in Hill; target_hill: p_d (m, Hill);
+    keep_out: KeepOutSphere (Hill) or None; config: SrfMpcConfig.
+    """
+
+    def __init__(self, mean_motion: float, schedule: NodeSchedule, axis_hill, perp_hill, target_hill,
+                 keep_out: KeepOutSphere | None, config: SrfMpcConfig | None = None, hop_distances_m=None):
+        self.n_orb = float(mean_motion)
+        self.sched = schedule
+        self.dt = schedule.dt
+        self.cfg = config or SrfMpcConfig()
+        self.a = np.asarray(axis_hill, dtype=float)
+        self.b = np.asarray(perp_hill, dtype=float)
+        self.p_d = np.asarray(target_hill, dtype=float)
+        self.koz = keep_out
+        c = self.cfg
+        if not (c.u_max_mps > 0 and math.isfinite(c.u_max_mps)):
+            raise input_error("mpc.u_max_mps", c.u_max_mps, "must be finite and > 0", "m/s")
+        if keep_out is not None and keep_out.contains(self.p_d):
+            raise input_error("reference point", self.p_d.tolist(),
+                              f"lies inside the keep-out zone (radius {keep_out.radius_m:g} m): move it out or shrink the KOZ", "m")
+        # ---- prediction blocks, built once for the whole node grid (sliced per horizon length)
+        T = schedule.times
+        N = schedule.n
+        self._phi = np.empty((N + 1, N + 1, 6, 6))  # Phi(t_j - t_i) for j >= i (else unused)
+        for i in range(N + 1):
+            for j in range(i, N + 1):
+                self._phi[j, i] = cw_stm(self.n_orb, T[j] - T[i])
+        # S[j] (6, 3(N+1)): effect of impulse u_l (l < j) on x_j
+        self._S = np.zeros((N + 1, 6, 3 * (N + 1)))
+        for j in range(N + 1):
+            for l in range(j):
+                self._S[j, :, 3 * l:3 * l + 3] = self._phi[j, l][:, 3:6]
+        # free-drift grid (29h-i) and its STMs
+        period = 2 * math.pi / self.n_orb
+        span = c.free_drift_s if c.free_drift_s is not None else period
+        self.tau = np.linspace(span / c.free_drift_nodes, span, c.free_drift_nodes)
+        self._phi_tau = np.array([cw_stm(self.n_orb, t) for t in self.tau])
+        self._node_of_step = {int(s): j for j, s in enumerate(schedule.steps)}
+        self._hop_node_set = set(schedule.hop_nodes.tolist())
+        self.hop_targets_m = None  # guidance distances d_0..d_n (m) for hop_distance_tol_m
+        if c.hop_distance_tol_m is not None or c.hop_distance_weight_per_m2 > 0:
+            if hop_distances_m is None or len(hop_distances_m) != len(schedule.hop_nodes) + 1:
+                raise input_error("hop_distances_m", hop_distances_m, "give the n_hops + 1 guidance distances "
+                                  "when hop_distance_tol_m is set", "m")
+            self.hop_targets_m = np.asarray(hop_distances_m, dtype=float)
+        self._layout()
+        pdiag = np.zeros(self._nz)
+        pdiag[self._ie:self._ie + 3] = c.q_terminal_per_m2 * KM**2
+        pdiag[self._ir:] = c.hop_distance_weight_per_m2 * KM**2
+        self._P = sp.diags(pdiag, format="csc")
+        weight = np.full(self.sched.n + 1, c.mid_hop_fuel_weight)
+        weight[0] = 1.0
+        weight[self.sched.hop_nodes] = 1.0
+        per_u = np.repeat(weight, 3) * c.r_fuel * c.u_max_mps
+        self._c = np.r_[per_u, per_u, np.zeros(6 + self._n_r)]
+        if self._n_r:  # 1/2 w (r_m - d_m)^2 -> linear term -w d_m (km)
+            self._c[self._ir:] = -c.hop_distance_weight_per_m2 * KM**2 * self.hop_targets_m[1:] / KM
+        self.reset(0.0, np.zeros(6))
+
+    # ------------------------------------------------------------------ protocol
+    def reset(self, t0: float, x0) -> None:
+        N = self.sched.n
+        self.plan = np.zeros((N + 1, 3))  # latest plan of every node's impulse (m/s)
+        self.used_l1 = 0.0
+        self.rx_hist: dict[int, float] = {0: float(self.a @ np.asarray(x0, dtype=float)[:3])}
+        self.finished = False
+        self.last_drift = None  # (tau, states) of the last accepted free drift
+        self.solve_log: list[dict] = []
+
+    def step(self, t: float, x_est) -> Command:
+        x = np.asarray(x_est, dtype=float)
+        k = int(round(t / self.dt))
+        N = self.sched.n
+        if k > self.sched.steps[-1] or self.finished:
+            return Command(np.zeros(3), "impulse", "ok", mode="handover", stop=True)
+        node = self._node_of_step.get(k)
+        hop = int(np.searchsorted(self.sched.hop_nodes, node if node is not None else self._node_before(k), side="right")) + 1
+        mode = "brake" if node == N else f"hop {min(hop, len(self.sched.hop_nodes))}"
+        if node is None:
+            return Command(np.zeros(3), "impulse", "ok", mode=mode, info={"solved": 0.0})
+        if node in self._hop_node_set:
+            self.rx_hist[node] = float(self.a @ x[:3])
+        res = self._solve_node(node, x)
+        events = list(res.events)
+        if res.u is None:
+            u = self._fallback(node, x)
+            events.append(("fallback", f"node {node}: {res.status}; applied {'previous plan' if np.any(u) else 'no impulse'}"))
+        else:
+            u = res.u[0]
+            self.plan[node:] = res.u
+        u = np.where(np.abs(u) < 1e-7, 0.0, u)
+        self.used_l1 += float(np.abs(u).sum())
+        if node == N:
+            self.finished = True
+        info = {"solved": 1.0, "node": float(node), "relax": float(res.relax), "qp_iterations": float(res.iterations),
+                "cbf_min": res.cbf_min, "drift_min_range_m": res.drift_min_range_m}
+        self.solve_log.append({"t": t, "node": node, "status": res.status, "u": u.copy(), **info})
+        return Command(u, "impulse", res.status, res.solve_time_s, mode, events, info)
+
+    def _node_before(self, k: int) -> int:
+        return int(np.searchsorted(self.sched.steps, k, side="right")) - 1
+
+    # ------------------------------------------------------------------ QP
+    # Variables z = [z+ (3(N+1)), z- (3(N+1)), w (3), e (3)]: u_l = u_max (z+_l - z-_l) for every
+    # node of the mission (impulses of past nodes are fixed to 0 by their bounds), w = u_i / u_max
+    # the impulse of the current node (the only one the CBF rows see), e = (p_N - p_d) / 1 km.
+    # With this layout every matrix keeps one sparsity pattern for the whole mission: only the
+    # CBF rows, the w-selection row values, right-hand sides and bounds change, so one PIQP
+    # solver is set up once and updated in place (its symbolic factorisation is reused).
+    def _layout(self) -> None:
+        c, N = self.cfg, self.sched.n
+        nu = 3 * (N + 1)
+        self._nu = nu
+        self._iw = 2 * nu
+        self._ie = 2 * nu + 3
+        self._ir = 2 * nu + 6
+        n_r = len(self.sched.hop_nodes) if c.hop_distance_weight_per_m2 > 0 else 0
+        self._n_r = n_r
+        self._nz = 2 * nu + 6 + n_r
+        um = c.u_max_mps
+
+        def zcoef(row_u):  # coefficients on u (..., nu) -> z (..., nz)
+            out = np.zeros(row_u.shape[:-1] + (self._nz,))
+            out[..., :nu] = row_u * um
+            out[..., nu:2 * nu] = -row_u * um
+            return out
+
+        S_N = self._S[N]
+        # equality rows: terminal position error (3), then w = z+_i - z-_i (3; values set per node)
+        eq = zcoef(S_N[:3] / KM)
+        eq[:, self._ie:self._ie + 3] = -np.eye(3)
+        wsel = np.zeros((3, self._nz))
+        for k in range(3):
+            wsel[k, k:nu:3] = 1.0  # pattern on every impulse of axis k (explicit zeros kept)
+            wsel[k, nu + k:2 * nu:3] = 1.0
+            wsel[k, self._iw + k] = 1.0
+        # hop-end positions r_m = a . p(J_m) / km (only with a hop-distance preference)
+        if n_r:
+            rdef = np.vstack([zcoef(-self.a @ self._S[int(j)][:3] / KM) for j in self.sched.hop_nodes])
+            rdef[:, self._ir:self._ir + n_r] = np.eye(n_r)
+            eq = np.vstack([eq, rdef])
+        # inequality rows with constant coefficients
+        rows, kinds = [], []
+        brake = S_N[3:].copy()
+        brake[:, 3 * N:] += np.eye(3)
+        rows.append(zcoef(brake)); kinds += ["brake"] * 3
+        for j in self.sched.hop_nodes:
+            Sj = self._S[int(j)]
+            rows.append(zcoef(self.b @ Sj[:3] / KM)[None]); kinds.append(("hop_r", int(j)))
+            rows.append(zcoef(self.a @ Sj[3:])[None]); kinds.append(("hop_w", int(j)))
+        if c.vbar_rows or c.hop_distance_tol_m is not None:
+            nodes = [0] + self.sched.hop_nodes.tolist()
+            rx = [self.a @ self._S[j][:3] for j in nodes]
+            if c.hop_distance_tol_m is not None:
+                for m in range(1, len(nodes)):
+                    rows.append(zcoef(rx[m] / KM)[None]); kinds.append(("dist", m))
+            if c.vbar_rows:
+                for m in range(1, len(nodes)):
+                    rows.append(zcoef((rx[m - 1] - rx[m]) / KM)[None]); kinds.append(("len", m))
+                for m in range(1, len(nodes) - 1):
+                    d = (rx[m] - rx[m + 1]) - (rx[m - 1] - rx[m])
+                    rows.append(zcoef(d / KM)[None]); kinds.append(("dec", m))
+        if math.isfinite(c.u_budget_mps):
+            budget = np.zeros(self._nz)
+            budget[:2 * nu] = um
+            rows.append(budget[None]); kinds.append("budget")
+        g_static = np.vstack(rows)
+        self._g_kinds = kinds
+        self._n_cbf = len(self.tau) if (c.cbf and self.koz is not None) else 0
+        self._solver = None
+        # fixed sparsity patterns (COO, explicit zeros kept): static rows, then per-node rows
+        r, col = np.nonzero(eq)
+        self._eq_coo = (r, col, eq[r, col])
+        r, col = np.nonzero(wsel)
+        self._wsel_coo = (r + eq.shape[0], col)
+        self._n_eq = eq.shape[0] + 3
+        r, col = np.nonzero(g_static)
+        self._g_coo = (r, col, g_static[r, col])
+        self._n_g_static = g_static.shape[0]
+        F = self._n_cbf
+        self._cbf_rows = np.repeat(np.arange(2 * F), 3) + self._n_g_static
+        self._cbf_cols = np.tile(np.arange(self._iw, self._iw + 3), 2 * F)
+
+    def _rx_const(self, i: int, x: np.ndarray, j: int) -> float:
+        """Constant part of a . p at node j: prediction from x_i (j > i) or the recorded value."""
+        if j > i:
+            return float(self.a @ (self._phi[j, i] @ x)[:3])
+        return self.rx_hist.get(j, float(self.a @ x[:3]))
+
+    def _build(self, i: int, x: np.ndarray, u_ref: np.ndarray | None, relax: int, with_cbf: bool = True) -> _Qp:
+        c, N, nu, nz = self.cfg, self.sched.n, self._nu, self._nz
+        um = c.u_max_mps
+        fN = self._phi[N, i] @ x
+        # equalities: terminal error rows (static) and w = z+_i - z-_i (values depend on i)
+        wr, wc = self._wsel_coo
+        axis = wr - (self._n_eq - 3)
+        wv = np.where(wc >= self._iw, 1.0, 0.0)
+        wv[wc == 3 * i + axis] = -1.0
+        wv[wc == nu + 3 * i + axis] = 1.0
+        er, ec, ev = self._eq_coo
+        A_eq = sp.csc_matrix((np.concatenate([ev, wv]), (np.concatenate([er, wr]), np.concatenate([ec, wc]))),
+                             shape=(self._n_eq, nz))
+        r_rhs = [self._rx_const(i, x, int(j)) / KM for j in self.sched.hop_nodes] if self._n_r else []
+        b_eq = np.concatenate([(self.p_d - fN[:3]) / KM, r_rhs, np.zeros(3)])
+        # inequalities with constant coefficients: bounds from the current node
+        lo, hi = [], []
+        inf = np.inf
+        tol_r, tol_w = c.r_tol_m, c.w_tol_mps
+        for kind in self._g_kinds:
+            if kind == "brake":
+                continue
+            if kind == "budget":
+                lo.append(-OFF); hi.append(max(c.u_budget_mps - self.used_l1, 0.0))
+                continue
+            tag, j = kind
+            if tag in ("hop_r", "hop_w"):
+                if j <= i or relax >= 3:
+                    lo.append(-OFF); hi.append(OFF)
+                    continue
+                xj = self._phi[j, i] @ x
+                if tag == "hop_r":
+                    v = float(self.b @ xj[:3])
+                    lo.append((-tol_r - v) / KM); hi.append((tol_r - v) / KM)
+                else:
+                    v = float(self.a @ xj[3:])
+                    lo.append(-tol_w - v); hi.append(tol_w - v)
+                continue
+            nodes = [0] + self.sched.hop_nodes.tolist()
+            if tag == "dist":
+                m = j
+                if nodes[m] <= i or relax >= 1 or nodes[m] == N:
+                    lo.append(-OFF); hi.append(OFF)
+                    continue
+                v = self._rx_const(i, x, nodes[m])
+                d, tol = self.hop_targets_m[m], c.hop_distance_tol_m[m - 1]
+                lo.append((d - tol - v) / KM); hi.append((d + tol - v) / KM)
+            elif tag == "len":
+                m = j
+                if nodes[m] <= i or relax >= 3:
+                    lo.append(-OFF); hi.append(OFF)
+                    continue
+                v = self._rx_const(i, x, nodes[m - 1]) - self._rx_const(i, x, nodes[m])
+                lo.append((c.h_min_m - v) / KM); hi.append((c.h_max_m - v) / KM)
+            elif tag == "dec":
+                m = j
+                if nodes[m + 1] <= i or relax >= 1:
+                    lo.append(-OFF); hi.append(OFF)
+                    continue
+                r = [self._rx_const(i, x, nodes[q]) for q in (m - 1, m, m + 1)]
+                v = (r[1] - r[2]) - (r[0] - r[1])
+                lo.append(-inf); hi.append((-c.epsilon_m - v) / KM)
+        brake_lo = -c.terminal_vel_tol_mps - fN[3:]
+        brake_hi = c.terminal_vel_tol_mps - fN[3:]
+        g_lo = np.concatenate([brake_lo, np.array(lo, float)])
+        g_hi = np.concatenate([brake_hi, np.array(hi, float)])
+        gr, gc, gv = self._g_coo
+        n_cbf = self._n_cbf if with_cbf else 0
+        if n_cbf:
+            cx = self._phi_tau @ x  # (F, 6) drift without impulse
+            D = self._phi_tau[:, :, 3:6]  # (F, 6, 3)
+            ur = np.zeros(3) if u_ref is None else u_ref
+            xr = cx + D @ ur
+            n_hat, b_half = self.koz.halfspace(xr[:, :3])
+            half = np.einsum("fk,fkl->fl", n_hat, D[:, :3, :]) * um / KM
+            half_lo = (b_half - np.einsum("fk,fk->f", n_hat, cx[:, :3])) / KM
+            grad, g_ref = self.koz.cbf_linearization(xr, c.cbf_alpha_per_s)
+            gu = np.einsum("fk,fkl->fl", grad, D)  # (F, 3) dg/du
+            scale = np.maximum(np.linalg.norm(gu, axis=1) * um, 1e-12)
+            lin = gu * um / scale[:, None]
+            lin_lo = (gu @ ur - g_ref) / scale
+            gr = np.concatenate([gr, self._cbf_rows])
+            gc = np.concatenate([gc, self._cbf_cols])
+            gv = np.concatenate([gv, half.ravel(), lin.ravel()])
+            g_lo = np.concatenate([g_lo, half_lo, lin_lo])
+            g_hi = np.concatenate([g_hi, np.full(2 * self._n_cbf, np.inf)])
+        lb = np.zeros(nz)
+        ub = np.ones(nz)
+        ub[:3 * i] = 0.0
+        ub[nu:nu + 3 * i] = 0.0
+        lb[self._iw:self._iw + 3], ub[self._iw:self._iw + 3] = -1.0, 1.0
+        lb[self._ie:], ub[self._ie:] = -np.inf, np.inf
+        if relax < 2 and i < N:
+            tol = c.terminal_pos_tol_m / KM
+            lb[self._ie:self._ie + 3], ub[self._ie:self._ie + 3] = -tol, tol
+        G = sp.csc_matrix((gv, (gr, gc)), shape=(self._n_g_static + 2 * n_cbf, nz))
+        return _Qp(self._P, self._c, A_eq, b_eq, G, g_lo, g_hi, lb, ub, N - i + 1)
+
+    def _run_solver(self, qp: _Qp, i: int, persistent: bool = True):
+        """Solve with the persistent PIQP solver (one-shot PIQP for other sparsity patterns);
+        Clarabel when PIQP fails for any reason but a certified infeasibility. Returns (result, seconds)."""
+        t0 = time.perf_counter()
+        if self.cfg.solver == "piqp" and persistent:
+            if self._solver is None:
+                self._solver = PiqpQP(max_iter=80)  # normal solves take 20-35 iterations
+                self._solver.setup(qp.P, qp.q, qp.A_eq, qp.b_eq, qp.G, qp.g_lo, qp.g_hi, qp.lb, qp.ub)
+            else:
+                self._solver.update(A=qp.A_eq, b=qp.b_eq, G=qp.G, h_l=qp.g_lo, h_u=qp.g_hi, x_lb=qp.lb, x_ub=qp.ub)
+            res = self._solver.solve()
+        else:
+            res = solve_qp(qp.as_program(), self.cfg.solver if self.cfg.solver != "piqp" else "piqp")
+        if (res.x is None or not res.ok) and res.status != SolveStatus.INFEASIBLE:
+            fb = solve_qp(qp.as_program(), "clarabel")
+            fb.info["primary"] = str(res.status)
+            res = fb
+        return res, time.perf_counter() - t0
+
+    def _solve_node(self, i: int, x: np.ndarray) -> _Solve:
+        """SCP on the CBF linearisation inside a relaxation ladder (see module doc)."""
+        c = self.cfg
+        self._clock = [0.0, 0]  # solver seconds, iterations
+        events = []
+        status = "infeasible"
+        first_ref = self.plan[i].copy()
+        ref_safe = self._n_cbf == 0 or self.check_drift(x, first_ref)[0]
+        if not ref_safe:
+            hold = self.hold_impulse(x)
+            if self.check_drift(x, hold)[0]:
+                first_ref, ref_safe = hold, True  # linearise about a safe drift: half-spaces face the right way
+        for relax in range(4):
+            sol, status = self._scp(i, x, first_ref, relax)
+            # A reference whose drift is safe gives CBF rows that the reference itself satisfies, so an
+            # infeasible problem is then blamed on the other rows (relax them); otherwise check without
+            # the CBF rows and retry from better references.
+            suspect_cbf = status == "cbf_violation" or (status in ("infeasible", "infeasible_solution") and not ref_safe)
+            if sol is None and self._n_cbf and suspect_cbf:
+                # Is it the CBF linearisation? Solve without the CBF rows once.
+                qp = self._build(i, x, None, relax, with_cbf=False)
+                res, t_solve = self._run_solver(qp, i, persistent=False)
+                self._clock[0] += t_solve
+                self._clock[1] += res.iterations
+                if res.x is not None and res.ok:
+                    u_free = (res.x[:self._nu] - res.x[self._nu:2 * self._nu]).reshape(-1, 3)[i] * c.u_max_mps
+                    for u_ref in (self.hold_impulse(x), u_free):
+                        sol, status = self._scp(i, x, u_ref, relax)
+                        if sol is not None:
+                            break
+            if sol is not None:
+                sol.events = events
+                return sol
+            if relax < 3:
+                events.append(("relaxed", ["design_rows_relaxed", "terminal_set_relaxed", "hops_relaxed"][relax]
+                               + f" at node {i} ({status})"))
+        return _Solve(None, status, self._clock[0], self._clock[1], relax, events=events)
+
+    def _scp(self, i: int, x: np.ndarray, u_ref: np.ndarray, relax: int) -> tuple[_Solve | None, str]:
+        """Solve, check the true (29j), re-linearise about the solution; at most cbf_iterations solves."""
+        c = self.cfg
+        status = "infeasible"
+        for _ in range(max(1, c.cbf_iterations) if self._n_cbf else 1):
+            qp = self._build(i, x, u_ref, relax)
+            res, t_solve = self._run_solver(qp, i)
+            self._clock[0] += t_solve
+            self._clock[1] += res.iterations
+            if res.x is None or not res.ok:
+                return None, str(res.status)
+            if qp.max_violation(res.x) > c.feasibility_tol:
+                return None, "infeasible_solution"
+            z = res.x
+            u = (z[:self._nu] - z[self._nu:2 * self._nu]).reshape(-1, 3)[i:] * c.u_max_mps
+            ok, gmin, rmin = self.check_drift(x, u[0])
+            if ok:
+                return _Solve(u, "optimal", self._clock[0], self._clock[1], relax, gmin, rmin), "optimal"
+            status = "cbf_violation"
+            u_ref = u[0]
+        return None, status
+
+    # ------------------------------------------------------------------ safety
+    def drift_states(self, x: np.ndarray, u0: np.ndarray) -> np.ndarray:
+        """Unforced CW states x_u(tau) (F, 6) after impulse u0 at state x (29h-i)."""
+        x1 = np.asarray(x, dtype=float).copy()
+        x1[3:6] += u0
+        return self._phi_tau @ x1
+
+    def check_drift(self, x: np.ndarray, u0: np.ndarray) -> tuple[bool, float, float]:
+        """True (29j) and KOZ check on the free drift: (ok, min g, min range to the KOZ centre)."""
+        xs = self.drift_states(x, u0)
+        self.last_drift = xs
+        if self.koz is None:
+            return True, math.nan, float(np.min(np.linalg.norm(xs[:, :3], axis=1)))
+        dist = np.linalg.norm(xs[:, :3] - self.koz.center_m, axis=1)
+        g = self.koz.cbf_value(xs, self.cfg.cbf_alpha_per_s)
+        if not self.cfg.cbf:
+            return True, float(g.min()), float(dist.min())
+        g_tol = 1e-6 * self.cfg.cbf_alpha_per_s * self.koz.radius_m**2
+        ok = bool(np.all(dist >= self.koz.radius_m * (1 - 1e-9)) and np.all(g >= -g_tol))
+        return ok, float(g.min()), float(dist.min())
+
+    def hold_impulse(self, x: np.ndarray) -> np.ndarray:
+        """Impulse that leaves a drift-free CW state (closed ellipse about the current along-track
+        position): v_after = [0, -2 n x, 0] in Hill."""
+        return np.array([0.0, -2.0 * self.n_orb * x[0], 0.0]) - x[3:6]
+
+    def _fallback(self, i: int, x: np.ndarray) -> np.ndarray:
+        """Previous plan's impulse, else the hold impulse, else nothing -- the first whose free drift
+        passes the true KOZ/CBF check (nothing if none does)."""
+        for u in (self.plan[i].copy(), self.hold_impulse(x)):
+            if np.all(np.abs(u) <= self.cfg.u_max_mps) and np.any(u) and self.check_drift(x, u)[0]:
+                return u
+        return np.zeros(3)

@@ -1,0 +1,395 @@
+"""System ``srf``: the Short Range Framework of srf-hopping-mpc.md (V-bar, R-bar and
+glideslope hopping recovered inside an MPC, passive abort safety, CBF keep-out zone).
+
+Scenarios ``srf-vbar``, ``srf-rbar``, ``srf-glideslope-40`` (and -20, -250), ``srf-cbf-demo``
+and the Monte Carlo versions ``srf-*-mc``::
+
+    proxops run srf-vbar --json
+    proxops mc srf-rbar-mc --runs 50 --json
+
+Frames: the scenario speaks the paper's LVLH (x = V-bar, y = -orbit normal, z = R-bar
+towards the Earth) for the approach axis, the initial state (``frame = "lvlh-srf"``) and the
+KOZ centre; everything inside (truth, MPC, constraints) is Hill, converted here with
+:mod:`proxops.frames.lvlh`.
+
+Defaults the paper does not give (documented choices): KOZ radius 50 m (the reference point is
+100 m out), the MPC plans against radius + 10 m (CW-vs-truth and navigation mismatch), CBF alpha 0.01 1/s, free drift x_u sampled 36 times per orbit (200 s), 6 MPC steps per hop, engine step t_orb / 720 (about 10 s, so
+half an orbit is an exact number of steps), u_max 3 m/s per axis (the largest designed R-bar
+impulse is 2.4 m/s), terminal box 2 m / 5 mm/s, hop tolerances 1 m / 2 mm/s. For the
+glideslope and R-bar approaches each hop end must also lie within 10 % of its hop length of the
+guidance distance and impulses between hop instants cost twice as much (without these the MPC
+finds cheaper multi-impulse transfers that are not hops). V-bar keeps the paper's (29n)-(29o)
+plus a tiny quadratic pull (1e-7 per m^2) of the hop ends towards Algorithm 1's distances: radial
+hops cost the same fuel for any split, and without it the split sits on a vertex of (29n)-(29o)
+that the next disturbance makes infeasible.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+from typing import Annotated, Literal
+
+import numpy as np
+from pydantic import Field, model_validator
+
+from proxops.core.cw import cw_stm, mean_motion
+from proxops.errors import ProxopsInputError, input_error
+from proxops.scenarios.registry import register_system
+from proxops.scenarios.schema import InitialSection, OrbitSection, ScenarioBase, Section, TruthSection, Vector3
+from proxops.sim.engine import Setup
+
+ENGINE_STEPS_PER_ORBIT = 720
+
+
+class ApproachSection(Section):
+    """Guidance expert inputs (Algorithm 1). ``angle_deg`` from the V-bar towards the R-bar."""
+
+    angle_deg: float = 0.0
+    hops: Annotated[int, Field(ge=1, le=50)] = 3
+    gamma: Annotated[float, Field(gt=0.0, lt=1.0)] = 0.5
+    start_m: Annotated[float, Field(gt=0.0)] = 2000.0
+    end_m: Annotated[float, Field(gt=0.0)] = 100.0  # reference point distance (Table 2: 0.1 km)
+    vbar_period_fraction: Annotated[float, Field(gt=0.0, lt=1.0)] = 0.5  # eq. (8); 0.6 in §5.4
+
+    @model_validator(mode="after")
+    def _end_before_start(self):
+        if self.end_m >= self.start_m:
+            raise ValueError(f"approach.end_m = {self.end_m} m must be < approach.start_m = {self.start_m} m")
+        return self
+
+
+class SrfMpcSection(Section):
+    """Problem (29) settings (SI). ``None`` means the documented per-approach default."""
+
+    steps_per_hop: Annotated[int, Field(ge=1, le=100)] | None = None  # default 6 (or horizon_steps // hops)
+    horizon_steps: Annotated[int, Field(ge=1, le=1000)] | None = None  # maximum MPC horizon N
+    q_terminal_per_m2: Annotated[float, Field(gt=0.0)] = 1e-3
+    r_fuel: Annotated[float, Field(gt=0.0)] = 1.0
+    mid_hop_fuel_weight: Annotated[float, Field(ge=1.0)] | None = None  # default 1 (V-bar), 2 (others)
+    u_max_mps: Annotated[float, Field(gt=0.0)] = 3.0
+    u_budget_mps: Annotated[float, Field(gt=0.0)] | None = None
+    terminal_pos_tol_m: Annotated[float, Field(gt=0.0)] = 2.0
+    terminal_vel_tol_mps: Annotated[float, Field(gt=0.0)] = 0.005
+    r_tol_m: Annotated[float, Field(gt=0.0)] = 1.0
+    w_tol_mps: Annotated[float, Field(gt=0.0)] = 0.002
+    h_min_m: Annotated[float, Field(ge=0.0)] = 0.0
+    h_max_m: Annotated[float, Field(gt=0.0)] | None = None
+    epsilon_m: Annotated[float, Field(ge=0.0)] = 50.0
+    hop_distance_tol_frac: Annotated[float, Field(gt=0.0)] | None = None  # default None (V-bar), 0.1 (others)
+    hop_distance_weight_per_m2: Annotated[float, Field(ge=0.0)] | None = None  # default 1e-7 (V-bar), 0 (others)
+    solver: Literal["piqp", "clarabel", "daqp"] = "piqp"
+
+
+class KeepOutSection(Section):
+    """Spherical KOZ (eq. 26) and its CBF (eqs. 27-29j). ``center_m`` in the paper's LVLH."""
+
+    radius_m: Annotated[float, Field(gt=0.0)] = 50.0
+    center_m: Vector3 = [0.0, 0.0, 0.0]
+    cbf: bool = True
+    alpha_per_s: Annotated[float, Field(gt=0.0)] = 0.01
+    margin_m: Annotated[float, Field(ge=0.0)] = 10.0  # the MPC plans against radius + margin (CW/nav/J2 mismatch)
+    free_drift_orbits: Annotated[float, Field(gt=0.0, le=5.0)] = 1.0
+    free_drift_nodes_per_orbit: Annotated[int, Field(ge=4, le=1000)] = 36
+    compare_without_cbf: bool = False  # run twice (with / without the CBF), §5.4
+
+
+class SafetySection(Section):
+    """Per-run safety and success evaluation."""
+
+    reference_tolerance_m: Annotated[float, Field(gt=0.0)] = 5.0
+    abort_orbits: Annotated[float, Field(gt=0.0, le=5.0)] = 1.0
+    abort_samples: Annotated[int, Field(ge=10, le=100000)] = 721
+
+
+class SrfScenario(ScenarioBase):
+    orbit: OrbitSection
+    truth: TruthSection = TruthSection()
+    initial: InitialSection | None = None  # default: at rest on the approach axis at start_m
+    approach: ApproachSection = ApproachSection()
+    mpc: SrfMpcSection = SrfMpcSection()
+    keep_out: KeepOutSection = KeepOutSection()
+    safety: SafetySection = SafetySection()
+
+
+# --------------------------------------------------------------------------- geometry
+def _is_vbar(theta: float) -> bool:
+    return abs(math.sin(theta)) < 1e-9
+
+
+def approach_axes_hill(theta: float) -> tuple[np.ndarray, np.ndarray]:
+    """Approach direction e_A and perpendicular e_perp2 of eq. (20), as Hill unit vectors."""
+    from proxops.frames.lvlh import lvlh_vector_to_hill
+
+    a = lvlh_vector_to_hill(np.array([math.cos(theta), 0.0, math.sin(theta)]))
+    b = lvlh_vector_to_hill(np.array([-math.sin(theta), 0.0, math.cos(theta)]))
+    return a, b
+
+
+def initial_state_hill(sc: SrfScenario) -> np.ndarray:
+    from proxops.systems.common import initial_hill_state
+
+    if sc.initial is not None:
+        return initial_hill_state(sc.initial)
+    a, _ = approach_axes_hill(math.radians(sc.approach.angle_deg))
+    return np.concatenate([sc.approach.start_m * a, np.zeros(3)])
+
+
+def engine_dt(sc: SrfScenario) -> float:
+    period = 2 * math.pi / mean_motion(sc.orbit.sma_m)
+    return sc.sim.dt_s if sc.sim.dt_s is not None else period / ENGINE_STEPS_PER_ORBIT
+
+
+def keep_out_hill(sc: SrfScenario):
+    from proxops.constraints.keep_out import KeepOutSphere
+    from proxops.frames.lvlh import lvlh_vector_to_hill
+
+    return KeepOutSphere(sc.keep_out.radius_m, lvlh_vector_to_hill(np.array(sc.keep_out.center_m)), name="keep_out")
+
+
+def plan_of(sc: SrfScenario):
+    """Algorithm 1 output for the scenario (raises ProxopsInputError in the infeasible band)."""
+    from proxops.guidance.hop_times import plan_hops
+
+    ap = sc.approach
+    return plan_hops(math.radians(ap.angle_deg), ap.hops, ap.gamma, ap.start_m, ap.end_m,
+                     mean_motion(sc.orbit.sma_m), vbar_period_fraction=ap.vbar_period_fraction)
+
+
+def build_controller(sc: SrfScenario, cbf: bool | None = None):
+    """(controller, plan, schedule) of a scenario; ``cbf`` overrides keep_out.cbf."""
+    from proxops.control.srf_mpc import SrfMpc, SrfMpcConfig, build_schedule
+
+    ap, m, ko = sc.approach, sc.mpc, sc.keep_out
+    theta = math.radians(ap.angle_deg)
+    vbar = _is_vbar(theta)
+    plan = plan_of(sc)
+    if m.horizon_steps is not None and ap.hops > m.horizon_steps:
+        raise input_error("approach.hops", ap.hops,
+                          f"more hops than the MPC horizon holds (mpc.horizon_steps = {m.horizon_steps}); every hop "
+                          "needs at least one MPC step: lower hops or raise horizon_steps")
+    steps = m.steps_per_hop
+    if steps is None:
+        steps = 6 if m.horizon_steps is None else max(1, min(6, m.horizon_steps // ap.hops))
+    if m.horizon_steps is not None and steps * ap.hops > m.horizon_steps:
+        raise input_error("mpc.steps_per_hop", steps,
+                          f"hops x steps_per_hop = {steps * ap.hops} exceeds mpc.horizon_steps = {m.horizon_steps} "
+                          "(the shrinking horizon must cover the whole approach)")
+    dt = engine_dt(sc)
+    sched = build_schedule(plan.durations_s, steps, dt)
+    mission_s = float(sched.times[-1])
+    if sc.sim.duration_s < mission_s:
+        raise input_error("sim.duration_s", sc.sim.duration_s,
+                          f"shorter than the {ap.hops}-hop approach ({mission_s:.1f} s): use >= {mission_s + 2 * dt:.0f}", "s")
+    a, b = approach_axes_hill(theta)
+    koz = keep_out_hill(sc)
+    x0 = initial_state_hill(sc)
+    if koz.contains(x0[:3]):
+        raise input_error("initial position", np.round(x0[:3], 3).tolist(),
+                          f"starts inside the keep-out zone (radius {koz.radius_m:g} m): move the start or shrink keep_out.radius_m", "m")
+    start_nominal = ap.start_m * a
+    if koz.contains(start_nominal):
+        raise input_error("approach.start_m", ap.start_m,
+                          f"the start point lies inside the keep-out zone (radius {koz.radius_m:g} m)", "m")
+    target = ap.end_m * a
+    if koz.contains(target):
+        raise input_error("approach.end_m", ap.end_m,
+                          f"the reference point lies inside the keep-out zone (radius {koz.radius_m:g} m): "
+                          "raise end_m or shrink keep_out.radius_m", "m")
+    d = np.array([h.start_m for h in plan.hops] + [plan.hops[-1].end_m])
+    frac = m.hop_distance_tol_frac if m.hop_distance_tol_frac is not None else (None if vbar else 0.1)
+    use_cbf = ko.cbf if cbf is None else cbf
+    cfg = SrfMpcConfig(
+        q_terminal_per_m2=m.q_terminal_per_m2, r_fuel=m.r_fuel, u_max_mps=m.u_max_mps,
+        u_budget_mps=m.u_budget_mps if m.u_budget_mps is not None else math.inf,
+        terminal_pos_tol_m=m.terminal_pos_tol_m, terminal_vel_tol_mps=m.terminal_vel_tol_mps,
+        r_tol_m=m.r_tol_m, w_tol_mps=m.w_tol_mps, vbar_rows=vbar, h_min_m=m.h_min_m,
+        h_max_m=m.h_max_m if m.h_max_m is not None else ap.start_m, epsilon_m=m.epsilon_m,
+        hop_distance_tol_m=None if frac is None else list(frac * -np.diff(d)),
+        mid_hop_fuel_weight=m.mid_hop_fuel_weight if m.mid_hop_fuel_weight is not None else (1.0 if vbar else 2.0),
+        hop_distance_weight_per_m2=(m.hop_distance_weight_per_m2 if m.hop_distance_weight_per_m2 is not None
+                                    else (1e-7 if vbar else 0.0)),
+        cbf=use_cbf, cbf_alpha_per_s=ko.alpha_per_s, free_drift_s=ko.free_drift_orbits * plan.period_s,
+        free_drift_nodes=max(4, int(round(ko.free_drift_nodes_per_orbit * ko.free_drift_orbits))), solver=m.solver)
+    from proxops.constraints.keep_out import KeepOutSphere
+
+    if koz.contains(target) or (ko.margin_m > 0 and np.linalg.norm(target - koz.center_m) <= koz.radius_m + ko.margin_m):
+        raise input_error("keep_out.margin_m", ko.margin_m,
+                          f"the reference point ({ap.end_m:g} m out) must lie outside the KOZ radius + margin "
+                          f"({koz.radius_m + ko.margin_m:g} m)", "m")
+    planning_koz = KeepOutSphere(koz.radius_m + ko.margin_m, koz.center_m, name="keep_out_planning")
+    ctrl = SrfMpc(mean_motion(sc.orbit.sma_m), sched, a, b, target, planning_koz, cfg, hop_distances_m=d)
+    return ctrl, plan, sched
+
+
+def build_setup(sc: SrfScenario, cbf: bool | None = None) -> Setup:
+    from proxops.systems.common import actuator_model, navigation_model, translational_plant
+
+    ctrl, plan, sched = build_controller(sc, cbf)
+    plant = translational_plant(sc.orbit, sc.truth, initial_state_hill(sc))
+    theta = math.radians(sc.approach.angle_deg)
+    meta = {"system": "srf", "approach_deg": sc.approach.angle_deg, "period_s": plan.period_s,
+            "hop_plan": plan.as_dict(), "node_times_s": sched.times.tolist(),
+            "hop_node_times_s": sched.times[sched.hop_nodes].tolist(), "cbf": bool(ctrl.cfg.cbf),
+            "vbar": _is_vbar(theta), "mpc_steps_per_hop": int(len(sched.steps) - 1) // sc.approach.hops}
+    return Setup(plant=plant, controller=ctrl, duration_s=float(sched.times[-1]) + 2 * sched.dt,
+                 navigation=navigation_model(sc.navigation), actuator=actuator_model(sc.actuator),
+                 constraints=(keep_out_hill(sc),), check_substeps=sc.sim.check_substeps, meta=meta)
+
+
+# --------------------------------------------------------------------------- safety
+def _hermite_min_range(t, x, center) -> float:
+    """Minimum |p - c| along cubic Hermite interpolants between samples (positions + velocities)."""
+    t = np.asarray(t, dtype=float)
+    p = x[:, :3] - center
+    v = x[:, 3:6]
+    best = float(np.min(np.linalg.norm(p, axis=1)))
+    if len(t) < 2:
+        return best
+    s = np.linspace(0.0, 1.0, 21)[1:-1, None, None]
+    h00, h10 = 2 * s**3 - 3 * s**2 + 1, s**3 - 2 * s**2 + s
+    h01, h11 = -2 * s**3 + 3 * s**2, s**3 - s**2
+    dt = np.diff(t)[None, :, None]
+    seg = h00 * p[:-1] + h10 * dt * v[:-1] + h01 * p[1:] + h11 * dt * v[1:]
+    return min(best, float(np.min(np.linalg.norm(seg, axis=2))))
+
+
+def passive_abort(sc: SrfScenario, result) -> list[dict]:
+    """From each hop impulse: propagate the unforced TRUTH for ``safety.abort_orbits`` orbits.
+
+    Returns per hop ``{t_s, min_range_m, min_koz_distance_m, safe, return_miss_m}``;
+    return_miss_m (V-bar) is the distance to the hop start point after one orbit."""
+    from proxops.propagation.truth import CWPlant, RelativeTruth
+    from proxops.systems.common import translational_plant
+
+    period = float(result.meta.get("period_s") or 2 * math.pi / mean_motion(sc.orbit.sma_m))
+    hop_starts = [0.0] + list(result.meta.get("hop_node_times_s", []))[:-1]
+    koz = keep_out_hill(sc)
+    plant = translational_plant(sc.orbit, sc.truth, initial_state_hill(sc))
+    full = plant.initial_state()
+    t_now = 0.0
+    out = []
+    times = np.linspace(0.0, sc.safety.abort_orbits * period, sc.safety.abort_samples)
+    zero = np.zeros(3)
+    vbar = bool(result.meta.get("vbar", False))
+    for t_hop in hop_starts:
+        k = int(np.argmin(np.abs(result.t - t_hop)))
+        if abs(result.t[k] - t_hop) > 1e-6 * max(1.0, t_hop) + 1e-9:
+            continue  # run ended before this hop
+        if not isinstance(plant, CWPlant):
+            full = plant.propagate(t_now, full, zero, result.t[k] - t_now)
+            t_now = result.t[k]
+        x_post = result.x_true[k].copy()
+        x_post[3:6] += result.u_applied[k]
+        if isinstance(plant, RelativeTruth):
+            drift = plant.free_drift(plant.with_relative_state(full, x_post), times)
+        else:
+            drift = plant.free_drift(x_post, times)
+        rng = _hermite_min_range(times, drift, np.zeros(3))
+        koz_d = _hermite_min_range(times, drift, koz.center_m) - koz.radius_m
+        item = {"t_s": float(result.t[k]), "dv_mps": float(np.linalg.norm(result.u_applied[k])),
+                "min_range_m": rng, "min_koz_distance_m": koz_d, "safe": bool(koz_d > 0.0)}
+        if vbar:
+            k_orbit = int(np.argmin(np.abs(times - period)))
+            item["return_miss_m"] = float(np.linalg.norm(drift[k_orbit, :3] - x_post[:3]))
+        out.append(item)
+    return out
+
+
+def summarize_result(sc: SrfScenario, result) -> dict:
+    """Extra JSON keys of an srf run: arrival, hops, dv per LVLH axis, KOZ and passive-abort safety."""
+    from proxops.frames.lvlh import hill_vector_to_lvlh
+
+    theta = math.radians(sc.approach.angle_deg)
+    a, _ = approach_axes_hill(theta)
+    p_ref = sc.approach.end_m * a
+    node_times = result.meta.get("node_times_s") or [result.t[-1]]
+    t_arrival = float(node_times[-1])
+    k_arr = int(np.argmin(np.abs(result.t - t_arrival)))
+    arrived = abs(result.t[k_arr] - t_arrival) < 1e-6 * max(1.0, t_arrival) + 1e-9
+    arrival_err = float(np.linalg.norm(result.x_true[k_arr, :3] - p_ref))
+    koz = keep_out_hill(sc)
+    dist = koz.distance_to_surface(result.x_true[:, :3])
+    u = result.u_applied
+    fired = np.nonzero(np.linalg.norm(u, axis=1) > 0)[0]
+    dv_lvlh = np.abs(hill_vector_to_lvlh(u)).sum(axis=0)
+    l1 = float(dv_lvlh.sum())
+    hop_nodes = result.meta.get("hop_node_times_s", [])
+    hop_start_times = [0.0] + list(hop_nodes)[:-1]
+    abort = passive_abort(sc, result)
+    min_range_fine = _hermite_min_range(result.t, result.x_true, np.zeros(3))
+    koz_fine = _hermite_min_range(result.t, result.x_true, koz.center_m) - koz.radius_m
+    period = float(result.meta.get("period_s", 1.0))
+    out = {
+        "approach_deg": sc.approach.angle_deg,
+        "hops": sc.approach.hops,
+        "period_s": period,
+        "arrived": bool(arrived),
+        "arrival_time_s": t_arrival,
+        "arrival_time_orbits": t_arrival / period,
+        "arrival_error_m": arrival_err,
+        "reached_reference": bool(arrived and arrival_err <= sc.safety.reference_tolerance_m),
+        "reference_tolerance_m": sc.safety.reference_tolerance_m,
+        "min_range_fine_m": min_range_fine,
+        "koz_violation_samples": int(np.sum(dist < 0.0)),
+        "koz_min_distance_m": koz_fine,
+        "koz_violated": bool(koz_fine < 0.0),
+        "impulses": int(fired.size),
+        "impulse_times_s": [float(result.t[k]) for k in fired],
+        "hop_start_times_s": [float(t) for t in hop_start_times],
+        "hop_intervals_s": [float(x) for x in np.diff([0.0] + list(hop_nodes))],
+        "dv_l1_mps": l1,
+        "dv_lvlh_abs_mps": {"x_vbar": float(dv_lvlh[0]), "y": float(dv_lvlh[1]), "z_rbar": float(dv_lvlh[2])},
+        "dv_share_along_track": float(dv_lvlh[0] / l1) if l1 > 0 else 0.0,
+        "abort": abort,
+        "abort_safe_all": bool(all(item["safe"] for item in abort)) if abort else False,
+        "abort_min_range_m": float(min(item["min_range_m"] for item in abort)) if abort else math.nan,
+        "solves": int(np.nansum(result.info.get("solved", np.zeros(1)))),
+    }
+    if abort and "return_miss_m" in abort[0]:
+        out["abort_return_miss_max_m"] = float(max(item["return_miss_m"] for item in abort))
+    mask = result.info.get("solved")
+    if mask is not None:
+        sel = np.nan_to_num(mask) > 0
+        st = result.solve_time_s[sel]
+        if st.size:
+            out["mpc_solve_ms"] = {"median": float(np.median(st) * 1e3), "p95": float(np.percentile(st, 95) * 1e3),
+                                   "max": float(st.max() * 1e3)}
+    return out
+
+
+@register_system("srf")
+class SrfSystem:
+    Scenario = SrfScenario
+
+    def build(self, sc: SrfScenario) -> Setup:
+        return build_setup(sc)
+
+    def summarize(self, sc: SrfScenario, result) -> dict:
+        return summarize_result(sc, result)
+
+    def run(self, sc: SrfScenario, seed: int = 0, progress: bool = False):
+        """One run, or two (with / without the CBF) when keep_out.compare_without_cbf (§5.4)."""
+        from proxops.sim.engine import simulate
+
+        if not sc.keep_out.compare_without_cbf:
+            result = simulate(build_setup(sc), seed=seed, progress=progress)
+            return summarize_result(sc, result), {"run": result}
+        with_cbf = simulate(build_setup(sc, cbf=True), seed=seed, progress=progress)
+        without = simulate(build_setup(sc, cbf=False), seed=seed, progress=progress)
+        s_with, s_without = summarize_result(sc, with_cbf), summarize_result(sc, without)
+        extra = dict(s_with)
+        extra["without_cbf"] = {k: s_without[k] for k in ("koz_min_distance_m", "koz_violated", "abort_safe_all",
+                                                         "abort_min_range_m", "dv_l1_mps", "arrival_error_m")}
+        extra["without_cbf"]["abort_koz_distance_m"] = [i["min_koz_distance_m"] for i in s_without["abort"]]
+        extra["with_cbf_abort_koz_distance_m"] = [i["min_koz_distance_m"] for i in s_with["abort"]]
+        return extra, {"cbf": with_cbf, "no_cbf": without}
+
+    def success(self, sc: SrfScenario, summary: dict) -> bool:
+        return bool(summary.get("reached_reference") and not summary.get("koz_violated")
+                    and summary.get("abort_safe_all"))
+
+    def figures(self, sc: SrfScenario, results, out_dir) -> list[Path]:
+        from proxops.plotting import srf as plots
+
+        return plots.scenario_figures(sc, results, Path(out_dir))

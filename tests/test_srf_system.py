@@ -1,0 +1,102 @@
+"""System ``srf``: scenario validation and bad input, the LVLH edge conversion, one closed loop
+against J2 truth with the per-run safety summary."""
+
+import math
+
+import numpy as np
+import pytest
+
+from proxops.errors import ProxopsInputError
+from proxops.scenarios.loader import builtin_names, load_scenario
+
+SRF_SCENARIOS = [n for n in builtin_names() if n.startswith("srf-")]
+
+
+def build(name, *overrides):
+    loaded = load_scenario(name, list(overrides))
+    return loaded.system.build(loaded.scenario)
+
+
+def test_builtin_scenarios_present_and_valid():
+    for required in ("srf-vbar", "srf-rbar", "srf-glideslope-40", "srf-glideslope-20", "srf-glideslope-250",
+                     "srf-cbf-demo", "srf-vbar-mc", "srf-rbar-mc", "srf-glideslope-40-mc"):
+        assert required in SRF_SCENARIOS
+    for name in SRF_SCENARIOS:
+        loaded = load_scenario(name)
+        setup = loaded.system.build(loaded.scenario)
+        assert setup.duration_s > 0
+
+
+def test_mc_scenarios_disperse_lvlh_initial_state():
+    for name in ("srf-vbar-mc", "srf-rbar-mc", "srf-glideslope-40-mc"):
+        sc = load_scenario(name).scenario
+        assert sc.initial.frame == "lvlh-srf"
+        assert sc.dispersions["initial.position_m"] == {"percent": 10, "min_abs": 1.0}
+        assert sc.dispersions["initial.velocity_mps"] == {"percent": 10, "min_abs": 0.1}
+        theta = math.radians(sc.approach.angle_deg)
+        np.testing.assert_allclose(sc.initial.position_m, [2000 * math.cos(theta), 0.0, 2000 * math.sin(theta)],
+                                   atol=1e-3)  # Table 2
+
+
+def test_default_start_is_on_the_approach_axis_in_hill():
+    # Table 2 LVLH start [2 cos(theta), 0, 2 sin(theta)] km; LVLH x = Hill y, LVLH z = -Hill x.
+    from proxops.systems.srf import initial_state_hill
+
+    sc = load_scenario("srf-glideslope-40").scenario
+    x0 = initial_state_hill(sc)
+    th = math.radians(40.0)
+    np.testing.assert_allclose(x0, [-2000 * math.sin(th), 2000 * math.cos(th), 0, 0, 0, 0], atol=1e-9)
+
+
+def test_angle_in_infeasible_band_is_an_error():
+    with pytest.raises(ProxopsInputError, match=r"approach angle = 150\.000 deg.*allowed"):
+        build("srf-glideslope-40", "approach.angle_deg=150")
+
+
+@pytest.mark.parametrize("gamma", ["0", "1", "1.5"])
+def test_gamma_outside_unit_interval_is_an_error(gamma):
+    with pytest.raises(ProxopsInputError, match="gamma"):
+        load_scenario("srf-rbar", [f"approach.gamma={gamma}"])
+
+
+def test_more_hops_than_horizon_is_an_error():
+    with pytest.raises(ProxopsInputError, match="more hops than the MPC horizon"):
+        build("srf-rbar", "mpc.horizon_steps=4")
+    with pytest.raises(ProxopsInputError, match="horizon_steps"):
+        build("srf-rbar", "mpc.horizon_steps=20", "mpc.steps_per_hop=5")
+
+
+def test_koz_containing_start_is_an_error():
+    with pytest.raises(ProxopsInputError, match="inside the keep-out zone"):
+        build("srf-vbar", "keep_out.radius_m=2500")
+
+
+def test_reference_point_inside_koz_is_an_error():
+    with pytest.raises(ProxopsInputError, match="reference point lies inside the keep-out zone"):
+        build("srf-vbar", "keep_out.radius_m=150")
+
+
+def test_duration_too_short_is_an_error():
+    with pytest.raises(ProxopsInputError, match="duration_s"):
+        build("srf-rbar", "sim.duration_s=1000")
+
+
+def test_rbar_closed_loop_against_j2_truth():
+    """Short R-bar (3 hops) with J2 truth, noise and thruster limits: reaches the reference point,
+    no KOZ violation, passive abort safe from every hop, hop impulses at the guidance times."""
+    from proxops.runner import execute
+
+    loaded = load_scenario("srf-rbar", ["approach.hops=3", "mpc.steps_per_hop=5", "keep_out.free_drift_nodes_per_orbit=24"])
+    summary, results = execute(loaded)
+    res = results["run"]
+    assert summary["arrived"] and summary["reached_reference"]
+    assert summary["arrival_error_m"] <= 5.0
+    assert not summary["koz_violated"] and summary["koz_violation_samples"] == 0
+    assert summary["abort_safe_all"] and len(summary["abort"]) == 3
+    for item in summary["abort"]:
+        assert item["min_koz_distance_m"] > 0.0
+    plan = res.meta["hop_plan"]
+    np.testing.assert_allclose(summary["hop_intervals_s"], [h["duration_s"] for h in plan["hops"]],
+                               atol=res.meta["dt_s"] / 2 + 1e-9)
+    # KOZ check of the engine agrees with the summary
+    assert res.meta["max_violation"].get("keep_out", 0.0) <= 0.0
