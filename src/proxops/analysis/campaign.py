@@ -1161,12 +1161,26 @@ def write_report(campaign, report_dir: str | Path | None = None, figures: bool =
                     picked.append((SimResult.load(d), r.outcome))
             figs.append(cplot.plot_trajectory_overlay(picked, rdir / "trajectories.png", title=f"{m.get('scenario')}: "
                                                       f"{len(picked)} trajectories"))
+            figs += _system_campaign_figures(m, [res for res, _ in picked], rdir)
         figs = [f for f in figs if f is not None]
         files += figs
         lines += ["## Figures", ""] + [f"![{f.stem}]({f.name})" for f in figs] + [""]
     (rdir / "report.md").write_text("\n".join(lines))
     files.append(rdir / "report.md")
     return {"summary": summary, "files": [str(f) for f in files], "report_dir": str(rdir)}
+
+
+def _system_campaign_figures(manifest: dict, results: list, rdir: Path) -> list[Path]:
+    """Figures the scenario's own system draws from saved series (``campaign_figures`` hook),
+    e.g. the srf Monte Carlo overlays of Figs. 5/7/10 with the approach axis and keep-out zone."""
+    from proxops.scenarios.loader import validate_scenario
+
+    data = {k: v for k, v in manifest["scenario_data"].items() if k != "dispersions"}
+    loaded = validate_scenario(data, source=str(manifest.get("scenario")))
+    draw = getattr(loaded.system, "campaign_figures", None)
+    if draw is None or not results:
+        return []
+    return list(draw(loaded.scenario, results, rdir))
 
 
 def _version() -> str:

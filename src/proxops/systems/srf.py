@@ -389,6 +389,14 @@ class SrfSystem:
         return bool(summary.get("reached_reference") and not summary.get("koz_violated")
                     and summary.get("abort_safe_all"))
 
+    def campaign_figures(self, sc: SrfScenario, results: list, out_dir) -> list[Path]:
+        """Monte Carlo overlay (Figs. 5/7/10) from a campaign's saved series."""
+        from proxops.plotting import srf as plots
+
+        theta_deg = sc.approach.angle_deg
+        return [plots.plot_mc_overlay(results, Path(out_dir) / "srf_mc_overlay.png", theta_deg=theta_deg,
+                                      koz_radius_m=sc.keep_out.radius_m, title=f"{sc.name}: Monte Carlo")]
+
     def figures(self, sc: SrfScenario, results, out_dir) -> list[Path]:
         from proxops.plotting import srf as plots
 
