@@ -58,3 +58,15 @@ def test_run_json_contract(tmp_path):
     assert s["sim_time_s"] == pytest.approx(600.0)
     assert (tmp_path / "o" / "run" / "steps.parquet").is_file()
     assert (tmp_path / "o" / "summary.json").is_file()
+
+
+def test_readme_scenario_example_validates(tmp_path):
+    """The scenario shown in the README must stay valid."""
+    from pathlib import Path
+
+    text = (Path(__file__).parents[1] / "README.md").read_text()
+    start = text.index("```toml\n") + len("```toml\n")
+    example = tmp_path / "example.toml"
+    example.write_text(text[start : text.index("```", start)])
+    res = invoke("validate", str(example))
+    assert res.exit_code == 0, res.stderr

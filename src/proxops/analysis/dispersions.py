@@ -248,6 +248,9 @@ def nominal_value(scenario: BaseModel, path: tuple, key: str):
                     f"dispersions: key {key!r} does not exist: no {tok!r} in {where}; allowed: {', '.join(map(str, node)) or '(none)'}"
                 )
             node = node[tok]
+        elif node is None:
+            raise ProxopsInputError(f"dispersions: key {key!r}: [{where}] is not set in this scenario; "
+                                    f"write its values in the file before dispersing them")
         else:
             raise ProxopsInputError(f"dispersions: key {key!r}: {where} is a value, not a table")
     if isinstance(node, BaseModel) or isinstance(node, dict):
