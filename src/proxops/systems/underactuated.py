@@ -1,0 +1,365 @@
+"""System ``underactuated``: NMPC docking of a planar underactuated 6U CubeSat
+(underactuated-docking-nmpc.md, issue 7).
+
+Scenarios (src/proxops/scenarios/builtin/underactuated-*.toml)::
+
+    proxops run underactuated-case1 --json          # §5 / Figs. 2-3, averaged-value MPC
+    proxops run underactuated-compare --out out/cmp # Figs. 4-5, general vs averaged
+    proxops run underactuated-case2 --out out/c2    # Figs. 6-9, Table 3 limits, c = 0 and 1e-3
+
+Plant: :class:`proxops.dynamics.planar_cubesat.PlanarCubeSatPlant` — the measured state is
+the planar state ``[x, y, theta, vx, vy, omega]`` (m, rad, m/s, rad/s; positions are
+``[0:2]``, velocities ``[3:5]``); control ``[thrust N, wheel_acc rad/s^2]``. Controller:
+:class:`proxops.control.nmpc_underactuated.UnderactuatedNMPC`. A run stops with outcome
+``docked`` when the true state enters the Table 1 admissible set.
+
+A scenario may run several closed loops (``[[runs]]``: variant, horizon, damping per run);
+the first is the main one. The JSON summary adds ``docked``, ``steps``, ``dock_time_s``,
+``value_function_monotone``, ``value_bound_violations``, ``solve_time_ms_per_step`` and, with
+several runs, ``runs`` (the same keys per run) and ``step_time_ratio`` (median step time of
+each run over the fastest).
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+from typing import Annotated, Literal
+
+import numpy as np
+from pydantic import Field, field_validator, model_validator
+
+from proxops.scenarios.registry import register_system
+from proxops.scenarios.schema import ActuatorSection, ScenarioBase, Section
+from proxops.sim.engine import Setup
+
+DEG = math.pi / 180.0
+
+Bounds = Annotated[list[float], Field(min_length=2, max_length=2)]
+PositiveInt = Annotated[int, Field(ge=1)]
+
+
+def _ordered(value: list[float]) -> list[float]:
+    if not all(math.isfinite(v) for v in value):
+        raise ValueError("both bounds must be finite numbers")
+    if value[0] >= value[1]:
+        raise ValueError(f"must be [min, max] with min < max (got min {value[0]} >= max {value[1]})")
+    return value
+
+
+class DeputySection(Section):
+    """Deputy parameters (Table 1) and damping c of eq. 5 (0 = undamped eq. 4)."""
+
+    mass_kg: Annotated[float, Field(gt=0.0)] = 12.0
+    wheel_inertia_kgm2: Annotated[float, Field(gt=0.0)] = 4.1e-5
+    body_inertia_kgm2: Annotated[float, Field(gt=0.0)] = 5.6e-2
+    mean_motion_rad_s: Annotated[float, Field(ge=0.0)] = 1.027e-3
+    damping_Nms: Annotated[float, Field(ge=0.0)] = 0.0
+
+
+class LimitsSection(Section):
+    """State and input limits as [min, max] (Table 2 defaults; Table 3 in case 2)."""
+
+    thrust_N: Bounds = [-2.0, 2.0]
+    wheel_acc_deg_s2: Bounds = [-1604.0, 1604.0]
+    position_m: Bounds = [-2000.0, 2000.0]
+    velocity_mps: Bounds = [-10.0, 10.0]
+    angle_deg: Bounds = [-180.0, 180.0]
+    rate_deg_s: Bounds = [-2.0, 2.0]
+    angular_acc_deg_s2: Bounds = [-1.0, 1.0]
+
+    @field_validator("*")
+    @classmethod
+    def _min_below_max(cls, value):
+        return _ordered(value)
+
+    @field_validator("angle_deg")
+    @classmethod
+    def _within_half_turn(cls, value):
+        if value[0] < -180.0 or value[1] > 180.0:
+            raise ValueError("must lie within [-180, 180] deg")
+        return value
+
+
+class DockingSection(Section):
+    """Admissible docking set (Table 1): |x|,|y| <= position_m, |vx|,|vy| <= velocity_mps,
+    |theta| <= angle_deg, |omega| <= rate_deg_s."""
+
+    position_m: Annotated[float, Field(gt=0.0)] = 0.1
+    velocity_mps: Annotated[float, Field(gt=0.0)] = 0.2
+    angle_deg: Annotated[float, Field(gt=0.0)] = 2.0
+    rate_deg_s: Annotated[float, Field(gt=0.0)] = 1.0
+
+
+class InitialStateSection(Section):
+    """Initial planar state s0 = [x, y, theta, vx, vy, omega] (Hill x radial, y along-track;
+    theta counter-clockwise from the Hill x axis)."""
+
+    x_m: float
+    y_m: float
+    theta_deg: float = 0.0
+    vx_mps: float = 0.0
+    vy_mps: float = 0.0
+    omega_deg_s: float = 0.0
+
+    @field_validator("theta_deg")
+    @classmethod
+    def _angle_range(cls, value):
+        if not -180.0 <= value <= 180.0:
+            raise ValueError("initial angle must lie within [-180, 180] deg")
+        return value
+
+    def vector(self) -> np.ndarray:
+        return np.array([self.x_m, self.y_m, self.theta_deg * DEG, self.vx_mps, self.vy_mps, self.omega_deg_s * DEG])
+
+
+class ControllerSection(Section):
+    """NMPC settings. ``horizon`` H in steps of ``dt_s`` (Table 1: 2 s); ``average_window`` N of
+    eq. 14; weights ``q`` on [x, y, theta, vx, vy, omega] (SI, rad) and ``r`` on
+    [thrust N, wheel_acc rad/s^2] (the paper gives none: documented choice);
+    ``terminal_weight`` P = terminal_weight * Q and ``terminal_box_fraction`` (general variant:
+    s_H = 0 of eq. 9 is enforced as |s_H| <= fraction * docking set; 0 gives the exact
+    equality, which is degenerate at the origin, see proxops.control.nmpc_underactuated)."""
+
+    variant: Literal["averaged", "general"] = "averaged"
+    horizon: PositiveInt = 30
+    dt_s: Annotated[float, Field(gt=0.0)] = 2.0
+    average_window: PositiveInt = 10
+    q: Annotated[list[Annotated[float, Field(ge=0.0)]], Field(min_length=6, max_length=6)] = [1.0, 1.0, 10.0, 10.0, 10.0, 1000.0]
+    r: Annotated[list[Annotated[float, Field(gt=0.0)]], Field(min_length=2, max_length=2)] = [1.0e-2, 1.0e-6]
+    terminal_weight: Annotated[float, Field(ge=0.0)] = 10.0
+    terminal_box_fraction: Annotated[float, Field(ge=0.0, le=1.0)] = 0.1  # general: |s_H| <= f * docking set; 0: s_H = 0
+    solver: Literal["fatrop", "ipopt"] = "fatrop"
+    model_substeps: PositiveInt = 1
+    max_iter: PositiveInt = 200
+
+
+class RunSection(Section):
+    """One closed loop of a multi-run scenario; unset keys come from [controller]/[deputy]."""
+
+    label: Annotated[str, Field(min_length=1, pattern=r"^[A-Za-z0-9_.-]+$")]
+    variant: Literal["averaged", "general"] | None = None
+    horizon: PositiveInt | None = None
+    damping_Nms: Annotated[float, Field(ge=0.0)] | None = None
+
+
+class UnderactuatedScenario(ScenarioBase):
+    deputy: DeputySection = DeputySection()
+    limits: LimitsSection = LimitsSection()
+    docking: DockingSection = DockingSection()
+    initial_state: InitialStateSection
+    controller: ControllerSection = ControllerSection()
+    runs: list[RunSection] = []
+
+    @model_validator(mode="after")
+    def _consistent(self):
+        s0 = self.initial_state
+        lim = self.limits
+        for key, value, bounds in (
+            ("x_m", s0.x_m, lim.position_m),
+            ("y_m", s0.y_m, lim.position_m),
+            ("theta_deg", s0.theta_deg, lim.angle_deg),
+            ("vx_mps", s0.vx_mps, lim.velocity_mps),
+            ("vy_mps", s0.vy_mps, lim.velocity_mps),
+            ("omega_deg_s", s0.omega_deg_s, lim.rate_deg_s),
+        ):
+            if not bounds[0] <= value <= bounds[1]:
+                from proxops.scenarios.loader import unit_of
+
+                unit = unit_of(key)
+                raise ValueError(f"initial_state.{key} = {value} {unit} is outside the limits {bounds} {unit} "
+                                 "([limits] section)")
+        if self.actuator != ActuatorSection():
+            raise ValueError("[actuator] is not used by the underactuated system: its limits are in [limits]")
+        labels = [r.label for r in self.runs]
+        if len(set(labels)) != len(labels):
+            raise ValueError(f"runs: labels must be unique, got {labels}")
+        return self
+
+
+class PlanarNavigation:
+    """White Gaussian errors on the planar state: position sigma on x, y, velocity sigma on
+    vx, vy; the attitude is measured exactly."""
+
+    def __init__(self, position_sigma_m: float, velocity_sigma_mps: float):
+        self.sigma = np.array([position_sigma_m, position_sigma_m, 0.0, velocity_sigma_mps, velocity_sigma_mps, 0.0])
+
+    def measure(self, t: float, x_true: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+        return np.asarray(x_true, dtype=float) + self.sigma * rng.standard_normal(6)
+
+
+def run_configs(sc: UnderactuatedScenario) -> list[dict]:
+    """The closed loops of a scenario: label, variant, horizon, damping (SI)."""
+    c, d = sc.controller, sc.deputy
+    if not sc.runs:
+        return [{"label": c.variant, "variant": c.variant, "horizon": c.horizon, "damping_Nms": d.damping_Nms}]
+    return [
+        {
+            "label": r.label,
+            "variant": r.variant or c.variant,
+            "horizon": r.horizon or c.horizon,
+            "damping_Nms": d.damping_Nms if r.damping_Nms is None else r.damping_Nms,
+        }
+        for r in sc.runs
+    ]
+
+
+def model_objects(sc: UnderactuatedScenario, damping_Nms: float | None = None):
+    """(params, limits, docking set) in SI units from the scenario."""
+    from proxops.dynamics.planar_cubesat import DockingSet, Interval, PlanarCubeSatParams, PlanarLimits
+
+    d, lim, dock = sc.deputy, sc.limits, sc.docking
+    params = PlanarCubeSatParams(
+        mass_kg=d.mass_kg,
+        wheel_inertia_kgm2=d.wheel_inertia_kgm2,
+        body_inertia_kgm2=d.body_inertia_kgm2,
+        mean_motion_rad_s=d.mean_motion_rad_s,
+        damping_Nms=d.damping_Nms if damping_Nms is None else damping_Nms,
+    )
+
+    def interval(b, scale=1.0):
+        return Interval(b[0] * scale, b[1] * scale)
+
+    limits = PlanarLimits(
+        thrust=interval(lim.thrust_N),
+        wheel_acc=interval(lim.wheel_acc_deg_s2, DEG),
+        position=interval(lim.position_m),
+        velocity=interval(lim.velocity_mps),
+        angle=interval(lim.angle_deg, DEG),
+        rate=interval(lim.rate_deg_s, DEG),
+        angular_acc=interval(lim.angular_acc_deg_s2, DEG),
+    )
+    docking = DockingSet(dock.position_m, dock.velocity_mps, dock.angle_deg * DEG, dock.rate_deg_s * DEG)
+    return params, limits, docking
+
+
+def build_setup(sc: UnderactuatedScenario, run: dict | None = None) -> Setup:
+    """Plant, NMPC and stop condition for one closed loop (``run`` from :func:`run_configs`)."""
+    from proxops.control.nmpc_underactuated import NMPCConfig, UnderactuatedNMPC
+    from proxops.dynamics.planar_cubesat import PlanarCubeSatPlant
+    from proxops.navigation import PerfectNavigation
+
+    run = run or run_configs(sc)[0]
+    params, limits, docking = model_objects(sc, run["damping_Nms"])
+    c = sc.controller
+    config = NMPCConfig(
+        variant=run["variant"],
+        horizon=run["horizon"],
+        dt_s=c.dt_s,
+        average_window=c.average_window,
+        q_diag=tuple(c.q),
+        r_diag=tuple(c.r),
+        terminal_weight=c.terminal_weight,
+        terminal_box_fraction=c.terminal_box_fraction,
+        solver=c.solver,
+        model_substeps=c.model_substeps,
+        max_iter=c.max_iter,
+    )
+    controller = UnderactuatedNMPC(params, limits, config, docking)
+    plant = PlanarCubeSatPlant(params, sc.initial_state.vector())
+    nav = sc.navigation
+    navigation = (
+        PerfectNavigation()
+        if nav.position_sigma_m == 0.0 and nav.velocity_sigma_mps == 0.0
+        else PlanarNavigation(nav.position_sigma_m, nav.velocity_sigma_mps)
+    )
+
+    def docked(t: float, s: np.ndarray) -> str | None:
+        return "docked" if docking.contains(s) else None
+
+    return Setup(
+        plant=plant,
+        controller=controller,
+        duration_s=sc.sim.duration_s,
+        navigation=navigation,
+        stop_condition=docked,
+        check_substeps=sc.sim.check_substeps,
+        meta={"run": run},
+    )
+
+
+def summarize_result(sc: UnderactuatedScenario, result) -> dict:
+    """Docking outcome, value-function behaviour and per-step computation of one run."""
+    solved = result.solve_time_s[: max(len(result.t) - 1, 0)]
+    value = result.info.get("value_function", np.full(len(result.t), np.nan))[: len(solved)]
+    bound = result.info.get("value_bound", np.full(len(result.t), np.nan))[: len(solved)]
+    relaxed = result.info.get("bound_relaxed", np.zeros(len(result.t)))[: len(solved)]
+    finite = value[np.isfinite(value)]
+    docked = result.meta.get("outcome") == "docked"
+    active = np.isfinite(bound) & np.isfinite(value)
+    out = {
+        "docked": bool(docked),
+        "steps": int(len(result.t) - 1),
+        "dock_time_s": float(result.t[-1]) if docked else None,
+        "value_function_monotone": bool(finite.size > 1 and np.all(np.diff(finite) <= 1e-9 * max(1.0, finite.max()))),
+        "value_function_increases": int(np.sum(np.diff(finite) > 1e-9 * max(1.0, finite.max()))) if finite.size else 0,
+        "value_bound_violations": int(np.sum(np.nan_to_num(relaxed) > 0)),
+        "value_bound_steps": int(np.sum(active)),
+        "final_state": {
+            "x_m": float(result.x_true[-1, 0]),
+            "y_m": float(result.x_true[-1, 1]),
+            "theta_deg": float(np.degrees(result.x_true[-1, 2])),
+            "vx_mps": float(result.x_true[-1, 3]),
+            "vy_mps": float(result.x_true[-1, 4]),
+            "omega_deg_s": float(np.degrees(result.x_true[-1, 5])),
+        },
+        "solve_time_ms": _stats_ms(solved),  # whole controller step (shift + NLP + checks)
+        # delta-v of the body-axis thrust, sum |f_x| / m dt (the engine's dv_cum sums |u| of
+        # [N, rad/s^2] and is meaningless for this plant)
+        "total_dv_mps": float(np.sum(np.abs(result.u_applied[: len(solved), 0])) / sc.deputy.mass_kg * result.meta.get("dt_s", sc.controller.dt_s)),
+        "solve_time_ms_per_step": [round(float(v) * 1e3, 3) for v in solved],
+        "mean_iterations": float(np.nanmean(result.info["iterations"][: len(solved)])) if "iterations" in result.info and len(solved) else 0.0,
+        "controller_wall_time_s": float(np.sum(solved)),
+    }
+    return out
+
+
+def _stats_ms(seconds: np.ndarray) -> dict:
+    if seconds.size == 0:
+        return {"median": 0.0, "p95": 0.0, "max": 0.0}
+    return {
+        "median": float(np.median(seconds) * 1e3),
+        "p95": float(np.percentile(seconds, 95) * 1e3),
+        "max": float(np.max(seconds) * 1e3),
+    }
+
+
+@register_system("underactuated")
+class UnderactuatedSystem:
+    Scenario = UnderactuatedScenario
+
+    def build(self, sc: UnderactuatedScenario) -> Setup:
+        return build_setup(sc)
+
+    def summarize(self, sc: UnderactuatedScenario, result) -> dict:
+        return summarize_result(sc, result)
+
+    def run(self, sc: UnderactuatedScenario, seed: int = 0, progress: bool = False):
+        """Every closed loop of the scenario; the summary keys of the first at top level."""
+        from proxops.sim.engine import simulate
+
+        results, summaries = {}, {}
+        for run in run_configs(sc):
+            result = simulate(build_setup(sc, run), seed=seed, progress=progress)
+            results[run["label"]] = result
+            summary = summarize_result(sc, result)
+            summary.update(variant=run["variant"], horizon=run["horizon"], damping_Nms=run["damping_Nms"],
+                           wall_time_s=float(result.meta.get("wall_time_s", 0.0)))
+            summaries[run["label"]] = summary
+        extra = dict(next(iter(summaries.values())))
+        if len(summaries) > 1:
+            extra["runs"] = {label: {k: v for k, v in s.items() if k != "solve_time_ms_per_step"}
+                             for label, s in summaries.items()}
+            fastest = min(s["solve_time_ms"]["median"] for s in summaries.values())
+            extra["step_time_ratio"] = {label: (s["solve_time_ms"]["median"] / fastest if fastest > 0 else math.nan)
+                                        for label, s in summaries.items()}
+            extra["all_docked"] = all(s["docked"] for s in summaries.values())
+        return extra, results
+
+    def success(self, sc: UnderactuatedScenario, summary: dict) -> bool:
+        return bool(summary.get("docked"))
+
+    def figures(self, sc: UnderactuatedScenario, results, out_dir) -> list[Path]:
+        from proxops.plotting import underactuated as plots
+
+        return plots.scenario_figures(sc, results, Path(out_dir))
