@@ -135,3 +135,22 @@ def test_controller_stop_ends_run():
 
     res = simulate(Setup(plant=DoubleIntegrator(np.zeros(6)), controller=Stopper([0, 0, 0]), duration_s=100.0))
     assert res.meta["outcome"] == "docked" and res.t[-1] == pytest.approx(3.0)
+
+
+def test_navigation_sigma_per_component():
+    nav = GaussianNavigation(sigma=np.array([2.0, 0.0, 0.0, 0.0, 0.0, 0.5]))
+    rng = np.random.default_rng(7)
+    err = np.array([nav.measure(0.0, np.zeros(6), rng) for _ in range(20000)])
+    np.testing.assert_array_equal(err[:, 1:5], 0.0)
+    assert abs(err[:, 0].std() - 2.0) < 0.05 and abs(err[:, 5].std() - 0.5) < 0.0125
+
+
+def test_units_named_from_key_suffix():
+    from proxops.scenarios.loader import unit_of
+
+    assert unit_of("mean_motion_rad_s") == "rad/s"
+    assert unit_of("wheel_acc_max_deg_s2") == "deg/s^2"
+    assert unit_of("tumble_rate_deg_s") == "deg/s"
+    assert unit_of("a_max_mps2") == "m/s^2"
+    assert unit_of("dt_s") == "s"
+    assert unit_of("inertia_kgm2") == "kg m^2"

@@ -18,8 +18,14 @@ from proxops.scenarios.registry import get_system
 
 BUILTIN_DIR = Path(__file__).parent / "builtin"
 
-UNIT_SUFFIXES = (
+UNIT_SUFFIXES = (  # longest first: "_deg_s2" before "_deg_s" before "_s"
+    ("_deg_s2", "deg/s^2"),
+    ("_rad_s2", "rad/s^2"),
     ("_deg_s", "deg/s"),
+    ("_rad_s", "rad/s"),
+    ("_kgm2", "kg m^2"),
+    ("_Nms", "N m s"),
+    ("_Nm", "N m"),
     ("_mps2", "m/s^2"),
     ("_mps", "m/s"),
     ("_deg", "deg"),

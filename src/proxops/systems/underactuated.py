@@ -177,15 +177,11 @@ class UnderactuatedScenario(ScenarioBase):
         return self
 
 
-class PlanarNavigation:
-    """White Gaussian errors on the planar state: position sigma on x, y, velocity sigma on
-    vx, vy; the attitude is measured exactly."""
-
-    def __init__(self, position_sigma_m: float, velocity_sigma_mps: float):
-        self.sigma = np.array([position_sigma_m, position_sigma_m, 0.0, velocity_sigma_mps, velocity_sigma_mps, 0.0])
-
-    def measure(self, t: float, x_true: np.ndarray, rng: np.random.Generator) -> np.ndarray:
-        return np.asarray(x_true, dtype=float) + self.sigma * rng.standard_normal(6)
+def planar_sigma(position_sigma_m: float, velocity_sigma_mps: float) -> np.ndarray:
+    """Navigation 1-sigma per planar state component: position on x, y, velocity on vx, vy;
+    the attitude and its rate are measured exactly."""
+    p, v = position_sigma_m, velocity_sigma_mps
+    return np.array([p, p, 0.0, v, v, 0.0])
 
 
 def run_configs(sc: UnderactuatedScenario) -> list[dict]:
@@ -237,7 +233,7 @@ def build_setup(sc: UnderactuatedScenario, run: dict | None = None) -> Setup:
     """Plant, NMPC and stop condition for one closed loop (``run`` from :func:`run_configs`)."""
     from proxops.control.nmpc_underactuated import NMPCConfig, UnderactuatedNMPC
     from proxops.dynamics.planar_cubesat import PlanarCubeSatPlant
-    from proxops.navigation import PerfectNavigation
+    from proxops.navigation import GaussianNavigation, PerfectNavigation
 
     run = run or run_configs(sc)[0]
     params, limits, docking = model_objects(sc, run["damping_Nms"])
@@ -261,7 +257,7 @@ def build_setup(sc: UnderactuatedScenario, run: dict | None = None) -> Setup:
     navigation = (
         PerfectNavigation()
         if nav.position_sigma_m == 0.0 and nav.velocity_sigma_mps == 0.0
-        else PlanarNavigation(nav.position_sigma_m, nav.velocity_sigma_mps)
+        else GaussianNavigation(sigma=planar_sigma(nav.position_sigma_m, nav.velocity_sigma_mps))
     )
 
     def docked(t: float, s: np.ndarray) -> str | None:
