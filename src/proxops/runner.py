@@ -59,7 +59,7 @@ def save_run(loaded, summary: dict, results: dict[str, SimResult], out: Path, fi
     return paths
 
 
-DEMO_SCENARIOS = ("station-keeping",)
+DEMO_SCENARIOS = ("srf-vbar", "srf-rbar", "los-tumble", "underactuated-case1")
 
 
 def run_demo(out: Path) -> Path:
