@@ -95,3 +95,29 @@ def test_inside_versus_outside_r_sync_all_combinations(w):
         assert inside["los_violations"] == 0 and inside["feasible"]
         outside = run_case(w, a, [0.0, 1.5 * r_sync, 0.0], mpc_config="single", constraint_mode="soft")
         assert outside["los_violations"] > 0
+
+
+def test_feasibility_rule_of_section_9_is_shared():
+    """§9 step 3: feasible = no violation > 1e-3 m, QP never infeasible, no early stop; the
+    system's campaign hook and the reach maps' row classifier apply the same rule."""
+    from proxops.analysis.feasibility_maps import classify_rows
+    from proxops.systems.los import LosSystem, is_feasible_run
+
+    cases = [  # (los_violations, max_violation_m, qp_infeasible, outcome) -> feasible
+        ((0, 0.0, False, "completed"), True),
+        ((0, 9e-4, False, "hold_reached"), True),
+        ((1, 2e-3, False, "completed"), False),
+        ((0, 0.0, True, "qp_infeasible"), False),
+        ((0, 0.0, False, "qp_infeasible"), False),  # early termination
+        ((np.nan, 0.0, False, "completed"), False),  # missing metric
+        ((0, 0.0, None, "completed"), False),
+    ]
+    for args, expected in cases:
+        assert is_feasible_run(*args) is expected
+        summary = dict(zip(("los_violations", "max_violation_m", "qp_infeasible", "outcome"), args))
+        assert LosSystem().success(None, summary) is expected
+    rows = pd.DataFrame([{"outcome": "success", "metric.los_violations": a[0], "metric.max_violation_m": a[1],
+                          "metric.qp_infeasible": a[2], "metric.outcome": a[3]} for a, _ in cases])
+    rows.loc[len(rows)] = {"outcome": "error", "metric.los_violations": 0, "metric.max_violation_m": 0.0,
+                           "metric.qp_infeasible": False, "metric.outcome": "completed"}  # a run that raised
+    np.testing.assert_array_equal(classify_rows(rows), [e for _, e in cases] + [False])

@@ -114,6 +114,23 @@ def test_daqp_qp_projection_and_warm_started_update():
     assert_feasible(A, None, bu, r.x, lb, [1.5, 5.0])
 
 
+def test_daqp_update_fast_matches_validated_update():
+    # Projection of p onto {x1 + x2 <= b}: closed form p - max(0, a'p - b) / |a|^2 a, for a
+    # sequence of (p, b) written through the lean path; also after a validated update.
+    A = np.array([[1.0, 1.0]])
+    s = DaqpQP()
+    s.setup(np.eye(2), -np.array([2.0, 1.0]), A, None, [1.0], -5 * np.ones(2), 5 * np.ones(2))
+    s.solve()
+    for p, b in (([2.0, 1.0], 0.5), ([0.2, -0.1], 1.0), ([3.0, -1.0], -1.0)):
+        s.update_fast(f=-np.array(p), bu=np.array([b]))
+        r = s.solve()
+        np.testing.assert_allclose(r.x, projection_halfspace(p, [1, 1], b)[0], atol=1e-9)
+        assert_feasible(A, None, [b], r.x, -5 * np.ones(2), 5 * np.ones(2))
+    s.update(ub=[0.5, 5.0])  # validated path in between keeps the bookkeeping consistent
+    s.update_fast(bu=np.array([10.0]))
+    np.testing.assert_allclose(s.solve().x, [0.5, -1.0], atol=1e-9)  # p = (3, -1) clipped by x1 <= 0.5 only
+
+
 def test_daqp_small_perturbation_keeps_active_set():
     # p = (2 + e, 1 - e): a'p = 3 > 1 so the half-space row stays the only active row;
     # the warm-started solve needs no new active-set change (<= 1 iteration).

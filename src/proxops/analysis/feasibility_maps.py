@@ -36,7 +36,7 @@ MC_N_Y = 15
 MC_N_X = 13
 MC_FILL = 0.95  # x_B spans +-0.95 tan(alpha_c) y_B
 MC_DURATION_S = 400.0
-VIOLATION_TOLERANCE_M = 1e-3  # §9.3
+VIOLATION_TOLERANCE_M = 1e-3  # §9.3 (the rule itself: proxops.systems.los.is_feasible_run)
 POSITION_KEY = "chaser.initial_body_position_m"
 OMEGA_KEY = "target.tumble_rate_deg_s"
 A_MAX_KEY = "chaser.a_max_mps2"
@@ -125,17 +125,20 @@ class McRun(NamedTuple):
 
 
 def classify_rows(table: pd.DataFrame) -> np.ndarray:
-    """§9.3 rule on campaign rows: no violation > 1e-3 m, no QP infeasibility, no early stop."""
+    """§9.3 rule on campaign rows: :func:`proxops.systems.los.is_feasible_run` (the rule of
+    ``LosSystem.success``) on the ``metric.*`` columns; a run that raised is infeasible."""
+    from proxops.systems.los import is_feasible_run
+
     def col(name, default):
         return table[name] if name in table else pd.Series(default, index=table.index)
 
-    viol = pd.to_numeric(col("metric.los_violations", 1), errors="coerce").fillna(1).to_numpy()
-    vmax = pd.to_numeric(col("metric.max_violation_m", np.inf), errors="coerce").fillna(np.inf).to_numpy()
-    qp_bad = col("metric.qp_infeasible", True).fillna(True).astype(bool).to_numpy()
+    viol = pd.to_numeric(col("metric.los_violations", np.nan), errors="coerce").to_numpy()
+    vmax = pd.to_numeric(col("metric.max_violation_m", np.nan), errors="coerce").to_numpy()
+    qp_bad = col("metric.qp_infeasible", True).to_numpy()
     outcome = col("metric.outcome", "").fillna("").astype(str).to_numpy()
     ran = col("outcome", "error").astype(str).to_numpy() != "error"
-    completed = np.isin(outcome, ("completed", "hold_reached"))
-    return ran & (viol == 0) & (vmax <= VIOLATION_TOLERANCE_M) & ~qp_bad & completed
+    rule = np.array([is_feasible_run(*row) for row in zip(viol, vmax, qp_bad, outcome)], dtype=bool)
+    return ran & rule
 
 
 def outcome_table(table: pd.DataFrame) -> pd.DataFrame:

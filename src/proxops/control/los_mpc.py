@@ -1,15 +1,23 @@
 """Receding-horizon QP (tumbling-target-reachability.md eq. 11) in the target body frame.
 
-Problem at time t with body-frame state x_0 (m, m/s) and inputs u_j (m/s^2, body axes
-at the sample instant, held constant in LVLH over the step)::
+Problem at time t with body-frame state x_0 (m, m/s) and inputs u_j (m/s^2)::
 
     min  sum_{j=1}^{N-1} |x_j - r_j|_Q^2 + |x_N - r_N|_{Q_N}^2
          + sum_{j=0}^{N-1} |u_j|_{R_u}^2 + |u_j - u_{j-1}|_{R_du}^2          (11a)
     s.t. x_{j+1} = A_j x_j + B_j u_j                                      (11b,c)
          G p_j <= h,  j = 1..N            (corridor eq. 9, body frame)     (11d)
-         -a_max <= u_j <= a_max           (per body axis)                  (11e)
+         -a_max <= u_j <= a_max           (per target-body axis)           (11e)
 
-with u_{-1} the previously applied input and r_j the reference (one state or a
+Input frame. The decision variables u_j are *target-body-axes* components of the
+chaser acceleration, taken at the sample instant t_j and then held constant in LVLH
+over the step (ZOH): the plant receives u_L,j = R_LB(theta_j) u_j, the rotation being done
+here (``MpcSolution.u0_hill``) and in :mod:`proxops.guidance.los_regimes`. So the box
+(11e) is a box on the body axes. The paper does not say in which frame its input box is
+written (its eq. 11 is posed in the body frame, its plant takes LVLH accelerations); a box
+in LVLH axes would be a different, rotating set in body axes (same per-axis limit, up to
+sqrt(2) larger body-axis components at 45 deg) - an ambiguity of the paper, not a derivation.
+
+u_{-1} is the previously applied input and r_j the reference (one state or a
 trajectory). The (11a) sum written from j = 0 also contains |x_0 - r|_Q^2, a constant.
 The corridor row at j = 0 is the measured state, not a decision, so the simulation
 checks it instead of the QP.
@@ -28,6 +36,16 @@ error is the anisotropic part acting on the change of plan; for the first step i
 ~n^2 dt^2 ~ 1e-6 of the input effect (tested in tests/test_los_mpc.py). The paper
 instead freezes the step-k finite-difference linearisation over the horizon (§4.4).
 
+Fast evaluation of the exact prediction. With R_k = R_z(theta_k) the exact map
+[x_0; U] -> [x_1..x_N] is T(o_j) R6_k^T (CW blocks) R6_k (...), o_j = theta_j - theta_k,
+R6_k = diag(R_k, R_k). Conjugating a 2x2 (x-y) block by a rotation leaves its
+isotropic part (a I + b J) unchanged and turns its symmetric traceless part by 2 theta_k;
+the z rows/columns of the CW model do not couple to x-y. Hence, exactly,
+E(theta_k) = E_0 + cos(2 theta_k) E_c + sin(2 theta_k) E_s with three constant matrices
+(computed once from E at 16 angles; E_0's input block is S). Each step evaluates the
+offset with one product of a precomputed stack instead of re-rotating the horizon
+(tests/test_los_mpc.py checks it against the product of exact one-step Jacobians).
+
 Constraint handling (``constraint_mode``):
 - ``"hard"`` (paper, used for feasibility classification): an infeasible QP is returned
   as status ``"infeasible"``; the caller treats it as a failed run.
@@ -44,13 +62,14 @@ previous active set.
 
 from __future__ import annotations
 
+import math
 import time
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from proxops.constraints.los_corridor import LosCorridor
-from proxops.dynamics.tumbling_target import BodyFrameModel, body_from_hill_matrix, rot_z
+from proxops.dynamics.tumbling_target import BodyFrameModel, body_from_hill_matrix, hill_from_body_matrix, rot_z
 from proxops.errors import input_error
 from proxops.solvers.daqp_qp import DaqpQP
 
@@ -163,14 +182,18 @@ class LosMpc:
             if len(_PREDICTION_CACHE) > 64:
                 _PREDICTION_CACHE.clear()
             _PREDICTION_CACHE[key] = cached
-        self._Phi_pow, self._Su_L, self._S = cached
+        self._Phi_pow, self._Su_L, self._S, harmonics = cached
         self._Phi_pow_flat = self._Phi_pow.reshape(6 * N, 6)
         self._Su_L_flat = self._Su_L.reshape(6 * N, nu)
         self._S_flat = self._S.reshape(6 * N, nu)
+        # offset map [x_0; plan] -> exact prediction - S plan = M_0 + cos(2 theta) M_c + sin(2 theta) M_s,
+        # stacked (3 * 6N, 6 + 3N) so that one product gives the three parts (module doc)
+        self._offset_maps = harmonics
         # weights for x_1..x_N: Q, ..., Q, Q_N
         W = np.tile(np.asarray(self.cfg.Q, float), (N, 1))
         W[-1] *= self.cfg.terminal_factor
         self._W = W.reshape(6 * N)
+        self._SW_T = np.ascontiguousarray((self._W[:, None] * self._S_flat).T)
         # QP written as 1/2 U'HU + f'U = 1/2 of (11a): H = S'WS + R_u + D' R_du D
         r_u = np.tile(np.asarray(self.cfg.R_u, float), N)
         r_d = np.tile(np.asarray(self.cfg.R_du, float), N)
@@ -178,6 +201,8 @@ class LosMpc:
         H = self._S_flat.T @ (self._W[:, None] * self._S_flat) + np.diag(r_u) + D.T @ (r_d[:, None] * D)
         self._r_d0 = np.asarray(self.cfg.R_du, float)
         G, self._h = corridor.G, corridor.h
+        self._G_T = np.ascontiguousarray(G.T)
+        self._slack_f = np.full(N, self.cfg.slack_penalty)
         self._n_rows = G.shape[0]
         A = np.matmul(G, self._S[:, 0:3, :]).reshape(self._n_rows * N, nu)
         lb = np.full(self.n_var, -self.a_max)
@@ -200,7 +225,8 @@ class LosMpc:
 
     # ------------------------------------------------------------------ prediction
     def _prediction_blocks(self, model: BodyFrameModel, N: int):
-        """(Phi^j (N,6,6), LVLH input map (N,6,3N), rotation-averaged body input map S)."""
+        """(Phi^j (N,6,6), LVLH input map (N,6,3N), rotation-averaged body input map S,
+        stacked harmonics of the offset map (3 * 6N, 6 + 3N), see module doc)."""
         nu = 3 * N
         # LVLH blocks: x_L,j = Phi^j x_L,0 + sum_i Phi^(j-1-i) Bd u_L,i, j = 1..N
         powers = [np.eye(6)]
@@ -212,9 +238,24 @@ class LosMpc:
             for i in range(j):
                 Su[j - 1, :, 3 * i : 3 * i + 3] = PB[j - 1 - i]
         self._Su_L = Su
+        self._Phi_pow = np.array(powers[1:])
         angles = 2.0 * np.pi * np.arange(self.n_average_angles) / self.n_average_angles
         S = np.mean([self.input_map(a) for a in angles], axis=0)
-        return np.array(powers[1:]), Su, S
+        # E(theta) = E_0 + cos(2 theta) E_c + sin(2 theta) E_s exactly; the 16 equispaced angles
+        # give the three coefficients exactly (discrete Fourier orthogonality)
+        E = np.array([self.exact_map(a).reshape(6 * N, 6 + nu) for a in angles])
+        E0 = E.mean(axis=0)
+        Ec = 2.0 * np.mean(np.cos(2.0 * angles)[:, None, None] * E, axis=0)
+        Es = 2.0 * np.mean(np.sin(2.0 * angles)[:, None, None] * E, axis=0)
+        E0[:, 6:] -= S.reshape(6 * N, nu)
+        return self._Phi_pow, Su, S, np.ascontiguousarray(np.vstack([E0, Ec, Es]))
+
+    def exact_map(self, theta_k: float) -> np.ndarray:
+        """Exact d x_j / d [x_0, U] (body frame, body-axes inputs) at angle theta_k, (N, 6, 6 + 3N)."""
+        th = theta_k + self._offsets
+        T = body_from_hill_matrix(th[1:], self.model.w_rel)  # (N, 6, 6)
+        state_map = T @ self._Phi_pow @ hill_from_body_matrix(float(theta_k), self.model.w_rel)
+        return np.concatenate([state_map, self.input_map(theta_k)], axis=2)
 
     def input_map(self, theta_k: float) -> np.ndarray:
         """Exact d x_j / d u_i (body frame, body-axes inputs) at angle theta_k, (N, 6, 3N)."""
@@ -260,12 +301,13 @@ class LosMpc:
         """Solve eq. (11) from body-frame state ``x_body`` (m, m/s) at time ``t`` (s)."""
         t_build = time.perf_counter()
         N, nu = self.N, self.n_u
+        x_body = np.asarray(x_body, float)
         u_prev = np.zeros(3) if u_prev is None else np.asarray(u_prev, float)
         ref = self._reference(x_ref).reshape(6 * N)
         if self._plan is None:
             guess = np.tile(u_prev, (N, 1))
         else:
-            guess = np.vstack([self._plan[1:], self._plan[-1:]])
+            guess = np.concatenate((self._plan[1:], self._plan[-1:]))
         offset = self._load(t, x_body, guess, ref, u_prev)
         build_time = time.perf_counter() - t_build
         res = self._solver.solve()
@@ -293,18 +335,22 @@ class LosMpc:
 
     def _load(self, t: float, x_body: np.ndarray, guess: np.ndarray, ref: np.ndarray, u_prev: np.ndarray) -> np.ndarray:
         """Put f and b of the QP centred on the plan ``guess`` (N, 3) into DAQP; returns the
-        affine prediction offset (6N,), exact at ``guess``."""
-        N, nu = self.N, self.n_u
-        offset = self.exact_prediction(t, x_body, guess).reshape(6 * N) - self._S_flat @ guess.reshape(nu)
-        f = self._S_flat.T @ (self._W * (offset - ref))
+        affine prediction offset (6N,) = exact prediction of ``guess`` - S guess."""
+        N, nu, n6 = self.N, self.n_u, 6 * self.N
+        two_theta = 2.0 * (self.model.theta0_rad + self.model.w_rel * t)
+        parts = (self._offset_maps @ np.concatenate((x_body, guess.reshape(nu)))).reshape(3, n6)
+        offset = np.array([1.0, math.cos(two_theta), math.sin(two_theta)]) @ parts  # M_0 z + cos M_c z + sin M_s z
+        f = self._SW_T @ (offset - ref)  # S' W (offset - ref)
         f[:3] -= self._r_d0 * u_prev  # from |u_0 - u_prev|_{R_du}^2
-        b = (self._h[None, :] - offset.reshape(N, 6)[:, 0:3] @ self.corridor.G.T).reshape(-1)
+        b = (self._h - offset.reshape(N, 6)[:, 0:3] @ self._G_T).reshape(-1)
         if self.soft:
-            f = np.concatenate([f, np.full(N, self.cfg.slack_penalty)])
+            f = np.concatenate((f, self._slack_f))
         if self._solver is None:
             self._solver = DaqpQP(max_iter=self.cfg.max_iter)
             self._solver.setup(self._H, f, self._A, bu=b, lb=self._lb, ub=self._ub)
-        else:
+        elif math.isfinite(f.sum() + b.sum()):  # fresh contiguous finite arrays, rows stay inequalities
+            self._solver.update_fast(f=f, bu=b)
+        else:  # NaN/inf state: the checked path turns it into a NUMERICAL_ERROR status
             self._solver.update(f=f, bu=b)
         return offset
 

@@ -36,6 +36,7 @@ tests/test_tumbling_target.py checks both against finite differences.
 
 from __future__ import annotations
 
+import math
 from functools import cached_property
 
 import numpy as np
@@ -105,12 +106,14 @@ def body_state_from_offset(R_IB: np.ndarray, omega_body: np.ndarray, eci_offset:
 
 def cross3(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """a x b for two 3-vectors (much cheaper than np.cross on single vectors)."""
-    return np.array([a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]])
+    a0, a1, a2 = np.asarray(a, float).tolist()  # Python floats: same arithmetic, less overhead
+    b0, b1, b2 = np.asarray(b, float).tolist()
+    return np.array([a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0])
 
 
 def _dcm_single(q: np.ndarray) -> np.ndarray:
     """quat_to_dcm for one unit quaternion (same convention, scalar formulas for speed)."""
-    x, y, z, w = q
+    x, y, z, w = q.tolist()
     return np.array(
         [
             [w * w + x * x - y * y - z * z, 2 * (x * y - w * z), 2 * (x * z + w * y)],
@@ -131,7 +134,7 @@ def _right_product_matrix(dq: np.ndarray) -> np.ndarray:
 # --------------------------------------------------------------------------------------
 def rot_z(theta: float) -> np.ndarray:
     """Active rotation R_z(theta) (3x3): components in the turned frame -> original frame."""
-    c, s = np.cos(theta), np.sin(theta)
+    c, s = math.cos(theta), math.sin(theta)
     return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
 
 
@@ -371,7 +374,7 @@ class TumblingTargetTruth:
             self._q_step = _right_product_matrix(quat_propagate(IDENTITY, self.target.omega_body, dt))
             self._q_dt = dt
         q = self._q_step @ state[12:16]
-        return np.concatenate([y, q / np.sqrt(q @ q)])
+        return np.concatenate((y, q / math.sqrt(q @ q)))
 
     def apply_impulse(self, t: float, state: np.ndarray, dv: np.ndarray) -> np.ndarray:
         return np.concatenate([self.inner.apply_impulse(t, state[:12], dv), state[12:16]])

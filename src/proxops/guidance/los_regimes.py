@@ -32,6 +32,7 @@ v_switch = 0.05 m/s, v_max = 1 m/s, PD natural frequency 0.05 rad/s, damping 1.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -115,6 +116,7 @@ class LosGuidanceController:
         self.kp = self.g.pd_natural_frequency_rad_s**2
         self.kd = 2.0 * self.g.pd_damping * self.g.pd_natural_frequency_rad_s
         self.W = np.array([0.0, 0.0, model.w_rel])
+        self._step_numbers = np.arange(1.0, self.mpc.N + 1) if self.mpc is not None else None  # j = 1..N
         self.reset(0.0, np.zeros(6))
 
     # ------------------------------------------------------------------ protocol
@@ -130,8 +132,8 @@ class LosGuidanceController:
     def step(self, t: float, x_est: np.ndarray) -> Command:
         x = np.asarray(x_est, float)
         p, v = x[:3], x[3:6]
-        r = float(np.sqrt(p @ p))
-        mode = self._regime(r, float(np.sqrt(v @ v)))
+        r = math.sqrt(p @ p)
+        mode = self._regime(r, math.sqrt(v @ v))
         if mode != self.mode:
             self.mode, self.mode_start = mode, t
         v_achv = min(self.a_max * (t - self.mode_start + self.dt) / 2.0, self.g.v_max_mps)
@@ -140,7 +142,7 @@ class LosGuidanceController:
         if mode == "hold":
             self.r_ref, v_ref = r_h, 0.0
         else:
-            v_ref = min(v_achv, np.sqrt(self.a_max * max(self.r_ref - r_h, 0.0)))
+            v_ref = min(v_achv, math.sqrt(self.a_max * max(self.r_ref - r_h, 0.0)))
             self.r_ref = max(self.r_ref - v_ref * self.dt, r_h)
         p_ref = np.array([0.0, self.r_ref, 0.0])
         R_LB = rot_z(self.model.theta0_rad + self.model.w_rel * t)
@@ -209,9 +211,9 @@ class LosGuidanceController:
 
     def _axis_trajectory(self, v_ref: float) -> np.ndarray:
         """Reference x_1..x_N along +y_B: range r_ref - v j dt (not below r_h), co-rotating."""
-        N, dt, r_h = self.mpc.N, self.dt, self.hold_range
-        ranges = np.maximum(self.r_ref - v_ref * dt * np.arange(1, N + 1), r_h)
-        ref = np.zeros((N, 6))
+        r_h = self.hold_range
+        ranges = np.maximum(self.r_ref - v_ref * self.dt * self._step_numbers, r_h)
+        ref = np.zeros((len(ranges), 6))
         ref[:, 1] = ranges
         ref[:, 4] = np.where(ranges > r_h, -v_ref, 0.0)
         return ref

@@ -13,6 +13,7 @@ Constraint violations, mode changes, solver failures and stops become events.
 
 from __future__ import annotations
 
+import math
 import time
 from dataclasses import dataclass, field
 from typing import Callable, Sequence
@@ -105,7 +106,7 @@ def simulate(setup: Setup, seed: int = 0, progress: bool = False) -> SimResult:
             status.append(cmd.status)
             modes.append(cmd.mode)
             break
-        u = setup.actuator.apply(t, cmd.u, cmd.kind, rng)
+        u = np.asarray(setup.actuator.apply(t, cmd.u, cmd.kind, rng), dtype=float)
         u_cmd[k], u_app[k], solve_t[k] = cmd.u, u, cmd.solve_time_s
         status.append(cmd.status)
         modes.append(cmd.mode)
@@ -117,8 +118,11 @@ def simulate(setup: Setup, seed: int = 0, progress: bool = False) -> SimResult:
         for kind, msg in cmd.events:
             events.append((t, kind, msg))
         for key, val in cmd.info.items():
-            info.setdefault(key, np.full(n_steps + 1, np.nan))[k] = val
-        norm_u = float(np.linalg.norm(u))
+            series = info.get(key)
+            if series is None:
+                series = info[key] = np.full(n_steps + 1, np.nan)
+            series[k] = val
+        norm_u = math.sqrt(u @ u)  # = np.linalg.norm(u), without its overhead
         if cmd.kind == "impulse":
             dv_cum[k + 1] = dv_cum[k] + norm_u
             if norm_u > 0.0:

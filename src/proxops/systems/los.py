@@ -16,7 +16,8 @@ Programmatic use (Monte Carlo, issue 6)::
     out = run_case(tumble_rate_deg_s=2, a_max_mps2=0.1, initial_body_position_m=[0, 80, 0],
                    mpc_config="monte-carlo")       # dict: feasible, los_violations, ...
 
-``feasible`` follows §9.3: no violation above 1e-3 m, no QP infeasibility, no early
+``feasible`` follows §9.3 (:func:`is_feasible_run`, also ``LosSystem.success`` and the
+reach feasibility maps): no violation above 1e-3 m, no QP infeasibility, no early
 termination.
 
 Table 3 sweep (§10.6): scenario ``los-sweep`` (grid dispersions, 15 combinations x hard/soft
@@ -39,6 +40,21 @@ from proxops.scenarios.schema import OrbitSection, ScenarioBase, Section, TruthS
 from proxops.sim.engine import Setup
 
 VIOLATION_TOLERANCE_M = 1e-3  # §9 step 3
+COMPLETED_OUTCOMES = ("completed", "hold_reached")  # ran to T_sim (or stopped at hold on request)
+
+
+def is_feasible_run(los_violations, max_violation_m, qp_infeasible, outcome) -> bool:
+    """§9 step 3 classification of one closed-loop run (the one rule for summaries,
+    campaigns and feasibility maps): *feasible* = zero corridor violations above
+    1e-3 m over T_sim, the QP never reported infeasible, and no early termination
+    (``outcome`` "completed", or "hold_reached" when ``guidance.stop_at_hold`` ends the run
+    at hold). Missing or NaN values (e.g. a run that raised) count as infeasible."""
+    try:
+        n_viol, v_max = float(los_violations), float(max_violation_m)
+    except (TypeError, ValueError):
+        return False
+    qp_bad = True if qp_infeasible is None else bool(qp_infeasible)  # NaN -> True
+    return bool(n_viol == 0 and v_max <= VIOLATION_TOLERANCE_M and not qp_bad and str(outcome) in COMPLETED_OUTCOMES)
 
 
 class TargetSection(Section):
@@ -172,17 +188,17 @@ def summarize_result(sc: LosScenario, result) -> dict:
     w = np.radians(sc.target.tumble_rate_deg_s)
     r_sync = 2 * sc.chaser.a_max_mps2 / w**2 if w > 0 else float("inf")
     r0 = float(np.linalg.norm(sc.chaser.initial_body_position_m))
-    early = outcome not in ("completed", "hold_reached")
+    max_viol = float(viol.max()) if viol.size else 0.0
     return {
         "los_violations": n_viol,
-        "max_violation_m": float(viol.max()) if viol.size else 0.0,
+        "max_violation_m": max_viol,
         "r_sync_m": float(r_sync),
         "hold_reached": bool(hold),
         "r_min_m": float(np.min(np.linalg.norm(result.x_true[:, :3], axis=1))),
         "initial_range_m": r0,
         "starts_inside_r_sync": bool(r0 <= r_sync),
         "qp_infeasible": bool(qp_infeasible),
-        "feasible": bool(n_viol == 0 and not qp_infeasible and not early),
+        "feasible": is_feasible_run(n_viol, max_viol, qp_infeasible, outcome),
         "outcome": outcome,
     }
 
@@ -334,8 +350,10 @@ class LosSystem:
         return summarize_result(sc, result)
 
     def success(self, sc: LosScenario, summary: dict) -> bool:
-        """Campaign classification (§9.3): zero violations > 1e-3 m, no QP infeasibility, no early stop."""
-        return bool(summary.get("feasible", False))
+        """Campaign classification (§9 step 3, :func:`is_feasible_run`) from a run summary:
+        zero violations > 1e-3 m, no QP infeasibility, no early termination."""
+        return is_feasible_run(summary.get("los_violations"), summary.get("max_violation_m"),
+                               summary.get("qp_infeasible"), summary.get("outcome"))
 
     def figures(self, sc: LosScenario, results, out_dir) -> list[Path]:
         from proxops.plotting.los import los_figures
