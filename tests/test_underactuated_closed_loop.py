@@ -111,3 +111,12 @@ def test_case2_docks_with_damping():
     assert summary["docked"] is True and _in_table1_set(result.x_true[-1])
     assert np.all(np.abs(result.u_applied[:-1, 0]) <= 0.1 + 1e-9)  # Table 3 thrust
     assert np.all(np.abs(result.x_true[:, 3:5]) <= 2.0 + 1e-6)  # Table 3 velocity
+
+
+def test_saved_dv_column_is_thrust_over_mass(case1_averaged):
+    """The engine's cumulative delta-v uses the plant's own delta_v (thrust / mass), so the
+    saved time series agrees with the summary."""
+    _, summary, results = case1_averaged
+    r = results["averaged"]
+    steps = np.abs(r.u_applied[:-1, 0]) / 12.0 * 2.0  # Table 1: m = 12 kg, dt = 2 s
+    np.testing.assert_allclose(np.diff(r.dv_cum), steps, rtol=1e-12, atol=1e-15)

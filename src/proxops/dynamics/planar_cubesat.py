@@ -292,3 +292,7 @@ class PlanarCubeSatPlant:
 
     def apply_impulse(self, t: float, state: np.ndarray, dv: np.ndarray) -> np.ndarray:
         raise ProxopsInputError("planar CubeSat plant: impulsive commands are not supported (use kind='acceleration')")
+
+    def delta_v(self, u: np.ndarray, kind: str, dt: float) -> float:
+        """Delta-v (m/s) of one step: |thrust| / m dt (the wheel command costs no propellant)."""
+        return abs(float(u[0])) / self.params.mass_kg * dt

@@ -50,6 +50,7 @@ def simulate(setup: Setup, seed: int = 0, progress: bool = False) -> SimResult:
     position_slice = getattr(plant, "position_slice", (0, 3))
 
     state = plant.initial_state()
+    delta_v = getattr(plant, "delta_v", translational_delta_v)
     n_x, n_u = plant.n_x, plant.n_u
     t_rec = np.zeros(n_steps + 1)
     x_true = np.zeros((n_steps + 1, n_x))
@@ -122,14 +123,12 @@ def simulate(setup: Setup, seed: int = 0, progress: bool = False) -> SimResult:
             if series is None:
                 series = info[key] = np.full(n_steps + 1, np.nan)
             series[k] = val
-        norm_u = math.sqrt(u @ u)  # = np.linalg.norm(u), without its overhead
+        dv_cum[k + 1] = dv_cum[k] + delta_v(u, cmd.kind, dt)
         if cmd.kind == "impulse":
-            dv_cum[k + 1] = dv_cum[k] + norm_u
-            if norm_u > 0.0:
+            if u.any():
                 state = plant.apply_impulse(t, state, u)
             u_hold = np.zeros(n_u)
         else:
-            dv_cum[k + 1] = dv_cum[k] + norm_u * dt
             u_hold = u
         sub_dt = dt / setup.check_substeps
         for j in range(setup.check_substeps):
@@ -163,6 +162,14 @@ def simulate(setup: Setup, seed: int = 0, progress: bool = False) -> SimResult:
         events=events,
         meta=meta,
     )
+
+
+def translational_delta_v(u: np.ndarray, kind: str, dt: float) -> float:
+    """Delta-v (m/s) of one applied command: |dv| for an impulse, |a| dt for a held
+    acceleration. Plants whose control is not a translational acceleration (e.g. thrust
+    in N plus a wheel command) define ``delta_v(u, kind, dt)`` themselves."""
+    norm_u = math.sqrt(u @ u)  # = np.linalg.norm(u), without its overhead
+    return norm_u if kind == "impulse" else norm_u * dt
 
 
 class _NoBar:

@@ -65,3 +65,7 @@ class Plant(Protocol):
     def apply_impulse(self, t: float, state: np.ndarray, dv: np.ndarray) -> np.ndarray:
         """Instantaneous velocity change ``dv`` (m/s) in the control frame."""
         ...
+
+    # Optional: ``delta_v(u, kind, dt) -> float`` (m/s) when the control is not a
+    # translational acceleration or impulse (the engine's default is |u| or |u| dt);
+    # ``position_slice`` / ``velocity_slice`` when the state is not [r(3), v(3)].

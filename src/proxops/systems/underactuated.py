@@ -300,9 +300,6 @@ def summarize_result(sc: UnderactuatedScenario, result) -> dict:
             "omega_deg_s": float(np.degrees(result.x_true[-1, 5])),
         },
         "solve_time_ms": _stats_ms(solved),  # whole controller step (shift + NLP + checks)
-        # delta-v of the body-axis thrust, sum |f_x| / m dt (the engine's dv_cum sums |u| of
-        # [N, rad/s^2] and is meaningless for this plant)
-        "total_dv_mps": float(np.sum(np.abs(result.u_applied[: len(solved), 0])) / sc.deputy.mass_kg * result.meta.get("dt_s", sc.controller.dt_s)),
         "solve_time_ms_per_step": [round(float(v) * 1e3, 3) for v in solved],
         "mean_iterations": float(np.nanmean(result.info["iterations"][: len(solved)])) if "iterations" in result.info and len(solved) else 0.0,
         "controller_wall_time_s": float(np.sum(solved)),
