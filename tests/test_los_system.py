@@ -83,6 +83,17 @@ def test_sweep_table_has_paper_layout():
     assert len(lines) == 2 + 15
     assert lines[2].startswith("| 1 | 0.10 | 656.6 | 656.6 |")
     assert lines[-1].startswith("| 5 | 0.02 | 5.3 | 5.3 |")
+    # the campaign report hook builds the same table from campaign rows (disp.* / metric.* columns)
+    from proxops.scenarios.loader import load_scenario
+
+    loaded = load_scenario("los-sweep")
+    campaign_rows = pd.DataFrame({"disp.target.tumble_rate_deg_s": [r["tumble_rate_deg_s"] for r in rows],
+                                  "disp.chaser.a_max_mps2": [r["a_max_mps2"] for r in rows],
+                                  "disp.mpc.constraint_mode": [r["mode"] for r in rows],
+                                  **{f"metric.{k}": [r[k] for r in rows] for k in rows[0]
+                                     if k not in ("tumble_rate_deg_s", "a_max_mps2", "mode")}})
+    assert loaded.system.campaign_table(loaded.scenario, campaign_rows) == text
+    assert loaded.system.campaign_table(loaded.scenario, campaign_rows.drop(columns="disp.chaser.a_max_mps2")) == ""
 
 
 @pytest.mark.slow

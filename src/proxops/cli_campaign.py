@@ -62,6 +62,8 @@ def mc(
         sys.stdout.write(json.dumps(summary, default=str) + "\n")
         return
     typer.echo(format_campaign(summary, result.statistics()))
+    if report_ and (Path(summary["report"]) / "paper_table.md").is_file():
+        typer.echo("\n" + (Path(summary["report"]) / "paper_table.md").read_text())
 
 
 def report(

@@ -1143,6 +1143,11 @@ def write_report(campaign, report_dir: str | Path | None = None, figures: bool =
         lines += ["## Runs that raised (first 10)", ""]
         lines += [f"- run {int(r.run_id)}: {r.error}" for r in errs.head(10).itertuples()]
         lines.append("")
+    system_table = _system_campaign_table(m, table) if len(table) else ""
+    if system_table:
+        lines += ["## Results in the paper's layout", "", system_table, ""]
+        (rdir / "paper_table.md").write_text(system_table + "\n")
+        files.append(rdir / "paper_table.md")
     if figures and len(table):
         from proxops.plotting import campaign as cplot
 
@@ -1170,17 +1175,30 @@ def write_report(campaign, report_dir: str | Path | None = None, figures: bool =
     return {"summary": summary, "files": [str(f) for f in files], "report_dir": str(rdir)}
 
 
-def _system_campaign_figures(manifest: dict, results: list, rdir: Path) -> list[Path]:
-    """Figures the scenario's own system draws from saved series (``campaign_figures`` hook),
-    e.g. the srf Monte Carlo overlays of Figs. 5/7/10 with the approach axis and keep-out zone."""
+def _campaign_system(manifest: dict):
+    """The campaign's nominal scenario, validated, with its system (for the report hooks)."""
     from proxops.scenarios.loader import validate_scenario
 
     data = {k: v for k, v in manifest["scenario_data"].items() if k != "dispersions"}
-    loaded = validate_scenario(data, source=str(manifest.get("scenario")))
+    return validate_scenario(data, source=str(manifest.get("scenario")))
+
+
+def _system_campaign_figures(manifest: dict, results: list, rdir: Path) -> list[Path]:
+    """Figures the scenario's own system draws from saved series (``campaign_figures`` hook),
+    e.g. the srf Monte Carlo overlays of Figs. 5/7/10 with the approach axis and keep-out zone."""
+    loaded = _campaign_system(manifest)
     draw = getattr(loaded.system, "campaign_figures", None)
     if draw is None or not results:
         return []
     return list(draw(loaded.scenario, results, rdir))
+
+
+def _system_campaign_table(manifest: dict, table: pd.DataFrame) -> str:
+    """A Markdown table the system builds from the campaign rows (``campaign_table`` hook),
+    e.g. Table 3 of tumbling-target-reachability.md for the los-sweep grid; '' if none."""
+    loaded = _campaign_system(manifest)
+    build = getattr(loaded.system, "campaign_table", None)
+    return build(loaded.scenario, table) if build is not None else ""
 
 
 def _version() -> str:

@@ -355,6 +355,12 @@ class LosSystem:
         return is_feasible_run(summary.get("los_violations"), summary.get("max_violation_m"),
                                summary.get("qp_infeasible"), summary.get("outcome"))
 
+    def campaign_table(self, sc: LosScenario, table) -> str:
+        """Table 3 layout (§10.6) when the campaign is a tumble-rate x a_max grid, else ''."""
+        if not {"disp.target.tumble_rate_deg_s", "disp.chaser.a_max_mps2"} <= set(table.columns):
+            return ""
+        return sweep_table(sweep_frame(table))
+
     def figures(self, sc: LosScenario, results, out_dir) -> list[Path]:
         from proxops.plotting.los import los_figures
 
