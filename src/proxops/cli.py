@@ -13,8 +13,7 @@ import os
 for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_var, "1")
 
-import functools  # noqa: E402
-import json
+import json  # noqa: E402
 import sys
 from pathlib import Path
 from typing import Annotated, Optional
@@ -22,7 +21,7 @@ from typing import Annotated, Optional
 import typer
 
 from proxops import __version__
-from proxops.errors import ProxopsInputError
+from proxops.cli_common import STATE, emit, friendly_errors
 
 app = typer.Typer(
     name="proxops",
@@ -31,8 +30,6 @@ app = typer.Typer(
     add_completion=False,
     pretty_exceptions_enable=False,
 )
-
-_STATE = {"debug": False}
 
 
 def _version(value: bool):
@@ -46,43 +43,7 @@ def main(
     version: Annotated[Optional[bool], typer.Option("--version", callback=_version, is_eager=True, help="Print the version.")] = None,
     debug: Annotated[bool, typer.Option("--debug", help="Show tracebacks for errors.")] = False,
 ):
-    _STATE["debug"] = debug
-
-
-def friendly_errors(func):
-    """Turn input errors into one line on stderr and exit code 2."""
-
-    @functools.wraps(func)
-    def wrapper(*args, **kwargs):
-        try:
-            return func(*args, **kwargs)
-        except ProxopsInputError as exc:
-            if _STATE["debug"]:
-                raise
-            typer.echo(f"error: {exc}", err=True)
-            raise typer.Exit(2)
-
-    return wrapper
-
-
-def emit(obj: dict, as_json: bool, text: str) -> None:
-    """Print ``obj`` as one JSON object, or ``text`` for people."""
-    if as_json:
-        sys.stdout.write(json.dumps(obj, default=_json_default) + "\n")
-    else:
-        typer.echo(text)
-
-
-def _json_default(obj):
-    import numpy as np
-
-    if isinstance(obj, np.generic):
-        return obj.item()
-    if isinstance(obj, np.ndarray):
-        return obj.tolist()
-    if isinstance(obj, Path):
-        return str(obj)
-    return str(obj)
+    STATE["debug"] = debug
 
 
 # --------------------------------------------------------------------------- scenarios

@@ -8,7 +8,6 @@
 
 from __future__ import annotations
 
-import functools
 import json
 import sys
 import time
@@ -18,6 +17,9 @@ from typing import Annotated, Optional
 import numpy as np
 import typer
 
+from proxops.cli_common import emit as _emit
+from proxops.cli_common import friendly_errors as _friendly
+from proxops.cli_common import json_default as _default
 from proxops.errors import ProxopsInputError
 
 reach_app = typer.Typer(
@@ -27,35 +29,6 @@ reach_app = typer.Typer(
     add_completion=False,
     pretty_exceptions_enable=False,
 )
-
-
-def _friendly(func):
-    """Input errors -> one line on stderr, exit code 2 (as the main CLI)."""
-
-    @functools.wraps(func)
-    def wrapper(*args, **kwargs):
-        try:
-            return func(*args, **kwargs)
-        except ProxopsInputError as exc:
-            typer.echo(f"error: {exc}", err=True)
-            raise typer.Exit(2)
-
-    return wrapper
-
-
-def _emit(obj: dict, as_json: bool, text: str) -> None:
-    if as_json:
-        sys.stdout.write(json.dumps(obj, default=_default) + "\n")
-    else:
-        typer.echo(text)
-
-
-def _default(obj):
-    if isinstance(obj, np.generic):
-        return obj.item()
-    if isinstance(obj, np.ndarray):
-        return obj.tolist()
-    return str(obj)
 
 
 def _fmt(v, width=7, digits=1) -> str:
