@@ -22,12 +22,15 @@ def main(selected: list[str]) -> int:
         spec = importlib.util.spec_from_file_location(path.stem, path)
         module = importlib.util.module_from_spec(spec)
         t0 = time.perf_counter()
+        argv, sys.argv = sys.argv, [str(path)]  # each benchmark parses its own (default) options
         try:
             spec.loader.exec_module(module)
             module.main()
         except Exception as exc:  # one broken benchmark must not hide the others
             failures += 1
             print(f"benchmark {name} failed: {exc!r}")
+        finally:
+            sys.argv = argv
         print(f"[{name}: {time.perf_counter() - t0:.1f} s]", flush=True)
     return 1 if failures else 0
 
