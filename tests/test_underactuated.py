@@ -173,6 +173,87 @@ def test_single_solve_is_feasible(variant, horizon, box):
     _check_plan(ctrl, s1, variant)
 
 
+def test_ipopt_warm_solver_takes_shifted_multipliers():
+    """solver = "ipopt": the warm solve is warm-started with the shifted multipliers and
+    returns a feasible plan (the default fatrop path ignores multipliers)."""
+    from proxops.control.nmpc_underactuated import NMPCConfig, UnderactuatedNMPC
+
+    p = PlanarCubeSatParams()
+    ctrl = UnderactuatedNMPC(p, TABLE2_LIMITS, NMPCConfig(horizon=20, solver="ipopt"))
+    assert ctrl._nlp.warm_uses_multipliers
+    cmd = ctrl.step(0.0, CASE1_S0)
+    s1 = PlanarCubeSatPlant(p, CASE1_S0).propagate(0.0, CASE1_S0, cmd.u, 2.0)
+    cmd = ctrl.step(2.0, s1)
+    assert cmd.status == "ok" and cmd.info["warm_solver"] == 1.0
+    _check_plan(ctrl, s1, "averaged")
+
+
+def test_multiplier_shift_moves_every_stage_one_back():
+    """Gap and path multipliers of stage k+1 go to stage k; initial-condition and terminal
+    rows keep theirs; bound multipliers shift by one stage block (written out per row)."""
+    from proxops.control.nmpc_underactuated import NMPCConfig, UnderactuatedNMPC
+
+    ctrl = UnderactuatedNMPC(PlanarCubeSatParams(), TABLE2_LIMITS,
+                             NMPCConfig(variant="general", horizon=5, solver="ipopt"))
+    nlp = ctrl._nlp
+    lam_g = np.arange(len(nlp.lbg), dtype=float) + 1.0
+    lam_x = np.arange(nlp.n_w, dtype=float) + 1.0
+    g_new, x_new = nlp.shift_multipliers(lam_g, lam_x)
+    expected = lam_g.copy()
+    for k in range(nlp.horizon - 1):
+        for i in range(nlp.gap_rows[k].stop - nlp.gap_rows[k].start):
+            expected[nlp.gap_rows[k].start + i] = lam_g[nlp.gap_rows[k + 1].start + i]
+        expected[nlp.path_rows[k]] = lam_g[nlp.path_rows[k + 1]]
+    np.testing.assert_array_equal(g_new, expected)
+    assert g_new[nlp.gap_rows[-1]].tolist() == lam_g[nlp.gap_rows[-1]].tolist()  # last stage kept
+    np.testing.assert_array_equal(x_new[: nlp.n_w - nlp.block], lam_x[nlp.block :])
+    np.testing.assert_array_equal(x_new[nlp.n_w - nlp.block :], lam_x[nlp.n_w - nlp.block :])
+
+
+def test_buffered_evaluation_matches_direct_calls():
+    """The numpy-buffer evaluation gives what a plain CasADi call gives (closed forms here),
+    keeps unset inputs, and solves an NLP to its known minimiser."""
+    import casadi as ca
+
+    from proxops.control.nmpc_underactuated import _Buffered
+
+    x, y = ca.SX.sym("x", 3), ca.SX.sym("y")
+    f = _Buffered(ca.Function("f", [x, y], [x * y, ca.sumsqr(x)], ["x", "y"], ["xy", "n2"]))
+    out = f(np.array([1.0, 2.0, 3.0]), 2.0)
+    np.testing.assert_array_equal(out["xy"], [2.0, 4.0, 6.0])
+    assert out["n2"][0] == 14.0
+    out = f(y=-1.0)  # x keeps its last value
+    np.testing.assert_array_equal(out["xy"], [-1.0, -2.0, -3.0])
+    # min x0^2 + x1^2 s.t. x0 + x1 = 1  ->  x = [0.5, 0.5], f = 0.5, lam_g = -1
+    z = ca.SX.sym("z", 2)
+    solver = _Buffered(ca.nlpsol("qp", "ipopt", {"x": z, "f": ca.sumsqr(z), "g": z[0] + z[1]},
+                                 {"print_time": False, "ipopt": {"print_level": 0, "sb": "yes"}}))
+    out = solver(x0=[3.0, -1.0], lbx=-10.0, ubx=10.0, lbg=1.0, ubg=1.0)
+    assert solver.stats()["success"]
+    np.testing.assert_allclose(out["x"], [0.5, 0.5], atol=1e-8)
+    np.testing.assert_allclose(out["lam_g"], [-1.0], atol=1e-7)
+    with pytest.raises(RuntimeError):  # ill-posed bounds: CasADi's input check still applies
+        solver(lbx=10.0, ubx=-10.0)
+
+
+def test_non_finite_measurement_is_a_status_and_solver_time_is_reported():
+    """A NaN state gives a failed status (not a hang in the solver), the next valid state is
+    solved again; ``solver_time_s`` is part of the step's computation time."""
+    from proxops.control.nmpc_underactuated import NMPCConfig, UnderactuatedNMPC
+
+    ctrl = UnderactuatedNMPC(PlanarCubeSatParams(), TABLE2_LIMITS, NMPCConfig(horizon=20))
+    cmd = ctrl.step(0.0, CASE1_S0)
+    assert cmd.status == "ok" and 0.0 < cmd.info["solver_time_s"] <= cmd.solve_time_s
+    bad = CASE1_S0.copy()
+    bad[0] = np.nan
+    cmd = ctrl.step(2.0, bad)
+    assert cmd.status == "invalid_input" and np.all(np.isfinite(cmd.u))
+    assert cmd.info["solver_time_s"] == 0.0
+    cmd = ctrl.step(4.0, CASE1_S0)
+    assert cmd.status == "ok"
+    _check_plan(ctrl, CASE1_S0, "averaged")
+
+
 def test_value_bound_cannot_move_the_minimiser():
     """Eq. 14 with J_H as objective: a bound below the unconstrained optimum is infeasible,
     so the slack formulation returns the same minimiser and the step reports the bound as

@@ -37,10 +37,21 @@ constraint, at the last stage the terminal rows. Variables and rows are scaled t
 
 Warm start: the previous solution shifted by one stage (primal variables and multipliers,
 the tail repeats the last control). IPOPT takes the multipliers
-(``warm_start_init_point``); the CasADi fatrop plugin takes only the primal guess. The
-first solve and every failure of the warm solver go to IPOPT from its default
-initialisation ("cold"). Every returned point is checked for feasibility (bounds, gaps,
-path and terminal rows), not only the solver status.
+(``warm_start_init_point``); the CasADi fatrop plugin takes only the primal guess (it
+builds a new fatrop solver per call and ignores ``lam_x0``/``lam_g0``), so multipliers are
+shifted only when the warm solver is IPOPT. The first solve and every failure of the warm
+solver go to IPOPT from its default initialisation ("cold"). Every returned point is
+checked for feasibility (bounds, gaps, path and terminal rows), not only the solver status.
+
+Evaluation cost: every CasADi Function called per step (solvers, constraint check, value)
+runs on preallocated numpy buffers (``Function.buffer``); converting an 800-element numpy
+vector to a DM and back costs ~0.1 ms each way, which with the default call added 1-3 ms
+per step at H = 100. What remains is fatrop itself (H = 100, 5 iterations: function
+evaluations ~40 %, Riccati ~35 %, rest of the iteration and initialisation ~25 %).
+Measured and not adopted: the NLP in MX without ``expand`` (2.4x slower per solve), CasADi
+``jit`` of the expanded NLP (evaluations 3-4x faster, but gcc -O1 takes 12 s at H = 30 and
+35 s at H = 100), fatrop linear-solver and barrier options (same iterates or more
+iterations), ``tol`` 1e-5 (5-10 % fewer iterations, plans differ by up to 2.5 % of scale).
 """
 
 from __future__ import annotations
@@ -140,6 +151,38 @@ def _check_int(name: str, value, minimum: int, unit: str) -> None:
         raise input_error(name, value, f"must be an integer >= {minimum}", unit)
 
 
+class _Buffered:
+    """A CasADi Function evaluated on preallocated numpy arrays (``Function.buffer``).
+
+    ``__call__`` copies the given inputs (by position or by name; unset inputs keep their
+    last value) into the buffers, evaluates, and returns the output arrays by name. The
+    outputs are overwritten by the next call: copy what must be kept."""
+
+    def __init__(self, fn):
+        self.fn = fn
+        self.buffer, self._evaluate = fn.buffer()
+        self.names_in = fn.name_in()
+        self.inputs = {name: np.zeros(fn.nnz_in(i)) for i, name in enumerate(self.names_in)}
+        self.outputs = {name: np.zeros(fn.nnz_out(i)) for i, name in enumerate(fn.name_out())}
+        for i, name in enumerate(self.names_in):
+            self.buffer.set_arg(i, memoryview(self.inputs[name]))
+        for i, name in enumerate(fn.name_out()):
+            self.buffer.set_res(i, memoryview(self.outputs[name]))
+
+    def __call__(self, *args, **kwargs) -> dict:
+        for name, value in zip(self.names_in, args):
+            self.inputs[name][:] = value
+        for name, value in kwargs.items():
+            self.inputs[name][:] = value
+        self._evaluate()
+        if self.buffer.ret() != 0:
+            raise RuntimeError(f"evaluation of {self.fn.name()} failed (return code {self.buffer.ret()})")
+        return self.outputs
+
+    def stats(self) -> dict:
+        return self.buffer.stats()
+
+
 class _Nlp:
     """One stage-wise NLP with its solvers: ``terminal`` is "none" (plain averaged),
     "origin" (general, eq. 9) or "value-bound" (averaged with c, sigma, eq. 14)."""
@@ -150,6 +193,7 @@ class _Nlp:
         cfg, p, lim = ctrl.config, ctrl.params, ctrl.limits
         H, nx, nu = cfg.horizon, N_STATE, N_CONTROL
         self.horizon, self.terminal = H, terminal
+        self.solver_time_s = 0.0  # accumulated wall time inside the NLP solvers
         self.augmented = terminal == "value-bound"
         nz = nx + 2 if self.augmented else nx  # [s; c; sigma]
         self.nz, self.nu, self.block = nz, nu, nz + nu
@@ -233,15 +277,20 @@ class _Nlp:
                 penalty = cfg.slack_weight * Z[0][nx + 1]
         self.lbg, self.ubg = np.array(lbg), np.array(ubg)
         self.checked_rows = np.array(checked, dtype=bool)
+        self._shift_maps()
 
         wvec = ca.vcat(w)
         nlp = {"x": wvec, "f": objective + penalty, "g": ca.vcat(g), "p": s_meas}
         self.solvers = {"warm": _make_solver(cfg, cfg.solver, nlp, equality, warm=True)}
         if not self.augmented:  # the bounded NLP is only ever warm started from the plain one
             self.solvers["cold"] = _make_solver(cfg, "ipopt", nlp, equality, warm=False)
-        self.g_fn = ca.Function("g", [wvec, s_meas], [nlp["g"]]).expand()
-        self.value_fn = ca.Function("J", [wvec], [objective]).expand()
-        self.step_fn = ca.Function("f_s", [zs[:nx], us], [s_next]) if not self.augmented else None
+        # the warm solver takes multipliers (IPOPT) or only the primal guess (fatrop)
+        self.warm_uses_multipliers = self.solvers["warm"][0] == "ipopt"
+        for name, solver in self.solvers.values():  # bounds fixed per NLP; ubg is set per solve
+            solver.inputs["lbx"][:], solver.inputs["ubx"][:] = self.lbw, self.ubw
+            solver.inputs["lbg"][:], solver.inputs["ubg"][:] = self.lbg, self.ubg
+        self.g_fn = _Buffered(ca.Function("g", [wvec, s_meas], [nlp["g"]]).expand())
+        self.value_fn = _Buffered(ca.Function("J", [wvec], [objective]).expand())
         self.costs_fn = f_stage.map(H)
 
     # --------------------------------------------------------------- vectors
@@ -264,55 +313,71 @@ class _Nlp:
             Z = np.column_stack([S, c, sigma])
         return np.concatenate([np.hstack([Z[:H], U]).ravel(), Z[H]]) / self.w_scale
 
+    def _shift_maps(self) -> None:
+        """Index maps of the one-stage shift of the constraint multipliers: gap and path rows
+        of stage k+1 move to stage k (initial-condition and terminal rows stay)."""
+        dst, src = [], []
+        for k in range(self.horizon - 1):
+            dst += list(range(self.gap_rows[k].start, self.gap_rows[k].stop)) + [self.path_rows[k]]
+            src += list(range(self.gap_rows[k + 1].start, self.gap_rows[k + 1].stop)) + [self.path_rows[k + 1]]
+        self._lam_g_dst, self._lam_g_src = np.array(dst, dtype=int), np.array(src, dtype=int)
+
     def shift_multipliers(self, lam_g: np.ndarray, lam_x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Multipliers shifted one stage (initial-condition and terminal rows kept)."""
         H, b = self.horizon, self.block
         lam_x_new = lam_x.copy()
         lam_x_new[: (H - 1) * b + self.nz] = lam_x[b:]
         lam_g_new = lam_g.copy()
-        for k in range(H - 1):
-            lam_g_new[self.gap_rows[k]] = lam_g[self.gap_rows[k + 1]]
-            lam_g_new[self.path_rows[k]] = lam_g[self.path_rows[k + 1]]
+        lam_g_new[self._lam_g_dst] = lam_g[self._lam_g_src]
         return lam_g_new, lam_x_new
 
     def feasible(self, w: np.ndarray, s: np.ndarray, ubg: np.ndarray, tol: float = 1e-5) -> bool:
         """Check the returned point, not only the status: variable bounds, dynamics gaps,
-        initial condition, path and terminal rows within ``tol`` (scaled units)."""
+        initial condition, path and terminal rows within ``tol`` (scaled units), with the
+        constraints re-evaluated here from ``w`` and ``s``."""
         if not np.all(np.isfinite(w)):
             return False
         if np.any(w < self.lbw - tol) or np.any(w > self.ubw + tol):
             return False
-        g = np.array(self.g_fn(w, s)).ravel()
+        g = self.g_fn(w, s)["o0"]
         m = self.checked_rows
         return not (np.any(g[m] < self.lbg[m] - tol) or np.any(g[m] > ubg[m] + tol))
 
-    def solve(self, s, w0, lam_g0=None, lam_x0=None, bound: float = math.inf):
-        """Warm solver (when a guess with multipliers exists), then cold IPOPT.
+    def solve(self, s, w0, warm_start: bool, lam_g0=None, lam_x0=None, bound: float = math.inf):
+        """Warm solver (when ``warm_start``: a shifted previous solution exists), then cold
+        IPOPT. ``lam_g0``/``lam_x0`` go to a warm solver that takes multipliers.
 
-        Returns (result or None, status, iterations, warm_used)."""
+        Returns (result or None, status, iterations, warm_used); the result holds copies of
+        ``x``, ``lam_g`` and ``lam_x``. Wall time inside the solvers accumulates in
+        ``solver_time_s``."""
+        if not (np.all(np.isfinite(s)) and np.all(np.isfinite(w0))):
+            return None, "invalid_input", 0, False  # fatrop does not return from a NaN guess
         ubg = self.ubg
         if self.augmented:
             ubg = ubg.copy()
             ubg[self.bound_row] = bound
-        keys = ["warm", "cold"] if lam_g0 is not None or self.augmented else ["cold"]
+        keys = ["warm", "cold"] if warm_start or self.augmented else ["cold"]
         status, iters = "failed", 0
         for key in keys:
             if key not in self.solvers:
                 continue
             name, solver = self.solvers[key]
-            args = dict(x0=w0, p=s, lbx=self.lbw, ubx=self.ubw, lbg=self.lbg, ubg=ubg)
-            if key == "warm" and lam_g0 is not None:
+            args = dict(x0=w0, p=s, ubg=ubg)
+            if key == "warm" and lam_g0 is not None and self.warm_uses_multipliers:
                 args.update(lam_g0=lam_g0, lam_x0=lam_x0)
+            t_start = time.perf_counter()
             try:
-                result = solver(**args)
+                out = solver(**args)
             except RuntimeError:  # evaluation errors -> a status, never a crash
                 status = f"{name}:error"
                 continue
+            finally:
+                self.solver_time_s += time.perf_counter() - t_start
             stats = solver.stats()
             iters += int(stats.get("iter_count", 0) or 0)
-            w = np.array(result["x"]).ravel()
+            w = out["x"].copy()
             if stats.get("success", False) and self.feasible(w, s, ubg):
-                return result, "ok", iters, key == "warm"
+                return {"x": w, "lam_g": out["lam_g"].copy(), "lam_x": out["lam_x"].copy()}, "ok", iters, key == "warm"
             status = f"{name}:{stats.get('return_status', 'failed')}"
         return None, status, iters, False
 
@@ -329,7 +394,7 @@ def _make_solver(cfg: NMPCConfig, name: str, nlp: dict, equality: list, warm: bo
         opts = {}
     plugin.update(cfg.solver_options.get(name, {}))
     opts.update({"expand": True, "print_time": False, name: plugin})
-    return name, ca.nlpsol(f"nmpc_{name}_{'warm' if warm else 'cold'}", name, nlp, opts)
+    return name, _Buffered(ca.nlpsol(f"nmpc_{name}_{'warm' if warm else 'cold'}", name, nlp, opts))
 
 
 class UnderactuatedNMPC:
@@ -339,7 +404,8 @@ class UnderactuatedNMPC:
     ``Command(u=[thrust N, wheel_acc rad/s^2], kind="acceleration")`` whose ``info`` holds
     ``value_function`` (V_H), ``value_bound`` (Vbar of eq. 14, nan when inactive),
     ``iterations``, ``bound_solve`` (1 if the bounded NLP was solved), ``bound_relaxed``
-    (1 if V_H > Vbar remained) and ``warm_solver`` (1 if the warm solver answered).
+    (1 if V_H > Vbar remained), ``warm_solver`` (1 if the warm solver answered) and
+    ``solver_time_s`` (s, wall time inside the NLP solver calls alone).
     ``solve_time_s`` is the controller's whole computation for the step.
     """
 
@@ -413,7 +479,7 @@ class UnderactuatedNMPC:
     def _shifted_plan(self, s0: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Previous plan shifted one stage; the tail repeats the last control."""
         S, U = self._plan
-        s_end = np.array(self._nlp.step_fn(S[-1], U[-1])).ravel()
+        s_end = rk4_step(S[-1], U[-1], self.params, self.dt, self.config.model_substeps)
         S = np.vstack([S[1:], s_end])
         U = np.vstack([U[1:], U[-1:]])
         S[0] = s0
@@ -435,20 +501,22 @@ class UnderactuatedNMPC:
         self._k += 1
 
         nlp = self._nlp
+        solver_time_before = self._solver_time_s()
+        lam_g0 = lam_x0 = None
         if self._plan is None:
             S0, U0 = self._initial_guess(s)
-            lam_g0 = lam_x0 = None
         else:
             S0, U0 = self._shifted_plan(s)
-            lam_g0, lam_x0 = nlp.shift_multipliers(*self._lam)
-        result, status, iters, warm_used = nlp.solve(s, nlp.join(S0, U0), lam_g0, lam_x0)
+            if nlp.warm_uses_multipliers:
+                lam_g0, lam_x0 = nlp.shift_multipliers(*self._lam)
+        result, status, iters, warm_used = nlp.solve(s, nlp.join(S0, U0), self._plan is not None, lam_g0, lam_x0)
         value = math.nan
         bound_solve = relaxed = False
         if result is not None:
-            w = np.array(result["x"]).ravel()
-            value = float(nlp.value_fn(w))
+            w = result["x"]
+            value = float(nlp.value_fn(w)["o0"][0])
             self._plan = nlp.split(w)
-            self._lam = (np.array(result["lam_g"]).ravel(), np.array(result["lam_x"]).ravel())
+            self._lam = (result["lam_g"], result["lam_x"])
             if cfg.variant == "averaged" and value > self._bound * (1.0 + 1e-9):
                 bound_solve = True
                 value, extra_iters = self._bounded_solve(s, value)
@@ -462,6 +530,7 @@ class UnderactuatedNMPC:
             "bound_solve": float(bound_solve),
             "bound_relaxed": float(relaxed),
             "warm_solver": float(warm_used),
+            "solver_time_s": self._solver_time_s() - solver_time_before,
         }
         self._values.append(value)
         if result is None:  # every attempt failed: apply the shifted previous plan
@@ -474,6 +543,10 @@ class UnderactuatedNMPC:
         return Command(u=self._plan[1][0].copy(), status="ok", solve_time_s=time.perf_counter() - t_start,
                        mode=cfg.variant, info=info)
 
+    def _solver_time_s(self) -> float:
+        """Wall time spent inside the NLP solvers so far (s)."""
+        return self._nlp.solver_time_s + (self._bounded.solver_time_s if self._bounded is not None else 0.0)
+
     def _bounded_solve(self, s: np.ndarray, plain_value: float) -> tuple[float, int]:
         """Eq. 14 with the bound: search for a minimiser with J_H <= Vbar from the plain
         solution. Keeps whichever result has the lower value; returns (value, iterations)."""
@@ -481,11 +554,11 @@ class UnderactuatedNMPC:
             self._bounded = _Nlp(self, "value-bound")
         bnlp = self._bounded
         S, U = self._plan
-        result, _, iters, _ = bnlp.solve(s, bnlp.join(S, U, self._bound), bound=self._bound)
+        result, _, iters, _ = bnlp.solve(s, bnlp.join(S, U, self._bound), True, bound=self._bound)
         if result is None:
             return plain_value, iters
-        w = np.array(result["x"]).ravel()
-        value = float(bnlp.value_fn(w))
+        w = result["x"]
+        value = float(bnlp.value_fn(w)["o0"][0])
         if value < plain_value:
             self._plan = bnlp.split(w)  # the plain multipliers stay: a fair guess for the next shift
             return value, iters
