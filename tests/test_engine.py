@@ -154,3 +154,15 @@ def test_units_named_from_key_suffix():
     assert unit_of("a_max_mps2") == "m/s^2"
     assert unit_of("dt_s") == "s"
     assert unit_of("inertia_kgm2") == "kg m^2"
+
+
+def test_pointing_rotation_matches_rotation_matrix():
+    """Rodrigues on floats == the DCM of the same rotation vector (scipy's Rotation)."""
+    from scipy.spatial.transform import Rotation
+
+    from proxops.actuators import _rotate_small
+
+    rng = np.random.default_rng(3)
+    for _ in range(20):
+        v, rv = rng.normal(size=3), 0.3 * rng.normal(size=3)
+        np.testing.assert_allclose(_rotate_small(v, rv), Rotation.from_rotvec(rv).apply(v), atol=1e-14)

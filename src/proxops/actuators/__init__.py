@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -60,12 +61,21 @@ class ThrusterModel:
 
 
 def _rotate_small(v: np.ndarray, rotation_vector: np.ndarray) -> np.ndarray:
-    """Rotate ``v`` by the rotation vector (rad) with Rodrigues' formula."""
-    angle = float(np.linalg.norm(rotation_vector))
+    """Rotate the 3-vector ``v`` by the rotation vector (rad) with Rodrigues' formula
+    (written on plain floats: this runs once per command in every Monte Carlo run)."""
+    kx, ky, kz = (float(c) for c in rotation_vector)
+    angle = math.sqrt(kx * kx + ky * ky + kz * kz)
     if angle == 0.0:
         return v
-    k = rotation_vector / angle
-    return v * np.cos(angle) + np.cross(k, v) * np.sin(angle) + k * np.dot(k, v) * (1 - np.cos(angle))
+    kx, ky, kz = kx / angle, ky / angle, kz / angle
+    vx, vy, vz = (float(c) for c in v)
+    c, s = math.cos(angle), math.sin(angle)
+    kdotv = (kx * vx + ky * vy + kz * vz) * (1.0 - c)
+    return np.array([
+        vx * c + (ky * vz - kz * vy) * s + kx * kdotv,
+        vy * c + (kz * vx - kx * vz) * s + ky * kdotv,
+        vz * c + (kx * vy - ky * vx) * s + kz * kdotv,
+    ])
 
 
 def propellant_mass_kg(dv_mps: float, wet_mass_kg: float, isp_s: float) -> float:
