@@ -181,14 +181,9 @@ class HighsLP:
         """Run HiGHS (hot-started when a basis is available) and return a :class:`SolverResult`."""
         if self._data is None:
             raise input_error("HighsLP.solve", "called before setup", "call setup() first")
-        bad = self._bad.message()
-        if bad is not None:
-            return failed_result(self.name, bad)
-        if self._crossed is not None:
-            return SolverResult(SolveStatus.INFEASIBLE, None, math.nan, 0, 0.0, self.name,
-                                {"raw_status": "crossed_bounds", "reason": self._crossed})
-        if self._solver_error is not None:
-            return failed_result(self.name, self._solver_error)
+        blocked = _util.unsolvable(self, "crossed_bounds")
+        if blocked is not None:
+            return blocked
         h = self._h
         info_extra = {}
         try:

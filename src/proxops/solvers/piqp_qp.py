@@ -185,14 +185,11 @@ class PiqpQP:
         """Solve the current problem and return a :class:`SolverResult`."""
         if self._data is None:
             raise input_error("PiqpQP.solve", "called before setup", "call setup() first")
-        bad = self._bad.message()
-        if bad is not None:
-            return failed_result(self.name, bad)
-        if self._crossed is not None:
-            return SolverResult(SolveStatus.INFEASIBLE, None, math.nan, 0, 0.0, self.name,
-                                {"raw_status": "crossed_bounds", "reason": self._crossed})
-        if self._solver is None or self._solver_error is not None:
-            return failed_result(self.name, self._solver_error or "piqp solver was not set up")
+        blocked = _util.unsolvable(self, "crossed_bounds")
+        if blocked is not None:
+            return blocked
+        if self._solver is None:
+            return failed_result(self.name, "piqp solver was not set up")
         rebuilt, self._rebuilt = self._rebuilt, False
         try:
             t0 = time.perf_counter()
