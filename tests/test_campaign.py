@@ -325,7 +325,10 @@ def test_a_killed_worker_is_replaced_and_its_run_recorded(tmp_path):
 
 # --------------------------------------------------------------------------- interrupt and resume
 _CHILD = """
-import sys, copy
+import sys, copy, signal
+# a shell that starts jobs in the background (CI may) leaves SIGINT ignored in its children;
+# a user's Ctrl-C reaches a foreground process with Python's default handler, so restore it
+signal.signal(signal.SIGINT, signal.default_int_handler)
 sys.path[:0] = [{tests!r}, {src!r}]
 import test_campaign_toy as toy
 from proxops.analysis.campaign import run_campaign
