@@ -9,7 +9,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.linalg import solve_discrete_are
 
-from proxops.core.cw import cw_discretize_zoh
+from proxops.core.cw import cw_discretize_zoh, cw_rhs
 from proxops.sim.protocols import Command
 
 
@@ -44,6 +44,5 @@ class PdStationKeeping:
 
     def step(self, t: float, x_est: np.ndarray) -> Command:
         r, v = x_est[:3], x_est[3:6]
-        n = self.n
-        cw_accel = np.array([3 * n * n * r[0] + 2 * n * v[1], -2 * n * v[0], -n * n * r[2]])
+        cw_accel = cw_rhs(t, x_est, np.zeros(3), self.n)[3:6]  # unforced CW acceleration
         return Command(u=-self.kp * (r - self.r_ref) - self.kd * v - cw_accel, mode="hold")

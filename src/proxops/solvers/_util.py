@@ -136,10 +136,13 @@ class BadData:
 
 def unsolvable(adapter, crossed_raw_status: str = "crossed_bounds"):
     """The result for data a solver must not be called with (NaN or inf where not allowed,
-    crossed bounds, a failed set-up), or None when the solver may run. ``adapter`` has the
+    crossed bounds, a failed set-up), or None when the solver may run; solving before
+    ``setup`` is a usage error. ``adapter`` has the
     ``name``, ``_bad``, ``_crossed`` and ``_solver_error`` attributes every adapter keeps."""
     from proxops.solvers.result import SolverResult, SolveStatus
 
+    if adapter._data is None:
+        raise input_error(f"{type(adapter).__name__}.solve", "called before setup", "call setup() first")
     bad = adapter._bad.message()
     if bad is not None:
         return failed_result(adapter.name, bad)

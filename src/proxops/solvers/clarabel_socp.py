@@ -316,8 +316,6 @@ class ClarabelSOCP:
     # ------------------------------------------------------------------ solve
     def solve(self) -> SolverResult:
         """Solve the current problem and return a :class:`SolverResult`."""
-        if self._data is None:
-            raise input_error("ClarabelSOCP.solve", "called before setup", "call setup() first")
         blocked = _util.unsolvable(self, "infinite_rhs")
         if blocked is not None:
             return blocked

@@ -179,8 +179,6 @@ class HighsLP:
     # ------------------------------------------------------------------ solve
     def solve(self) -> SolverResult:
         """Run HiGHS (hot-started when a basis is available) and return a :class:`SolverResult`."""
-        if self._data is None:
-            raise input_error("HighsLP.solve", "called before setup", "call setup() first")
         blocked = _util.unsolvable(self, "crossed_bounds")
         if blocked is not None:
             return blocked

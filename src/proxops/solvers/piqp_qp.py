@@ -183,8 +183,6 @@ class PiqpQP:
     # ------------------------------------------------------------------ solve
     def solve(self) -> SolverResult:
         """Solve the current problem and return a :class:`SolverResult`."""
-        if self._data is None:
-            raise input_error("PiqpQP.solve", "called before setup", "call setup() first")
         blocked = _util.unsolvable(self, "crossed_bounds")
         if blocked is not None:
             return blocked
