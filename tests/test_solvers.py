@@ -515,3 +515,9 @@ def test_piqp_bound_update_in_place():
     second = qp.solve()
     assert second.status is SolveStatus.OPTIMAL and not second.info.get("error")
     np.testing.assert_allclose(second.x, [1.5, -3.0, 0.8], atol=1e-6)
+
+
+@pytest.mark.parametrize("adapter", [DaqpQP, PiqpQP, ClarabelSOCP, HighsLP])
+def test_solve_before_setup_is_a_usage_error(adapter):
+    with pytest.raises(ProxopsInputError, match="call setup"):
+        adapter().solve()
