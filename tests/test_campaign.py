@@ -25,6 +25,7 @@ from typer.testing import CliRunner
 
 import test_campaign_toy as toy
 from proxops.analysis.campaign import (
+    read_rows,
     CampaignResult,
     RunError,
     is_timing_column,
@@ -323,55 +324,22 @@ def test_a_killed_worker_is_replaced_and_its_run_recorded(tmp_path):
     assert (t.loc[~killer, "outcome"] == "success").all()
 
 
-# --------------------------------------------------------------------------- interrupt and resume
-_CHILD = """
-import sys, copy, signal
-# a shell that starts jobs in the background (CI may) leaves SIGINT ignored in its children;
-# a user's Ctrl-C reaches a foreground process with Python's default handler, so restore it
-signal.signal(signal.SIGINT, signal.default_int_handler)
-sys.path[:0] = [{tests!r}, {src!r}]
-import test_campaign_toy as toy
-from proxops.analysis.campaign import run_campaign
-if __name__ == "__main__":
-    run_campaign(copy.deepcopy(toy.TOY_SCENARIO), n_runs={n}, workers=2, seed=8, out={out!r}, progress=False,
-                 target_batch_s=0.3)
-"""
+# --------------------------------------------------------------------------- killed and resumed
+# (Ctrl-C at every moment is tested in test_interrupt.py)
+def test_killed_campaign_resumes_to_the_uninterrupted_table(tmp_path):
+    from test_interrupt import N_RUNS, _builds, _start, _wait_for
 
-
-def _start_child(out: Path, n: int) -> subprocess.Popen:
-    script = out.parent / "child.py"
-    script.write_text(_CHILD.format(tests=str(TESTS_DIR), src=str(SRC_DIR), n=n, out=str(out)))
-    env = dict(os.environ, PROXOPS_TOY_SLEEP_S="0.1")  # slow runs down so the kill lands mid-campaign
-    return subprocess.Popen([sys.executable, str(script)], start_new_session=True, stdout=subprocess.PIPE,
-                            stderr=subprocess.PIPE, text=True, env=env)
-
-
-def _wait_for_parts(out: Path, proc: subprocess.Popen, timeout: float = 60.0) -> None:
-    t0 = time.monotonic()
-    while time.monotonic() - t0 < timeout:
-        if any((out / "runs").glob("part-*.parquet")) or proc.poll() is not None:
-            return
-        time.sleep(0.1)
-
-
-@pytest.mark.parametrize("how", ["kill", "ctrl-c"])
-def test_killed_or_interrupted_campaign_resumes_to_the_uninterrupted_table(tmp_path, how):
-    n = 30
-    out = tmp_path / "mc"
-    proc = _start_child(out, n)
-    _wait_for_parts(out, proc)
-    assert proc.poll() is None, proc.communicate()
-    os.killpg(proc.pid, signal.SIGKILL if how == "kill" else signal.SIGINT)
-    _, err = proc.communicate(timeout=60)
-    if how == "ctrl-c":
-        assert "interrupted" in err and "saved" in err
+    k = 10
+    proc, out, gate = _start(tmp_path, workers=2, gate_open=k)  # runs after the 10th wait at the gate
+    _wait_for(lambda: _builds(gate) >= k + 2 and len(read_rows(out)) > 0, proc, "rows on disk, workers held")
+    os.killpg(proc.pid, signal.SIGKILL)
+    proc.communicate(timeout=60)
     saved = load_campaign(out)
-    assert 0 < len(saved.table) < n
-    if how == "ctrl-c":  # Ctrl-C lets the batches in flight finish, so nothing was lost
-        assert proc.returncode != 0
-    resumed = run_campaign(toy_data(), n_runs=n, workers=1, seed=8, out=out, resume=True, progress=False)
-    assert resumed.new_runs == n - len(saved.table)
-    whole = run_campaign(toy_data(), n_runs=n, workers=1, seed=8, progress=False)  # uninterrupted, in memory
+    assert 0 < len(saved.table) <= k and (saved.table["outcome"] == "success").all()
+    scenario = str(tmp_path / "toy.toml")
+    resumed = run_campaign(scenario, n_runs=N_RUNS, workers=1, seed=8, out=out, resume=True, progress=False)
+    assert resumed.new_runs == N_RUNS - len(saved.table)
+    whole = run_campaign(scenario, n_runs=N_RUNS, workers=1, seed=8, progress=False)  # uninterrupted, in memory
     same_rows(load_campaign(out), whole)
 
 

@@ -106,6 +106,25 @@ class ScaledLqr:
         return self.inner.step(t, x)
 
 
+def _pass_gate() -> None:
+    """With env PROXOPS_TOY_GATE=DIR and PROXOPS_TOY_GATE_OPEN=K: the first K builds (in any
+    process) pass, later ones wait until the file DIR/release exists. Lets a test stop a
+    campaign in a known state (K runs done, the rest in flight or queued) without timing."""
+    gate = os.environ.get("PROXOPS_TOY_GATE")
+    if not gate:
+        return
+    import uuid
+
+    os.makedirs(gate, exist_ok=True)
+    with open(os.path.join(gate, f"build-{uuid.uuid4().hex}"), "x"):
+        pass
+    n_started = sum(name.startswith("build-") for name in os.listdir(gate))
+    if n_started <= int(os.environ.get("PROXOPS_TOY_GATE_OPEN", "0")):
+        return
+    while not os.path.exists(os.path.join(gate, "release")):
+        time.sleep(0.01)
+
+
 @register_system("campaign-toy")
 class ToySystem:
     Scenario = ToyScenario
@@ -120,6 +139,7 @@ class ToySystem:
         sleep_s = toy.sleep_s or float(os.environ.get("PROXOPS_TOY_SLEEP_S", "0"))
         if sleep_s:
             time.sleep(sleep_s)
+        _pass_gate()
         n = mean_motion(sc.orbit.sma_m)
         cons = (KeepOut(toy.keep_out_m),) if toy.keep_out_m > 0 else ()
         return Setup(plant=ExactCWPlant(n, x0), controller=ScaledLqr(n, toy.dt_s, toy.hold_position_m, toy.gain_scale),

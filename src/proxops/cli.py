@@ -21,10 +21,11 @@ from typing import Annotated, Optional
 import typer
 
 from proxops import __version__
-from proxops.cli_common import STATE, emit, friendly_errors
+from proxops.cli_common import STATE, ProxopsGroup, emit, friendly_errors
 
 app = typer.Typer(
     name="proxops",
+    cls=ProxopsGroup,
     help="Spacecraft rendezvous and proximity operations: guidance, MPC, closed-loop simulation, Monte Carlo.",
     no_args_is_help=True,
     add_completion=False,
@@ -155,4 +156,6 @@ def _mount_optional() -> None:
 _mount_optional()
 
 if __name__ == "__main__":
-    app()
+    from proxops.entry import main as _main
+
+    _main()

@@ -32,7 +32,8 @@ def mc(
     as_json: Annotated[bool, typer.Option("--json", help="One JSON object on stdout: runs, succeeded, failed, wall_time_s, statistics.")] = False,
 ):
     """Run a Monte Carlo campaign of a scenario (local processes or Dask) and print its statistics."""
-    from proxops.analysis.campaign import run_campaign, write_report
+    from proxops.analysis.campaign import CampaignInterrupted, run_campaign, write_report
+    from proxops.cli_common import Interrupted
     from proxops.errors import ProxopsInputError
 
     if runs is not None and runs < 1:
@@ -46,10 +47,8 @@ def mc(
         result = run_campaign(scenario, n_runs=runs, workers=workers, scheduler=scheduler, seed=seed, out=out,
                               resume=resume, overrides=set_, progress=progress, keep_series=series,
                               connect_timeout_s=connect_timeout_s)
-    except KeyboardInterrupt:
-        typer.echo(f"campaign interrupted; finished runs are in {out}: `proxops mc {scenario} --out {out} --resume` "
-                   "completes it", err=True)
-        raise typer.Exit(130)
+    except CampaignInterrupted as exc:
+        raise Interrupted(f"{exc} (`proxops mc {scenario} --out {out} --resume`)") from None
     except ProxopsError as exc:
         if isinstance(exc, ProxopsInputError):
             raise

@@ -18,9 +18,14 @@ On disk (``out``)::
 Execution: ``workers=1`` runs in this process; ``workers>1`` uses a spawn-safe
 ProcessPoolExecutor; ``scheduler="tcp://HOST:PORT"``, a scheduler-file path or a
 ``distributed.Client`` uses Dask. Runs are sent in batches sized on the fly (about
-``target_batch_s`` of work each) to keep per-run overhead low. Ctrl-C finishes and saves the
-batches in flight (a second Ctrl-C gives up waiting); a run that raises is a row with
+``target_batch_s`` of work each) to keep per-run overhead low. A run that raises is a row with
 ``outcome = "error"``; a killed pool worker is replaced and its runs retried.
+
+Ctrl-C (or SIGTERM) at any moment: the first one only raises a flag (:class:`_GracefulStop`);
+the driver stops submitting, lets the batches in flight finish, saves them and raises
+:class:`CampaignInterrupted`. A second Ctrl-C stops waiting (runs still in flight are not
+saved; finished ones are). Pool workers are born with SIGINT blocked and ignore it from their
+first instruction, so a Ctrl-C during their imports cannot kill them.
 
 Columns whose values depend on the machine (``metric.wall_time_s``, ``metric.solve_time_ms.*``,
 ``run_wall_s``, ``run_cpu_s``) are excluded by :meth:`CampaignResult.deterministic_table`.
@@ -72,6 +77,15 @@ class CampaignError(ProxopsError):
     """The campaign could not go on (finished runs are saved; ``resume`` continues)."""
 
 
+class CampaignInterrupted(KeyboardInterrupt):
+    """Ctrl-C stopped a campaign; every finished run was saved. ``str()`` says how many and where."""
+
+    def __init__(self, message: str, new_runs: int = 0, out: Path | None = None):
+        super().__init__(message)
+        self.new_runs = new_runs
+        self.out = out
+
+
 @dataclass
 class RunError:
     """What :func:`map_runs` returns for an item whose function raised (``errors="return"``)."""
@@ -86,11 +100,55 @@ _POOLS: dict[int, ProcessPoolExecutor] = {}  # reused across campaigns/sweeps of
 
 
 def _init_worker() -> None:
-    """Pool worker start: ignore Ctrl-C (the parent decides when to stop)."""
+    """Pool worker start: ignore Ctrl-C (the parent decides when to stop). The worker was
+    spawned with SIGINT blocked (:func:`_sigint_blocked`), so a Ctrl-C that arrived during its
+    imports is pending: ignoring it discards it, then it is unblocked."""
     try:
         signal.signal(signal.SIGINT, signal.SIG_IGN)
     except ValueError:  # not the main thread
         pass
+    signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})
+
+
+class _sigint_blocked:
+    """Block SIGINT in this thread (a Ctrl-C waits, it is not lost). Processes started inside
+    inherit the mask, so spawned pool workers cannot be interrupted before :func:`_init_worker`."""
+
+    def __enter__(self):
+        self.old = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
+        return self
+
+    def __exit__(self, *exc):
+        signal.pthread_sigmask(signal.SIG_SETMASK, self.old)
+        return False
+
+
+class _GracefulStop:
+    """While active (main thread only): the first SIGINT/SIGTERM sets ``requested``; the
+    second raises KeyboardInterrupt. Elsewhere (another thread) it only reads ``requested``."""
+
+    def __init__(self):
+        self.requested = False
+        self.previous: dict = {}
+
+    def _handler(self, signum, frame):
+        if self.requested:
+            raise KeyboardInterrupt
+        self.requested = True
+
+    def __enter__(self):
+        import threading
+
+        if threading.current_thread() is threading.main_thread():
+            for sig in (signal.SIGINT, signal.SIGTERM):
+                self.previous[sig] = signal.signal(sig, self._handler)
+        return self
+
+    def __exit__(self, *exc):
+        for sig, old in self.previous.items():
+            signal.signal(sig, old)
+        self.previous.clear()
+        return False
 
 
 def _run_chunk(func, items, context, errors: str):
@@ -125,7 +183,7 @@ class _SerialBackend:
 
     def __init__(self, context):
         self.context = context
-        self.interrupted = False
+        self.stop = _GracefulStop()  # replaced by the driver's
 
     def submit(self, func, items, errors):
         fut: Future = Future()
@@ -133,10 +191,10 @@ class _SerialBackend:
         out = []
         try:
             for item in items:
+                if self.stop.requested:  # Ctrl-C: keep what finished, leave the rest queued
+                    break
                 out.append(_run_chunk(func, [item], self.context, errors)[0][0])
-        except KeyboardInterrupt:
-            self.interrupted = True
-        except BaseException as exc:
+        except Exception as exc:
             fut.set_exception(exc)
             return fut
         fut.set_result((out, time.perf_counter() - t0))
@@ -151,7 +209,7 @@ class _SerialBackend:
     def restart(self) -> None:
         raise AssertionError("serial backend never breaks")
 
-    def close(self, cancel: bool = False) -> None:
+    def close(self, cancel: bool = False, force: bool = False) -> None:
         pass
 
 
@@ -166,7 +224,6 @@ class _PoolBackend:
     def __init__(self, workers: int, context):
         self.slots = workers
         self.context = context
-        self.interrupted = False
         self._saved_env = _single_thread_env()  # workers spawned while this backend lives inherit it
         pool = _POOLS.get(workers)
         if pool is None or getattr(pool, "_broken", False) or getattr(pool, "_shutdown_thread", False):
@@ -174,7 +231,8 @@ class _PoolBackend:
         self.pool = pool
 
     def submit(self, func, items, errors):
-        return self.pool.submit(_run_chunk, func, items, self.context, errors)
+        with _sigint_blocked():  # submit() may spawn a worker: it must start immune to Ctrl-C
+            return self.pool.submit(_run_chunk, func, items, self.context, errors)
 
     def wait(self, futures, timeout):
         return cf_wait(futures, timeout=timeout, return_when=FIRST_COMPLETED)
@@ -186,10 +244,10 @@ class _PoolBackend:
         self.pool.shutdown(wait=False, cancel_futures=True)
         self.pool = _POOLS[self.slots] = _new_pool(self.slots)
 
-    def close(self, cancel: bool = False) -> None:
+    def close(self, cancel: bool = False, force: bool = False) -> None:
         if cancel:  # interrupted or failed: do not keep a pool with work in it
             _POOLS.pop(self.slots, None)
-            self.pool.shutdown(wait=False, cancel_futures=True)
+            _stop_pool(self.pool, force)
         _restore_env(self._saved_env)
 
 
@@ -219,10 +277,25 @@ def _new_pool(workers: int) -> ProcessPoolExecutor:
                                initializer=_init_worker)
 
 
-def shutdown_pools() -> None:
-    """Stop the worker processes kept for reuse (also done at interpreter exit)."""
+def _stop_pool(pool: ProcessPoolExecutor, force: bool) -> None:
+    """Shut a pool down; ``force`` also terminates workers still running a batch (given up)."""
+    processes = list((getattr(pool, "_processes", None) or {}).values())
+    pool.shutdown(wait=False, cancel_futures=True)
+    if force:
+        for proc in processes:
+            try:
+                proc.terminate()
+            except Exception:  # already gone
+                pass
+
+
+def shutdown_pools(force: bool = False) -> None:
+    """Stop the worker processes kept for reuse (also done at interpreter exit); ``force``
+    terminates busy ones instead of waiting for them."""
     while _POOLS:
         _, pool = _POOLS.popitem()
+        if force:
+            _stop_pool(pool, force=True)
         pool.shutdown(wait=True, cancel_futures=True)
 
 
@@ -236,7 +309,6 @@ class _DaskBackend:
     suspects_alone = False  # Dask reports a lost task per batch
 
     def __init__(self, scheduler, context, connect_timeout_s: float):
-        self.interrupted = False
         self.own_client = False
         self.client = _dask_client(scheduler, connect_timeout_s)
         self.own_client = not _is_client(scheduler)
@@ -271,7 +343,7 @@ class _DaskBackend:
     def restart(self) -> None:
         raise AssertionError("dask backend retries per batch")
 
-    def close(self, cancel: bool = False) -> None:
+    def close(self, cancel: bool = False, force: bool = False) -> None:
         if self.own_client:
             try:
                 self.client.close(timeout=5)
@@ -341,17 +413,21 @@ class _Progress:
 
 
 def _drive(backend, func, items: Sequence, errors: str, on_batch: Callable, chunk_size: int | None,
-           target_batch_s: float, on_lost: Callable | None = None) -> None:
+           target_batch_s: float, on_lost: Callable | None = None, on_tick: Callable | None = None) -> None:
     """Send ``items`` in adaptive batches to ``backend`` and hand each finished batch to
-    ``on_batch(indices, results)``. Handles Ctrl-C (finish in-flight batches, then re-raise),
-    broken local pools (restart, retry suspects one at a time) and lost Dask batches."""
+    ``on_batch(indices, results)``. Handles Ctrl-C (:class:`_GracefulStop`: finish and hand over
+    the batches in flight, then raise KeyboardInterrupt), broken local pools (restart, retry
+    suspects one at a time) and lost Dask batches."""
     queue: deque[int] = deque(range(len(items)))
     suspects: set[int] = set()
     in_flight: dict[Any, list[int]] = {}
     per_item_s: float | None = None
     restarts = 0
     finished = False
+    forced = False
     max_in_flight = 2 * backend.slots
+    stop = _GracefulStop()
+    backend.stop = stop
 
     def batch_size() -> int:
         if chunk_size is not None:
@@ -388,74 +464,76 @@ def _drive(backend, func, items: Sequence, errors: str, on_batch: Callable, chun
         if results:
             on_batch(idx[: len(results)], results)
 
-    try:
-        while queue or in_flight:
-            submit_more()
-            if getattr(backend, "interrupted", False):
-                raise KeyboardInterrupt
-            done, _ = backend.wait(list(in_flight), timeout=0.5)
-            broken = False
-            for fut in done:
-                idx = in_flight.pop(fut)
-                try:
-                    harvest(fut, idx)
-                except BrokenProcessPool:
-                    broken = True
-                    if len(idx) == 1 and idx[0] in suspects and not in_flight:
-                        _lost(on_lost, idx, "the worker process died while running this item", errors, items)
-                        suspects.discard(idx[0])
-                        broken = "culprit"
-                    else:
+    with stop:
+        try:
+            while queue or in_flight:
+                if stop.requested:
+                    raise KeyboardInterrupt
+                submit_more()
+                done, _ = backend.wait(list(in_flight), timeout=0.1)
+                if on_tick is not None:
+                    on_tick()
+                broken = False
+                for fut in done:
+                    idx = in_flight.pop(fut)
+                    try:
+                        harvest(fut, idx)
+                    except BrokenProcessPool:
+                        broken = True
+                        if len(idx) == 1 and idx[0] in suspects and not in_flight:
+                            _lost(on_lost, idx, "the worker process died while running this item", errors, items)
+                            suspects.discard(idx[0])
+                            broken = "culprit"
+                        else:
+                            suspects.update(idx)
+                            queue.extendleft(reversed(idx))
+                    except Exception as exc:
+                        if errors == "raise" or not _is_lost_batch(exc):
+                            raise
+                        if len(idx) > 1:  # a Dask worker died: retry the items one by one
+                            suspects.update(idx)
+                            queue.extendleft(reversed(idx))
+                        else:
+                            _lost(on_lost, idx, f"{type(exc).__name__}: {exc}", errors, items)
+                            suspects.discard(idx[0])
+                if broken:
+                    for fut, idx in list(in_flight.items()):
                         suspects.update(idx)
                         queue.extendleft(reversed(idx))
-                except Exception as exc:
-                    if errors == "raise" or not _is_lost_batch(exc):
-                        raise
-                    if len(idx) > 1:  # a Dask worker died: retry the items one by one
-                        suspects.update(idx)
-                        queue.extendleft(reversed(idx))
-                    else:
-                        _lost(on_lost, idx, f"{type(exc).__name__}: {exc}", errors, items)
-                        suspects.discard(idx[0])
-            if getattr(backend, "interrupted", False):
-                raise KeyboardInterrupt
-            if broken:
-                for fut, idx in list(in_flight.items()):
-                    suspects.update(idx)
-                    queue.extendleft(reversed(idx))
-                in_flight.clear()
-                restarts += broken != "culprit"  # breaks not yet pinned on one item
-                if restarts > MAX_POOL_RESTARTS:
-                    raise CampaignError(
-                        f"worker processes died {restarts} times; every finished run is saved, "
-                        "resume to complete the rest"
-                    )
-                backend.restart()
-        finished = True
-    except KeyboardInterrupt:
-        _finish_in_flight(backend, in_flight, harvest)
-        raise
-    finally:
-        backend.close(cancel=not finished)
+                    in_flight.clear()
+                    restarts += broken != "culprit"  # breaks not yet pinned on one item
+                    if restarts > MAX_POOL_RESTARTS:
+                        raise CampaignError(
+                            f"worker processes died {restarts} times; every finished run is saved, "
+                            "resume to complete the rest"
+                        )
+                    backend.restart()
+            finished = True
+        except KeyboardInterrupt:  # a second Ctrl-C while waiting gives up on the runs in flight
+            forced = not _finish_in_flight(backend, in_flight, harvest)
+            raise
+        finally:
+            backend.close(cancel=not finished, force=forced)
 
 
-def _finish_in_flight(backend, in_flight: dict, harvest) -> None:
-    """After Ctrl-C: cancel what has not started, save what finishes; a 2nd Ctrl-C stops waiting."""
+def _finish_in_flight(backend, in_flight: dict, harvest) -> bool:
+    """After Ctrl-C: cancel what has not started, hand over what finishes. Returns False if a
+    second Ctrl-C gave up waiting."""
     for fut in list(in_flight):
         if backend.cancel(fut):
             in_flight.pop(fut)
     try:
-        deadline = time.perf_counter() + 120.0
-        while in_flight and time.perf_counter() < deadline:
-            done, _ = backend.wait(list(in_flight), timeout=0.5)
+        while in_flight:
+            done, _ = backend.wait(list(in_flight), timeout=0.1)
             for fut in done:
                 idx = in_flight.pop(fut)
                 try:
                     harvest(fut, idx)
-                except BaseException:
+                except Exception:  # a batch lost while stopping: its runs stay missing
                     pass
     except KeyboardInterrupt:
-        pass
+        return False
+    return True
 
 
 def _is_lost_batch(exc: BaseException) -> bool:
@@ -827,8 +905,13 @@ class _RowWriter:
             if res is not None:
                 res.save(series_dir(self.out, row["run_id"]))
         self.pending.extend(rows)
-        if time.perf_counter() - self.last_flush >= self.flush_s:
-            self.flush()
+        self.tick()
+
+    def tick(self) -> None:
+        """Write the pending rows if the last write is ``flush_s`` old (also while runs are slow)."""
+        if self.pending and time.perf_counter() - self.last_flush >= self.flush_s:
+            with _sigint_blocked():
+                self.flush()
 
     def flush(self) -> None:
         if self.out is None or not self.pending:
@@ -1008,20 +1091,23 @@ def run_campaign(scenario, n_runs: int | None = None, workers: int | None = None
                "outcome": "error", "success": False, "status": "error", "error": f"WorkerLost: {message}"}
         on_batch([i], [(row, None)])
 
-    interrupted = False
     try:
-        with _sigterm_as_interrupt():
-            if backend is not None:
-                _drive(backend, campaign_run, items, "return", on_batch, chunk_size, target_batch_s, on_lost=on_lost)
+        if backend is not None:
+            _drive(backend, campaign_run, items, "return", on_batch, chunk_size, target_batch_s, on_lost=on_lost,
+                   on_tick=writer.tick)
     except KeyboardInterrupt:
-        interrupted = True
-        raise
+        with _sigint_blocked():  # the rows in hand are written whatever the user presses now
+            writer.flush()
+            bar.close()
+        where = f"saved in {out_path}" if out_path is not None else "kept in memory only (no --out)"
+        raise CampaignInterrupted(
+            f"interrupted: {state.done} new runs {where}, {len(done_ids) + state.done} of {n_runs} finished; "
+            "complete them with --resume", new_runs=state.done, out=out_path) from None
     finally:
-        writer.flush()
+        with _sigint_blocked():
+            writer.flush()
         bar.close()
         wall = time.perf_counter() - wall0
-        if interrupted and out_path is not None:
-            print(f"\ninterrupted: {state.done} new runs saved in {out_path}; complete with --resume", file=sys.stderr)
     if out_path is not None:
         table = read_rows(out_path)
         if len(table) >= n_runs:
@@ -1029,26 +1115,6 @@ def run_campaign(scenario, n_runs: int | None = None, workers: int | None = None
     else:
         table = _tidy(pd.DataFrame(writer.rows)) if writer.rows else _empty_table()
     return CampaignResult(table=table, manifest=manifest, out=out_path, wall_time_s=wall, new_runs=state.done)
-
-
-class _sigterm_as_interrupt:
-    """Inside the main thread, SIGTERM behaves like Ctrl-C (finished runs are saved)."""
-
-    def __enter__(self):
-        self.previous = None
-        import threading
-
-        if threading.current_thread() is threading.main_thread():
-            def handler(signum, frame):
-                raise KeyboardInterrupt
-
-            self.previous = signal.signal(signal.SIGTERM, handler)
-        return self
-
-    def __exit__(self, *exc):
-        if self.previous is not None:
-            signal.signal(signal.SIGTERM, self.previous)
-        return False
 
 
 def make_item(plan: DispersionPlan, campaign_seed: int, run_id: int) -> RunItem:
@@ -1214,6 +1280,7 @@ __all__ = [
     "load_campaign",
     "CampaignResult",
     "CampaignError",
+    "CampaignInterrupted",
     "RunError",
     "campaign_run",
     "make_item",

@@ -1,0 +1,35 @@
+"""Console entry point of ``proxops``: nothing heavy is imported before Ctrl-C is handled.
+
+A Ctrl-C at any moment (while Python imports the CLI, while a command runs, while worker
+processes shut down) ends with one ``interrupted`` line and exit code 130, never a traceback.
+"""
+
+import signal
+import sys
+
+
+def main() -> None:
+    code = 130
+    try:
+        from proxops.cli import app
+        from proxops.cli_common import guarded
+
+        code = guarded(lambda: app(standalone_mode=False))
+    except KeyboardInterrupt:  # while importing the CLI
+        sys.stderr.write("interrupted\n")
+    try:
+        campaign = sys.modules.get("proxops.analysis.campaign")
+        if campaign is not None:  # stop kept worker processes now, not in interpreter shutdown
+            campaign.shutdown_pools(force=code == 130)
+    except KeyboardInterrupt:
+        code = 130
+    signal.signal(signal.SIGINT, signal.SIG_IGN)  # the work is done or given up: exit quietly
+    try:
+        sys.stdout.flush()
+    except (BrokenPipeError, OSError):
+        pass
+    sys.exit(code)
+
+
+if __name__ == "__main__":
+    main()
