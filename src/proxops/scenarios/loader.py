@@ -28,6 +28,7 @@ UNIT_SUFFIXES = (  # longest first: "_deg_s2" before "_deg_s" before "_s"
     ("_Nm", "N m"),
     ("_mps2", "m/s^2"),
     ("_mps", "m/s"),
+    ("_ms", "ms"),
     ("_deg", "deg"),
     ("_rad", "rad"),
     ("_km", "km"),

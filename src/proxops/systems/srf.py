@@ -256,9 +256,23 @@ def build_setup(sc: SrfScenario, cbf: bool | None = None) -> Setup:
             "hop_plan": plan.as_dict(), "node_times_s": sched.times.tolist(),
             "hop_node_times_s": sched.times[sched.hop_nodes].tolist(), "cbf": bool(ctrl.cfg.cbf),
             "vbar": _is_vbar(theta), "mpc_steps_per_hop": int(len(sched.steps) - 1) // sc.approach.hops}
-    return Setup(plant=plant, controller=ctrl, duration_s=float(sched.times[-1]) + 2 * sched.dt,
+    # The run ends one sample after the braking impulse (its coast simulated), with outcome
+    # "handover": duration and stop condition say so, so the engine's step count (progress bar)
+    # is the number of steps simulated (it was one too many with a 2-step margin).
+    return Setup(plant=plant, controller=ctrl, duration_s=float(sched.times[-1]) + sched.dt,
                  navigation=navigation_model(sc.navigation), actuator=actuator_model(sc.actuator),
-                 constraints=(keep_out_hill(sc),), check_substeps=sc.sim.check_substeps, meta=meta)
+                 constraints=(keep_out_hill(sc),), stop_condition=_Handover(ctrl),
+                 check_substeps=sc.sim.check_substeps, meta=meta)
+
+
+class _Handover:
+    """Stop condition: the MPC has applied its braking impulse (picklable, unlike a closure)."""
+
+    def __init__(self, ctrl):
+        self.ctrl = ctrl
+
+    def __call__(self, t: float, x) -> str | None:
+        return "handover" if self.ctrl.finished else None
 
 
 # --------------------------------------------------------------------------- safety
