@@ -14,6 +14,7 @@ from typing import Any
 from pydantic import BaseModel, ValidationError
 
 from proxops.errors import ProxopsInputError
+from proxops.scenarios.dispersion_spec import SPEC_KEYS, flatten_table
 from proxops.scenarios.registry import get_system
 
 BUILTIN_DIR = Path(__file__).parent / "builtin"
@@ -174,8 +175,6 @@ def _override_dispersion(data: dict, key: str, parts: list[str], value) -> None:
     is a table replaces (or adds) the whole entry, ``{}`` removes it, otherwise ``<field>`` (percent,
     sigma, ...) is set.
     The result is validated with the scenario (the entry must name an existing key)."""
-    from proxops.scenarios.dispersion_spec import SPEC_KEYS, flatten_table
-
     table = data.get("dispersions") or {}
     if not isinstance(table, dict):
         raise ProxopsInputError(f"--set {key}: dispersions is a value, not a table")
