@@ -123,8 +123,11 @@ def test_cli_keys():
     obj = json.loads(res.stdout)  # exactly one object
     assert obj["system"] == "srf" and {s["section"] for s in obj["sections"]} >= {"", "sim", "approach", "mpc"}
     assert {k["name"] for k in obj["dispersions"]["keys"]} >= {"percent", "grid"}
-    res = runner.invoke(app, ["keys", "srv"])
-    assert res.exit_code == 2 and res.stderr.count("error:") == 1 and "srf" in res.stderr and "Traceback" not in res.stderr
+    for args, message in ((["srv"], "allowed: los, srf"), (["srf", "--all"], "not both"),
+                          (["srf", "--json", "--markdown"], "not both")):
+        res = runner.invoke(app, ["keys", *args])
+        assert res.exit_code == 2 and res.stderr.count("error:") == 1 and message in res.stderr
+        assert "Traceback" not in res.stderr and res.stdout == ""
 
 
 # --------------------------------------------------------------------------- --set on [dispersions]
