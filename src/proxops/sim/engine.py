@@ -84,60 +84,62 @@ def simulate(setup: Setup, seed: int = 0, progress: bool = False) -> SimResult:
     outcome = "completed"
     last_mode = None
     k = 0
-    for k in range(n_steps + 1):
-        t = k * dt
-        xr = plant.relative_state(state)
-        xe = setup.navigation.measure(t, xr, rng)
-        t_rec[k], x_true[k], x_est[k] = t, xr, xe
-        check_constraints(t, xr)
-        reason = setup.stop_condition(t, xr) if setup.stop_condition else None
-        if reason:
-            outcome = reason
-            events.append((t, "stop", reason))
-            status.append("")
-            modes.append(last_mode or "")
-            break
-        if k == n_steps:
-            status.append("")
-            modes.append(last_mode or "")
-            break
-        cmd = ctrl.step(t, xe)
-        if cmd.stop:
-            outcome = cmd.mode or "stopped"
-            events.append((t, "stop", outcome))
+    try:  # the bar is cleared even when the run is interrupted (Ctrl-C)
+        for k in range(n_steps + 1):
+            t = k * dt
+            xr = plant.relative_state(state)
+            xe = setup.navigation.measure(t, xr, rng)
+            t_rec[k], x_true[k], x_est[k] = t, xr, xe
+            check_constraints(t, xr)
+            reason = setup.stop_condition(t, xr) if setup.stop_condition else None
+            if reason:
+                outcome = reason
+                events.append((t, "stop", reason))
+                status.append("")
+                modes.append(last_mode or "")
+                break
+            if k == n_steps:
+                status.append("")
+                modes.append(last_mode or "")
+                break
+            cmd = ctrl.step(t, xe)
+            if cmd.stop:
+                outcome = cmd.mode or "stopped"
+                events.append((t, "stop", outcome))
+                status.append(cmd.status)
+                modes.append(cmd.mode)
+                break
+            u = np.asarray(setup.actuator.apply(t, cmd.u, cmd.kind, rng), dtype=float)
+            u_cmd[k], u_app[k], solve_t[k] = cmd.u, u, cmd.solve_time_s
             status.append(cmd.status)
             modes.append(cmd.mode)
-            break
-        u = np.asarray(setup.actuator.apply(t, cmd.u, cmd.kind, rng), dtype=float)
-        u_cmd[k], u_app[k], solve_t[k] = cmd.u, u, cmd.solve_time_s
-        status.append(cmd.status)
-        modes.append(cmd.mode)
-        if cmd.status not in ("ok", "optimal"):
-            events.append((t, "solver", cmd.status))
-        if cmd.mode != last_mode and last_mode is not None:
-            events.append((t, "mode", f"{last_mode} -> {cmd.mode}"))
-        last_mode = cmd.mode
-        for kind, msg in cmd.events:
-            events.append((t, kind, msg))
-        for key, val in cmd.info.items():
-            series = info.get(key)
-            if series is None:
-                series = info[key] = np.full(n_steps + 1, np.nan)
-            series[k] = val
-        dv_cum[k + 1] = dv_cum[k] + delta_v(u, cmd.kind, dt)
-        if cmd.kind == "impulse":
-            if u.any():
-                state = plant.apply_impulse(t, state, u)
-            u_hold = np.zeros(n_u)
-        else:
-            u_hold = u
-        sub_dt = dt / setup.check_substeps
-        for j in range(setup.check_substeps):
-            state = plant.propagate(t + j * sub_dt, state, u_hold, sub_dt)
-            if j < setup.check_substeps - 1:
-                check_constraints(t + (j + 1) * sub_dt, plant.relative_state(state))
-        bar.update(1)
-    bar.close()
+            if cmd.status not in ("ok", "optimal"):
+                events.append((t, "solver", cmd.status))
+            if cmd.mode != last_mode and last_mode is not None:
+                events.append((t, "mode", f"{last_mode} -> {cmd.mode}"))
+            last_mode = cmd.mode
+            for kind, msg in cmd.events:
+                events.append((t, kind, msg))
+            for key, val in cmd.info.items():
+                series = info.get(key)
+                if series is None:
+                    series = info[key] = np.full(n_steps + 1, np.nan)
+                series[k] = val
+            dv_cum[k + 1] = dv_cum[k] + delta_v(u, cmd.kind, dt)
+            if cmd.kind == "impulse":
+                if u.any():
+                    state = plant.apply_impulse(t, state, u)
+                u_hold = np.zeros(n_u)
+            else:
+                u_hold = u
+            sub_dt = dt / setup.check_substeps
+            for j in range(setup.check_substeps):
+                state = plant.propagate(t + j * sub_dt, state, u_hold, sub_dt)
+                if j < setup.check_substeps - 1:
+                    check_constraints(t + (j + 1) * sub_dt, plant.relative_state(state))
+            bar.update(1)
+    finally:
+        bar.close()
     n = k + 1
     meta = dict(setup.meta)
     meta.update(
@@ -228,7 +230,7 @@ def _tqdm_bar(total: int, n: int, n_first: int, elapsed_s: float, since_first_s:
 
     bar = tqdm(total=total, initial=n_first, unit="step", desc="simulating", leave=False, mininterval=0.5,
                file=sys.stderr, dynamic_ncols=True)
-    now = bar._time()
+    now = getattr(bar, "_time", time.time)()  # tqdm's clock (time.time)
     bar.start_t = now - elapsed_s  # elapsed: the whole run
     bar.last_print_t, bar.last_print_n = now - since_first_s, n_first  # rate/ETA: from the first step's end
     bar.update(n - n_first)
