@@ -170,3 +170,14 @@ def test_bad_dispersion_overrides_are_one_line_errors(override, message):
         load_scenario("srf-vbar-mc", [override])
     res = CliRunner().invoke(app, ["validate", "srf-vbar-mc", "--set", override])
     assert res.exit_code == 2 and res.stderr.count("\n") == 1 and "Traceback" not in res.stderr
+
+
+def test_set_on_a_nested_table_dispersion():
+    """[dispersions.initial] position_m = {...} (nested tables) takes the same --set forms."""
+    from proxops.scenarios.loader import read_toml, resolve, validate_scenario
+
+    data = read_toml(resolve("station-keeping-mc"))
+    data["dispersions"] = {"initial": {"position_m": {"percent": 10, "min_abs": 1.0}}}
+    sc = validate_scenario(data, ["dispersions.initial.position_m.min_abs=3.0"]).scenario
+    (d,) = parse_dispersions(sc).random
+    assert d.key == "initial.position_m" and d.spec.percent == 10 and d.spec.min_abs == 3.0
