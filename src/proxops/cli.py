@@ -111,9 +111,12 @@ def format_summary(s: dict) -> str:
     ]
     skip = {"scenario", "system", "status", "final_range_m", "final_speed_mps", "min_range_m", "total_dv_mps",
             "sim_time_s", "wall_time_s", "solve_time_ms", "events", "steps", "solver_failures"}
-    for key, val in s.items():
-        if key not in skip and not isinstance(val, (list, dict)):
-            lines.append(f"{key:<13} {val}")
+    from proxops.analysis.formatting import format_quantity
+
+    extra = [k for k, v in s.items() if k not in skip and not isinstance(v, (list, dict))]
+    width = max([13, *(len(k) for k in extra)])
+    for key in extra:  # rounded to the resolution of its unit (--json keeps full precision)
+        lines.append(f"{key:<{width}} {format_quantity(s[key], key)}")
     if "out" in s:
         lines.append(f"written to    {s['out']}")
     return "\n".join(lines)
@@ -139,6 +142,7 @@ def _mount_optional() -> None:
         ("proxops.cli_reach", "reach_app", "reach", "group"),
         ("proxops.cli_campaign", "mc", "mc", "command"),
         ("proxops.cli_campaign", "report", "report", "command"),
+        ("proxops.cli_keys", "keys", "keys", "command"),
     ):
         try:
             mod = importlib.import_module(module)

@@ -142,8 +142,8 @@ def map_(
     (out / f"{stem}.json").write_text(json.dumps(payload, indent=2, default=_default))
     payload["files"] = [str(fig), str(out / f"{stem}_masks.npz"), str(out / f"{stem}.json")]
     text = (f"w_t = {omega_deg:g} deg/s, a_max = {amax:g} m/s^2, r_sync = {res.r_sync_m:.1f} m: nominal "
-            f"{res.pct['nominal']:.2f}%, stochastic {res.pct['stochastic']:.2f}%, robust {res.pct['robust']:.2f}%, "
-            f"backward {res.pct.get('backward', float('nan')):.2f}%, hierarchy violations {res.hierarchy_violations}")
+            f"{res.pct['nominal']:.1f} %, stochastic {res.pct['stochastic']:.1f} %, robust {res.pct['robust']:.1f} %, "
+            f"backward {res.pct.get('backward', float('nan')):.1f} %, hierarchy violations {res.hierarchy_violations}")
     if fmap is not None:
         m = payload["monte_carlo"]
         text += (f"\nMC: {m['mc_pct_ics']:.1f}% of ICs feasible, {m['mc_pct_grid']:.1f}% of the grid; nominal-certified "

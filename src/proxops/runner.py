@@ -71,13 +71,22 @@ def run_demo(out: Path) -> Path:
         loaded = load_scenario(name)
         summary, results = execute(loaded, progress=True)
         figs = save_run(loaded, summary, results, out / name)
-        lines += [f"## {name}", "", loaded.scenario.description, "", "| metric | value |", "| --- | --- |"]
-        for key, val in summary.items():
-            if not isinstance(val, (dict, list)):
-                lines.append(f"| {key} | {val} |")
+        lines += [f"## {name}", "", loaded.scenario.description, ""] + summary_markdown(summary)
         lines.append("")
         lines += [f"![{p.stem}]({p.relative_to(out)})" for p in figs]
         lines.append("")
     report = out / "report.md"
     report.write_text("\n".join(lines))
     return report
+
+
+def summary_markdown(summary: dict) -> list[str]:
+    """``| metric | value |`` rows of a run summary, each value rounded to the resolution of its unit
+    and shown with it (summary.json and --json keep full precision)."""
+    from proxops.analysis.formatting import format_quantity
+
+    lines = ["| metric | value |", "| --- | --- |"]
+    for key, val in summary.items():
+        if not isinstance(val, (dict, list)):
+            lines.append(f"| {key} | {format_quantity(val, key)} |")
+    return lines

@@ -1153,6 +1153,7 @@ def write_report(campaign, report_dir: str | Path | None = None, figures: bool =
     """Rebuild tables and figures of a campaign folder (or CampaignResult) under ``report_dir``
     (default ``<out>/report``): statistics.csv (Table 4 layout), summary.json, report.md and
     PNG figures. Returns ``{"summary": ..., "files": [...]}``."""
+    from proxops.analysis.formatting import format_percent, format_quantity
     from proxops.analysis.statistics import format_table4
 
     result = campaign if isinstance(campaign, CampaignResult) else load_campaign(campaign)
@@ -1190,8 +1191,7 @@ def write_report(campaign, report_dir: str | Path | None = None, figures: bool =
         done = table[table["outcome"] != "error"]
         for gi, grp in done.groupby("grid_index", sort=True):
             point = grp.iloc[0]
-            label = ", ".join(f"{c.removeprefix('disp.')} = {point[c]:.6g}" if isinstance(point[c], float)
-                              else f"{c.removeprefix('disp.')} = {point[c]}" for c in grid_cols)
+            label = ", ".join(f"{c.removeprefix('disp.')} = {format_quantity(point[c], c, significant=True)}" for c in grid_cols)
             lines += [f"### Grid point {int(gi)}: {label}", "", format_table4(metric_statistics(grp, subset="all")), ""]
     if grid_cols and len(table):
         by = table.groupby(grid_cols, sort=True)["success"].agg(["mean", "size"]).reset_index()
@@ -1201,8 +1201,8 @@ def write_report(campaign, report_dir: str | Path | None = None, figures: bool =
                   "| " + " | ".join(c.removeprefix("disp.") for c in grid_cols) + " | runs | success |",
                   "|" + " --- |" * (len(grid_cols) + 2)]
         for _, r in by.head(200).iterrows():
-            lines.append("| " + " | ".join(f"{r[c]:.6g}" if isinstance(r[c], float) else str(r[c]) for c in grid_cols)
-                         + f" | {int(r['size'])} | {r['mean']:.2f} |")
+            lines.append("| " + " | ".join(format_quantity(r[c], c, significant=True) for c in grid_cols)
+                         + f" | {int(r['size'])} | {format_percent(r['mean'])} |")
         lines.append("")
     errs = table[table["outcome"] == "error"] if len(table) else table
     if len(errs):

@@ -42,80 +42,13 @@ from __future__ import annotations
 import math
 import re
 from dataclasses import dataclass
-from typing import Any, Literal
+from typing import Any
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
+from pydantic import BaseModel, ValidationError
 
 from proxops.errors import ProxopsInputError
-
-SPEC_KEYS = {"percent", "min_abs", "distribution", "sigma", "half_width", "low", "high", "choice", "grid", "linspace",
-             "clip", "group"}
-NumberOrVector = float | list[float]
-
-
-class DispersionSpec(BaseModel):
-    """One ``[dispersions]`` entry (see the module docstring for the kinds)."""
-
-    model_config = ConfigDict(extra="forbid", allow_inf_nan=False)
-
-    percent: float | None = Field(None, ge=0.0)
-    min_abs: NumberOrVector | None = None
-    distribution: Literal["uniform", "normal"] | None = None
-    sigma: NumberOrVector | None = None
-    half_width: NumberOrVector | None = None
-    low: NumberOrVector | None = None
-    high: NumberOrVector | None = None
-    choice: list[Any] | None = Field(None, min_length=1)
-    grid: list[Any] | None = Field(None, min_length=1)
-    linspace: list[float] | None = Field(None, min_length=3, max_length=3)
-    clip: list[float] | None = Field(None, min_length=2, max_length=2)
-    group: str | None = Field(None, min_length=1)
-
-    @model_validator(mode="after")
-    def _one_kind(self):
-        kinds = [k for k in ("percent", "sigma", "half_width", "low", "choice", "grid", "linspace") if getattr(self, k) is not None]
-        if self.high is not None and self.low is None:
-            kinds.append("high")
-        if len(kinds) != 1:
-            raise ValueError(
-                "give exactly one of percent, sigma, half_width, low+high, choice, grid, linspace "
-                f"(got {', '.join(kinds) or 'none'})"
-            )
-        kind = kinds[0]
-        if kind in ("low", "high") and (self.low is None or self.high is None):
-            raise ValueError("low and high go together: U(low, high)")
-        if self.min_abs is not None and kind != "percent":
-            raise ValueError("min_abs only goes with percent")
-        if self.distribution is not None and kind != "percent":
-            raise ValueError("distribution only goes with percent (sigma is normal, half_width/low+high uniform)")
-        for name in ("min_abs", "sigma", "half_width"):
-            val = getattr(self, name)
-            if val is not None and any(v < 0 for v in np.atleast_1d(val)):
-                raise ValueError(f"{name} must be >= 0")
-        if self.linspace is not None:
-            n = self.linspace[2]
-            if n < 1 or n != int(n):
-                raise ValueError(f"linspace = [start, stop, n] needs a whole n >= 1 (got {n})")
-        if self.clip is not None and self.clip[0] > self.clip[1]:
-            raise ValueError("clip = [lo, hi] needs lo <= hi")
-        if self.clip is not None and kind in ("grid", "linspace", "choice"):
-            raise ValueError("clip only goes with random continuous kinds")
-        if self.group is not None and kind not in ("grid", "linspace"):
-            raise ValueError("group only goes with grid or linspace (keys of a group vary together)")
-        return self
-
-    @property
-    def kind(self) -> str:
-        for k in ("percent", "sigma", "half_width", "low", "choice", "grid", "linspace"):
-            if getattr(self, k) is not None:
-                return k
-        raise AssertionError("validated spec has a kind")
-
-    @property
-    def is_grid(self) -> bool:
-        return self.kind in ("grid", "linspace")
-
+from proxops.scenarios.dispersion_spec import SPEC_KEYS, DispersionSpec, NumberOrVector, flatten_table  # noqa: F401
 
 @dataclass
 class Dispersion:
@@ -199,26 +132,6 @@ def parse_path(key: str) -> tuple:
         tokens.append(m.group(1))
         tokens += [int(i) for i in re.findall(r"\[(\d+)\]", m.group(2))]
     return tuple(tokens)
-
-
-def flatten_table(table: dict, prefix: str = "") -> dict[str, dict]:
-    """Nested or dotted ``[dispersions]`` table -> ``{dotted key: spec table}``."""
-    out: dict[str, dict] = {}
-    for key, val in table.items():
-        full = f"{prefix}.{key}" if prefix else str(key)
-        if not isinstance(val, dict):
-            raise ProxopsInputError(
-                f"dispersions.{full} = {val!r}: expected a table such as {{percent = 10, min_abs = 1.0}} "
-                f"or {{grid = [1.0, 2.0]}}; allowed keys: {', '.join(sorted(SPEC_KEYS))}"
-            )
-        is_spec = val and set(val) <= SPEC_KEYS and not any(isinstance(v, dict) for v in val.values())
-        if is_spec:
-            out[full] = val
-        elif not val:
-            raise ProxopsInputError(f"dispersions.{full}: empty table; give e.g. {{percent = 10}}")
-        else:
-            out.update(flatten_table(val, full))
-    return out
 
 
 def nominal_value(scenario: BaseModel, path: tuple, key: str):

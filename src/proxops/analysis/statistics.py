@@ -13,6 +13,8 @@ import math
 import numpy as np
 import pandas as pd
 
+from proxops.analysis.formatting import format_number, unit_of_metric
+
 METRIC_PREFIX = "metric."
 DISP_PREFIX = "disp."
 STAT_COLUMNS = ("n", "mean", "std", "q1", "median", "q3", "p99", "min", "max")
@@ -114,31 +116,38 @@ def statistics_dict(stats: pd.DataFrame) -> dict:
     return out
 
 
-def format_table4(stats: pd.DataFrame, digits: int = 4) -> str:
+def format_table4(stats: pd.DataFrame, digits: int | None = None) -> str:
     """Markdown table in the layout of cortex-convex-guidance.md Table 4:
-    ``| metric | mu | sigma | [Q1, Q2, Q3, P99] |``."""
-
-    def f(x):
-        return "nan" if not math.isfinite(x) else f"{x:.{digits}g}"
-
-    lines = ["| metric | n | μ | σ | [Q1, Q2, Q3, P99] |", "| --- | --- | --- | --- | --- |"]
+    ``| metric | unit | n | mu | sigma | [Q1, Q2, Q3, P99] |``, each value rounded to the
+    resolution of the metric's unit (:func:`proxops.analysis.formatting.format_number`; m to
+    1 mm, m/s to 0.1 mm/s, ...). statistics.csv and summary.json keep full precision."""
+    lines = ["| metric | unit | n | μ | σ | [Q1, Q2, Q3, P99] |", "| --- | --- | --- | --- | --- | --- |"]
     for metric, r in stats.iterrows():
+        unit = unit_of_metric(metric)
+        f = _formatter(unit)
         lines.append(
-            f"| {metric} | {int(r['n'])} | {f(r['mean'])} | {f(r['std'])} | "
+            f"| {metric} | {unit or '-'} | {int(r['n'])} | {f(r['mean'])} | {f(r['std'])} | "
             f"[{f(r['q1'])}, {f(r['median'])}, {f(r['q3'])}, {f(r['p99'])}] |"
         )
     return "\n".join(lines)
 
 
-def format_text_table(stats: pd.DataFrame, digits: int = 4) -> str:
+def format_text_table(stats: pd.DataFrame, digits: int | None = None) -> str:
     """Fixed-width text version of :func:`format_table4` for the terminal."""
-
-    def f(x):
-        return "nan" if not math.isfinite(x) else f"{x:.{digits}g}"
-
-    rows = [(str(m), f(r["mean"]), f(r["std"]), f"[{f(r['q1'])}, {f(r['median'])}, {f(r['q3'])}, {f(r['p99'])}]")
-            for m, r in stats.iterrows()]
-    head = ("metric", "mean", "std", "[Q1, Q2, Q3, P99]")
-    widths = [max(len(x[i]) for x in rows + [head]) for i in range(4)]
+    rows = []
+    for m, r in stats.iterrows():
+        unit = unit_of_metric(m)
+        f = _formatter(unit)
+        rows.append((str(m), unit or "-", f(r["mean"]), f(r["std"]),
+                     f"[{f(r['q1'])}, {f(r['median'])}, {f(r['q3'])}, {f(r['p99'])}]"))
+    head = ("metric", "unit", "mean", "std", "[Q1, Q2, Q3, P99]")
+    widths = [max(len(x[i]) for x in rows + [head]) for i in range(5)]
     fmt = "  ".join(f"{{:<{w}}}" for w in widths)
-    return "\n".join([fmt.format(*head)] + [fmt.format(*r) for r in rows])
+    return "\n".join([fmt.format(*head).rstrip()] + [fmt.format(*r).rstrip() for r in rows])
+
+
+def _formatter(unit: str):
+    def f(x):
+        return "nan" if not math.isfinite(x) else format_number(float(x), unit)
+
+    return f

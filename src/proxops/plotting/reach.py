@@ -124,11 +124,28 @@ def combo_map_figure(result, grid, path: Path, fmap=None) -> Path:
                    linewidths=1.0, linestyles="--")
     ax.set_xlabel("x_B [m]")
     ax.set_ylabel("y_B [m]")
-    pct = result.pct
-    ax.set_title(f"{result.omega_deg_s:g} deg/s, {result.a_max_mps2:g} m/s²: nominal {pct['nominal']:.1f}%, "
-                 f"stoch {pct['stochastic']:.1f}%, robust {pct['robust']:.1f}%"
-                 + (f", backward {pct['backward']:.1f}%" if "backward" in pct else ""), fontsize=9)
+    ax.set_title(f"Safe starts at {result.omega_deg_s:g} deg/s, {result.a_max_mps2:g} m/s²", fontsize=10)
+    region_legend(ax, result.pct, backward=result.backward is not None)
     return save(fig, path)
+
+
+def region_legend(ax, pct: dict, backward: bool = False):
+    """Legend of the four regions of a safe-start map inside the corridor (nested: robust ⊆ stochastic
+    ⊆ nominal; percentages of the corridor area are of each whole set), plus the outlines."""
+    def share(key):
+        return f" {pct[key]:.1f} %" if key in pct else ""
+
+    handles = [plt.Rectangle((0, 0), 1, 1, fc=c, ec="k", lw=0.5)
+               for c in (ROBUST_COLOR, STOCH_COLOR, NOMINAL_COLOR, "white")]
+    labels = [f"robust{share('robust')}", f"stochastic{share('stochastic')} (adds to robust)",
+              f"nominal{share('nominal')} (adds to stochastic)", "not certified"]
+    handles.append(plt.Line2D([0], [0], color="k", lw=0.6))
+    labels.append("LOS corridor")
+    if backward:
+        handles.append(plt.Line2D([0], [0], color="k", ls="--"))
+        labels.append(f"backward kernel{share('backward')}")
+    return ax.legend(handles, labels, loc="upper left", bbox_to_anchor=(1.02, 1.0), fontsize=8,
+                     title="% of the corridor area", title_fontsize=8, frameon=False)
 
 
 def double_integrator_figure(polygons: dict, path: Path, case=None) -> Path:

@@ -14,6 +14,7 @@ from typing import Any
 from pydantic import BaseModel, ValidationError
 
 from proxops.errors import ProxopsInputError
+from proxops.scenarios.dispersion_spec import SPEC_KEYS, flatten_table
 from proxops.scenarios.registry import get_system
 
 BUILTIN_DIR = Path(__file__).parent / "builtin"
@@ -28,10 +29,12 @@ UNIT_SUFFIXES = (  # longest first: "_deg_s2" before "_deg_s" before "_s"
     ("_Nm", "N m"),
     ("_mps2", "m/s^2"),
     ("_mps", "m/s"),
+    ("_ms", "ms"),
     ("_deg", "deg"),
     ("_rad", "rad"),
     ("_km", "km"),
     ("_kg", "kg"),
+    ("_m2", "m^2"),
     ("_m", "m"),
     ("_s", "s"),
     ("_N", "N"),
@@ -39,10 +42,11 @@ UNIT_SUFFIXES = (  # longest first: "_deg_s2" before "_deg_s" before "_s"
 
 
 def unit_of(key: str) -> str:
-    """Unit named by a key's suffix ('' when it has none)."""
+    """Unit named by a key's suffix ('' when it has none); ``_per_<unit>`` is the inverse unit
+    (``alpha_per_s`` -> 1/s, ``q_terminal_per_m2`` -> 1/m^2)."""
     for suffix, unit in UNIT_SUFFIXES:
         if key.endswith(suffix):
-            return unit
+            return f"1/{unit}" if key[: -len(suffix)].endswith("_per") else unit
     return ""
 
 
@@ -123,7 +127,10 @@ def apply_override(data: dict, item: str, model: type[BaseModel]) -> None:
     if "=" not in item:
         raise ProxopsInputError(f"--set {item!r}: expected key=value, e.g. --set sim.duration_s=600")
     key, _, text = item.partition("=")
-    parts = key.strip().split(".")
+    parts = _split_key(key.strip())
+    if len(parts) > 1 and parts[0] == "dispersions":
+        _override_dispersion(data, key.strip(), parts[1:], parse_value(text.strip()))
+        return
     node, node_model = data, model
     for depth, part in enumerate(parts):
         fields = _fields_of(node_model)
@@ -139,6 +146,60 @@ def apply_override(data: dict, item: str, model: type[BaseModel]) -> None:
         if not isinstance(node, dict):
             raise ProxopsInputError(f"--set {key}: {'.'.join(parts[: depth + 1])} is a value, not a table")
         node_model = fields.get(part) if fields is not None else None
+
+
+def _split_key(key: str) -> list[str]:
+    """``a."b.c".d`` -> ``["a", "b.c", "d"]`` (TOML-style quoted parts may contain dots)."""
+    parts, buf, quote = [], "", None
+    for ch in key:
+        if quote:
+            if ch == quote:
+                quote = None
+            else:
+                buf += ch
+        elif ch in "\"'":
+            quote = ch
+        elif ch == ".":
+            parts.append(buf.strip())
+            buf = ""
+        else:
+            buf += ch
+    if quote:
+        raise ProxopsInputError(f"--set {key}: unclosed quote in the key")
+    return parts + [buf.strip()]
+
+
+def _override_dispersion(data: dict, key: str, parts: list[str], value) -> None:
+    """``--set dispersions.<entry>[.<field>]=value`` whatever spelling the file used for the entry
+    (quoted dotted key or nested tables): the table is rewritten as ``{"a.b": {spec}}``; a value that
+    is a table replaces (or adds) the whole entry, ``{}`` removes it, otherwise ``<field>`` (percent,
+    sigma, ...) is set.
+    The result is validated with the scenario (the entry must name an existing key)."""
+    table = data.get("dispersions") or {}
+    if not isinstance(table, dict):
+        raise ProxopsInputError(f"--set {key}: dispersions is a value, not a table")
+    flat = flatten_table(table)
+    if parts[-1] in SPEC_KEYS and len(parts) > 1:
+        entry, spec_key = ".".join(parts[:-1]), parts[-1]
+        spec = dict(flat.get(entry) or {})
+        if entry not in flat:
+            raise ProxopsInputError(
+                f"--set {key}: no dispersion entry {entry!r} to change; entries: {', '.join(flat) or '(none)'}; "
+                f"add one whole: --set 'dispersions.\"{entry}\"={{{spec_key} = ...}}'")
+        spec[spec_key] = value
+        flat[entry] = spec
+    elif value == {}:  # remove one entry
+        entry = ".".join(parts)
+        if flat.pop(entry, None) is None:
+            raise ProxopsInputError(f"--set {key}: no dispersion entry {entry!r} to remove; entries: {', '.join(flat) or '(none)'}")
+    else:
+        entry = ".".join(parts)
+        if not isinstance(value, dict):
+            raise ProxopsInputError(
+                f"--set {key}: a dispersion entry is a table, e.g. --set 'dispersions.\"{entry}\"={{percent = 10}}'; "
+                f"or set one of its keys ({', '.join(sorted(SPEC_KEYS))})")
+        flat[entry] = value
+    data["dispersions"] = flat
 
 
 def _fields_of(model) -> dict | None:

@@ -31,24 +31,26 @@ Probability = Annotated[float, Field(ge=0.0, le=1.0)]
 class SimSection(Section):
     """Closed-loop run length and sample time."""
 
-    duration_s: Positive
-    dt_s: Positive | None = None  # sample time when the controller does not fix it
-    seed: int = 0
-    check_substeps: Annotated[int, Field(ge=1, le=1000)] = 1
+    duration_s: Positive = Field(description="simulated time of one closed-loop run (srf: at least the whole approach)")
+    dt_s: Positive | None = Field(None, description="engine sample time when the controller does not fix it "
+                                  "(none: the system's default, e.g. srf t_orb/720, los 1 s)")
+    seed: int = Field(0, description="random seed of the run (navigation noise, actuator errors); mc: the campaign seed")
+    check_substeps: Annotated[int, Field(ge=1, le=1000)] = Field(
+        1, description="constraint checks per sample (pieces of the zero-order hold) to catch violations between samples")
 
 
 class OrbitSection(Section):
     """Target orbit: give exactly one of ``sma_km`` or ``altitude_km`` (circular altitude
     above the equatorial radius 6378.137 km)."""
 
-    sma_km: Positive | None = None
-    altitude_km: float | None = None
-    ecc: Annotated[float, Field(ge=0.0, lt=1.0)] = 0.0
-    inc_deg: Annotated[float, Field(ge=0.0, le=180.0)] = 0.0
-    raan_deg: float = 0.0
-    argp_deg: float = 0.0
-    nu_deg: float = 0.0
-    epoch_utc: str = "2026-01-01T00:00:00"
+    sma_km: Positive | None = Field(None, description="target semi-major axis (give this or altitude_km; perigee above the Earth)")
+    altitude_km: float | None = Field(None, description="circular altitude above 6378.137 km (give this or sma_km)")
+    ecc: Annotated[float, Field(ge=0.0, lt=1.0)] = Field(0.0, description="target eccentricity")
+    inc_deg: Annotated[float, Field(ge=0.0, le=180.0)] = Field(0.0, description="target inclination")
+    raan_deg: float = Field(0.0, description="right ascension of the ascending node")
+    argp_deg: float = Field(0.0, description="argument of perigee")
+    nu_deg: float = Field(0.0, description="true anomaly at t = 0")
+    epoch_utc: str = Field("2026-01-01T00:00:00", description="UTC epoch of t = 0, ISO 8601 (for environment models)")
 
     @model_validator(mode="after")
     def _one_size_and_above_ground(self):
@@ -70,35 +72,41 @@ class OrbitSection(Section):
 class NavigationSection(Section):
     """Navigation errors: white Gaussian, per axis, 1-sigma."""
 
-    position_sigma_m: NonNegative = 0.0
-    velocity_sigma_mps: NonNegative = 0.0
+    position_sigma_m: NonNegative = Field(0.0, description="1-sigma relative-position error per axis (0: perfect)")
+    velocity_sigma_mps: NonNegative = Field(0.0, description="1-sigma relative-velocity error per axis (0: perfect)")
 
 
 class ActuatorSection(Section):
     """Thruster limits and execution errors (units follow the command: m/s^2 for
     acceleration, m/s for impulses)."""
 
-    max_per_axis: Positive | None = None
-    max_norm: Positive | None = None
-    min_impulse: NonNegative = 0.0
-    magnitude_sigma: NonNegative = 0.0
-    pointing_sigma_deg: NonNegative = 0.0
-    missed_probability: Probability = 0.0
+    max_per_axis: Positive | None = Field(None, description="per-axis saturation |u_i| <= max_per_axis, command "
+                                          "unit (m/s^2 or m/s); none: no limit")
+    max_norm: Positive | None = Field(None, description="saturation of |u| (direction kept), command unit; none: no limit")
+    min_impulse: NonNegative = Field(0.0, description="commands with |u| below this fire nothing (minimum impulse bit), "
+                                     "command unit")
+    magnitude_sigma: NonNegative = Field(0.0, description="relative 1-sigma magnitude error (0.01 = 1 %)")
+    pointing_sigma_deg: NonNegative = Field(0.0, description="1-sigma pointing error (random small rotation)")
+    missed_probability: Probability = Field(0.0, description="probability that a command is not executed at all")
 
 
 class TruthSection(Section):
     """Truth model for translational systems."""
 
-    model: Literal["j2", "two-body", "cw"] = "j2"
-    integrator: Literal["fast", "reference"] = "fast"
+    model: Literal["j2", "two-body", "cw"] = Field(
+        "j2", description="truth dynamics: two-body + J2 (Encke), two-body, or linear CW")
+    integrator: Literal["fast", "reference"] = Field(
+        "fast", description="fast: numba DOP853; reference: scipy solve_ivp (slower, for checks)")
 
 
 class InitialSection(Section):
     """Initial relative state of the chaser (Hill/RTN unless ``frame = "lvlh-srf"``)."""
 
-    position_m: Vector3
-    velocity_mps: Vector3 = [0.0, 0.0, 0.0]
-    frame: Literal["hill", "lvlh-srf"] = "hill"
+    position_m: Vector3 = Field(description="initial relative position of the chaser, in `frame`")
+    velocity_mps: Vector3 = Field([0.0, 0.0, 0.0], description="initial relative velocity of the chaser, in `frame`")
+    frame: Literal["hill", "lvlh-srf"] = Field(
+        "hill", description="hill: x radial, y along-track, z normal; lvlh-srf: the srf paper's x V-bar, "
+        "y -orbit normal, z R-bar")
 
     @field_validator("position_m", "velocity_mps")
     @classmethod
@@ -111,13 +119,15 @@ class InitialSection(Section):
 class ScenarioBase(Section):
     """Keys every scenario file has. ``system`` selects the system that builds it."""
 
-    name: str
-    description: str = ""
-    system: str
-    sim: SimSection
-    navigation: NavigationSection = NavigationSection()
-    actuator: ActuatorSection = ActuatorSection()
-    dispersions: dict[str, Any] = {}  # validated by proxops.analysis.campaign
+    name: str = Field(description="scenario name (shown in summaries, reports and campaign folders)")
+    description: str = Field("", description="one line saying what the scenario is")
+    system: str = Field(description="the system that builds and runs it (`proxops keys` lists them)")
+    sim: SimSection = Field(description="run length, sample time, seed")
+    navigation: NavigationSection = Field(NavigationSection(), description="navigation errors (default perfect)")
+    actuator: ActuatorSection = Field(ActuatorSection(), description="thruster limits and errors (default ideal)")
+    dispersions: dict[str, Any] = Field(
+        {}, description="Monte Carlo spread or parameter grid: \"section.key\" = {kind = ...} entries "
+        "(validated by proxops.analysis.dispersions)")
 
     @model_validator(mode="after")
     def _dispersions_address_existing_keys(self):

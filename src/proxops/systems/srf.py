@@ -45,12 +45,16 @@ ENGINE_STEPS_PER_ORBIT = 720
 class ApproachSection(Section):
     """Guidance expert inputs (Algorithm 1). ``angle_deg`` from the V-bar towards the R-bar."""
 
-    angle_deg: float = 0.0
-    hops: Annotated[int, Field(ge=1, le=50)] = 3
-    gamma: Annotated[float, Field(gt=0.0, lt=1.0)] = 0.5
-    start_m: Annotated[float, Field(gt=0.0)] = 2000.0
-    end_m: Annotated[float, Field(gt=0.0)] = 100.0  # reference point distance (Table 2: 0.1 km)
-    vbar_period_fraction: Annotated[float, Field(gt=0.0, lt=1.0)] = 0.5  # eq. (8); 0.6 in §5.4
+    angle_deg: float = Field(0.0, description="approach axis from the V-bar towards the R-bar (0 V-bar, 90 R-bar, "
+                             "else glideslope)")
+    hops: Annotated[int, Field(ge=1, le=50)] = Field(3, description="number of hops of Algorithm 1")
+    gamma: Annotated[float, Field(gt=0.0, lt=1.0)] = Field(
+        0.5, description="hop-length ratio of Algorithm 1 (each hop gamma times the previous)")
+    start_m: Annotated[float, Field(gt=0.0)] = Field(2000.0, description="start distance along the approach axis")
+    end_m: Annotated[float, Field(gt=0.0)] = Field(
+        100.0, description="reference point distance where the approach ends (Table 2: 0.1 km); < start_m")
+    vbar_period_fraction: Annotated[float, Field(gt=0.0, lt=1.0)] = Field(
+        0.5, description="V-bar hop time as a fraction of the orbit period, eq. (8) (0.6 in §5.4)")
 
     @model_validator(mode="after")
     def _end_before_start(self):
@@ -62,54 +66,74 @@ class ApproachSection(Section):
 class SrfMpcSection(Section):
     """Problem (29) settings (SI). ``None`` means the documented per-approach default."""
 
-    steps_per_hop: Annotated[int, Field(ge=1, le=100)] | None = None  # default 6 (or horizon_steps // hops)
-    horizon_steps: Annotated[int, Field(ge=1, le=1000)] | None = None  # maximum MPC horizon N
-    q_terminal_per_m2: Annotated[float, Field(gt=0.0)] = 1e-3
-    r_fuel: Annotated[float, Field(gt=0.0)] = 1.0
-    mid_hop_fuel_weight: Annotated[float, Field(ge=1.0)] | None = None  # default 1 (V-bar), 2 (others)
-    u_max_mps: Annotated[float, Field(gt=0.0)] = 3.0
-    u_budget_mps: Annotated[float, Field(gt=0.0)] | None = None
-    terminal_pos_tol_m: Annotated[float, Field(gt=0.0)] = 2.0
-    terminal_vel_tol_mps: Annotated[float, Field(gt=0.0)] = 0.005
-    r_tol_m: Annotated[float, Field(gt=0.0)] = 1.0
-    w_tol_mps: Annotated[float, Field(gt=0.0)] = 0.002
-    h_min_m: Annotated[float, Field(ge=0.0)] = 0.0
-    h_max_m: Annotated[float, Field(gt=0.0)] | None = None
-    epsilon_m: Annotated[float, Field(ge=0.0)] = 50.0
-    hop_distance_tol_frac: Annotated[float, Field(gt=0.0)] | None = None  # default None (V-bar), 0.1 (others)
-    hop_distance_weight_per_m2: Annotated[float, Field(ge=0.0)] | None = None  # default 1e-7 (V-bar), 0 (others)
-    solver: Literal["piqp", "clarabel", "daqp"] = "piqp"
+    steps_per_hop: Annotated[int, Field(ge=1, le=100)] | None = Field(
+        None, description="MPC nodes per hop (none: 6, or horizon_steps // hops)")
+    horizon_steps: Annotated[int, Field(ge=1, le=1000)] | None = Field(
+        None, description="maximum MPC horizon N in nodes (none: hops x steps_per_hop)")
+    q_terminal_per_m2: Annotated[float, Field(gt=0.0)] = Field(
+        1e-3, description="terminal position weight Q = q I of (29a) (cost in m/s units)")
+    r_fuel: Annotated[float, Field(gt=0.0)] = Field(1.0, description="weight R on the l1 norm of the impulses (29a)")
+    mid_hop_fuel_weight: Annotated[float, Field(ge=1.0)] | None = Field(
+        None, description="fuel weight of impulses between hop instants (none: 1 V-bar, 2 others)")
+    u_max_mps: Annotated[float, Field(gt=0.0)] = Field(3.0, description="impulse limit per axis (29e-f)")
+    u_budget_mps: Annotated[float, Field(gt=0.0)] | None = Field(
+        None, description="cumulative l1 delta-v budget (29g) (none: unlimited)")
+    terminal_pos_tol_m: Annotated[float, Field(gt=0.0)] = Field(
+        2.0, description="terminal box on the position error at the reference point (29d)")
+    terminal_vel_tol_mps: Annotated[float, Field(gt=0.0)] = Field(
+        0.005, description="terminal box on the velocity after the braking impulse (29d)")
+    r_tol_m: Annotated[float, Field(gt=0.0)] = Field(1.0, description="hop-end offset from the approach axis (29l)")
+    w_tol_mps: Annotated[float, Field(gt=0.0)] = Field(
+        0.002, description="hop-end along-axis velocity tolerance (29m, on the rotated velocity w)")
+    h_min_m: Annotated[float, Field(ge=0.0)] = Field(0.0, description="V-bar: shortest hop length (29n)")
+    h_max_m: Annotated[float, Field(gt=0.0)] | None = Field(
+        None, description="V-bar: longest hop length (29n) (none: approach.start_m)")
+    epsilon_m: Annotated[float, Field(ge=0.0)] = Field(
+        50.0, description="V-bar: each hop shorter than the previous by at least this (29o, corrected sign)")
+    hop_distance_tol_frac: Annotated[float, Field(gt=0.0)] | None = Field(
+        None, description="hop ends within this fraction of the hop length of Algorithm 1's distances "
+        "(none: off for V-bar, 0.1 others)")
+    hop_distance_weight_per_m2: Annotated[float, Field(ge=0.0)] | None = Field(
+        None, description="quadratic pull of hop ends towards Algorithm 1's distances (none: 1e-7 V-bar, 0 others)")
+    solver: Literal["piqp", "clarabel", "daqp"] = Field("piqp", description="QP solver of problem (29)")
 
 
 class KeepOutSection(Section):
     """Spherical KOZ (eq. 26) and its CBF (eqs. 27-29j). ``center_m`` in the paper's LVLH."""
 
-    radius_m: Annotated[float, Field(gt=0.0)] = 50.0
-    center_m: Vector3 = [0.0, 0.0, 0.0]
-    cbf: bool = True
-    alpha_per_s: Annotated[float, Field(gt=0.0)] = 0.01
-    margin_m: Annotated[float, Field(ge=0.0)] = 10.0  # the MPC plans against radius + margin (CW/nav/J2 mismatch)
-    free_drift_orbits: Annotated[float, Field(gt=0.0, le=5.0)] = 1.0
-    free_drift_nodes_per_orbit: Annotated[int, Field(ge=4, le=1000)] = 36
-    compare_without_cbf: bool = False  # run twice (with / without the CBF), §5.4
+    radius_m: Annotated[float, Field(gt=0.0)] = Field(50.0, description="keep-out sphere radius (eq. 26)")
+    center_m: Vector3 = Field([0.0, 0.0, 0.0], description="keep-out sphere centre in the paper's LVLH")
+    cbf: bool = Field(True, description="enforce the control barrier function on the free drift (27-29j)")
+    alpha_per_s: Annotated[float, Field(gt=0.0)] = Field(0.01, description="CBF class-K gain alpha (29j)")
+    margin_m: Annotated[float, Field(ge=0.0)] = Field(
+        10.0, description="the MPC plans against radius + margin (CW, navigation and J2 mismatch)")
+    free_drift_orbits: Annotated[float, Field(gt=0.0, le=5.0)] = Field(
+        1.0, description="passive-abort free-drift horizon checked by the MPC, in orbits")
+    free_drift_nodes_per_orbit: Annotated[int, Field(ge=4, le=1000)] = Field(
+        36, description="free-drift samples per orbit (29h-i)")
+    compare_without_cbf: bool = Field(False, description="run twice, with and without the CBF (§5.4)")
 
 
 class SafetySection(Section):
     """Per-run safety and success evaluation."""
 
-    reference_tolerance_m: Annotated[float, Field(gt=0.0)] = 5.0
-    abort_orbits: Annotated[float, Field(gt=0.0, le=5.0)] = 1.0
-    abort_samples: Annotated[int, Field(ge=10, le=100000)] = 721
+    reference_tolerance_m: Annotated[float, Field(gt=0.0)] = Field(
+        5.0, description="success: final distance to the reference point at most this")
+    abort_orbits: Annotated[float, Field(gt=0.0, le=5.0)] = Field(
+        1.0, description="passive-abort check: free drift from every hop state over this many orbits")
+    abort_samples: Annotated[int, Field(ge=10, le=100000)] = Field(
+        721, description="samples of each passive-abort drift")
 
 
 class SrfScenario(ScenarioBase):
-    orbit: OrbitSection
-    truth: TruthSection = TruthSection()
-    initial: InitialSection | None = None  # default: at rest on the approach axis at start_m
-    approach: ApproachSection = ApproachSection()
-    mpc: SrfMpcSection = SrfMpcSection()
-    keep_out: KeepOutSection = KeepOutSection()
-    safety: SafetySection = SafetySection()
+    orbit: OrbitSection = Field(description="target orbit")
+    truth: TruthSection = Field(TruthSection(), description="truth model")
+    initial: InitialSection | None = Field(
+        None, description="initial chaser state (none: at rest on the approach axis at approach.start_m)")
+    approach: ApproachSection = Field(ApproachSection(), description="hop guidance (Algorithm 1)")
+    mpc: SrfMpcSection = Field(SrfMpcSection(), description="hopping MPC, problem (29)")
+    keep_out: KeepOutSection = Field(KeepOutSection(), description="keep-out zone and CBF")
+    safety: SafetySection = Field(SafetySection(), description="success and passive-abort evaluation")
 
 
 # --------------------------------------------------------------------------- geometry
@@ -232,9 +256,23 @@ def build_setup(sc: SrfScenario, cbf: bool | None = None) -> Setup:
             "hop_plan": plan.as_dict(), "node_times_s": sched.times.tolist(),
             "hop_node_times_s": sched.times[sched.hop_nodes].tolist(), "cbf": bool(ctrl.cfg.cbf),
             "vbar": _is_vbar(theta), "mpc_steps_per_hop": int(len(sched.steps) - 1) // sc.approach.hops}
-    return Setup(plant=plant, controller=ctrl, duration_s=float(sched.times[-1]) + 2 * sched.dt,
+    # The run ends one sample after the braking impulse (its coast simulated), with outcome
+    # "handover": duration and stop condition say so, so the engine's step count (progress bar)
+    # is the number of steps simulated (it was one too many with a 2-step margin).
+    return Setup(plant=plant, controller=ctrl, duration_s=float(sched.times[-1]) + sched.dt,
                  navigation=navigation_model(sc.navigation), actuator=actuator_model(sc.actuator),
-                 constraints=(keep_out_hill(sc),), check_substeps=sc.sim.check_substeps, meta=meta)
+                 constraints=(keep_out_hill(sc),), stop_condition=_Handover(ctrl),
+                 check_substeps=sc.sim.check_substeps, meta=meta)
+
+
+class _Handover:
+    """Stop condition: the MPC has applied its braking impulse (picklable, unlike a closure)."""
+
+    def __init__(self, ctrl):
+        self.ctrl = ctrl
+
+    def __call__(self, t: float, x) -> str | None:
+        return "handover" if self.ctrl.finished else None
 
 
 # --------------------------------------------------------------------------- safety

@@ -50,23 +50,25 @@ def _ordered(value: list[float]) -> list[float]:
 class DeputySection(Section):
     """Deputy parameters (Table 1) and damping c of eq. 5 (0 = undamped eq. 4)."""
 
-    mass_kg: Annotated[float, Field(gt=0.0)] = 12.0
-    wheel_inertia_kgm2: Annotated[float, Field(gt=0.0)] = 4.1e-5
-    body_inertia_kgm2: Annotated[float, Field(gt=0.0)] = 5.6e-2
-    mean_motion_rad_s: Annotated[float, Field(ge=0.0)] = 1.027e-3
-    damping_Nms: Annotated[float, Field(ge=0.0)] = 0.0
+    mass_kg: Annotated[float, Field(gt=0.0)] = Field(12.0, description="deputy mass m (Table 1)")
+    wheel_inertia_kgm2: Annotated[float, Field(gt=0.0)] = Field(4.1e-5, description="reaction wheel inertia (Table 1)")
+    body_inertia_kgm2: Annotated[float, Field(gt=0.0)] = Field(5.6e-2, description="body inertia about z (Table 1)")
+    mean_motion_rad_s: Annotated[float, Field(ge=0.0)] = Field(
+        1.027e-3, description="mean motion n of the chief's circular orbit (Table 1)")
+    damping_Nms: Annotated[float, Field(ge=0.0)] = Field(
+        0.0, description="wheel-body damping c of eq. 5 (0: undamped eq. 4)")
 
 
 class LimitsSection(Section):
     """State and input limits as [min, max] (Table 2 defaults; Table 3 in case 2)."""
 
-    thrust_N: Bounds = [-2.0, 2.0]
-    wheel_acc_deg_s2: Bounds = [-1604.0, 1604.0]
-    position_m: Bounds = [-2000.0, 2000.0]
-    velocity_mps: Bounds = [-10.0, 10.0]
-    angle_deg: Bounds = [-180.0, 180.0]
-    rate_deg_s: Bounds = [-2.0, 2.0]
-    angular_acc_deg_s2: Bounds = [-1.0, 1.0]
+    thrust_N: Bounds = Field([-2.0, 2.0], description="[min, max] thrust along the body axis")
+    wheel_acc_deg_s2: Bounds = Field([-1604.0, 1604.0], description="[min, max] reaction wheel acceleration")
+    position_m: Bounds = Field([-2000.0, 2000.0], description="[min, max] of x and y")
+    velocity_mps: Bounds = Field([-10.0, 10.0], description="[min, max] of vx and vy")
+    angle_deg: Bounds = Field([-180.0, 180.0], description="[min, max] of theta, within [-180, 180]")
+    rate_deg_s: Bounds = Field([-2.0, 2.0], description="[min, max] of the body rate omega")
+    angular_acc_deg_s2: Bounds = Field([-1.0, 1.0], description="[min, max] of the body angular acceleration")
 
     @field_validator("*")
     @classmethod
@@ -85,22 +87,22 @@ class DockingSection(Section):
     """Admissible docking set (Table 1): |x|,|y| <= position_m, |vx|,|vy| <= velocity_mps,
     |theta| <= angle_deg, |omega| <= rate_deg_s."""
 
-    position_m: Annotated[float, Field(gt=0.0)] = 0.1
-    velocity_mps: Annotated[float, Field(gt=0.0)] = 0.2
-    angle_deg: Annotated[float, Field(gt=0.0)] = 2.0
-    rate_deg_s: Annotated[float, Field(gt=0.0)] = 1.0
+    position_m: Annotated[float, Field(gt=0.0)] = Field(0.1, description="docked when |x|, |y| <= this")
+    velocity_mps: Annotated[float, Field(gt=0.0)] = Field(0.2, description="docked when |vx|, |vy| <= this")
+    angle_deg: Annotated[float, Field(gt=0.0)] = Field(2.0, description="docked when |theta| <= this")
+    rate_deg_s: Annotated[float, Field(gt=0.0)] = Field(1.0, description="docked when |omega| <= this")
 
 
 class InitialStateSection(Section):
     """Initial planar state s0 = [x, y, theta, vx, vy, omega] (Hill x radial, y along-track;
     theta counter-clockwise from the Hill x axis)."""
 
-    x_m: float
-    y_m: float
-    theta_deg: float = 0.0
-    vx_mps: float = 0.0
-    vy_mps: float = 0.0
-    omega_deg_s: float = 0.0
+    x_m: float = Field(description="initial radial position (within limits.position_m)")
+    y_m: float = Field(description="initial along-track position (within limits.position_m)")
+    theta_deg: float = Field(0.0, description="initial attitude, counter-clockwise from Hill x, within [-180, 180]")
+    vx_mps: float = Field(0.0, description="initial radial velocity")
+    vy_mps: float = Field(0.0, description="initial along-track velocity")
+    omega_deg_s: float = Field(0.0, description="initial body rate")
 
     @field_validator("theta_deg")
     @classmethod
@@ -121,35 +123,45 @@ class ControllerSection(Section):
     s_H = 0 of eq. 9 is enforced as |s_H| <= fraction * docking set; 0 gives the exact
     equality, which is degenerate at the origin, see proxops.control.nmpc_underactuated)."""
 
-    variant: Literal["averaged", "general"] = "averaged"
-    horizon: PositiveInt = 30
-    dt_s: Annotated[float, Field(gt=0.0)] = 2.0
-    average_window: PositiveInt = 10
-    q: Annotated[list[Annotated[float, Field(ge=0.0)]], Field(min_length=6, max_length=6)] = [1.0, 1.0, 10.0, 10.0, 10.0, 1000.0]
-    r: Annotated[list[Annotated[float, Field(gt=0.0)]], Field(min_length=2, max_length=2)] = [1.0e-2, 1.0e-6]
-    terminal_weight: Annotated[float, Field(ge=0.0)] = 10.0
-    terminal_box_fraction: Annotated[float, Field(ge=0.0, le=1.0)] = 0.1  # general: |s_H| <= f * docking set; 0: s_H = 0
-    solver: Literal["fatrop", "ipopt"] = "fatrop"
-    model_substeps: PositiveInt = 1
-    max_iter: PositiveInt = 200
+    variant: Literal["averaged", "general"] = Field(
+        "averaged", description="averaged-value NMPC (eq. 14) or the general NMPC with terminal constraint (eq. 9)")
+    horizon: PositiveInt = Field(30, description="prediction horizon H in steps of dt_s")
+    dt_s: Annotated[float, Field(gt=0.0)] = Field(2.0, description="NMPC and engine sample time (Table 1: 2 s)")
+    average_window: PositiveInt = Field(10, description="averaging window N of eq. 14, in steps")
+    q: Annotated[list[Annotated[float, Field(ge=0.0)]], Field(min_length=6, max_length=6)] = Field(
+        [1.0, 1.0, 10.0, 10.0, 10.0, 1000.0], description="state weights on [x, y, theta, vx, vy, omega] (SI, rad)")
+    r: Annotated[list[Annotated[float, Field(gt=0.0)]], Field(min_length=2, max_length=2)] = Field(
+        [1.0e-2, 1.0e-6], description="input weights on [thrust N, wheel acceleration rad/s^2]")
+    terminal_weight: Annotated[float, Field(ge=0.0)] = Field(
+        10.0, description="terminal weight P = terminal_weight * Q")
+    terminal_box_fraction: Annotated[float, Field(ge=0.0, le=1.0)] = Field(
+        0.1, description="general variant: |s_H| <= fraction x docking set (0: the exact s_H = 0)")
+    solver: Literal["fatrop", "ipopt"] = Field("fatrop", description="NLP solver (through CasADi)")
+    model_substeps: PositiveInt = Field(1, description="RK4 substeps per sample in the prediction model")
+    max_iter: PositiveInt = Field(200, description="NLP iteration limit per warm-started solve (5x when cold)")
 
 
 class RunSection(Section):
     """One closed loop of a multi-run scenario; unset keys come from [controller]/[deputy]."""
 
-    label: Annotated[str, Field(min_length=1, pattern=r"^[A-Za-z0-9_.-]+$")]
-    variant: Literal["averaged", "general"] | None = None
-    horizon: PositiveInt | None = None
-    damping_Nms: Annotated[float, Field(ge=0.0)] | None = None
+    label: Annotated[str, Field(min_length=1, pattern=r"^[A-Za-z0-9_.-]+$")] = Field(
+        description="name of this run (output subfolder, summary key)")
+    variant: Literal["averaged", "general"] | None = Field(None, description="NMPC variant (none: controller.variant)")
+    horizon: PositiveInt | None = Field(None, description="horizon H (none: controller.horizon)")
+    damping_Nms: Annotated[float, Field(ge=0.0)] | None = Field(
+        None, description="damping c (none: deputy.damping_Nms)")
 
 
 class UnderactuatedScenario(ScenarioBase):
-    deputy: DeputySection = DeputySection()
-    limits: LimitsSection = LimitsSection()
-    docking: DockingSection = DockingSection()
-    initial_state: InitialStateSection
-    controller: ControllerSection = ControllerSection()
-    runs: list[RunSection] = []
+    actuator: ActuatorSection = Field(ActuatorSection(), description="not used by this system (its input limits are "
+                                      "in [limits]): leave it out")
+    deputy: DeputySection = Field(DeputySection(), description="deputy parameters")
+    limits: LimitsSection = Field(LimitsSection(), description="state and input limits")
+    docking: DockingSection = Field(DockingSection(), description="admissible docking set")
+    initial_state: InitialStateSection = Field(description="initial planar state")
+    controller: ControllerSection = Field(ControllerSection(), description="NMPC settings")
+    runs: list[RunSection] = Field([], description="closed loops to run, as [[runs]] tables (none: one run "
+                                   "with [controller]); the first is the main one")
 
     @model_validator(mode="after")
     def _consistent(self):
