@@ -72,9 +72,11 @@ def validate(
     as_json: Annotated[bool, typer.Option("--json")] = False,
 ):
     """Validate a scenario file (exit 0 if valid, 2 with a one-line error otherwise)."""
+    from proxops.runner import check_scenario
     from proxops.scenarios.loader import load_scenario
 
     loaded = load_scenario(scenario, set_)
+    check_scenario(loaded)
     sc = loaded.scenario
     emit({"valid": True, "name": sc.name, "system": sc.system, "source": loaded.source}, as_json,
          f"{loaded.source}: valid ({sc.system} scenario '{sc.name}')")
@@ -92,8 +94,14 @@ def run(
     as_json: Annotated[bool, typer.Option("--json", help="One JSON object on stdout.")] = False,
 ):
     """Run one closed-loop simulation and print its summary."""
+    from proxops.cli_common import check_out_dir
+    from proxops.errors import input_error
     from proxops.runner import run_scenario
 
+    if seed is not None and not 0 <= seed < 2**63:
+        raise input_error("--seed", seed, "allowed a whole number from 0 to 2^63 - 1")
+    if out is not None:
+        check_out_dir(out)
     summary = run_scenario(scenario, overrides=set_, seed=seed, out=out, figures=figures, progress=not as_json)
     emit(summary, as_json, format_summary(summary))
 
@@ -127,9 +135,10 @@ def format_summary(s: dict) -> str:
 @friendly_errors
 def demo(out: Annotated[Path, typer.Option("--out", help="Output folder.")] = Path("out")):
     """Run the built-in demonstration scenarios and write a report under OUT."""
+    from proxops.cli_common import check_out_dir
     from proxops.runner import run_demo
 
-    report = run_demo(out)
+    report = run_demo(check_out_dir(out))
     typer.echo(f"demo report written to {report}")
 
 

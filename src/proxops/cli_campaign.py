@@ -13,7 +13,7 @@ from typing import Annotated, Optional
 
 import typer
 
-from proxops.errors import ProxopsError
+from proxops.errors import ProxopsError, ProxopsInputError
 
 
 def mc(
@@ -40,8 +40,10 @@ def mc(
         raise ProxopsInputError(f"--runs {runs}: give a whole number of runs >= 1")
     if workers is not None and workers < 1:
         raise ProxopsInputError(f"--workers {workers}: give a whole number >= 1 (1 runs in this process)")
-    if connect_timeout_s <= 0:
-        raise ProxopsInputError(f"--connect-timeout-s {connect_timeout_s}: give a positive number of seconds")
+    if not (math.isfinite(connect_timeout_s) and connect_timeout_s > 0):
+        raise ProxopsInputError(f"--connect-timeout-s {connect_timeout_s}: give a positive, finite number of seconds")
+    if seed is not None and not 0 <= seed < 2**63:
+        raise ProxopsInputError(f"--seed {seed}: give a whole number from 0 to 2^63 - 1")
     out = out if out is not None else Path("out") / f"mc-{Path(scenario).stem}"
     try:
         result = run_campaign(scenario, n_runs=runs, workers=workers, scheduler=scheduler, seed=seed, out=out,
@@ -59,10 +61,22 @@ def mc(
         summary["report"] = write_report(result)["report_dir"]
     if as_json:
         sys.stdout.write(json.dumps(summary, default=str) + "\n")
-        return
-    typer.echo(format_campaign(summary, result.statistics()))
-    if report_ and (Path(summary["report"]) / "paper_table.md").is_file():
-        typer.echo("\n" + (Path(summary["report"]) / "paper_table.md").read_text())
+    else:
+        typer.echo(format_campaign(summary, result.statistics()))
+        if report_ and (Path(summary["report"]) / "paper_table.md").is_file():
+            typer.echo("\n" + (Path(summary["report"]) / "paper_table.md").read_text())
+    if summary["runs"] and not summary["succeeded"]:  # finished, but nothing worked: scripts must see it
+        typer.echo(f"error: all {summary['runs']} runs failed (first error: {_first_error(result)}); "
+                   "exit code 3", err=True)
+        raise typer.Exit(3)
+
+
+def _first_error(result) -> str:
+    t = result.table
+    bad = t[t["error"].astype(str) != ""] if "error" in t else t.iloc[0:0]
+    if len(bad):
+        return str(bad["error"].iloc[0])[:200]
+    return f"status {t['status'].iloc[0]!r}" if "status" in t and len(t) else "unknown"
 
 
 def report(
@@ -74,8 +88,12 @@ def report(
 ):
     """Rebuild the statistics tables, report.md and figures of a campaign folder."""
     from proxops.analysis.campaign import load_campaign, write_report
+    from proxops.cli_common import check_out_dir
 
+    if max_overlay < 0:
+        raise ProxopsInputError(f"--max-overlay {max_overlay}: give a whole number >= 0")
     result = load_campaign(folder)
+    check_out_dir(report_dir if report_dir is not None else Path(folder) / "report", "--report-dir")
     done = write_report(result, report_dir, figures=figures, max_overlay=max_overlay)
     if as_json:
         sys.stdout.write(json.dumps(done, default=str) + "\n")

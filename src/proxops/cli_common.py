@@ -19,7 +19,7 @@ import json
 import sys
 from pathlib import Path
 
-import click
+from typer import _click as click  # typer vendors its own click: its exceptions are these
 import typer
 from typer.core import TyperGroup
 
@@ -68,7 +68,7 @@ def guarded(call) -> int:
     try:
         rv = call()
         return rv if isinstance(rv, int) and not isinstance(rv, bool) else EXIT_OK
-    except click.exceptions.Exit as exc:
+    except typer.Exit as exc:
         return exc.exit_code
     except _CarriedInterrupt as exc:
         message = str(exc.interrupt) if isinstance(exc.interrupt, Interrupted) else ""
@@ -77,7 +77,7 @@ def guarded(call) -> int:
     except Interrupted as exc:
         typer.echo(_one_line(str(exc)) or "interrupted", err=True)
         return EXIT_INTERRUPTED
-    except (KeyboardInterrupt, click.exceptions.Abort):
+    except (KeyboardInterrupt, typer.Abort):
         typer.echo("interrupted", err=True)
         return EXIT_INTERRUPTED
     except click.exceptions.NoArgsIsHelpError as exc:

@@ -17,6 +17,7 @@ from typing import Annotated, Optional
 import numpy as np
 import typer
 
+from proxops.cli_common import ProxopsGroup
 from proxops.cli_common import emit as _emit
 from proxops.cli_common import friendly_errors as _friendly
 from proxops.cli_common import json_default as _default
@@ -24,11 +25,31 @@ from proxops.errors import ProxopsInputError
 
 reach_app = typer.Typer(
     name="reach",
+    cls=ProxopsGroup,
     help="Safe-start regions for the approach to a tumbling target: Table 2, hierarchy, backward LP, Monte Carlo maps.",
     no_args_is_help=True,
     add_completion=False,
     pretty_exceptions_enable=False,
 )
+
+
+MAX_GRID = 3000  # points per axis: the maps hold several float arrays of grid^2 per combination
+MAX_IC_AXIS = 200  # ICs per axis of the Monte Carlo (n_x * n_y runs per combination)
+
+
+def _check_grid(grid: int, y_max_m: float = 320.0) -> None:
+    if not 3 <= grid <= MAX_GRID:
+        raise ProxopsInputError(f"--grid = {grid}: give a whole number of points from 3 to {MAX_GRID} "
+                                f"(memory grows as grid^2; the paper uses 300)")
+    if not (np.isfinite(y_max_m) and y_max_m > 0):
+        raise ProxopsInputError(f"--y-max-m = {y_max_m} m: give a positive, finite extent")
+
+
+def _check_rates(omegas, amaxs) -> None:
+    if not all(np.isfinite(w) and w > 0 for w in omegas):
+        raise ProxopsInputError(f"--omega-deg = {list(omegas)} deg/s: tumble rates must be finite and > 0")
+    if not all(np.isfinite(a) and a > 0 for a in amaxs):
+        raise ProxopsInputError(f"--amax = {list(amaxs)} m/s^2: thrust authorities must be finite and > 0")
 
 
 def _fmt(v, width=7, digits=1) -> str:
@@ -49,8 +70,7 @@ def table(
     """Table 2 (nominal), stochastic/robust regions, pointwise hierarchy, backward kernel, Table 4 timings."""
     from proxops.analysis import reach as R
 
-    if grid < 3:
-        raise ProxopsInputError(f"--grid = {grid}: give a whole number of points >= 3 (paper: 300)")
+    _check_grid(grid, y_max_m)
     if backward_start not in ("inertial", "body"):
         raise ProxopsInputError(f"--backward-start = {backward_start!r}: allowed inertial, body")
     results, timings, g = R.reach_table(n_points=grid, y_max_m=y_max_m, backward=backward,
@@ -117,12 +137,11 @@ def map_(
     from proxops.analysis import reach as R
     from proxops.plotting import reach as P
 
-    if grid < 3:
-        raise ProxopsInputError(f"--grid = {grid}: give a whole number of points >= 3")
-    if not omega_deg > 0:
-        raise ProxopsInputError(f"--omega-deg = {omega_deg}: tumble rate must be > 0 deg/s")
-    if not amax > 0:
-        raise ProxopsInputError(f"--amax = {amax}: thrust authority must be > 0 m/s^2")
+    from proxops.cli_common import check_out_dir
+
+    _check_grid(grid, y_max_m)
+    _check_rates([omega_deg], [amax])
+    check_out_dir(out)
     g = R.body_grid(n_points=grid, y_max_m=y_max_m)
     res = R.analyse_combo(g, omega_deg, amax)
     payload = res.as_json()
@@ -196,12 +215,15 @@ def mc(
 
     if workers is not None and workers < 1:
         raise ProxopsInputError(f"--workers = {workers}: give a whole number >= 1")
-    if not duration_s > 0:
-        raise ProxopsInputError(f"--duration-s = {duration_s}: must be > 0 s")
+    if not (np.isfinite(duration_s) and duration_s > 0):
+        raise ProxopsInputError(f"--duration-s = {duration_s}: must be a finite number > 0 s")
+    _check_grid(grid)
+    for name, n in (("--n-x", n_x), ("--n-y", n_y)):
+        if not 1 <= n <= MAX_IC_AXIS:
+            raise ProxopsInputError(f"{name} = {n}: give a whole number of initial conditions from 1 to {MAX_IC_AXIS}")
     omegas = tuple(omega_deg) if omega_deg else R.PAPER_OMEGAS_DEG_S
     amaxs = tuple(amax) if amax else R.PAPER_A_MAX_MPS2
-    if any(w <= 0 for w in omegas) or any(a <= 0 for a in amaxs):
-        raise ProxopsInputError(f"--omega-deg {omegas} / --amax {amaxs}: all values must be > 0")
+    _check_rates(omegas, amaxs)
     positions = F.mc_initial_positions(n_y=n_y, n_x=n_x)
     t0 = time.perf_counter()
     outcomes, wall, new_runs = F.run_mc(out, omegas, amaxs, positions, duration_s, workers, scheduler, resume,

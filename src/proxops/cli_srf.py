@@ -39,11 +39,11 @@ def hop_times(
 
     if altitude_km is not None and sma_km is not None:
         raise input_error("--altitude-km/--sma-km", f"{altitude_km}/{sma_km}", "give at most one of them", "km")
-    sma_m = (R_EARTH + altitude_km * 1e3) if altitude_km is not None else (sma_km or DEFAULT_SMA_KM) * 1e3
+    sma_m = (R_EARTH + altitude_km * 1e3) if altitude_km is not None else (sma_km if sma_km is not None else DEFAULT_SMA_KM) * 1e3
     if not (math.isfinite(sma_m) and sma_m > R_EARTH):
         raise input_error("semi-major axis", sma_m / 1e3, f"must exceed the Earth radius {R_EARTH / 1e3:.3f}", "km")
-    if not math.isfinite(approach_deg):
-        raise input_error("--approach-deg", approach_deg, "must be finite", "deg")
+    if not (math.isfinite(approach_deg) and -360.0 <= approach_deg <= 360.0):
+        raise input_error("--approach-deg", approach_deg, "allowed -360 to 360 (0 V-bar, 90 R-bar)", "deg")
     if not (0.0 < vbar_period_fraction < 1.0):
         raise input_error("--vbar-period-fraction", vbar_period_fraction, "must satisfy 0 < f < 1")
     plan = plan_hops(math.radians(approach_deg), hops, gamma, start_m, end_m, mean_motion(sma_m),

@@ -31,6 +31,16 @@ def execute(loaded, seed: int | None = None, progress: bool = False) -> tuple[di
     return summary, results
 
 
+def check_scenario(loaded) -> None:
+    """Every check a run makes before its first step: the schema (done when loading), the
+    system's build (geometry, feasibility of the hop ladder, KOZ vs start...) and the
+    dispersions table. Raises ProxopsInputError with one line; ``validate`` and ``mc`` call it."""
+    from proxops.analysis.dispersions import parse_dispersions
+
+    loaded.system.build(loaded.scenario)
+    parse_dispersions(loaded.scenario, loaded.scenario.dispersions)
+
+
 def run_scenario(name_or_path: str, overrides=(), seed: int | None = None, out: Path | None = None,
                  figures: bool = True, progress: bool = False) -> dict:
     """Load, run and (with ``out``) save one scenario; returns the summary dict."""

@@ -70,6 +70,7 @@ FORMAT = "proxops-campaign/1"
 MANIFEST = "campaign.json"
 START_METHOD = "spawn"  # spawn-safe everywhere; nothing is inherited from the parent
 MAX_POOL_RESTARTS = 10
+MAX_RUNS = 10_000_000  # rows of one campaign; items are made lazily, the table of results is what grows
 FAILED_STATUSES = ("failed", "failure", "error")
 
 
@@ -418,7 +419,7 @@ def _drive(backend, func, items: Sequence, errors: str, on_batch: Callable, chun
     ``on_batch(indices, results)``. Handles Ctrl-C (:class:`_GracefulStop`: finish and hand over
     the batches in flight, then raise KeyboardInterrupt), broken local pools (restart, retry
     suspects one at a time) and lost Dask batches."""
-    queue: deque[int] = deque(range(len(items)))
+    queue = _Queue(len(items))
     suspects: set[int] = set()
     in_flight: dict[Any, list[int]] = {}
     per_item_s: float | None = None
@@ -514,6 +515,32 @@ def _drive(backend, func, items: Sequence, errors: str, on_batch: Callable, chun
             raise
         finally:
             backend.close(cancel=not finished, force=forced)
+
+
+class _Queue:
+    """Indices still to send: retried ones first (a deque), then ``next_fresh .. n - 1`` made on
+    demand, so a campaign of millions of runs starts at once and holds no list of them."""
+
+    def __init__(self, n: int):
+        self.n, self.next_fresh, self.retry = n, 0, deque()
+
+    def __len__(self) -> int:
+        return len(self.retry) + self.n - self.next_fresh
+
+    def __bool__(self) -> bool:
+        return len(self) > 0
+
+    def __getitem__(self, k: int) -> int:  # only [0] is used: the next index
+        return self.retry[0] if self.retry else self.next_fresh
+
+    def popleft(self) -> int:
+        if self.retry:
+            return self.retry.popleft()
+        self.next_fresh += 1
+        return self.next_fresh - 1
+
+    def extendleft(self, indices) -> None:
+        self.retry.extendleft(indices)
 
 
 def _finish_in_flight(backend, in_flight: dict, harvest) -> bool:
@@ -719,9 +746,13 @@ def flatten_summary(summary: dict) -> dict:
     return out
 
 
+_TIMING_MARKS = ("wall_time", "solve_time", "solve_ms", "compute_time", "compute_ms", "cpu_time", "elapsed")
+
+
 def is_timing_column(col: str) -> bool:
-    """Columns that depend on the machine and load, not on the run's inputs."""
-    return col in ("run_wall_s", "run_cpu_s") or col.startswith(METRIC_PREFIX) and ("wall_time" in col or "solve_time" in col)
+    """Columns that depend on the machine and load, not on the run's inputs (wall and CPU
+    times, solver and compute times in any unit, e.g. ``metric.mpc_solve_ms.median``)."""
+    return col in ("run_wall_s", "run_cpu_s") or col.startswith(METRIC_PREFIX) and any(m in col for m in _TIMING_MARKS)
 
 
 # --------------------------------------------------------------------------- loading scenarios
@@ -844,22 +875,49 @@ def series_dir(out: Path, run_id: int) -> Path:
 def load_campaign(out: str | Path) -> CampaignResult:
     """Read a campaign folder: manifest and all finished rows (consolidated)."""
     out = Path(out)
-    manifest_path = out / MANIFEST
-    if not manifest_path.is_file():
+    if not out.is_dir():
+        raise ProxopsInputError(f"{out}: not a folder; give a campaign folder written by `proxops mc ... --out DIR`")
+    manifest = read_manifest(out)
+    if manifest is None:
         raise ProxopsInputError(f"{out}: not a campaign folder (no {MANIFEST}); `proxops mc ... --out {out}` makes one")
-    manifest = json.loads(manifest_path.read_text())
-    return CampaignResult(table=read_rows(out), manifest=manifest, out=out)
+    return CampaignResult(table=read_rows(out, strict=True), manifest=manifest, out=out)
 
 
-def read_rows(out: Path) -> pd.DataFrame:
-    """Consolidate ``runs/part-*.parquet`` (last write of a run_id wins), sorted by run_id."""
+_MANIFEST_KEYS = ("format", "scenario", "scenario_hash", "seed", "n_runs", "scenario_data")
+
+
+def read_manifest(out: Path) -> dict | None:
+    """The folder's ``campaign.json`` (None if absent); a damaged one is a one-line error."""
+    path = Path(out) / MANIFEST
+    if not path.is_file():
+        return None
+    try:
+        manifest = json.loads(path.read_text())
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
+        raise ProxopsInputError(f"{path}: damaged campaign manifest ({exc}); restore it, or start the campaign "
+                                "again in another folder") from None
+    missing = [k for k in _MANIFEST_KEYS if not isinstance(manifest, dict) or k not in manifest]
+    if missing:
+        raise ProxopsInputError(f"{path}: damaged campaign manifest (missing {', '.join(missing)}); restore it, "
+                                "or start the campaign again in another folder")
+    return manifest
+
+
+def read_rows(out: Path, strict: bool = False) -> pd.DataFrame:
+    """Consolidate ``runs/part-*.parquet`` (last write of a run_id wins), sorted by run_id.
+    A damaged part is an error with ``strict`` (reports must not silently drop runs); otherwise
+    a warning, and its runs count as missing (resume runs them again; the file is kept)."""
     parts = sorted((Path(out) / "runs").glob("part-*.parquet"))
     frames = []
     for p in parts:
         try:
             frames.append(pd.read_parquet(p))
-        except Exception as exc:  # a part cut by a crash: its runs count as missing
-            print(f"warning: skipping unreadable {p.name}: {exc}", file=sys.stderr)
+        except Exception as exc:  # a part cut by a crash or damaged on disk
+            if strict:
+                raise ProxopsInputError(
+                    f"{p}: unreadable results file ({type(exc).__name__}); `proxops mc ... --resume` runs its "
+                    "runs again, then move the file away") from None
+            print(f"warning: {p.name} is unreadable, its runs count as missing and run again", file=sys.stderr)
     if not frames:
         return _empty_table()
     return _tidy(pd.concat(frames, ignore_index=True, sort=False))
@@ -891,15 +949,16 @@ class _RowWriter:
     def __init__(self, out: Path | None, flush_s: float = 2.0):
         self.out = out
         self.flush_s = flush_s
-        self.rows: list[dict] = []
+        self.rows: list[dict] = []  # kept only without a folder (in-memory campaigns)
+        self.written: list[Path] = []  # parts this writer wrote (compaction deletes only these)
         self.pending: list[dict] = []
         self.last_flush = time.perf_counter()
         if out is not None:
             (out / "runs").mkdir(parents=True, exist_ok=True)
 
     def add(self, rows: list[dict], series: list) -> None:
-        self.rows.extend(rows)
         if self.out is None:
+            self.rows.extend(rows)
             return
         for row, res in zip(rows, series):
             if res is not None:
@@ -917,7 +976,8 @@ class _RowWriter:
         if self.out is None or not self.pending:
             return
         ids = [r["run_id"] for r in self.pending]
-        write_part(self.out, pd.DataFrame(self.pending), f"{min(ids):08d}-{max(ids):08d}-{uuid.uuid4().hex[:8]}")
+        self.written.append(write_part(self.out, pd.DataFrame(self.pending),
+                                       f"{min(ids):08d}-{max(ids):08d}-{uuid.uuid4().hex[:8]}"))
         self.pending = []
         self.last_flush = time.perf_counter()
 
@@ -931,15 +991,16 @@ def write_part(out: Path, frame: pd.DataFrame, tag: str) -> Path:
     return final
 
 
-def compact(out: Path) -> None:
-    """Merge all parts of a campaign folder into one (duplicates of a crash in between are
-    harmless: reading deduplicates on run_id)."""
-    parts = sorted((Path(out) / "runs").glob("part-*.parquet"))
+def compact(out: Path, parts: Sequence[Path]) -> None:
+    """Merge ``parts`` (files this process wrote) into one; never touches another file, so a
+    resume cannot delete results it did not write. A crash in between leaves duplicates,
+    which are harmless: reading deduplicates on run_id."""
+    parts = [Path(p) for p in parts if Path(p).is_file()]
     if len(parts) <= 1:
         return
-    table = read_rows(out)
-    last = int(table["run_id"].max()) if len(table) else 0
-    merged = write_part(out, table, f"{0:08d}-{last:08d}-all{uuid.uuid4().hex[:6]}")
+    table = _tidy(pd.concat([pd.read_parquet(p) for p in parts], ignore_index=True, sort=False))
+    merged = write_part(out, table, f"{int(table['run_id'].min()):08d}-{int(table['run_id'].max()):08d}-"
+                                    f"all{uuid.uuid4().hex[:6]}")
     for p in parts:
         if p != merged:
             p.unlink(missing_ok=True)
@@ -947,17 +1008,20 @@ def compact(out: Path) -> None:
 
 def _check_out(out: Path, manifest: dict, resume: bool) -> dict | None:
     """Existing manifest for resume (or None for a new campaign); clear errors on mismatch."""
-    path = out / MANIFEST
-    if not path.is_file():
+    if out.exists() and not out.is_dir():
+        raise ProxopsInputError(f"--out {out}: exists and is a file; give a folder (it is created if missing)")
+    old = read_manifest(out) if out.is_dir() else None
+    if old is None:
+        leftovers = [p.name for p in (out / "runs", out / "series") if p.exists()]
+        if leftovers:  # rows of an unknown campaign: never mix them with new ones
+            raise ProxopsInputError(
+                f"--out {out}: holds {' and '.join(leftovers)}/ but no {MANIFEST}, so those results belong to no "
+                "known campaign; choose an empty or new folder")
         if resume:
             raise ProxopsInputError(
                 f"--resume {out}: no {MANIFEST} there, so nothing to resume; leave out --resume to start a campaign"
             )
         return None
-    try:
-        old = json.loads(path.read_text())
-    except json.JSONDecodeError as exc:
-        raise ProxopsInputError(f"{path}: unreadable campaign manifest ({exc})") from None
     if not resume:
         raise ProxopsInputError(
             f"--out {out} already holds a campaign of scenario {old.get('scenario')!r} "
@@ -971,19 +1035,17 @@ def _check_out(out: Path, manifest: dict, resume: bool) -> dict | None:
             f"(content hash {old.get('scenario_hash')}), not of {manifest['scenario']!r} with these overrides "
             f"(hash {manifest['scenario_hash']}); use the same scenario file and --set options, or another --out"
         )
+    if old.get("proxops_version") != manifest["proxops_version"]:
+        raise ProxopsInputError(
+            f"--resume {out}: that campaign was run by proxops {old.get('proxops_version')}, this is "
+            f"{manifest['proxops_version']}; rows of two versions would be mixed: finish it with that version or "
+            "start again in another folder")
     if old.get("seed") != manifest["seed"]:
         raise ProxopsInputError(
             f"--resume {out}: campaign seed {manifest['seed']} differs from the folder's seed {old.get('seed')}; "
             f"pass --seed {old.get('seed')} or use another --out"
         )
     return old
-
-
-def _peek_manifest(out: Path) -> dict | None:
-    try:
-        return json.loads((out / MANIFEST).read_text())
-    except (OSError, json.JSONDecodeError):
-        return None
 
 
 def run_campaign(scenario, n_runs: int | None = None, workers: int | None = None, scheduler=None,
@@ -999,10 +1061,14 @@ def run_campaign(scenario, n_runs: int | None = None, workers: int | None = None
     (Parquet, incrementally) and with ``keep_series`` each run's time series; ``out=None``
     keeps the rows in memory only. Ctrl-C saves the finished runs and re-raises KeyboardInterrupt.
     """
-    if n_runs is not None and (isinstance(n_runs, bool) or not isinstance(n_runs, (int, np.integer)) or n_runs < 1):
-        raise ProxopsInputError(f"runs = {n_runs!r}: give a whole number of runs >= 1")
-    if seed is not None and (isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0):
-        raise ProxopsInputError(f"seed = {seed!r}: give a whole number >= 0")
+    if n_runs is not None and (isinstance(n_runs, bool) or not isinstance(n_runs, (int, np.integer))
+                               or not 1 <= n_runs <= MAX_RUNS):
+        raise ProxopsInputError(f"runs = {n_runs!r}: give a whole number of runs from 1 to {MAX_RUNS:,}")
+    if seed is not None and (isinstance(seed, bool) or not isinstance(seed, (int, np.integer))
+                             or not 0 <= seed < 2**63):
+        raise ProxopsInputError(f"seed = {seed!r}: give a whole number from 0 to 2^63 - 1")
+    if not (isinstance(connect_timeout_s, (int, float)) and math.isfinite(connect_timeout_s) and connect_timeout_s > 0):
+        raise ProxopsInputError(f"connect_timeout_s = {connect_timeout_s!r} s: give a positive, finite number of seconds")
     if resume and out is None:
         raise ProxopsInputError("resume: give the campaign folder (--out DIR) to resume")
     if chunk_size is not None and (not isinstance(chunk_size, int) or chunk_size < 1):
@@ -1012,7 +1078,8 @@ def run_campaign(scenario, n_runs: int | None = None, workers: int | None = None
     prep = _prepare(scenario, overrides)
     sc = prep.loaded.scenario
     plan = prep.plan
-    previous = _peek_manifest(Path(out)) if (resume and out is not None) else None
+    prep.loaded.system.build(sc)  # every check a run makes, once, before anything is written
+    previous = read_manifest(Path(out)) if (resume and out is not None and Path(out).is_dir()) else None
     if seed is None:
         seed = previous["seed"] if previous and isinstance(previous.get("seed"), int) else int(sc.sim.seed)
     seed = int(seed)
@@ -1024,6 +1091,8 @@ def run_campaign(scenario, n_runs: int | None = None, workers: int | None = None
         else:
             raise ProxopsInputError("runs: give the number of runs (--runs N, a whole number >= 1)")
     n_runs = int(n_runs)
+    if n_runs > MAX_RUNS:
+        raise ProxopsInputError(f"runs = {n_runs:,} (the grid size): at most {MAX_RUNS:,} runs in one campaign")
 
     system_module = type(prep.loaded.system).__module__
     data_hash = scenario_hash(prep.data)
@@ -1060,8 +1129,7 @@ def run_campaign(scenario, n_runs: int | None = None, workers: int | None = None
     spec_data = {k: v for k, v in prep.data.items() if k != "dispersions"}
     spec = CampaignSpec(data=spec_data, system=sc.system, system_module=system_module, source=prep.source,
                         scenario_hash=data_hash, keep_series=manifest["keep_series"])
-    todo = [i for i in range(n_runs) if i not in done_ids]
-    items = [make_item(plan, seed, i) for i in todo]
+    items = _LazyItems(plan, seed, n_runs, done_ids)
     # connect (Dask) / check workers before writing anything, so a bad --scheduler leaves no folder behind
     backend = _make_backend(workers, scheduler, spec, connect_timeout_s, len(items)) if items else None
     if out_path is not None:
@@ -1109,12 +1177,26 @@ def run_campaign(scenario, n_runs: int | None = None, workers: int | None = None
         bar.close()
         wall = time.perf_counter() - wall0
     if out_path is not None:
+        compact(out_path, writer.written)
         table = read_rows(out_path)
-        if len(table) >= n_runs:
-            compact(out_path)
     else:
         table = _tidy(pd.DataFrame(writer.rows)) if writer.rows else _empty_table()
     return CampaignResult(table=table, manifest=manifest, out=out_path, wall_time_s=wall, new_runs=state.done)
+
+
+class _LazyItems:
+    """The runs still to do, as a sequence whose items are made when sent (a campaign of
+    millions of runs starts at once)."""
+
+    def __init__(self, plan: DispersionPlan, seed: int, n_runs: int, done_ids: set[int]):
+        self.plan, self.seed = plan, seed
+        self.todo = range(n_runs) if not done_ids else [i for i in range(n_runs) if i not in done_ids]
+
+    def __len__(self) -> int:
+        return len(self.todo)
+
+    def __getitem__(self, k: int) -> RunItem:
+        return make_item(self.plan, self.seed, self.todo[k])
 
 
 def make_item(plan: DispersionPlan, campaign_seed: int, run_id: int) -> RunItem:

@@ -34,9 +34,17 @@ class SimSection(Section):
     duration_s: Positive = Field(description="simulated time of one closed-loop run (srf: at least the whole approach)")
     dt_s: Positive | None = Field(None, description="engine sample time when the controller does not fix it "
                                   "(none: the system's default, e.g. srf t_orb/720, los 1 s)")
-    seed: int = Field(0, description="random seed of the run (navigation noise, actuator errors); mc: the campaign seed")
+    seed: Annotated[int, Field(ge=0, le=2**63 - 1)] = Field(
+        0, description="random seed of the run (navigation noise, actuator errors); mc: the campaign seed")
     check_substeps: Annotated[int, Field(ge=1, le=1000)] = Field(
         1, description="constraint checks per sample (pieces of the zero-order hold) to catch violations between samples")
+
+    @model_validator(mode="after")
+    def _sample_time_fits(self):
+        if self.dt_s is not None and self.dt_s > self.duration_s:
+            raise ValueError(f"sim.dt_s = {self.dt_s:g} s is longer than sim.duration_s = {self.duration_s:g} s: "
+                             "the run would have no step; give dt_s <= duration_s")
+        return self
 
 
 class OrbitSection(Section):

@@ -45,8 +45,9 @@ ENGINE_STEPS_PER_ORBIT = 720
 class ApproachSection(Section):
     """Guidance expert inputs (Algorithm 1). ``angle_deg`` from the V-bar towards the R-bar."""
 
-    angle_deg: float = Field(0.0, description="approach axis from the V-bar towards the R-bar (0 V-bar, 90 R-bar, "
-                             "else glideslope)")
+    angle_deg: Annotated[float, Field(ge=-360.0, le=360.0)] = Field(
+        0.0, description="approach axis from the V-bar towards the R-bar (0 V-bar, 90 R-bar, else glideslope; "
+        "180-360 or negative: the other quadrants, e.g. 250 as in Fig. 9b)")
     hops: Annotated[int, Field(ge=1, le=50)] = Field(3, description="number of hops of Algorithm 1")
     gamma: Annotated[float, Field(gt=0.0, lt=1.0)] = Field(
         0.5, description="hop-length ratio of Algorithm 1 (each hop gamma times the previous)")
@@ -220,6 +221,8 @@ def build_controller(sc: SrfScenario, cbf: bool | None = None):
         raise input_error("approach.end_m", ap.end_m,
                           f"the reference point lies inside the keep-out zone (radius {koz.radius_m:g} m): "
                           "raise end_m or shrink keep_out.radius_m", "m")
+    if vbar:
+        _check_vbar_hop_lengths(ap, m)
     d = np.array([h.start_m for h in plan.hops] + [plan.hops[-1].end_m])
     frac = m.hop_distance_tol_frac if m.hop_distance_tol_frac is not None else (None if vbar else 0.1)
     use_cbf = ko.cbf if cbf is None else cbf
@@ -334,6 +337,24 @@ def passive_abort(sc: SrfScenario, result) -> list[dict]:
     return out
 
 
+def _check_vbar_hop_lengths(ap, m) -> None:
+    """Rows (29n)-(29o) admit hop lengths L_1..L_N with h_min <= L_j <= h_max, L_{j+1} <= L_j - epsilon and
+    sum L_j = start - end only if N h_min + epsilon N(N-1)/2 <= start - end <= N h_max - epsilon N(N-1)/2
+    (the shortest and longest such sequences); otherwise every MPC step would need relaxed rows."""
+    n, total = ap.hops, ap.start_m - ap.end_m
+    h_max = m.h_max_m if m.h_max_m is not None else ap.start_m
+    ladder = m.epsilon_m * n * (n - 1) / 2.0
+    if n * m.h_min_m + ladder > total:
+        most = (total - n * m.h_min_m) / (n * (n - 1) / 2.0) if n > 1 else math.inf
+        raise input_error("mpc.epsilon_m", m.epsilon_m,
+                          f"{n} V-bar hops over {total:g} m cannot each shrink by {m.epsilon_m:g} m (29o) with "
+                          f"h_min_m = {m.h_min_m:g} m: give epsilon_m <= {most:.4g}, fewer hops or a lower h_min_m", "m")
+    if n * h_max - ladder < total:
+        raise input_error("mpc.h_max_m", h_max,
+                          f"{n} V-bar hops of at most {h_max:g} m shrinking by {m.epsilon_m:g} m cannot cover "
+                          f"{total:g} m: raise h_max_m, add hops or lower epsilon_m", "m")
+
+
 def summarize_result(sc: SrfScenario, result) -> dict:
     """Extra JSON keys of an srf run: arrival, hops, dv per LVLH axis, KOZ and passive-abort safety."""
     from proxops.frames.lvlh import hill_vector_to_lvlh
@@ -344,8 +365,10 @@ def summarize_result(sc: SrfScenario, result) -> dict:
     node_times = result.meta.get("node_times_s") or [result.t[-1]]
     t_arrival = float(node_times[-1])
     k_arr = int(np.argmin(np.abs(result.t - t_arrival)))
-    arrived = abs(result.t[k_arr] - t_arrival) < 1e-6 * max(1.0, t_arrival) + 1e-9
+    reached_time = abs(result.t[k_arr] - t_arrival) < 1e-6 * max(1.0, t_arrival) + 1e-9
     arrival_err = float(np.linalg.norm(result.x_true[k_arr, :3] - p_ref))
+    # arrived: the run lasted to the planned arrival AND the chaser is at the reference point
+    arrived = bool(reached_time and arrival_err <= sc.safety.reference_tolerance_m)
     koz = keep_out_hill(sc)
     dist = koz.distance_to_surface(result.x_true[:, :3])
     u = result.u_applied
@@ -362,11 +385,11 @@ def summarize_result(sc: SrfScenario, result) -> dict:
         "approach_deg": sc.approach.angle_deg,
         "hops": sc.approach.hops,
         "period_s": period,
-        "arrived": bool(arrived),
+        "arrived": arrived,
         "arrival_time_s": t_arrival,
         "arrival_time_orbits": t_arrival / period,
         "arrival_error_m": arrival_err,
-        "reached_reference": bool(arrived and arrival_err <= sc.safety.reference_tolerance_m),
+        "reached_reference": arrived,
         "reference_tolerance_m": sc.safety.reference_tolerance_m,
         "min_range_fine_m": min_range_fine,
         "koz_violation_samples": int(np.sum(dist < 0.0)),
@@ -384,6 +407,10 @@ def summarize_result(sc: SrfScenario, result) -> dict:
         "abort_min_range_m": float(min(item["min_range_m"] for item in abort)) if abort else math.nan,
         "solves": int(np.nansum(result.info.get("solved", np.zeros(1)))),
     }
+    if not arrived:  # the engine's stop reason (e.g. handover) says nothing of where the chaser is
+        out["status"] = (f"failed: ended {arrival_err:.1f} m from the reference point (tolerance "
+                         f"{sc.safety.reference_tolerance_m:g} m)" if reached_time else
+                         f"failed: the run ended at {result.t[-1]:.1f} s, before the planned arrival at {t_arrival:.1f} s")
     if abort and "return_miss_m" in abort[0]:
         out["abort_return_miss_max_m"] = float(max(item["return_miss_m"] for item in abort))
     mask = result.info.get("solved")

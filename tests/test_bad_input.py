@@ -1,0 +1,244 @@
+"""Bad input a user can give, across every command: exit code 2, exactly one ``error:`` line
+on stderr, no traceback (issue: reliability). Each case names what is wrong; the expected
+fragment is checked in the message so the line is the right one, not merely one line."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+from typer.testing import CliRunner
+
+import test_campaign_toy  # noqa: F401  (registers the toy system for the campaign cases)
+from proxops.cli import app
+
+SK = ["--set", "truth.model=cw", "--set", "sim.duration_s=300"]  # a station-keeping run of a few ms
+
+
+@pytest.fixture(scope="module")
+def files(tmp_path_factory) -> dict[str, Path]:
+    d = tmp_path_factory.mktemp("bad")
+    f = {"dir": d, "afile": d / "afile", "bad_toml": d / "bad.toml", "bad_system": d / "badsys.toml",
+         "empty": d / "empty.toml", "unknown_key": d / "unknown.toml", "wrong_type": d / "type.toml"}
+    f["afile"].write_text("x")
+    f["bad_toml"].write_text('name = "x"\nsystem = "srf"\n[sim\n')
+    f["bad_system"].write_text('name = "x"\nsystem = "nope"\n')
+    f["empty"].write_text("")
+    base = Path(__file__).resolve().parents[1] / "src/proxops/scenarios/builtin/station-keeping.toml"
+    f["unknown_key"].write_text(base.read_text().replace("[sim]", "[sim]\nbogus_key_s = 3.0", 1))
+    f["wrong_type"].write_text(base.read_text().replace("[sim]", '[sim]\ncheck_substeps = "many"', 1))
+    # campaign folders: a good one (toy, 2 runs), then damaged copies
+    good = d / "good"
+    res = CliRunner().invoke(app, ["mc", _toy_file(d), "--runs", "2", "--workers", "1", "--out", str(good),
+                                   "--no-progress", "--json"])
+    assert res.exit_code == 0, res.output
+    f["good"] = good
+    for name, damage in (("trunc_manifest", "manifest"), ("bad_part", "part"), ("other_version", "version")):
+        import shutil
+
+        copy = d / name
+        shutil.copytree(good, copy)
+        if damage == "manifest":
+            text = (copy / "campaign.json").read_text()
+            (copy / "campaign.json").write_text(text[: len(text) // 2])
+        elif damage == "part":
+            part = next((copy / "runs").glob("part-*.parquet"))
+            part.write_bytes(part.read_bytes()[:40])
+        else:
+            m = json.loads((copy / "campaign.json").read_text())
+            m["proxops_version"] = "0.0.1"
+            (copy / "campaign.json").write_text(json.dumps(m))
+        f[name] = copy
+    mixed = d / "mixed"
+    (mixed / "runs").mkdir(parents=True)
+    (mixed / "runs" / "part-00000000-00000009-old.parquet").write_bytes(b"old rows")
+    f["mixed"] = mixed
+    f["toy"] = Path(_toy_file(d))
+    return f
+
+
+def _toy_file(d: Path) -> str:
+    from test_interrupt import write_toy_toml
+
+    return str(write_toy_toml(d / "toy.toml"))
+
+
+# (case id, args with {placeholders} for files, fragment expected in the error line)
+CASES = [
+    # scenario files and TOML
+    ("no-such-scenario", ["run", "nosuch"], "no such file"),
+    ("invalid-toml", ["run", "{bad_toml}"], "not valid TOML"),
+    ("unknown-system", ["run", "{bad_system}"], "system"),
+    ("scenario-is-folder", ["validate", "{dir}"], ""),
+    ("empty-toml", ["validate", "{empty}"], ""),
+    ("unknown-key", ["validate", "{unknown_key}"], "bogus_key_s"),
+    ("wrong-type", ["validate", "{wrong_type}"], "check_substeps"),
+    ("set-without-equals", ["validate", "station-keeping", "--set", "sim.duration_s"], "sim.duration_s"),
+    ("set-unknown-key", ["validate", "station-keeping", "--set", "sim.nope_s=3"], "nope_s"),
+    ("set-unknown-section", ["validate", "station-keeping", "--set", "nosection.x_m=3"], "nosection"),
+    # values: range, NaN, inf, types
+    ("duration-nan", ["run", "station-keeping", "--set", "sim.duration_s=nan"], "finite"),
+    ("duration-inf", ["run", "station-keeping", "--set", "sim.duration_s=inf"], "finite"),
+    ("duration-negative", ["validate", "station-keeping", "--set", "sim.duration_s=-5"], "duration_s"),
+    ("duration-text", ["validate", "station-keeping", "--set", "sim.duration_s=abc"], "duration_s"),
+    ("dt-longer-than-run", ["run", "station-keeping", "--set", "sim.dt_s=1000", "--set", "sim.duration_s=100"],
+     "dt_s"),
+    ("check-substeps-zero", ["validate", "station-keeping", "--set", "sim.check_substeps=0"], "check_substeps"),
+    ("altitude-underground", ["validate", "station-keeping", "--set", "orbit.altitude_km=-100"], "Earth"),
+    ("ecc-above-one", ["validate", "station-keeping", "--set", "orbit.ecc=1.5"], "ecc"),
+    ("srf-angle-400", ["validate", "srf-vbar", "--set", "approach.angle_deg=400"], "angle_deg"),
+    ("srf-hops-zero", ["validate", "srf-vbar", "--set", "approach.hops=0"], "hops"),
+    ("srf-gamma-above-one", ["validate", "srf-vbar", "--set", "approach.gamma=1.5"], "gamma"),
+    ("srf-start-text", ["validate", "srf-vbar", "--set", "approach.start_m=abc"], "start_m"),
+    ("srf-epsilon-infeasible", ["validate", "srf-vbar", "--set", "mpc.epsilon_m=2000"], "epsilon_m"),
+    ("srf-koz-larger-than-start", ["validate", "srf-vbar", "--set", "keep_out.radius_m=5000"], "keep-out"),
+    ("srf-unknown-solver", ["validate", "srf-vbar", "--set", "mpc.solver=foo"], "solver"),
+    ("los-rate-nan", ["validate", "los-tumble", "--set", "target.tumble_rate_deg_s=nan"], "tumble_rate_deg_s"),
+    # seeds
+    ("run-seed-negative", ["run", "station-keeping", "--seed", "-1", *SK], "--seed"),
+    ("set-seed-negative", ["run", "station-keeping", "--set", "sim.seed=-1"], "seed"),
+    ("mc-seed-negative", ["mc", "station-keeping-mc", "--runs", "2", "--seed", "-1", "--out", "{dir}/s1"], "seed"),
+    ("run-seed-text", ["run", "station-keeping", "--seed", "one"], "--seed"),
+    # options of the wrong type or unknown
+    ("workers-text", ["mc", "station-keeping-mc", "--workers", "two"], "--workers"),
+    ("runs-text", ["mc", "station-keeping-mc", "--runs", "many"], "--runs"),
+    ("unknown-option", ["run", "station-keeping", "--bogus"], "--bogus"),
+    ("missing-argument", ["run"], "scenario"),
+    ("unknown-command", ["fly"], "fly"),
+    # hop-times
+    ("hop-sma-zero", ["hop-times", "--approach-deg", "0", "--sma-km", "0"], "semi-major axis"),
+    ("hop-angle-400", ["hop-times", "--approach-deg", "400"], "--approach-deg"),
+    ("hop-angle-nan", ["hop-times", "--approach-deg", "nan"], "--approach-deg"),
+    ("hop-hops-zero", ["hop-times", "--approach-deg", "0", "--hops", "0"], "hops"),
+    ("hop-gamma-two", ["hop-times", "--approach-deg", "0", "--gamma", "2"], "gamma"),
+    ("hop-both-sizes", ["hop-times", "--approach-deg", "0", "--altitude-km", "500", "--sma-km", "8000"], "at most one"),
+    ("hop-period-fraction", ["hop-times", "--approach-deg", "0", "--vbar-period-fraction", "1.5"], "fraction"),
+    # campaigns: sizes, scheduler, timeouts
+    ("mc-runs-zero", ["mc", "station-keeping-mc", "--runs", "0"], "--runs"),
+    ("mc-runs-negative", ["mc", "station-keeping-mc", "--runs", "-2"], "--runs"),
+    ("mc-runs-too-many", ["mc", "station-keeping-mc", "--runs", "100000000", "--out", "{dir}/big"], "10,000,000"),
+    ("mc-workers-zero", ["mc", "station-keeping-mc", "--runs", "2", "--workers", "0"], "--workers"),
+    ("mc-timeout-nan", ["mc", "station-keeping-mc", "--runs", "2", "--connect-timeout-s", "nan"], "connect-timeout"),
+    ("mc-timeout-negative", ["mc", "station-keeping-mc", "--runs", "2", "--connect-timeout-s", "-1"], "connect-timeout"),
+    ("mc-scheduler-no-port", ["mc", "station-keeping-mc", "--runs", "2", "--scheduler", "tcp://", "--out",
+                              "{dir}/sch1"], "--scheduler"),
+    ("mc-scheduler-malformed", ["mc", "station-keeping-mc", "--runs", "2", "--scheduler", "foo:bar:baz", "--out",
+                                "{dir}/sch2"], "--scheduler"),
+    ("mc-scheduler-no-file", ["mc", "station-keeping-mc", "--runs", "2", "--scheduler", "{dir}/none.json", "--out",
+                              "{dir}/sch3"], "scheduler file"),
+    ("mc-dispersion-negative", ["mc", "station-keeping-mc", "--runs", "2", "--out", "{dir}/d1", "--set",
+                                "dispersions.initial.velocity_mps.percent=-1"], "percent"),
+    ("mc-infeasible-nominal", ["mc", "srf-vbar-mc", "--runs", "2", "--out", "{dir}/koz", "--set",
+                               "keep_out.radius_m=5000"], "keep-out"),
+    # campaign folders: mixed, damaged, resumed wrongly
+    ("mc-out-is-file", ["mc", "station-keeping-mc", "--runs", "2", "--out", "{afile}"], "is a file"),
+    ("mc-out-mixed", ["mc", "station-keeping-mc", "--runs", "2", "--out", "{mixed}"], "no campaign.json"),
+    ("mc-resume-nothing", ["mc", "station-keeping-mc", "--runs", "2", "--out", "{dir}/empty-resume", "--resume"],
+     "nothing to resume"),
+    ("mc-resume-other-scenario", ["mc", "station-keeping-mc", "--runs", "2", "--out", "{good}", "--resume"],
+     "holds a campaign"),
+    ("mc-resume-other-seed", ["mc", "{toy}", "--out", "{good}", "--resume", "--seed", "99"], "seed"),
+    ("mc-resume-other-version", ["mc", "{toy}", "--out", "{other_version}", "--resume"], "0.0.1"),
+    ("mc-resume-damaged-manifest", ["mc", "{toy}", "--out", "{trunc_manifest}", "--resume"], "damaged"),
+    ("mc-new-on-existing", ["mc", "{toy}", "--runs", "2", "--out", "{good}"], "--resume"),
+    ("report-not-campaign", ["report", "{dir}"], "not a campaign folder"),
+    ("report-file", ["report", "{afile}"], "not a folder"),
+    ("report-damaged-manifest", ["report", "{trunc_manifest}"], "damaged"),
+    ("report-damaged-part", ["report", "{bad_part}"], "unreadable"),
+    ("report-dir-is-file", ["report", "{good}", "--report-dir", "{afile}"], "--report-dir"),
+    ("report-max-overlay", ["report", "{good}", "--max-overlay", "-1"], "--max-overlay"),
+    # output paths: a file, cannot be created, read-only file system
+    ("run-out-is-file", ["run", "station-keeping", "--out", "{afile}", *SK], "is a file"),
+    ("run-out-under-file", ["run", "station-keeping", "--out", "{afile}/sub", *SK], "cannot create"),
+    ("run-out-read-only", ["run", "station-keeping", "--out", "/proc/proxops-test", *SK], "--out"),
+    ("demo-out-is-file", ["demo", "--out", "{afile}"], "is a file"),
+    ("demo-out-read-only", ["demo", "--out", "/sys/proxops-test"], "--out"),
+    ("reach-map-out-is-file", ["reach", "map", "--omega-deg", "2", "--amax", "0.1", "--out", "{afile}"], "is a file"),
+    ("reach-map-out-read-only", ["reach", "map", "--omega-deg", "2", "--amax", "0.1", "--out", "/proc/x"], "--out"),
+    ("report-dir-read-only", ["report", "{good}", "--report-dir", "/sys/proxops-test"], "--report-dir"),
+    # reach sizes and values
+    ("reach-map-grid-huge", ["reach", "map", "--omega-deg", "2", "--amax", "0.1", "--grid", "100000", "--out",
+                             "{dir}/rm"], "3000"),
+    ("reach-map-grid-two", ["reach", "map", "--omega-deg", "2", "--amax", "0.1", "--grid", "2", "--out",
+                            "{dir}/rm"], "--grid"),
+    ("reach-map-omega-negative", ["reach", "map", "--omega-deg", "-1", "--amax", "0.1", "--out", "{dir}/rm"],
+     "--omega-deg"),
+    ("reach-map-amax-nan", ["reach", "map", "--omega-deg", "2", "--amax", "nan", "--out", "{dir}/rm"], "--amax"),
+    ("reach-table-grid-huge", ["reach", "table", "--grid", "1000000"], "3000"),
+    ("reach-mc-nx-huge", ["reach", "mc", "--out", "{dir}/rmc", "--n-x", "100000"], "--n-x"),
+    ("reach-mc-ny-zero", ["reach", "mc", "--out", "{dir}/rmc", "--n-y", "0"], "--n-y"),
+    ("reach-mc-duration-nan", ["reach", "mc", "--out", "{dir}/rmc", "--duration-s", "nan"], "--duration-s"),
+    ("keys-unknown-system", ["keys", "nosystem"], "nosystem"),
+]
+
+
+@pytest.mark.parametrize("case, args, fragment", CASES, ids=[c[0] for c in CASES])
+def test_bad_input_is_one_line_and_exit_2(files, case, args, fragment):
+    argv = [a.format(**{k: str(v) for k, v in files.items()}) for a in args]
+    res = CliRunner().invoke(app, argv)
+    err = res.stderr
+    lines = [ln for ln in err.splitlines() if ln.strip()]
+    assert res.exit_code == 2, (argv, res.exit_code, err, res.exception)
+    assert "Traceback" not in err and "Traceback" not in res.stdout, err
+    assert len(lines) == 1 and lines[0].startswith("error: "), err
+    assert fragment in lines[0], (fragment, lines[0])
+
+
+def test_at_least_sixty_distinct_cases():
+    assert len({c[0] for c in CASES}) == len(CASES) >= 60
+
+
+def test_a_mixed_folder_is_refused_before_anything_is_written(files):
+    before = sorted(p.name for p in files["mixed"].rglob("*"))
+    res = CliRunner().invoke(app, ["mc", str(files["toy"]), "--runs", "2", "--workers", "1", "--out",
+                                   str(files["mixed"]), "--no-progress"])
+    assert res.exit_code == 2
+    assert sorted(p.name for p in files["mixed"].rglob("*")) == before
+
+
+# --------------------------------------------------------------------------- no silent nonsense
+def test_srf_run_away_from_the_reference_point_is_not_arrived_and_fails():
+    # the nominal V-bar run ends ~1-3 m from the reference point (srf §5.1); a 1 mm tolerance is
+    # the boundary case where the engine's "handover" stop must not read as success
+    res = CliRunner().invoke(app, ["run", "srf-vbar", "--json", "--set", "safety.reference_tolerance_m=0.001"])
+    assert res.exit_code == 0, res.output
+    s = json.loads(res.stdout)
+    assert s["arrived"] is False and s["reached_reference"] is False
+    assert s["status"].startswith("failed: ended") and s["arrival_error_m"] > 0.001
+
+
+def test_mc_with_every_run_failed_exits_3(files, tmp_path):
+    # toy success needs the hold error below success_tolerance_m; 1e-9 m is below any closed loop's error
+    res = CliRunner().invoke(app, ["mc", str(files["toy"]), "--runs", "3", "--workers", "1", "--out",
+                                   str(tmp_path / "f"), "--no-progress", "--json",
+                                   "--set", "toy.success_tolerance_m=1e-9"])
+    assert res.exit_code == 3, res.output
+    assert json.loads(res.stdout)["succeeded"] == 0
+    lines = [ln for ln in res.stderr.splitlines() if ln.strip()]
+    assert len(lines) == 1 and "all 3 runs failed" in lines[0]
+
+
+# --------------------------------------------------------------------------- no data mixed or lost
+def test_resume_never_deletes_a_results_file_it_did_not_write(files, tmp_path):
+    from proxops.analysis.campaign import load_campaign, run_campaign
+
+    out = tmp_path / "c"
+    run_campaign(str(files["toy"]), n_runs=4, workers=1, seed=5, out=out, progress=False)
+    first = sorted((out / "runs").glob("part-*.parquet"))
+    assert first
+    run_campaign(str(files["toy"]), n_runs=7, workers=1, seed=5, out=out, resume=True, progress=False)
+    assert all(p.is_file() for p in first)  # the first session's files survive the second's compaction
+    assert sorted(load_campaign(out).table["run_id"]) == list(range(7))
+
+
+def test_same_seed_campaigns_compare_equal_and_different_seeds_do_not(files):
+    from proxops.analysis.campaign import is_timing_column, run_campaign
+
+    a = run_campaign(str(files["toy"]), n_runs=5, workers=1, seed=11, progress=False).deterministic_table()
+    b = run_campaign(str(files["toy"]), n_runs=5, workers=1, seed=11, progress=False).deterministic_table()
+    c = run_campaign(str(files["toy"]), n_runs=5, workers=1, seed=12, progress=False).deterministic_table()
+    assert a.equals(b) and not a.equals(c)
+    assert not any(is_timing_column(col) for col in a.columns)
+    for col in ("metric.mpc_solve_ms.median", "metric.solve_time_ms.p95", "metric.wall_time_s", "run_cpu_s"):
+        assert is_timing_column(col), col
