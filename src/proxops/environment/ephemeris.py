@@ -30,17 +30,19 @@ Time argument: T = TT Julian centuries from J2000.0 (:mod:`proxops.environment.e
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
+from numba import njit
 
 from proxops.environment.epochs import Epoch, check_time_range, parse_epoch
 
 AU = 149_597_870_700.0  # m (IAU 2012)
-OBLIQUITY_J2000 = np.radians(23.43929111)  # rad, mean obliquity at J2000
+OBLIQUITY_J2000 = math.radians(23.43929111)  # rad, mean obliquity at J2000
 R_SUN = 6.957e8  # m, nominal solar radius (IAU 2015 Resolution B3)
 GM_SUN = 1.32712440018e20  # m^3/s^2 (DE421)
 GM_MOON = 4.9028e12  # m^3/s^2 (DE421: 4902.800 km^3/s^2)
 
-_ARCSEC = np.pi / (180.0 * 3600.0)
 
 
 def _times(epoch: Epoch | str, t_s) -> tuple[Epoch, np.ndarray]:
@@ -52,14 +54,95 @@ def _times(epoch: Epoch | str, t_s) -> tuple[Epoch, np.ndarray]:
     return epoch, t
 
 
-def _ecliptic_to_eci(lam: np.ndarray, beta: np.ndarray, r: np.ndarray) -> np.ndarray:
-    """(n, 3) equatorial J2000 vectors from ecliptic longitude, latitude (rad) and distance (m)."""
-    cb = np.cos(beta)
-    x = r * cb * np.cos(lam)
-    y = r * cb * np.sin(lam)
-    z = r * np.sin(beta)
-    ce, se = np.cos(OBLIQUITY_J2000), np.sin(OBLIQUITY_J2000)
-    return np.stack([x, ce * y - se * z, se * y + ce * z], axis=-1)
+_CE = math.cos(OBLIQUITY_J2000)
+_SE = math.sin(OBLIQUITY_J2000)
+_DEG = math.pi / 180.0
+_AS = math.pi / (180.0 * 3600.0)
+
+
+@njit(cache=True, fastmath=False)
+def _ecliptic_to_eci(lam: float, beta: float, r: float):
+    """Equatorial J2000 vector from ecliptic longitude, latitude (rad) and distance (m)."""
+    cb = math.cos(beta)
+    x = r * cb * math.cos(lam)
+    y = r * cb * math.sin(lam)
+    z = r * math.sin(beta)
+    return x, _CE * y - _SE * z, _SE * y + _CE * z
+
+
+@njit(cache=True, fastmath=False)
+def sun_eci_kernel(d: float):
+    """Geocentric Sun (m, ECI J2000 axes) at ``d`` TT days from J2000 (Astronomical Almanac
+    low-precision formula, referred to the J2000 equinox; see module doc)."""
+    T = d / 36525.0
+    L = (280.460 + 0.9856474 * d) * _DEG
+    g = (357.528 + 0.9856003 * d) * _DEG
+    lam = L + 1.915 * _DEG * math.sin(g) + 0.020 * _DEG * math.sin(2.0 * g)
+    lam = lam - 1.3970 * _DEG * T  # mean equinox of date -> J2000 equinox
+    r = AU * (1.00014 - 0.01671 * math.cos(g) - 0.00014 * math.cos(2.0 * g))
+    return _ecliptic_to_eci(lam, 0.0, r)
+
+
+@njit(cache=True, fastmath=False)
+def moon_eci_kernel(d: float):
+    """Geocentric Moon (m, ECI J2000 axes) at ``d`` TT days from J2000 (Montenbruck & Gill
+    eqs. 3.47-3.49)."""
+    T = d / 36525.0
+    L0 = (218.31617 + 481267.88088 * T - 1.3972 * T) * _DEG
+    l = (134.96292 + 477198.86753 * T) * _DEG  # noqa: E741  (Moon's mean anomaly)
+    lp = (357.52543 + 35999.04944 * T) * _DEG  # Sun's mean anomaly
+    F = (93.27283 + 483202.01873 * T) * _DEG  # mean argument of latitude
+    D = (297.85027 + 445267.11135 * T) * _DEG  # mean elongation
+    lam = L0 + _AS * (
+        22640.0 * math.sin(l)
+        + 769.0 * math.sin(2 * l)
+        - 4586.0 * math.sin(l - 2 * D)
+        + 2370.0 * math.sin(2 * D)
+        - 668.0 * math.sin(lp)
+        - 412.0 * math.sin(2 * F)
+        - 212.0 * math.sin(2 * l - 2 * D)
+        - 206.0 * math.sin(l + lp - 2 * D)
+        + 192.0 * math.sin(l + 2 * D)
+        - 165.0 * math.sin(lp - 2 * D)
+        + 148.0 * math.sin(l - lp)
+        - 125.0 * math.sin(D)
+        - 110.0 * math.sin(l + lp)
+        - 55.0 * math.sin(2 * F - 2 * D)
+    )
+    beta = _AS * (
+        18520.0 * math.sin(F + lam - L0 + _AS * (412.0 * math.sin(2 * F) + 541.0 * math.sin(lp)))
+        - 526.0 * math.sin(F - 2 * D)
+        + 44.0 * math.sin(l + F - 2 * D)
+        - 31.0 * math.sin(-l + F - 2 * D)
+        - 25.0 * math.sin(-2 * l + F)
+        - 23.0 * math.sin(lp + F - 2 * D)
+        + 21.0 * math.sin(-l + F)
+        + 11.0 * math.sin(-lp + F - 2 * D)
+    )
+    r = 1e3 * (
+        385000.0
+        - 20905.0 * math.cos(l)
+        - 3699.0 * math.cos(2 * D - l)
+        - 2956.0 * math.cos(2 * D)
+        - 570.0 * math.cos(2 * l)
+        + 246.0 * math.cos(2 * l - 2 * D)
+        - 205.0 * math.cos(lp - 2 * D)
+        - 171.0 * math.cos(l + 2 * D)
+        - 152.0 * math.cos(l + lp - 2 * D)
+    )
+    return _ecliptic_to_eci(lam, beta, r)
+
+
+@njit(cache=True)
+def _many(which: int, d0: float, t: np.ndarray) -> np.ndarray:
+    out = np.empty((t.size, 3))
+    for k in range(t.size):
+        d = d0 + t[k] / 86400.0
+        x, y, z = sun_eci_kernel(d) if which == 0 else moon_eci_kernel(d)
+        out[k, 0] = x
+        out[k, 1] = y
+        out[k, 2] = z
+    return out
 
 
 def sun_position_eci(epoch: Epoch | str, t_s) -> np.ndarray:
@@ -68,14 +151,7 @@ def sun_position_eci(epoch: Epoch | str, t_s) -> np.ndarray:
     Accuracy vs JPL DE421 (1980-2050): <= 0.013 deg direction, <= 0.008 % distance
     (see module doc)."""
     epoch, t = _times(epoch, t_s)
-    n = epoch.days_tt_since_j2000(0.0) + t / 86400.0  # TT days from J2000
-    T = n / 36525.0
-    L = np.radians(280.460 + 0.9856474 * n)
-    g = np.radians(357.528 + 0.9856003 * n)
-    lam = L + np.radians(1.915) * np.sin(g) + np.radians(0.020) * np.sin(2.0 * g)
-    lam = lam - np.radians(1.3970) * T  # mean equinox of date -> J2000 equinox
-    r = AU * (1.00014 - 0.01671 * np.cos(g) - 0.00014 * np.cos(2.0 * g))
-    return _ecliptic_to_eci(lam, np.zeros_like(lam), r)
+    return _many(0, epoch.days_tt_since_j2000(0.0), np.ascontiguousarray(t))
 
 
 def moon_position_eci(epoch: Epoch | str, t_s) -> np.ndarray:
@@ -84,48 +160,4 @@ def moon_position_eci(epoch: Epoch | str, t_s) -> np.ndarray:
     Montenbruck & Gill eqs. 3.47-3.49; accuracy vs JPL DE421 (1980-2050): <= 0.092 deg
     direction, <= 0.13 % distance (see module doc)."""
     epoch, t = _times(epoch, t_s)
-    T = (epoch.days_tt_since_j2000(0.0) + t / 86400.0) / 36525.0
-    deg = np.pi / 180.0
-    L0 = (218.31617 + 481267.88088 * T - 1.3972 * T) * deg
-    l = (134.96292 + 477198.86753 * T) * deg  # noqa: E741  (Moon's mean anomaly)
-    lp = (357.52543 + 35999.04944 * T) * deg  # Sun's mean anomaly
-    F = (93.27283 + 483202.01873 * T) * deg  # mean argument of latitude
-    D = (297.85027 + 445267.11135 * T) * deg  # mean elongation
-    lam = L0 + _ARCSEC * (
-        22640.0 * np.sin(l)
-        + 769.0 * np.sin(2 * l)
-        - 4586.0 * np.sin(l - 2 * D)
-        + 2370.0 * np.sin(2 * D)
-        - 668.0 * np.sin(lp)
-        - 412.0 * np.sin(2 * F)
-        - 212.0 * np.sin(2 * l - 2 * D)
-        - 206.0 * np.sin(l + lp - 2 * D)
-        + 192.0 * np.sin(l + 2 * D)
-        - 165.0 * np.sin(lp - 2 * D)
-        + 148.0 * np.sin(l - lp)
-        - 125.0 * np.sin(D)
-        - 110.0 * np.sin(l + lp)
-        - 55.0 * np.sin(2 * F - 2 * D)
-    )
-    beta = _ARCSEC * (
-        18520.0 * np.sin(F + lam - L0 + _ARCSEC * (412.0 * np.sin(2 * F) + 541.0 * np.sin(lp)))
-        - 526.0 * np.sin(F - 2 * D)
-        + 44.0 * np.sin(l + F - 2 * D)
-        - 31.0 * np.sin(-l + F - 2 * D)
-        - 25.0 * np.sin(-2 * l + F)
-        - 23.0 * np.sin(lp + F - 2 * D)
-        + 21.0 * np.sin(-l + F)
-        + 11.0 * np.sin(-lp + F - 2 * D)
-    )
-    r = 1e3 * (
-        385000.0
-        - 20905.0 * np.cos(l)
-        - 3699.0 * np.cos(2 * D - l)
-        - 2956.0 * np.cos(2 * D)
-        - 570.0 * np.cos(2 * l)
-        + 246.0 * np.cos(2 * l - 2 * D)
-        - 205.0 * np.cos(lp - 2 * D)
-        - 171.0 * np.cos(l + 2 * D)
-        - 152.0 * np.cos(l + lp - 2 * D)
-    )
-    return _ecliptic_to_eci(lam, beta, r)
+    return _many(1, epoch.days_tt_since_j2000(0.0), np.ascontiguousarray(t))
