@@ -183,20 +183,16 @@ class ComposedTruth:
         span = max(t_end * 1.5, t_end + 600.0)
         check_time_range(self.epoch, span, "duration")
         n = int(math.ceil(span / DENSITY_STEP_S)) + 4
-        times = np.arange(n) * DENSITY_STEP_S - DENSITY_STEP_S  # one node before 0
+        times = np.arange(n) * DENSITY_STEP_S
         p = self.p.copy()
         p[kf.I_DRAG] = 0.0
         y0 = np.append(self._target0, np.zeros(6))
-        out = np.empty((n - 1, 12))
-        status, _, _ = kf.integrate_full(
-            y0, times[1:], self._zero_u_(), p, *self._arrays(), self._dens, self.rtol, self.atol, out
-        )
-        back = np.empty((2, 12))
-        kf.integrate_full(y0, np.array([0.0, times[0]]), self._zero_u_(), p, *self._arrays(), self._dens,
-                          self.rtol, self.atol, back)  # fmt: skip
+        out = np.empty((n, 12))
+        status, _, _ = kf.integrate_full(y0, times, self._zero_u_(), p, *self._arrays(), self._dens, self.rtol,
+                                         self.atol, out)  # fmt: skip
         if status != kernels.STATUS_OK:
             raise ProxopsError("target path prediction for the density table failed")
-        r = np.vstack([back[1:, :3], out[:, :3]])
+        r = out[:, :3]
         dh = 1000.0
         ecef = self.rotation.to_ecef(times, r)
         geo = geodetic_many(ecef)

@@ -94,7 +94,7 @@ N_P = 29
 
 @njit(cache=True)
 def _interp_row(dens: np.ndarray, p: np.ndarray, t: float, out: np.ndarray) -> None:
-    """Catmull-Rom cubic interpolation of the table rows at time t (clamped at the ends)."""
+    """Catmull-Rom cubic interpolation of the table rows at time t (held constant outside)."""
     n = dens.shape[0]
     s = (t - p[I_DENS_T0]) / p[I_DENS_DT]
     if s <= 0.0:
@@ -107,15 +107,14 @@ def _interp_row(dens: np.ndarray, p: np.ndarray, t: float, out: np.ndarray) -> N
         return
     i = int(s)
     f = s - i
-    i0 = max(i - 1, 0)
-    i3 = min(i + 2, n - 1)
     f2 = f * f
     f3 = f2 * f
     for j in range(3):
-        p0 = dens[i0, j]
         p1 = dens[i, j]
         p2 = dens[i + 1, j]
-        p3 = dens[i3, j]
+        # end segments: quadratic-extrapolated ghost nodes (needs n >= 3)
+        p0 = dens[i - 1, j] if i > 0 else 3.0 * p1 - 3.0 * p2 + dens[i + 2, j]
+        p3 = dens[i + 2, j] if i + 2 < n else 3.0 * p2 - 3.0 * p1 + dens[i - 1, j]
         out[j] = 0.5 * (2.0 * p1 + (-p0 + p2) * f + (2.0 * p0 - 5.0 * p1 + 4.0 * p2 - p3) * f2 + (-p0 + 3.0 * p1 - 3.0 * p2 + p3) * f3)
 
 

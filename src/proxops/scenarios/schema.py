@@ -59,7 +59,8 @@ class OrbitSection(Section):
         try:
             parse_epoch(v)
         except ProxopsInputError as exc:
-            raise ValueError(str(exc).split(": ", 1)[-1]) from None
+            allowed = str(exc).split(": ", 1)[-1]
+            raise ValueError(("must be " + allowed) if allowed.startswith("ISO") else allowed) from None
         return v
 
     @model_validator(mode="after")
