@@ -89,7 +89,7 @@ def test_units_ranges_and_defaults_come_from_the_schema():
     assert srf["approach.hops"].allowed == ">= 1, <= 50" and srf["approach.hops"].type == "integer"
     assert srf["approach.gamma"].allowed == "> 0, < 1"
     assert srf["orbit.inc_deg"].allowed == ">= 0, <= 180" and srf["orbit.inc_deg"].unit == "deg"
-    assert srf["truth.model"].allowed == "one of: j2, two-body, cw" and srf["truth.model"].default == "j2"
+    assert srf["truth.model"].allowed == "one of: j2, two-body, cw, full" and srf["truth.model"].default == "j2"
     assert srf["initial.position_m"].type == "list of 3 numbers" and srf["initial.position_m"].unit == "m"
     assert srf["mpc.steps_per_hop"].default is None and srf["mpc.steps_per_hop"].allowed == ">= 1, <= 100"
     ua = _keys("underactuated")

@@ -60,6 +60,19 @@ class OrbitSection(Section):
     nu_deg: float = Field(0.0, description="true anomaly at t = 0")
     epoch_utc: str = Field("2026-01-01T00:00:00", description="UTC epoch of t = 0, ISO 8601 (for environment models)")
 
+    @field_validator("epoch_utc")
+    @classmethod
+    def _valid_epoch(cls, v):
+        from proxops.environment.epochs import parse_epoch
+        from proxops.errors import ProxopsInputError
+
+        try:
+            parse_epoch(v)
+        except ProxopsInputError as exc:
+            allowed = str(exc).split(": ", 1)[-1]
+            raise ValueError(("must be " + allowed) if allowed.startswith("ISO") else allowed) from None
+        return v
+
     @model_validator(mode="after")
     def _one_size_and_above_ground(self):
         if (self.sma_km is None) == (self.altitude_km is None):
@@ -98,13 +111,56 @@ class ActuatorSection(Section):
     missed_probability: Probability = Field(0.0, description="probability that a command is not executed at all")
 
 
-class TruthSection(Section):
-    """Truth model for translational systems."""
+class SpacecraftSection(Section):
+    """Drag and solar-pressure properties of one spacecraft (cannonball model)."""
 
-    model: Literal["j2", "two-body", "cw"] = Field(
-        "j2", description="truth dynamics: two-body + J2 (Encke), two-body, or linear CW")
+    mass_kg: Annotated[float, Field(gt=0.0)] = Field(500.0, description="spacecraft mass (drag and SRP)")
+    area_m2: Annotated[float, Field(ge=0.0)] = Field(2.0, description="cross-section seen by the flow and the Sun "
+                                                     "(cannonball)")
+    cd: Annotated[float, Field(gt=0.0, le=5.0)] = Field(2.2, description="drag coefficient C_D")
+    cr: Annotated[float, Field(ge=0.0, le=2.0)] = Field(1.3, description="radiation-pressure coefficient C_R "
+                                                        "(1 absorbing, 2 mirror)")
+
+
+class TruthSection(Section):
+    """Truth model for translational systems: ``cw`` (linear), ``two-body``, ``j2`` (the
+    fastest nonlinear path) or ``full`` (composed force models: EGM96 harmonics to
+    ``gravity_degree`` x ``gravity_order``, NRLMSISE-00 drag, Sun and Moon, SRP)."""
+
+    model: Literal["j2", "two-body", "cw", "full"] = Field(
+        "j2", description="truth dynamics: two-body + J2 (Encke), two-body, linear CW, or full (composed force models)")
     integrator: Literal["fast", "reference"] = Field(
         "fast", description="fast: numba DOP853; reference: scipy solve_ivp (slower, for checks)")
+    gravity_degree: int = Field(20, description="full: EGM96 spherical-harmonic degree (2 to 120, shipped offline)")
+    gravity_order: int | None = Field(None, description="full: harmonic order, 0 to gravity_degree "
+                                      "(none: gravity_degree)")
+    drag: bool = Field(True, description="full: NRLMSISE-00 drag on both spacecraft (co-rotating atmosphere)")
+    third_body: bool = Field(True, description="full: Sun and Moon third-body attraction")
+    srp: bool = Field(False, description="full: cannonball solar radiation pressure with the Earth's shadow")
+    shadow: Literal["conical", "cylindrical"] = Field("conical", description="full: Earth shadow model for SRP")
+    f107: Annotated[float, Field(ge=50.0, le=400.0)] = Field(150.0, description="full: F10.7 solar flux of the "
+                                                             "previous day, sfu")
+    f107a: Annotated[float, Field(ge=50.0, le=400.0)] = Field(150.0, description="full: 81-day mean F10.7, sfu")
+    ap: Annotated[float, Field(ge=0.0, le=400.0)] = Field(15.0, description="full: daily geomagnetic Ap index")
+    target: SpacecraftSection = Field(SpacecraftSection(), description="target spacecraft properties (full)")
+    chaser: SpacecraftSection = Field(SpacecraftSection(), description="chaser spacecraft properties (full)")
+
+    @field_validator("gravity_degree")
+    @classmethod
+    def _degree(cls, v):
+        from proxops.environment.harmonics import SHIPPED_DEGREE
+
+        if not 2 <= v <= SHIPPED_DEGREE:
+            raise ValueError(f"must be in [2, {SHIPPED_DEGREE}] (the shipped EGM96 truncation)")
+        return v
+
+    @model_validator(mode="after")
+    def _order_within_degree(self):
+        if self.gravity_order is not None and not 0 <= self.gravity_order <= self.gravity_degree:
+            raise ValueError(
+                f"gravity_order = {self.gravity_order}: must be in [0, gravity_degree = {self.gravity_degree}]"
+            )
+        return self
 
 
 class InitialSection(Section):
