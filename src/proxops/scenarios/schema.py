@@ -50,6 +50,18 @@ class OrbitSection(Section):
     nu_deg: float = 0.0
     epoch_utc: str = "2026-01-01T00:00:00"
 
+    @field_validator("epoch_utc")
+    @classmethod
+    def _valid_epoch(cls, v):
+        from proxops.environment.epochs import parse_epoch
+        from proxops.errors import ProxopsInputError
+
+        try:
+            parse_epoch(v)
+        except ProxopsInputError as exc:
+            raise ValueError(str(exc).split(": ", 1)[-1]) from None
+        return v
+
     @model_validator(mode="after")
     def _one_size_and_above_ground(self):
         if (self.sma_km is None) == (self.altitude_km is None):
@@ -86,11 +98,50 @@ class ActuatorSection(Section):
     missed_probability: Probability = 0.0
 
 
-class TruthSection(Section):
-    """Truth model for translational systems."""
+class SpacecraftSection(Section):
+    """Drag and solar-pressure properties of one spacecraft (cannonball model)."""
 
-    model: Literal["j2", "two-body", "cw"] = "j2"
+    mass_kg: Annotated[float, Field(gt=0.0)] = 500.0
+    area_m2: Annotated[float, Field(ge=0.0)] = 2.0
+    cd: Annotated[float, Field(gt=0.0, le=5.0)] = 2.2
+    cr: Annotated[float, Field(ge=0.0, le=2.0)] = 1.3
+
+
+class TruthSection(Section):
+    """Truth model for translational systems: ``cw`` (linear), ``two-body``, ``j2`` (the
+    fastest nonlinear path) or ``full`` (composed force models: EGM96 harmonics to
+    ``gravity_degree`` x ``gravity_order``, NRLMSISE-00 drag, Sun and Moon, SRP)."""
+
+    model: Literal["j2", "two-body", "cw", "full"] = "j2"
     integrator: Literal["fast", "reference"] = "fast"
+    gravity_degree: int = 20
+    gravity_order: int | None = None  # default: gravity_degree
+    drag: bool = True
+    third_body: bool = True  # Sun and Moon
+    srp: bool = False
+    shadow: Literal["conical", "cylindrical"] = "conical"
+    f107: Annotated[float, Field(ge=50.0, le=400.0)] = 150.0  # sfu, previous day
+    f107a: Annotated[float, Field(ge=50.0, le=400.0)] = 150.0  # sfu, 81-day mean
+    ap: Annotated[float, Field(ge=0.0, le=400.0)] = 15.0  # daily Ap
+    target: SpacecraftSection = SpacecraftSection()
+    chaser: SpacecraftSection = SpacecraftSection()
+
+    @field_validator("gravity_degree")
+    @classmethod
+    def _degree(cls, v):
+        from proxops.environment.harmonics import SHIPPED_DEGREE
+
+        if not 2 <= v <= SHIPPED_DEGREE:
+            raise ValueError(f"must be in [2, {SHIPPED_DEGREE}] (the shipped EGM96 truncation)")
+        return v
+
+    @model_validator(mode="after")
+    def _order_within_degree(self):
+        if self.gravity_order is not None and not 0 <= self.gravity_order <= self.gravity_degree:
+            raise ValueError(
+                f"gravity_order = {self.gravity_order}: must be in [0, gravity_degree = {self.gravity_degree}]"
+            )
+        return self
 
 
 class InitialSection(Section):

@@ -34,7 +34,33 @@ def translational_plant(orbit: OrbitSection, truth: TruthSection, x0_hill: np.nd
     elements = target_elements(orbit)
     if truth.model == "cw":
         return CWPlant.from_orbit(elements, x0_hill)
+    if truth.model == "full":
+        from proxops.propagation.composed import ComposedTruth
+
+        return ComposedTruth(elements, x0_hill, force_models(orbit, truth), integrator=truth.integrator)
     return RelativeTruth(elements, x0_hill, j2=truth.model == "j2", integrator=truth.integrator)
+
+
+def force_models(orbit: OrbitSection, truth: TruthSection):
+    """:class:`proxops.propagation.composed.ForceModels` of a ``model = "full"`` [truth] section."""
+    from proxops.environment.forces import Spacecraft, SpaceWeather
+    from proxops.propagation.composed import ForceModels
+
+    order = truth.gravity_degree if truth.gravity_order is None else truth.gravity_order
+    return ForceModels(
+        epoch=orbit.epoch_utc,
+        gravity="harmonics",
+        degree=truth.gravity_degree,
+        order=order,
+        drag=truth.drag,
+        sun=truth.third_body,
+        moon=truth.third_body,
+        srp=truth.srp,
+        shadow=truth.shadow,
+        target=Spacecraft(**truth.target.model_dump(), name="truth.target"),
+        chaser=Spacecraft(**truth.chaser.model_dump(), name="truth.chaser"),
+        weather=SpaceWeather(truth.f107, truth.f107a, truth.ap),
+    )
 
 
 def navigation_model(nav: NavigationSection):

@@ -1,0 +1,239 @@
+"""Spherical-harmonic gravity to degree/order N: EGM96 coefficients shipped offline, and a
+stable normalised Cunningham recursion on plain floats.
+
+Data: ``environment/data/egm96_120.npz`` -- EGM96 (Lemoine et al., NASA/TP-1998-206861;
+a US-government work in the public domain) fully normalised C_nm, S_nm to degree and
+order 120, tide-free, GM = 3.986004415e14 m^3/s^2, R = 6378136.3 m. It is a verbatim
+truncation of ``EGM96.gfc`` (ICGEM format) as shipped by the PyPI package
+``satkit-data`` 0.9.0; :func:`read_gfc` reads that file, and a test compares the shipped
+arrays with it when ``satkit-data`` is installed. 120 covers the 100 x 100 field of
+cortex-convex-guidance.md eq. 4 (which uses GGM03S, not on PyPI: EGM96 and GGM03S
+differ by ~1e-9 in normalised coefficients below degree 50).
+
+Recursion (Montenbruck & Gill, *Satellite Orbits*, sec. 3.2.4-3.2.5, eqs. 3.29-3.33,
+written here for normalised V, W; the normalisation N_nm = sqrt((2 - d_m0)(2n + 1)
+(n - m)! / (n + m)!) is moved into the recursion coefficients so nothing overflows):
+
+    V_mm = f_m [x' V_{m-1,m-1} - y' W_{m-1,m-1}],  W_mm = f_m [x' W_{m-1,m-1} + y' V_{m-1,m-1}]
+    V_nm = a_nm z' V_{n-1,m} - b_nm rho'^2 V_{n-2,m}           (same for W)
+    x' = x R / r^2 (etc.), rho'^2 = R^2 / r^2, V_00 = R / r
+    f_1 = sqrt(3), f_m = sqrt((2m + 1) / (2m)),
+    a_nm = sqrt((2n + 1)(2n - 1) / ((n - m)(n + m))),
+    b_nm = sqrt((2n + 1)(n + m - 1)(n - m - 1) / ((2n - 3)(n + m)(n - m)))
+
+and the acceleration (GM / R^2 times, Earth-fixed axes; M&G eq. 3.33 with the ratios
+of normalisation factors):
+
+    x: m = 0: -C_n0 c0 V_{n+1,1};  m > 0: 1/2 [c1 (-C V_{n+1,m+1} - S W_{n+1,m+1})
+                                            + c2 (C V_{n+1,m-1} + S W_{n+1,m-1})]
+    y: m = 0: -C_n0 c0 W_{n+1,1};  m > 0: 1/2 [c1 (-C W_{n+1,m+1} + S V_{n+1,m+1})
+                                            + c2 (-C W_{n+1,m-1} + S V_{n+1,m-1})]
+    z: c3 (-C V_{n+1,m} - S W_{n+1,m})
+    c0 = sqrt((2n+1)(n+1)(n+2) / (2(2n+3))),  c1 = sqrt((2n+1)(n+m+1)(n+m+2) / (2n+3)),
+    c2 = sqrt(k (2n+1)(n-m+1)(n-m+2) / (2n+3)) with k = 2 for m = 1 else 1,
+    c3 = sqrt((2n+1)(n+m+1)(n-m+1) / (2n+3)).
+
+The recursion in Cartesian coordinates has no singularity at the poles. Tests check
+it against finite differences of an independent potential (scipy Legendre functions)
+and the closed-form J2, J3 accelerations.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from functools import lru_cache
+from importlib import resources
+
+import numpy as np
+from numba import njit
+
+from proxops.errors import input_error
+
+SHIPPED_DEGREE = 120
+DATA_FILE = "egm96_120.npz"
+
+
+def read_gfc(path, degree: int) -> tuple[np.ndarray, np.ndarray, dict]:
+    """Normalised (C, S) arrays (degree+1, degree+1) and header of an ICGEM ``.gfc`` file,
+    truncated to ``degree``."""
+    C = np.zeros((degree + 1, degree + 1))
+    S = np.zeros((degree + 1, degree + 1))
+    header: dict[str, str] = {}
+    in_head = True
+    with open(path) as fh:
+        for line in fh:
+            parts = line.split()
+            if in_head:
+                if parts and parts[0] == "end_of_head":
+                    in_head = False
+                elif len(parts) == 2:
+                    header[parts[0]] = parts[1]
+                continue
+            if not parts or parts[0] != "gfc":
+                continue
+            n, m = int(parts[1]), int(parts[2])
+            if n <= degree and m <= degree:
+                C[n, m] = float(parts[3].replace("D", "e"))
+                S[n, m] = float(parts[4].replace("D", "e"))
+    return C, S, header
+
+
+@lru_cache(maxsize=1)
+def _shipped() -> tuple[np.ndarray, np.ndarray, float, float]:
+    with resources.files("proxops.environment").joinpath("data", DATA_FILE).open("rb") as fh:
+        data = np.load(fh)
+        return data["C"].copy(), data["S"].copy(), float(data["gm"]), float(data["radius"])
+
+
+def recursion_coefficients(nmax: int) -> np.ndarray:
+    """Precomputed factors K (5, nmax + 3, nmax + 3): K[0] = a_nm, K[1] = b_nm, K[2] = c1 (c0
+    at m = 0), K[3] = c2, K[4] = c3 (module doc), so that the kernel takes no square root."""
+    K = np.zeros((5, nmax + 3, nmax + 3))
+    for n in range(0, nmax + 3):
+        for m in range(0, n + 1):
+            if n >= m + 1:
+                K[0, n, m] = math.sqrt((2.0 * n + 1.0) * (2.0 * n - 1.0) / ((n - m) * (n + m)))
+            if n >= m + 2:
+                K[1, n, m] = math.sqrt(
+                    (2.0 * n + 1.0) * (n + m - 1.0) * (n - m - 1.0) / ((2.0 * n - 3.0) * (n + m) * (n - m))
+                )
+            tn, tn3 = 2.0 * n + 1.0, 2.0 * n + 3.0
+            if m == 0:
+                K[2, n, m] = math.sqrt(tn * (n + 1.0) * (n + 2.0) / (2.0 * tn3))
+            else:
+                K[2, n, m] = math.sqrt(tn * (n + m + 1.0) * (n + m + 2.0) / tn3)
+                K[3, n, m] = math.sqrt((2.0 if m == 1 else 1.0) * tn * (n - m + 1.0) * (n - m + 2.0) / tn3)
+            K[4, n, m] = math.sqrt(tn * (n + m + 1.0) * (n - m + 1.0) / tn3)
+    return K
+
+
+@njit(cache=True, fastmath=False)
+def accel_harmonics(
+    x: float, y: float, z: float, gm: float, re: float, C: np.ndarray, S: np.ndarray, nmax: int, mmax: int,
+    nmin: int, K: np.ndarray, V: np.ndarray, W: np.ndarray,
+):  # fmt: skip
+    """Acceleration (m/s^2, Earth-fixed axes) of the degree ``nmin..nmax``, order ``<= mmax``
+    terms at Earth-fixed position (m). ``nmin = 0`` includes the central term, ``nmin = 2``
+    gives the perturbation only. ``K`` from :func:`recursion_coefficients`; ``V``, ``W``:
+    work arrays (>= nmax + 2, >= nmax + 2)."""
+    r2 = x * x + y * y + z * z
+    rho = re * re / r2
+    x0 = x * re / r2
+    y0 = y * re / r2
+    z0 = z * re / r2
+    V[0, 0] = re / math.sqrt(r2)
+    W[0, 0] = 0.0
+    mtop = min(mmax + 1, nmax + 1)
+    for m in range(0, mtop + 1):
+        if m > 0:
+            f = 1.7320508075688772 if m == 1 else math.sqrt((2.0 * m + 1.0) / (2.0 * m))
+            vp = V[m - 1, m - 1]
+            wp = W[m - 1, m - 1]
+            V[m, m] = f * (x0 * vp - y0 * wp)
+            W[m, m] = f * (x0 * wp + y0 * vp)
+        if m + 1 <= nmax + 1:
+            a = K[0, m + 1, m]
+            V[m + 1, m] = a * z0 * V[m, m]
+            W[m + 1, m] = a * z0 * W[m, m]
+        for n in range(m + 2, nmax + 2):
+            a = K[0, n, m]
+            b = K[1, n, m] * rho
+            V[n, m] = a * z0 * V[n - 1, m] - b * V[n - 2, m]
+            W[n, m] = a * z0 * W[n - 1, m] - b * W[n - 2, m]
+    ax = 0.0
+    ay = 0.0
+    az = 0.0
+    for n in range(nmax, nmin - 1, -1):  # small terms first
+        for m in range(min(n, mmax), -1, -1):
+            c = C[n, m]
+            s = S[n, m]
+            az += K[4, n, m] * (-c * V[n + 1, m] - s * W[n + 1, m])
+            if m == 0:
+                c0 = K[2, n, 0]
+                ax += -c * c0 * V[n + 1, 1]
+                ay += -c * c0 * W[n + 1, 1]
+            else:
+                c1 = K[2, n, m]
+                c2 = K[3, n, m]
+                ax += 0.5 * (c1 * (-c * V[n + 1, m + 1] - s * W[n + 1, m + 1]) + c2 * (c * V[n + 1, m - 1] + s * W[n + 1, m - 1]))
+                ay += 0.5 * (c1 * (-c * W[n + 1, m + 1] + s * V[n + 1, m + 1]) + c2 * (-c * W[n + 1, m - 1] + s * V[n + 1, m - 1]))
+    k = gm / (re * re)
+    return k * ax, k * ay, k * az
+
+
+@njit(cache=True, fastmath=False)
+def potential_harmonics(x, y, z, gm, re, C, S, nmax, mmax, nmin, K, V, W) -> float:
+    """Gravitational potential U (J/kg, a = +grad U) of the same terms, from V, W."""
+    accel_harmonics(x, y, z, gm, re, C, S, nmax, mmax, nmin, K, V, W)  # fills V, W
+    u = 0.0
+    for n in range(nmax, nmin - 1, -1):
+        for m in range(min(n, mmax), -1, -1):
+            u += C[n, m] * V[n, m] + S[n, m] * W[n, m]
+    return gm / re * u
+
+
+@dataclass
+class SphericalHarmonics:
+    """EGM96 gravity field to ``degree`` x ``order`` (<= 120, shipped). ``include_central``
+    adds the point-mass term (n = 0); otherwise degrees 2..degree only. Positions and
+    accelerations in Earth-fixed axes (SI); see :mod:`proxops.environment.earth` for the
+    rotation from ECI."""
+
+    degree: int
+    order: int
+    include_central: bool = False
+    gm: float = field(init=False)
+    re: float = field(init=False)
+
+    def __post_init__(self) -> None:
+        check_degree_order(self.degree, self.order)
+        C, S, self.gm, self.re = _shipped()
+        n = self.degree
+        self.C = np.ascontiguousarray(C[: n + 1, : n + 1])
+        self.S = np.ascontiguousarray(S[: n + 1, : n + 1])
+        if self.include_central:
+            self.C[0, 0] = 1.0
+        self.K = recursion_coefficients(n)
+        self._V = np.zeros((n + 3, n + 3))
+        self._W = np.zeros((n + 3, n + 3))
+
+    @property
+    def nmin(self) -> int:
+        return 0 if self.include_central else 2
+
+    def acceleration(self, r_ecef: np.ndarray) -> np.ndarray:
+        """Acceleration (..., 3) m/s^2 at Earth-fixed position(s) (..., 3) m."""
+        r = np.asarray(r_ecef, dtype=float)
+        flat = r.reshape(-1, 3)
+        out = np.array(
+            [
+                accel_harmonics(p[0], p[1], p[2], self.gm, self.re, self.C, self.S, self.degree, self.order,
+                                self.nmin, self.K, self._V, self._W)
+                for p in flat
+            ]
+        )  # fmt: skip
+        return out.reshape(r.shape)
+
+    def potential(self, r_ecef: np.ndarray) -> np.ndarray:
+        """Potential U (...,) J/kg with a = +grad U."""
+        r = np.asarray(r_ecef, dtype=float)
+        flat = r.reshape(-1, 3)
+        out = np.array(
+            [
+                potential_harmonics(p[0], p[1], p[2], self.gm, self.re, self.C, self.S, self.degree, self.order,
+                                    self.nmin, self.K, self._V, self._W)
+                for p in flat
+            ]
+        )  # fmt: skip
+        return out.reshape(r.shape[:-1])
+
+
+def check_degree_order(degree, order, prefix: str = "truth.") -> None:
+    """Raise ProxopsInputError unless 2 <= degree <= shipped degree and 0 <= order <= degree."""
+    if isinstance(degree, bool) or not isinstance(degree, (int, np.integer)) or not 2 <= degree <= SHIPPED_DEGREE:
+        raise input_error(
+            f"{prefix}gravity_degree", degree, f"must be an integer in [2, {SHIPPED_DEGREE}] (shipped EGM96 truncation)"
+        )
+    if isinstance(order, bool) or not isinstance(order, (int, np.integer)) or not 0 <= order <= degree:
+        raise input_error(f"{prefix}gravity_order", order, f"must be an integer in [0, gravity_degree = {degree}]")

@@ -1,0 +1,359 @@
+"""High-fidelity relative truth: the enabled force models composed once per run.
+
+:class:`ForceModels` says what is on (point mass always; ``gravity`` = "point" | "j2" |
+"harmonics" with degree/order; drag; Sun; Moon; SRP) and with which spacecraft and
+space weather. :class:`ComposedTruth` is a Plant (:mod:`proxops.sim.protocols`) like
+:class:`proxops.propagation.truth.RelativeTruth`, with the chaser propagated relative to
+the target in Encke form and every perturbation evaluated at both spacecraft and
+differenced (:mod:`proxops.propagation.kernels_full`).
+
+Full state (13,): ``[r_t, v_t, dr, dv, t]`` -- the 12-state of RelativeTruth plus the time
+since the epoch (s), because the forces depend on absolute time.
+
+Integrators: ``"fast"`` (numba DOP853, density from a NRLMSISE-00 table along the target's
+predicted path) and ``"reference"`` (scipy DOP853 on the same RHS, with pymsis called at
+both spacecraft on every evaluation). The J2-only and two-body truths stay in
+RelativeTruth (the fastest path, unchanged).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+from scipy.integrate import solve_ivp
+
+from proxops.core.constants import J2_EARTH, MU_EARTH, R_EARTH
+from proxops.environment.earth import earth_rotation, geodetic_many
+from proxops.environment.ephemeris import AU, GM_MOON, GM_SUN, R_SUN
+from proxops.environment.epochs import Epoch, check_time_range, parse_epoch
+from proxops.environment.forces import Atmosphere, Spacecraft, SpaceWeather
+from proxops.environment.harmonics import SphericalHarmonics, check_degree_order
+from proxops.errors import ProxopsError, input_error
+from proxops.frames.elements import OrbitalElements, check_perigee_above_surface, eci_to_elements, elements_to_eci
+from proxops.propagation import kernels, kernels_full as kf
+from proxops.propagation.reference import REFERENCE_ATOL, REFERENCE_RTOL
+
+DENSITY_STEP_S = 30.0
+GRAVITY = ("point", "j2", "harmonics")
+SHADOW = ("conical", "cylindrical")
+
+
+@dataclass(frozen=True)
+class ForceModels:
+    """Which perturbations act, for one target/chaser pair (validated on construction)."""
+
+    epoch: str = "2022-05-01T00:00:00Z"
+    gravity: str = "harmonics"
+    degree: int = 20
+    order: int = 20
+    drag: bool = False
+    sun: bool = False
+    moon: bool = False
+    srp: bool = False
+    shadow: str = "conical"
+    target: Spacecraft = field(default_factory=lambda: Spacecraft(name="truth.target"))
+    chaser: Spacecraft = field(default_factory=lambda: Spacecraft(name="truth.chaser"))
+    weather: SpaceWeather = field(default_factory=SpaceWeather)
+
+    def __post_init__(self) -> None:
+        parse_epoch(self.epoch, "orbit.epoch_utc")
+        if self.gravity not in GRAVITY:
+            raise input_error("truth.gravity", self.gravity, "must be 'point', 'j2' or 'harmonics'")
+        if self.gravity == "harmonics":
+            check_degree_order(self.degree, self.order)
+        if self.shadow not in SHADOW:
+            raise input_error("truth.shadow", self.shadow, "must be 'conical' or 'cylindrical'")
+
+    def label(self) -> str:
+        parts = {"point": ["two-body"], "j2": ["J2"], "harmonics": [f"{self.degree}x{self.order}"]}[self.gravity]
+        parts += [name for name in ("drag", "sun", "moon", "srp") if getattr(self, name)]
+        return " + ".join(parts)
+
+    def without(self, name: str) -> "ForceModels":
+        """Copy with one model switched off (``"gravity"`` drops harmonics to point mass)."""
+        if name == "gravity":
+            return replace(self, gravity="point")
+        return replace(self, **{name: False})
+
+
+class ComposedTruth:
+    """Composed force-model truth for one target and one chaser (Plant protocol).
+
+    Parameters
+    ----------
+    target : OrbitalElements | array (6,) -- target orbit (osculating, at the epoch).
+    chaser_hill : array (6,) -- initial chaser Hill state (exact nonlinear map).
+    models : ForceModels
+    integrator : ``"fast"`` or ``"reference"``.
+    horizon_s : expected run length, sizes the density table (extended on demand).
+    """
+
+    n_x = 6
+    n_u = 3
+
+    def __init__(
+        self,
+        target: OrbitalElements | np.ndarray,
+        chaser_hill: np.ndarray,
+        models: ForceModels = ForceModels(),
+        *,
+        integrator: str = "fast",
+        horizon_s: float = 6000.0,
+        mu: float = MU_EARTH,
+        rtol: float = REFERENCE_RTOL,
+        atol: float = REFERENCE_ATOL,
+    ) -> None:
+        if integrator not in ("fast", "reference"):
+            raise input_error("integrator", integrator, "must be 'fast' or 'reference'")
+        if isinstance(target, OrbitalElements):
+            elements = target
+            target_state = elements_to_eci(elements, mu)
+        else:
+            target_state = np.ascontiguousarray(target, dtype=float)
+            elements = eci_to_elements(target_state, mu)
+        check_perigee_above_surface(elements, R_EARTH, "target orbit")
+        self.models = models
+        self.integrator = integrator
+        self.rtol = float(rtol)
+        self.atol = float(atol)
+        self.mu = float(mu)
+        self.epoch: Epoch = parse_epoch(models.epoch, "orbit.epoch_utc")
+        self.target_elements = elements
+        self.mean_motion = math.sqrt(mu / elements.sma**3)
+        self._target0 = target_state.copy()
+        self.rotation = earth_rotation(self.epoch)
+        self.atmosphere = Atmosphere(self.epoch, self.rotation, models.weather) if models.drag else None
+        self._build_arrays()
+        self._dens = np.zeros((2, 3))
+        self._dens_end = -1.0
+        if models.drag:
+            self._ensure_table(float(horizon_s))
+        self._zero_u = np.zeros(3)
+        chaser = np.ascontiguousarray(chaser_hill, dtype=float)
+        if chaser.shape != (6,) or not np.all(np.isfinite(chaser)):
+            raise input_error("chaser_hill", chaser.tolist(), "must be a finite Hill state of length 6", "m, m/s")
+        y = kf.y_from_hill_full(0.0, self._target0, chaser, self.p, *self._arrays(), self._dens)
+        self._x0 = np.append(y, 0.0)
+
+    # ------------------------------------------------------------------ model arrays
+    def _build_arrays(self) -> None:
+        m = self.models
+        p = np.zeros(kf.N_P)
+        p[kf.I_MU] = self.mu
+        p[kf.I_GRAV] = GRAVITY.index(m.gravity)
+        p[kf.I_J2] = J2_EARTH
+        p[kf.I_RE] = R_EARTH
+        if m.gravity == "harmonics":
+            field_ = SphericalHarmonics(m.degree, m.order)
+            self._C, self._S, self._K = field_.C, field_.S, field_.K
+            p[kf.I_GM_H], p[kf.I_RE_H] = field_.gm, field_.re
+            p[kf.I_NMAX], p[kf.I_MMAX] = m.degree, m.order
+            n = m.degree
+        else:
+            self._C = self._S = np.zeros((1, 1))
+            self._K = np.zeros((5, 3, 3))
+            n = 0
+        self._V = np.zeros((n + 3, n + 3))
+        self._W = np.zeros((n + 3, n + 3))
+        p[kf.I_DRAG] = float(m.drag)
+        p[kf.I_BC_T], p[kf.I_BC_C] = m.target.ballistic, m.chaser.ballistic
+        p[kf.I_SUN], p[kf.I_MOON] = float(m.sun), float(m.moon)
+        p[kf.I_SRP] = 0.0 if not m.srp else (1.0 if m.shadow == "conical" else 2.0)
+        p[kf.I_CR_T], p[kf.I_CR_C] = m.target.srp_factor, m.chaser.srp_factor
+        p[kf.I_D0] = self.epoch.days_tt_since_j2000()
+        p[kf.I_THETA0], p[kf.I_OMEGA] = self.rotation.theta0, self.rotation.omega
+        from proxops.core.constants import OMEGA_EARTH
+
+        p[kf.I_WX : kf.I_WZ + 1] = OMEGA_EARTH * self.rotation.pole_eci
+        p[kf.I_GM_SUN], p[kf.I_GM_MOON], p[kf.I_AU] = GM_SUN, GM_MOON, AU
+        p[kf.I_R_EARTH], p[kf.I_R_SUN] = R_EARTH, R_SUN
+        p[kf.I_DENS_DT] = DENSITY_STEP_S
+        self.p = p
+        self.npm = np.ascontiguousarray(self.rotation.npm)
+
+    def _arrays(self):
+        return self.npm, self._C, self._S, self._K, self._V, self._W
+
+    def _ensure_table(self, t_end: float) -> None:
+        """Density table along the target's predicted path (drag off) over [0, t_end + margin]."""
+        if t_end <= self._dens_end:
+            return
+        span = max(t_end * 1.5, t_end + 600.0)
+        check_time_range(self.epoch, span, "duration")
+        n = int(math.ceil(span / DENSITY_STEP_S)) + 4
+        times = np.arange(n) * DENSITY_STEP_S - DENSITY_STEP_S  # one node before 0
+        p = self.p.copy()
+        p[kf.I_DRAG] = 0.0
+        y0 = np.append(self._target0, np.zeros(6))
+        out = np.empty((n - 1, 12))
+        status, _, _ = kf.integrate_full(
+            y0, times[1:], self._zero_u_(), p, *self._arrays(), self._dens, self.rtol, self.atol, out
+        )
+        back = np.empty((2, 12))
+        kf.integrate_full(y0, np.array([0.0, times[0]]), self._zero_u_(), p, *self._arrays(), self._dens,
+                          self.rtol, self.atol, back)  # fmt: skip
+        if status != kernels.STATUS_OK:
+            raise ProxopsError("target path prediction for the density table failed")
+        r = np.vstack([back[1:, :3], out[:, :3]])
+        dh = 1000.0
+        ecef = self.rotation.to_ecef(times, r)
+        geo = geodetic_many(ecef)
+        up = np.stack([np.cos(geo[:, 0]) * np.cos(geo[:, 1]), np.cos(geo[:, 0]) * np.sin(geo[:, 1]), np.sin(geo[:, 0])], -1)
+        up_eci = self._ecef_to_eci(times, up)
+        rho = self.atmosphere.density(np.concatenate([times] * 3), np.vstack([r, r + dh * up_eci, r - dh * up_eci]))
+        rho0, rho_up, rho_dn = np.split(rho, 3)
+        table = np.stack([np.log(rho0), geo[:, 2], (np.log(rho_up) - np.log(rho_dn)) / (2 * dh)], axis=-1)
+        self._dens = np.ascontiguousarray(table)
+        self.p[kf.I_DENS_T0] = times[0]
+        self._dens_end = times[-1] - 2 * DENSITY_STEP_S
+
+    def _zero_u_(self) -> np.ndarray:
+        return np.zeros(3)
+
+    def _ecef_to_eci(self, times: np.ndarray, v: np.ndarray) -> np.ndarray:
+        th = self.rotation.theta0 + self.rotation.omega * times
+        c, s = np.cos(th), np.sin(th)
+        q = np.stack([c * v[:, 0] - s * v[:, 1], s * v[:, 0] + c * v[:, 1], v[:, 2]], -1)
+        return q @ self.npm
+
+    # ------------------------------------------------------------------ Plant protocol
+    def initial_state(self) -> np.ndarray:
+        """Full 13-state at t = 0."""
+        return self._x0.copy()
+
+    def relative_state(self, state: np.ndarray) -> np.ndarray:
+        """Exact Hill relative state (6,) (frame rate from the target's total acceleration)."""
+        s = np.ascontiguousarray(state, dtype=float)
+        return kf.hill_from_y_full(s[12], s[:12].copy(), self.p, *self._arrays(), self._dens)
+
+    def propagate(self, t: float, state: np.ndarray, u: np.ndarray | None, dt: float) -> np.ndarray:
+        """State after ``dt`` s with Hill acceleration ``u`` (m/s^2) held constant."""
+        dt = float(dt)
+        if not (dt >= 0.0 and math.isfinite(dt)):
+            raise input_error("dt", dt, "must be finite and >= 0", "s")
+        s = np.ascontiguousarray(state, dtype=float)
+        uu = self._zero_u if u is None else np.ascontiguousarray(u, dtype=float)
+        t0 = float(s[12])
+        y = self._integrate(s[:12].copy(), np.array([t0, t0 + dt]), uu)[-1]
+        return np.append(y, t0 + dt)
+
+    def apply_impulse(self, t: float, state: np.ndarray, dv: np.ndarray) -> np.ndarray:
+        s = np.ascontiguousarray(state, dtype=float)
+        y = kernels.apply_hill_impulse(s[:12].copy(), np.ascontiguousarray(dv, dtype=float))
+        return np.append(y, s[12])
+
+    def free_drift(self, state: np.ndarray, times: np.ndarray) -> np.ndarray:
+        """Uncontrolled Hill states (len(times), 6) at ``times`` (s after now, increasing, >= 0)."""
+        s = np.ascontiguousarray(state, dtype=float)
+        times = np.ascontiguousarray(times, dtype=float)
+        if times.ndim != 1 or times.size == 0 or times[0] < 0.0 or np.any(np.diff(times) < 0.0):
+            raise input_error("times", times.tolist(), "must be a non-empty increasing 1-D grid of s >= 0")
+        grid = s[12] + (times if times[0] == 0.0 else np.concatenate([[0.0], times]))
+        ys = self._integrate(s[:12].copy(), grid, self._zero_u)
+        rel = np.array([kf.hill_from_y_full(tk, yk, self.p, *self._arrays(), self._dens) for tk, yk in zip(grid, ys)])
+        return rel if times[0] == 0.0 else rel[1:]
+
+    def _integrate(self, y0: np.ndarray, grid: np.ndarray, u: np.ndarray) -> np.ndarray:
+        if self.models.drag:
+            self._ensure_table(float(grid[-1]))
+        else:
+            check_time_range(self.epoch, float(grid[-1]), "duration")
+        if self.integrator == "fast":
+            out = np.empty((grid.size, 12))
+            status, _, _ = kf.integrate_full(
+                y0, grid, u, self.p, *self._arrays(), self._dens, self.rtol, self.atol, out
+            )
+            if status != kernels.STATUS_OK:
+                raise ProxopsError(f"truth propagation failed (status {status})")
+            return out
+        return self._integrate_reference(y0, grid, u)
+
+    def _integrate_reference(self, y0: np.ndarray, grid: np.ndarray, u: np.ndarray) -> np.ndarray:
+        """scipy DOP853 on the same RHS with NRLMSISE-00 called directly at both spacecraft."""
+        arrays = self._arrays()
+        p = self.p
+
+        def fun(t, y):
+            out = np.empty(12)
+            if self.models.drag:
+                rho = self.atmosphere.density(np.array([t, t]), np.stack([y[:3], y[:3] + y[6:9]]))
+                rho_t, rho_c = float(rho[0]), float(rho[1])
+            else:
+                rho_t = rho_c = 0.0
+            kf.rhs_full_rho(t, y, u, p, *arrays, rho_t, rho_c, out)
+            return out
+
+        if grid[-1] == grid[0]:
+            return np.tile(y0, (grid.size, 1))
+        sol = solve_ivp(fun, (grid[0], grid[-1]), y0, method="DOP853", t_eval=grid, rtol=self.rtol, atol=self.atol)
+        if not sol.success:
+            raise ProxopsError(f"reference propagation failed: {sol.message}")
+        return sol.y.T.copy()
+
+    # ------------------------------------------------------------------ helpers
+    def with_relative_state(self, state: np.ndarray, hill_state: np.ndarray) -> np.ndarray:
+        s = np.ascontiguousarray(state, dtype=float)
+        y = kf.y_from_hill_full(s[12], s[:6].copy(), np.ascontiguousarray(hill_state, dtype=float), self.p,
+                                *self._arrays(), self._dens)  # fmt: skip
+        return np.append(y, s[12])
+
+    @staticmethod
+    def target_state(state: np.ndarray) -> np.ndarray:
+        return np.asarray(state, dtype=float)[:6].copy()
+
+    @staticmethod
+    def chaser_state(state: np.ndarray) -> np.ndarray:
+        s = np.asarray(state, dtype=float)
+        return s[:6] + s[6:12]
+
+
+# ---------------------------------------------------------------------- what each model changes
+CONTRIBUTIONS = (
+    ("harmonics above J2", "gravity_j2"),
+    ("gravity n >= 2 (all)", "gravity"),
+    ("drag", "drag"),
+    ("Sun", "sun"),
+    ("Moon", "moon"),
+    ("SRP", "srp"),
+)
+
+
+def final_hill(target: OrbitalElements, chaser_hill: np.ndarray, models: ForceModels, duration_s: float,
+               integrator: str = "fast") -> np.ndarray:  # fmt: skip
+    """Hill state (6,) after ``duration_s`` s of free drift under ``models``."""
+    truth = ComposedTruth(target, chaser_hill, models, integrator=integrator, horizon_s=duration_s)
+    return truth.relative_state(truth.propagate(0.0, truth.initial_state(), None, duration_s))
+
+
+def force_contributions(
+    target: OrbitalElements, chaser_hill: np.ndarray, models: ForceModels, duration_s: float, integrator: str = "fast"
+) -> tuple[np.ndarray, list[dict]]:
+    """Final Hill state under ``models`` and, for each enabled model, the difference it
+    makes at the end: final(models) - final(models without it) (m, m/s)."""
+    full = final_hill(target, chaser_hill, models, duration_s, integrator)
+    rows = []
+    for label, key in CONTRIBUTIONS:
+        if key == "gravity_j2":
+            if models.gravity != "harmonics":
+                continue
+            other = replace(models, gravity="j2")
+        elif key == "gravity":
+            if models.gravity == "point":
+                continue
+            other = models.without("gravity")
+        else:
+            if not getattr(models, key):
+                continue
+            other = models.without(key)
+        d = full - final_hill(target, chaser_hill, other, duration_s, integrator)
+        rows.append(
+            {
+                "model": label,
+                "delta_hill": d,
+                "delta_position_m": float(np.linalg.norm(d[:3])),
+                "delta_velocity_mps": float(np.linalg.norm(d[3:])),
+            }
+        )
+    return full, rows

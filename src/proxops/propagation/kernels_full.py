@@ -1,0 +1,402 @@
+"""Numba kernels of the composed (high-fidelity) truth: the enabled force models summed
+in one right-hand side, Encke relative form, and its DOP853 loop.
+
+State ``y`` (12,) as in :mod:`proxops.propagation.kernels`: target ECI ``[r_t, v_t]`` and
+chaser offset ``[dr, dv]``. Time ``t`` is seconds after the scenario epoch (the models
+depend on it through the Earth's rotation and the Sun and Moon).
+
+    r_t''  = -mu r_t / r_t^3 + a_p(t, r_t, v_t, target)
+    dr''   = [g(r_t + dr) - g(r_t)]_point mass (Battin, exact) + a_p(t, r_c, v_c, chaser)
+             - a_p(t, r_t, v_t, target) + C^T u
+
+where ``a_p`` sums the enabled perturbations (J2 or spherical harmonics n >= 2, drag,
+Sun, Moon, SRP), evaluated at both spacecraft and differenced. The DOP853 loop is the
+one of :mod:`proxops.propagation.kernels` (same tableau, error norm and step control;
+only the right-hand side differs, which now takes ``t`` and the model arrays), kept as a
+separate copy so that the J2-only fast path is untouched (bit-identical, same speed).
+
+Model arrays (built by :mod:`proxops.propagation.forces`): ``p`` (float parameters, indices
+below), ``C``, ``S``, ``K`` (harmonic coefficients and recursion factors), ``V``, ``W``
+(work arrays), ``dens`` (n, 3) density table along the target's path [ln rho, h, d ln rho/dh]
+on a uniform time grid, ``npm`` (3, 3) frozen precession-nutation.
+
+Density between the table nodes: Catmull-Rom cubic in time of ln rho, h and
+d ln rho / dh, then rho = exp(ln rho_tab + (h - h_tab) d ln rho/dh) at the spacecraft's
+own geodetic height h; the chaser reads the table at t + (dr . v_t)/|v_t|^2 (its
+along-track lead). The table error against direct NRLMSISE-00 calls is measured in
+tests (the reference path calls pymsis at every evaluation).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+from proxops.core.twobody import accel_differential, accel_j2, accel_twobody
+from proxops.environment.earth import geodetic
+from proxops.environment.eclipse import shadow_factor
+from proxops.environment.ephemeris import moon_eci_kernel, sun_eci_kernel
+from proxops.environment.forces import accel_drag, accel_srp, accel_third_body
+from proxops.environment.harmonics import accel_harmonics
+from proxops.propagation.kernels import (
+    A,
+    B,
+    C as C_NODES,
+    ERROR_EXPONENT,
+    MAX_FACTOR,
+    MAX_STEPS,
+    MIN_FACTOR,
+    N_STAGES,
+    SAFETY,
+    STATUS_NOT_FINITE,
+    STATUS_OK,
+    STATUS_STEP_TOO_SMALL,
+    STATUS_TOO_MANY_STEPS,
+    dop853_error_norm,
+    hill_axes,
+    initial_step_orbit,
+)
+
+# ------------------------------------------------------------------ parameter layout of p
+I_MU = 0  # central GM (m^3/s^2)
+I_GRAV = 1  # 0 point mass only, 1 zonal J2, 2 spherical harmonics
+I_J2 = 2
+I_RE = 3  # J2 reference radius (m)
+I_GM_H = 4  # harmonics GM and radius
+I_RE_H = 5
+I_NMAX = 6
+I_MMAX = 7
+I_DRAG = 8  # 0/1
+I_BC_T = 9  # C_D A / m target, chaser (m^2/kg)
+I_BC_C = 10
+I_SUN = 11  # 0/1 Sun third body
+I_MOON = 12  # 0/1 Moon third body
+I_SRP = 13  # 0 off, 1 conical shadow, 2 cylindrical shadow
+I_CR_T = 14  # C_R A / m target, chaser (m^2/kg)
+I_CR_C = 15
+I_D0 = 16  # TT days from J2000 at t = 0
+I_THETA0 = 17  # Earth rotation angle at t = 0 (rad) and rate (rad/s)
+I_OMEGA = 18
+I_WX = 19  # Earth rotation vector in ECI (rad/s) for the co-rotating atmosphere
+I_WY = 20
+I_WZ = 21
+I_GM_SUN = 22
+I_GM_MOON = 23
+I_AU = 24
+I_R_EARTH = 25  # shadow: Earth and Sun radii (m)
+I_R_SUN = 26
+I_DENS_T0 = 27  # density table start time (s) and spacing (s)
+I_DENS_DT = 28
+N_P = 29
+
+
+@njit(cache=True)
+def _interp_row(dens: np.ndarray, p: np.ndarray, t: float, out: np.ndarray) -> None:
+    """Catmull-Rom cubic interpolation of the table rows at time t (clamped at the ends)."""
+    n = dens.shape[0]
+    s = (t - p[I_DENS_T0]) / p[I_DENS_DT]
+    if s <= 0.0:
+        for j in range(3):
+            out[j] = dens[0, j]
+        return
+    if s >= n - 1:
+        for j in range(3):
+            out[j] = dens[n - 1, j]
+        return
+    i = int(s)
+    f = s - i
+    i0 = max(i - 1, 0)
+    i3 = min(i + 2, n - 1)
+    f2 = f * f
+    f3 = f2 * f
+    for j in range(3):
+        p0 = dens[i0, j]
+        p1 = dens[i, j]
+        p2 = dens[i + 1, j]
+        p3 = dens[i3, j]
+        out[j] = 0.5 * (2.0 * p1 + (-p0 + p2) * f + (2.0 * p0 - 5.0 * p1 + 4.0 * p2 - p3) * f2 + (-p0 + 3.0 * p1 - 3.0 * p2 + p3) * f3)
+
+
+@njit(cache=True)
+def density_at(t: float, rx: float, ry: float, rz: float, p: np.ndarray, npm: np.ndarray, dens: np.ndarray) -> float:
+    """Tabulated NRLMSISE-00 density (kg/m^3) at ECI position r (m), time t (s)."""
+    row = np.empty(3)
+    _interp_row(dens, p, t, row)
+    ex, ey, ez = _to_ecef(t, rx, ry, rz, p, npm)
+    h = geodetic(ex, ey, ez)[2]
+    return math.exp(row[0] + (h - row[1]) * row[2])
+
+
+@njit(cache=True)
+def _to_ecef(t, x, y, z, p, npm):
+    qx = npm[0, 0] * x + npm[0, 1] * y + npm[0, 2] * z
+    qy = npm[1, 0] * x + npm[1, 1] * y + npm[1, 2] * z
+    qz = npm[2, 0] * x + npm[2, 1] * y + npm[2, 2] * z
+    th = p[I_THETA0] + p[I_OMEGA] * t
+    c = math.cos(th)
+    s = math.sin(th)
+    return c * qx + s * qy, -s * qx + c * qy, qz
+
+
+@njit(cache=True)
+def _harmonics_eci(t, x, y, z, p, npm, C, S, K, V, W):
+    ex, ey, ez = _to_ecef(t, x, y, z, p, npm)
+    bx, by, bz = accel_harmonics(ex, ey, ez, p[I_GM_H], p[I_RE_H], C, S, int(p[I_NMAX]), int(p[I_MMAX]), 2, K, V, W)
+    th = p[I_THETA0] + p[I_OMEGA] * t
+    c = math.cos(th)
+    s = math.sin(th)
+    qx = c * bx - s * by
+    qy = s * bx + c * by
+    qz = bz
+    # npm^T q
+    return (
+        npm[0, 0] * qx + npm[1, 0] * qy + npm[2, 0] * qz,
+        npm[0, 1] * qx + npm[1, 1] * qy + npm[2, 1] * qz,
+        npm[0, 2] * qx + npm[1, 2] * qy + npm[2, 2] * qz,
+    )
+
+
+@njit(cache=True)
+def accel_perturbations(t, rx, ry, rz, vx, vy, vz, chaser, rho, sun, moon, p, npm, C, S, K, V, W):
+    """Sum of the enabled perturbations (m/s^2, ECI) on one spacecraft; ``rho`` its density
+    (kg/m^3), ``sun``/``moon`` geocentric positions (m, 3-tuples)."""
+    ax = 0.0
+    ay = 0.0
+    az = 0.0
+    grav = p[I_GRAV]
+    if grav == 1.0:
+        ax, ay, az = accel_j2(rx, ry, rz, p[I_MU], p[I_J2], p[I_RE])
+    elif grav == 2.0:
+        ax, ay, az = _harmonics_eci(t, rx, ry, rz, p, npm, C, S, K, V, W)
+    if p[I_DRAG] != 0.0:
+        bc = p[I_BC_C] if chaser else p[I_BC_T]
+        dx, dy, dz = accel_drag(rx, ry, rz, vx, vy, vz, rho, bc, p[I_WX], p[I_WY], p[I_WZ])
+        ax += dx
+        ay += dy
+        az += dz
+    if p[I_SUN] != 0.0:
+        dx, dy, dz = accel_third_body(rx, ry, rz, sun[0], sun[1], sun[2], p[I_GM_SUN])
+        ax += dx
+        ay += dy
+        az += dz
+    if p[I_MOON] != 0.0:
+        dx, dy, dz = accel_third_body(rx, ry, rz, moon[0], moon[1], moon[2], p[I_GM_MOON])
+        ax += dx
+        ay += dy
+        az += dz
+    if p[I_SRP] != 0.0:
+        nu = shadow_factor(rx, ry, rz, sun[0], sun[1], sun[2], p[I_R_EARTH], p[I_R_SUN], p[I_SRP] == 1.0)
+        if nu > 0.0:
+            cr = p[I_CR_C] if chaser else p[I_CR_T]
+            dx, dy, dz = accel_srp(rx, ry, rz, sun[0], sun[1], sun[2], cr, nu, p[I_AU])
+            ax += dx
+            ay += dy
+            az += dz
+    return ax, ay, az
+
+
+@njit(cache=True)
+def rhs_full_rho(t, y, u, p, npm, C, S, K, V, W, rho_t, rho_c, out) -> None:
+    """Composed Encke RHS (12,) with given densities at target and chaser (kg/m^3)."""
+    d = p[I_D0] + t / 86400.0
+    sun = (0.0, 0.0, 0.0)
+    moon = (0.0, 0.0, 0.0)
+    if p[I_SUN] != 0.0 or p[I_SRP] != 0.0:
+        sun = sun_eci_kernel(d)
+    if p[I_MOON] != 0.0:
+        moon = moon_eci_kernel(d)
+    rtx, rty, rtz = y[0], y[1], y[2]
+    rcx, rcy, rcz = rtx + y[6], rty + y[7], rtz + y[8]
+    ax, ay, az = accel_twobody(rtx, rty, rtz, p[I_MU])
+    ptx, pty, ptz = accel_perturbations(t, rtx, rty, rtz, y[3], y[4], y[5], False, rho_t, sun, moon, p, npm, C, S, K, V, W)
+    pcx, pcy, pcz = accel_perturbations(
+        t, rcx, rcy, rcz, y[3] + y[9], y[4] + y[10], y[5] + y[11], True, rho_c, sun, moon, p, npm, C, S, K, V, W
+    )
+    dax, day, daz = accel_differential(rtx, rty, rtz, y[6], y[7], y[8], p[I_MU], 0.0, 1.0)
+    dax += pcx - ptx
+    day += pcy - pty
+    daz += pcz - ptz
+    if u[0] != 0.0 or u[1] != 0.0 or u[2] != 0.0:
+        xx, xy, xz, yx, yy, yz, zx, zy, zz = hill_axes(y)
+        dax += xx * u[0] + yx * u[1] + zx * u[2]
+        day += xy * u[0] + yy * u[1] + zy * u[2]
+        daz += xz * u[0] + yz * u[1] + zz * u[2]
+    out[0] = y[3]
+    out[1] = y[4]
+    out[2] = y[5]
+    out[3] = ax + ptx
+    out[4] = ay + pty
+    out[5] = az + ptz
+    out[6] = y[9]
+    out[7] = y[10]
+    out[8] = y[11]
+    out[9] = dax
+    out[10] = day
+    out[11] = daz
+
+
+@njit(cache=True)
+def rhs_full(t, y, u, p, npm, C, S, K, V, W, dens, out) -> None:
+    """Composed Encke RHS (12,) with the density from the table (see module doc)."""
+    rho_t = 0.0
+    rho_c = 0.0
+    if p[I_DRAG] != 0.0:
+        rho_t = density_at(t, y[0], y[1], y[2], p, npm, dens)
+        v2 = y[3] * y[3] + y[4] * y[4] + y[5] * y[5]
+        lead = (y[6] * y[3] + y[7] * y[4] + y[8] * y[5]) / v2
+        rho_c = density_at(t + lead, y[0] + y[6], y[1] + y[7], y[2] + y[8], p, npm, dens)
+    rhs_full_rho(t, y, u, p, npm, C, S, K, V, W, rho_t, rho_c, out)
+
+
+@njit(cache=True)
+def target_accel(t, y, p, npm, C, S, K, V, W, dens):
+    """Total acceleration (3-tuple, m/s^2) of the target (for the Hill frame rate)."""
+    out = np.empty(12)
+    u = np.zeros(3)
+    rhs_full(t, y, u, p, npm, C, S, K, V, W, dens, out)
+    return out[3], out[4], out[5]
+
+
+@njit(cache=True)
+def hill_from_y_full(t, y, p, npm, C, S, K, V, W, dens) -> np.ndarray:
+    """Exact Hill relative state (6,) with the frame rate x part r (a_t . h_hat)/|h| from
+    the target's total acceleration (see proxops.frames.hill)."""
+    xx, xy, xz, yx, yy, yz, zx, zy, zz = hill_axes(y)
+    rn2 = y[0] * y[0] + y[1] * y[1] + y[2] * y[2]
+    hx = y[1] * y[5] - y[2] * y[4]
+    hy = y[2] * y[3] - y[0] * y[5]
+    hz = y[0] * y[4] - y[1] * y[3]
+    h2 = hx * hx + hy * hy + hz * hz
+    wz = math.sqrt(h2) / rn2
+    ax, ay, az = target_accel(t, y, p, npm, C, S, K, V, W, dens)
+    wx = math.sqrt(rn2) * (ax * hx + ay * hy + az * hz) / h2
+    px = xx * y[6] + xy * y[7] + xz * y[8]
+    py = yx * y[6] + yy * y[7] + yz * y[8]
+    pz = zx * y[6] + zy * y[7] + zz * y[8]
+    out = np.empty(6)
+    out[0] = px
+    out[1] = py
+    out[2] = pz
+    out[3] = xx * y[9] + xy * y[10] + xz * y[11] + wz * py
+    out[4] = yx * y[9] + yy * y[10] + yz * y[11] - (wz * px - wx * pz)
+    out[5] = zx * y[9] + zy * y[10] + zz * y[11] - wx * py
+    return out
+
+
+@njit(cache=True)
+def y_from_hill_full(t, target, hill, p, npm, C, S, K, V, W, dens) -> np.ndarray:
+    """12-state from the target ECI state (6,) and chaser Hill state (6,); inverse of
+    :func:`hill_from_y_full`."""
+    y = np.zeros(12)
+    for i in range(6):
+        y[i] = target[i]
+    xx, xy, xz, yx, yy, yz, zx, zy, zz = hill_axes(y)
+    rn2 = y[0] * y[0] + y[1] * y[1] + y[2] * y[2]
+    hx = y[1] * y[5] - y[2] * y[4]
+    hy = y[2] * y[3] - y[0] * y[5]
+    hz = y[0] * y[4] - y[1] * y[3]
+    h2 = hx * hx + hy * hy + hz * hz
+    wz = math.sqrt(h2) / rn2
+    ax, ay, az = target_accel(t, y, p, npm, C, S, K, V, W, dens)
+    wx = math.sqrt(rn2) * (ax * hx + ay * hy + az * hz) / h2
+    px, py, pz = hill[0], hill[1], hill[2]
+    qx = hill[3] - wz * py
+    qy = hill[4] + wz * px - wx * pz
+    qz = hill[5] + wx * py
+    y[6] = xx * px + yx * py + zx * pz
+    y[7] = xy * px + yy * py + zy * pz
+    y[8] = xz * px + yz * py + zz * pz
+    y[9] = xx * qx + yx * qy + zx * qz
+    y[10] = xy * qx + yy * qy + zy * qz
+    y[11] = xz * qx + yz * qy + zz * qz
+    return y
+
+
+# ---------------------------------------------------------------- DOP853 loop (time-dependent RHS)
+@njit(cache=True)
+def _step(t, y, f0, h, u, p, npm, C, S, K, V, W, dens, Kst, work, y_new) -> None:
+    n = y.size
+    for i in range(n):
+        Kst[0, i] = f0[i]
+    for s in range(1, N_STAGES):
+        for i in range(n):
+            acc = 0.0
+            for j in range(s):
+                acc += A[s, j] * Kst[j, i]
+            work[i] = y[i] + h * acc
+        rhs_full(t + C_NODES[s] * h, work, u, p, npm, C, S, K, V, W, dens, Kst[s])
+    for i in range(n):
+        acc = 0.0
+        for j in range(N_STAGES):
+            acc += B[j] * Kst[j, i]
+        y_new[i] = y[i] + h * acc
+    rhs_full(t + h, y_new, u, p, npm, C, S, K, V, W, dens, Kst[N_STAGES])
+
+
+@njit(cache=True)
+def integrate_full(y0, times, u, p, npm, C, S, K, V, W, dens, rtol, atol, out) -> tuple:
+    """Integrate through increasing absolute ``times`` (s after the epoch; times[0] = start),
+    storing the state at each time in ``out``. Same step control as
+    :func:`proxops.propagation.kernels.integrate_grid`. Returns (status, n_steps, n_rejected)."""
+    n = y0.size
+    m = times.size
+    Kst = np.empty((N_STAGES + 1, n))
+    work = np.empty(n)
+    y = y0.copy()
+    y_new = np.empty(n)
+    f0 = np.empty(n)
+    for i in range(n):
+        out[0, i] = y0[i]
+    if m == 1:
+        return STATUS_OK, 0, 0
+    t = times[0]
+    rhs_full(t, y, u, p, npm, C, S, K, V, W, dens, f0)
+    span = times[m - 1] - times[0]
+    if span <= 0.0:
+        for k in range(1, m):
+            for i in range(n):
+                out[k, i] = y0[i]
+        return STATUS_OK, 0, 0
+    pp = np.empty(1)
+    pp[0] = p[I_MU]
+    h_abs = min(span, initial_step_orbit(y, pp, rtol))
+    n_steps = 0
+    n_rej = 0
+    for k in range(1, m):
+        t_end = times[k]
+        while t < t_end:
+            rejected = False
+            while True:
+                if n_steps + n_rej >= MAX_STEPS:
+                    return STATUS_TOO_MANY_STEPS, n_steps, n_rej
+                min_step = 10.0 * (np.nextafter(abs(t), np.inf) - abs(t))
+                if h_abs < min_step:
+                    return STATUS_STEP_TOO_SMALL, n_steps, n_rej
+                clipped = t + h_abs >= t_end
+                h = t_end - t if clipped else h_abs
+                _step(t, y, f0, h, u, p, npm, C, S, K, V, W, dens, Kst, work, y_new)
+                err = dop853_error_norm(y, y_new, Kst, h, rtol, atol)
+                if not math.isfinite(err):
+                    return STATUS_NOT_FINITE, n_steps, n_rej
+                if err < 1.0:
+                    if err == 0.0:
+                        factor = MAX_FACTOR
+                    else:
+                        factor = min(MAX_FACTOR, SAFETY * err**ERROR_EXPONENT)
+                    if rejected:
+                        factor = min(1.0, factor)
+                    h_abs = max(h * factor, h_abs) if clipped else h * factor
+                    break
+                h_abs = h * max(MIN_FACTOR, SAFETY * err**ERROR_EXPONENT)
+                rejected = True
+                n_rej += 1
+            n_steps += 1
+            t = t_end if clipped else t + h
+            for i in range(n):
+                y[i] = y_new[i]
+                f0[i] = Kst[N_STAGES, i]
+        for i in range(n):
+            out[k, i] = y[i]
+    return STATUS_OK, n_steps, n_rej
