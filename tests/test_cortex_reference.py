@@ -317,3 +317,23 @@ def test_cli_references_campaign(tmp_path):
     for col in ("disp.axis.fibonacci_index", "metric.tau1_s", "metric.tau2_s", "metric.hold1_s", "metric.hold2_s",
                 "metric.dv1_mps", "metric.dv2_mps", "metric.tof_s", "metric.plan_wall_time_s", "status"):
         assert col in table
+
+
+@pytest.mark.parametrize("override, key", [
+    ("geometry.cone_half_angle_deg=95", "cone_half_angle_deg"),
+    ("geometry.plume_half_angle_deg=0", "plume_half_angle_deg"),
+    ("geometry.r_kos_m=80", "r_kos_m"),
+    ("planner.tau_lb_s=4000", "tau_lb_s"),
+])
+def test_scenario_rejects_bad_values_at_validation(override, key):
+    from proxops.cli import app
+
+    res = CliRunner().invoke(app, ["validate", "cortex-reference", "--set", override])
+    assert res.exit_code == 2 and key in res.output and "Traceback" not in res.output
+
+
+def test_cli_start_inside_kos_is_one_line_error():
+    from proxops.cli import app
+
+    res = CliRunner().invoke(app, ["cortex", "reference", "--set", "geometry.start_position_m=[0.0, -10.0, 0.0]"])
+    assert res.exit_code == 2 and "start position" in res.output and "Traceback" not in res.output

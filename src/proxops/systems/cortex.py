@@ -49,13 +49,19 @@ class GeometrySection(Section):
     r_rs_m: Annotated[float, Field(gt=0.0)] = 10_000.0
     r_as_m: Annotated[float, Field(gt=0.0)] = 75.0
     r_kos_m: Annotated[float, Field(gt=0.0)] = 15.0
-    plume_half_angle_deg: float = 20.0  # alpha_p
-    cone_half_angle_deg: float = 10.0  # alpha_c
+    plume_half_angle_deg: Annotated[float, Field(gt=0.0, lt=90.0)] = 20.0  # alpha_p
+    cone_half_angle_deg: Annotated[float, Field(gt=0.0, lt=90.0)] = 10.0  # alpha_c
     start_position_m: Vector3 | None = None  # None: [0, -r_AS/2, 0]
     start_velocity_mps: Vector3 = [0.0, 0.0, 0.0]
     flyaround_end_range_m: Annotated[float, Field(gt=0.0)] | None = None  # None: rho_bar (x_f1 = [rho_bar e, 0])
     approach_end_range_m: Annotated[float, Field(gt=0.0)] = 1.0  # x_f2 = [1 m e, 0]
     approach_end_position_m: Vector3 | None = None  # explicit x_f2 position (Hill, m)
+
+    @model_validator(mode="after")
+    def _kos_inside_approach_sphere(self):
+        if self.r_kos_m >= self.r_as_m:
+            raise ValueError(f"geometry.r_kos_m = {self.r_kos_m} m must be smaller than r_as_m = {self.r_as_m} m")
+        return self
 
 
 class MarginsSection(Section):
@@ -82,6 +88,12 @@ class PlannerSection(Section):
     scp_tol_mps: Annotated[float, Field(gt=0.0)] = 1e-5
     plume_tol_deg: Annotated[float, Field(gt=0.0)] = 0.00573  # 1e-4 rad
     search: Literal["auto", "scan"] = "auto"
+
+    @model_validator(mode="after")
+    def _bounds_ordered(self):
+        if self.tau_lb_s > self.tau_ub_s:
+            raise ValueError(f"planner.tau_lb_s = {self.tau_lb_s} s must not exceed tau_ub_s = {self.tau_ub_s} s")
+        return self
 
 
 class GuidanceSection(Section):
