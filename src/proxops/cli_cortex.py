@@ -14,6 +14,7 @@ and prints median/IQR of delta-v, TOF and compute time next to §5.1.1.
 from __future__ import annotations
 
 import copy
+import math
 import time
 from pathlib import Path
 from typing import Annotated, Optional
@@ -78,6 +79,7 @@ def write_plan(sc, plan, out: Path, summary: dict) -> list[Path]:
 
 
 def format_plan(s: dict) -> str:
+    s = {k: (math.nan if v is None else v) for k, v in s.items()}
     lines = [
         f"status        {s['status']}" + (f" ({s['reason']})" if s.get("reason") else ""),
         f"axis (Hill)   [{s['axis_x']:.4f}, {s['axis_y']:.4f}, {s['axis_z']:.4f}]",

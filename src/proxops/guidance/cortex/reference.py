@@ -272,7 +272,8 @@ class CortexPlan:
         if c is not None:
             out.update({f"check_{k}": v for k, v in asdict(c).items() if k != "failures"})
             out["check_failures"] = "; ".join(c.failures)
-        return out
+        # strict JSON: no NaN/inf (an infeasible plan has no durations)
+        return {k: (None if isinstance(v, float) and not math.isfinite(v) else v) for k, v in out.items()}
 
     def trajectory(self, samples_per_interval: int = 1) -> dict:
         """Reference time line (s, from t0): hold 1, CP1, hold 2, CP2. Returns arrays t, x (n, 6),
