@@ -337,3 +337,26 @@ def test_cli_start_inside_kos_is_one_line_error():
 
     res = CliRunner().invoke(app, ["cortex", "reference", "--set", "geometry.start_position_m=[0.0, -10.0, 0.0]"])
     assert res.exit_code == 2 and "start position" in res.output and "Traceback" not in res.output
+
+
+def test_phase_end_time_is_monotone_so_shortest_durations_minimise_J():
+    """The outer-search argument (proxops.guidance.cortex.reference): the end of a phase
+    f(t, tau) = t + hold(t, tau) + tau never decreases with its start t or its duration tau."""
+    rng = np.random.default_rng(7)
+    for _ in range(20):
+        t = np.arange(0.0, 40000.0, 11.0)
+        eta = np.ones(t.size, np.int8)
+        for start in rng.uniform(0, 38000, 8):
+            eta[(t >= start) & (t < start + rng.uniform(200, 2000))] = 0
+
+        def f(t0, tau):
+            return t0 + holds.hold_time(t, eta, t0, tau) + tau
+
+        starts = np.sort(rng.uniform(0, 15000, 25))
+        taus = np.sort(rng.uniform(300, 3600, 15))
+        for tau in taus[::3]:
+            ends = [f(s, tau) for s in starts]
+            assert all(a <= b + 1e-9 for a, b in zip(ends, ends[1:]))
+        for s in starts[::5]:
+            ends = [f(s, tau) for tau in taus]
+            assert all(a <= b + 1e-9 for a, b in zip(ends, ends[1:]))
