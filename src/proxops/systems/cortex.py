@@ -88,6 +88,7 @@ class PlannerSection(Section):
     scp_tol_mps: Annotated[float, Field(gt=0.0)] = 1e-5
     plume_tol_deg: Annotated[float, Field(gt=0.0)] = 0.00573  # 1e-4 rad
     search: Literal["auto", "scan"] = "auto"
+    start_delay_s: Annotated[float, Field(ge=0.0)] = 0.0  # plan start t0 after orbit.epoch_utc (eclipse phase)
 
     @model_validator(mode="after")
     def _bounds_ordered(self):
@@ -205,7 +206,7 @@ def plan_scenario(sc: CortexScenario, axis=None):
 
     cfg = config_from_scenario(sc)
     e = scenario_axis(sc) if axis is None else axis
-    return plan_reference(e, cfg, eclipse=eclipse_profile(sc), t0_s=0.0)
+    return plan_reference(e, cfg, eclipse=eclipse_profile(sc), t0_s=sc.planner.start_delay_s)
 
 
 def plan_to_result(sc: CortexScenario, plan):
