@@ -188,6 +188,8 @@ def test_cp2_satisfies_cone_and_plume_at_every_node():
     thrust = np.linalg.norm(res.dv, axis=1) > 1e-6
     cosang = np.sum(res.dv * r, axis=1) / (np.linalg.norm(res.dv, axis=1) * np.linalg.norm(r, axis=1))
     assert np.degrees(np.arccos(cosang[thrust])).min() >= 24.0 - 0.01
+    # the constraints can only cost fuel: above the unconstrained (primer-vector) bound
+    assert res.dv_total_mps >= primer_lower_bound(res.t, np.r_[18 * e, 0, 0, 0], np.r_[e, 0, 0, 0]) - 1e-9
 
 
 # ----------------------------------------------------------------------------- full plan
@@ -360,3 +362,9 @@ def test_phase_end_time_is_monotone_so_shortest_durations_minimise_J():
         for s in starts[::5]:
             ends = [f(s, tau) for tau in taus]
             assert all(a <= b + 1e-9 for a, b in zip(ends, ends[1:]))
+
+
+def test_profile_too_short_is_a_status(cfg):
+    t, eta = square_profile(period=5700.0, sun=3600.0, dt=5.7, orbits=1)
+    plan = plan_reference(PAPER_FIXED_AXIS_HILL, cfg, eclipse=(t, eta), t0_s=3500.0)
+    assert plan.status == "eclipse_profile_short" and "extend" in plan.reason
