@@ -80,7 +80,7 @@ def campaign(n: int, workers: int = 2) -> None:
     from proxops.analysis.campaign import run_campaign, shutdown_pools
     from proxops.cli_cortex import references_scenario
 
-    data = references_scenario("cortex-reference", n, [])
+    data = references_scenario("cortex-reference", n)
     with tempfile.TemporaryDirectory() as tmp:
         t0 = time.perf_counter()
         res = run_campaign(data, workers=workers, out=os.path.join(tmp, "c"), progress=False)

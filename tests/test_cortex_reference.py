@@ -368,3 +368,14 @@ def test_profile_too_short_is_a_status(cfg):
     t, eta = square_profile(period=5700.0, sun=3600.0, dt=5.7, orbits=1)
     plan = plan_reference(PAPER_FIXED_AXIS_HILL, cfg, eclipse=(t, eta), t0_s=3500.0)
     assert plan.status == "eclipse_profile_short" and "extend" in plan.reason
+
+
+def test_cli_references_applies_overrides():
+    from proxops.cli import app
+
+    runner = CliRunner()
+    base = json.loads(runner.invoke(app, ["cortex", "references", "--n", "2", "--workers", "1", "--json"]).stdout)
+    slow = runner.invoke(app, ["cortex", "references", "--n", "2", "--workers", "1", "--json",
+                               "--set", "planner.tau_lb_s=600"])
+    assert slow.exit_code == 0, slow.output
+    assert json.loads(slow.stdout)["tof_min"]["median"] >= 20.0 > base["tof_min"]["median"]

@@ -103,8 +103,9 @@ def format_plan(s: dict) -> str:
     return "\n".join(lines)
 
 
-def references_scenario(scenario: str, n: int, overrides: list[str]) -> dict:
-    """The scenario data with the Fibonacci grid: ``axis.fibonacci_index`` = 0..n-1."""
+def references_scenario(scenario: str, n: int) -> dict:
+    """The scenario data with the Fibonacci grid: ``axis.fibonacci_index`` = 0..n-1 (overrides are
+    applied by the campaign engine)."""
     from proxops.errors import input_error
     from proxops.scenarios.loader import read_toml, resolve
 
@@ -138,9 +139,9 @@ def references(
 
     if workers < 1:
         raise input_error("--workers", workers, "must be >= 1")
-    data = references_scenario(scenario, n, list(set_))
+    data = references_scenario(scenario, n)
     t0 = time.perf_counter()
-    res = run_campaign(data, workers=workers, out=out, resume=resume, progress=not as_json,
+    res = run_campaign(data, workers=workers, out=out, resume=resume, progress=not as_json, overrides=list(set_),
                        keep_series=out is not None and figures)
     wall = time.perf_counter() - t0
     st = campaign_statistics(res.table)
