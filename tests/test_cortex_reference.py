@@ -379,3 +379,17 @@ def test_cli_references_applies_overrides():
                                "--set", "planner.tau_lb_s=600"])
     assert slow.exit_code == 0, slow.output
     assert json.loads(slow.stdout)["tof_min"]["median"] >= 20.0 > base["tof_min"]["median"]
+
+
+def test_arc_planes_reduce_the_coast_penetration():
+    from proxops.guidance.cortex.phases import arc_min_distance
+
+    e = np.array([0.0, 1.0, 0.0])
+    x0, xf = np.array([0.0, -37.5, 0.0, 0, 0, 0]), np.r_[18.0 * e, 0, 0, 0]
+    plain = solve_flyaround(N_CSO, 600.0, 30.0, x0, xf, 1.92e-3, 18.0)
+    arc = solve_flyaround(N_CSO, 600.0, 30.0, x0, xf, 1.92e-3, 18.0, arc_planes=True)
+    assert plain.ok and arc.ok
+    pen_plain = 18.0 - arc_min_distance(N_CSO, plain.t, plain.x, plain.dv)[0]
+    pen_arc = 18.0 - arc_min_distance(N_CSO, arc.t, arc.x, arc.dv)[0]
+    assert pen_plain > 0.01 and pen_arc < 0.5 * pen_plain
+    assert arc.dv_total_mps >= plain.dv_total_mps - 1e-9  # more constraints cannot save fuel

@@ -84,6 +84,7 @@ class PlannerSection(Section):
     dt_cp1_s: Annotated[float, Field(gt=0.0)] = 30.0
     dt_cp2_s: Annotated[float, Field(gt=0.0)] = 10.0
     kos_max_iter: Annotated[int, Field(ge=1)] = 50
+    kos_arc_planes: bool = False  # not in the paper: also plane the deepest coast point of each interval
     scp_max_iter: Annotated[int, Field(ge=1)] = 30
     scp_tol_mps: Annotated[float, Field(gt=0.0)] = 1e-5
     plume_tol_deg: Annotated[float, Field(gt=0.0)] = 0.00573  # 1e-4 rad
@@ -162,7 +163,7 @@ def config_from_scenario(sc: CortexScenario):
         dt_cp1_s=p.dt_cp1_s, dt_cp2_s=p.dt_cp2_s, start_state=tuple(list(start) + list(g.start_velocity_mps)),
         flyaround_end_range_m=g.flyaround_end_range_m, approach_end_range_m=g.approach_end_range_m,
         approach_end_position_m=None if g.approach_end_position_m is None else tuple(g.approach_end_position_m),
-        kos_max_iter=p.kos_max_iter, scp_max_iter=p.scp_max_iter, scp_tol_mps=p.scp_tol_mps,
+        kos_max_iter=p.kos_max_iter, kos_arc_planes=p.kos_arc_planes, scp_max_iter=p.scp_max_iter, scp_tol_mps=p.scp_tol_mps,
         plume_tol_rad=math.radians(p.plume_tol_deg), search=p.search,
     )
 

@@ -98,7 +98,8 @@ class _PhaseSOCP:
     """Sparse SOCP of one phase for a fixed node grid; optional KOS planes, cone and plume rows."""
 
     def __init__(self, n_rad_s: float, t: np.ndarray, x0, xf, a_bar_mps2: float, *, kos: bool = False,
-                 cone: ApproachCone | None = None, plume: bool = False, solver_settings: dict | None = None):
+                 cone: ApproachCone | None = None, plume: bool = False, arc: bool = False,
+                 solver_settings: dict | None = None):
         self.t = t
         self.N = N = len(t) - 1
         self.M = M = N + 1  # impulses at nodes 0..N (the last one is the terminal burn)
@@ -163,6 +164,16 @@ class _PhaseSOCP:
             b.append(np.ones(nk))
             r += nk
             n_nonneg += nk
+        # --- optional arc planes, one per interval k: l . r_k(s) >= rho on the coast after node k,
+        # r_k(s) linear in (x_k, dv_k); inactive: 0 <= 1
+        self.arc_row0 = r
+        if arc:
+            for k in range(N):
+                put(np.full(9, r + k), np.concatenate([6 * k + np.arange(6), self.iv + 3 * k + np.arange(3)]),
+                    np.zeros(9))
+            b.append(np.ones(N))
+            r += N
+            n_nonneg += N
         # --- plume rows at nodes 0..N: a . r_k + g . dv_k <= b (eq. 22), inactive: 0 <= 1
         self.plume_row0 = r
         if plume:
@@ -219,6 +230,7 @@ class _PhaseSOCP:
         self.solver.setup(None, q, self._A(), self.b, cones)
         self.setup_time_s = time.perf_counter() - t0
         self._kos_entries = self._row_entries(self.kos_row0, N - 1) if kos else None
+        self._arc_entries = self._row_entries(self.arc_row0, N) if arc else None
         self._plume_entries = self._row_entries(self.plume_row0, M) if plume else None
 
     def _A(self) -> sp.csc_matrix:
@@ -239,6 +251,14 @@ class _PhaseSOCP:
 
     def set_kos_rhs(self, j: int, rho_m: float) -> None:
         self.b[self.kos_row0 + j] = -rho_m / self.L
+
+    def set_arc_plane(self, k: int, normal, pos_rows: np.ndarray, rho_m: float) -> None:
+        """Plane l . r(s) >= rho on the coast of interval k, r(s) = pos_rows @ (x_k + [0; dv_k]) with
+        pos_rows = Phi(s)[0:3, :] (physical units); row scaled by 1/L."""
+        c = np.asarray(normal, float) @ pos_rows  # (6,): on [r_k, v_k + dv_k]
+        coef = np.concatenate([-c[:3], -c[3:] * self.V / self.L, -c[3:] * self.V / self.L])
+        self.vals[self._arc_entries[k]] = coef
+        self.b[self.arc_row0 + k] = -rho_m / self.L
 
     def set_plume(self, a, g, bb) -> None:
         """Plume rows a_k . r_k + g_k . dv_k <= b_k for all nodes (physical units), each row normalised."""
@@ -278,10 +298,16 @@ def _status_of(res) -> tuple[str, str]:
 
 
 def solve_flyaround(n_rad_s: float, tau_s: float, dt_s: float, x0, xf, a_bar_mps2: float, rho_bar_m: float,
-                    kos_max_iter: int = 50, solver_settings: dict | None = None) -> PhaseResult:
-    """CP1 (eqs. 17-18): fuel-optimal fly-around in ``tau_s`` outside the inflated KOS at the nodes."""
+                    kos_max_iter: int = 50, arc_planes: bool = False, solver_settings: dict | None = None) -> PhaseResult:
+    """CP1 (eqs. 17-18): fuel-optimal fly-around in ``tau_s`` outside the inflated KOS at the nodes.
+
+    ``arc_planes`` (not in the paper): once no node violates, also add one static plane per
+    coast interval at its deepest point inside the sphere (a linear constraint on x_k, dv_k),
+    re-solved until no node and no interval with a free plane row violates; an interval whose
+    coast still dips in after its plane keeps that (reported) penetration."""
     t = node_times(tau_s, dt_s)
-    prob = _PhaseSOCP(n_rad_s, t, x0, xf, a_bar_mps2, kos=True, solver_settings=solver_settings)
+    prob = _PhaseSOCP(n_rad_s, t, x0, xf, a_bar_mps2, kos=True, arc=arc_planes, solver_settings=solver_settings)
+    has_arc = np.zeros(prob.N, bool)
     out = PhaseResult(status="not_converged", t=t, setup_time_s=prob.setup_time_s)
     sphere = KeepOutSphere(rho_bar_m)
     has_plane = np.zeros(prob.N - 1, bool)
@@ -297,6 +323,19 @@ def solve_flyaround(n_rad_s: float, tau_s: float, dt_s: float, x0, xf, a_bar_mps
         out.x, out.dv = x, dv
         dist = sphere.distance_to_surface(x[1:-1, :3])  # free nodes 1..N-1
         bad = np.flatnonzero((dist < -1e-6 * rho_bar_m) & ~has_plane)
+        if bad.size == 0 and arc_planes:
+            rmin, s_min = arc_min_per_interval(n_rad_s, t, x, dv)
+            arc_bad = np.flatnonzero((rmin < rho_bar_m * (1 - 1e-6)) & ~has_arc)
+            if arc_bad.size:
+                for k in arc_bad:
+                    M = _stm_pos_rows(n_rad_s, np.array([s_min[k]]))[0]
+                    xk = x[k].copy()
+                    xk[3:] += dv[k]
+                    p = M @ xk
+                    prob.set_arc_plane(k, p / max(np.linalg.norm(p), 1e-12), M, rho_bar_m)
+                    has_arc[k] = True
+                prob.push()
+                continue
         if bad.size == 0:
             out.status, out.reason = "converged", ""
             return out
@@ -388,6 +427,24 @@ def _stm_pos_rows(n: float, s: np.ndarray) -> np.ndarray:
         [z, z, cs, z, z, sn / n],
     ]
     return np.moveaxis(np.array(rows), -1, 0)
+
+
+def arc_min_per_interval(n_rad_s: float, t: np.ndarray, x, dv, samples: int = 61) -> tuple[np.ndarray, np.ndarray]:
+    """Sampled smallest range on each coast interval and the offset s (from the node) where it occurs."""
+    x = np.asarray(x, float)
+    xp = x[:-1].copy()
+    xp[:, 3:] += np.asarray(dv, float)[: len(xp)]
+    h = np.diff(t)
+    frac = np.linspace(0.0, 1.0, samples)
+    rmin, smin = np.empty(len(h)), np.empty(len(h))
+    for hk in np.unique(np.round(h, 9)):
+        ks = np.flatnonzero(np.isclose(h, hk))
+        M = _stm_pos_rows(n_rad_s, frac * hk)
+        rng = np.linalg.norm(np.einsum("sij,kj->ksi", M, xp[ks]), axis=2)
+        j = np.argmin(rng, axis=1)
+        rmin[ks] = rng[np.arange(len(ks)), j]
+        smin[ks] = frac[j] * hk
+    return rmin, smin
 
 
 def arc_min_distance(n_rad_s: float, t: np.ndarray, x, dv, samples: int = 61) -> tuple[float, float]:

@@ -92,6 +92,7 @@ class CortexConfig:
     approach_end_range_m: float = 1.0  # Table 2: x_f2 = [e, 0]
     approach_end_position_m: tuple | None = None  # explicit x_f2 position (overrides the range)
     kos_max_iter: int = 50
+    kos_arc_planes: bool = False  # also plane the deepest coast point of each interval (not in the paper)
     scp_max_iter: int = 30
     scp_tol_mps: float = 1e-5
     plume_tol_rad: float = 1e-4
@@ -384,7 +385,8 @@ def plan_reference(axis, cfg: CortexConfig, eclipse=None, t0_s: float = 0.0) -> 
     n = cfg.mean_motion_rad_s
 
     def cp1(tau):
-        return solve_flyaround(n, tau, cfg.dt_cp1_s, x_i1, x_f1, cfg.a_bar, rho_bar, kos_max_iter=cfg.kos_max_iter)
+        return solve_flyaround(n, tau, cfg.dt_cp1_s, x_i1, x_f1, cfg.a_bar, rho_bar, kos_max_iter=cfg.kos_max_iter,
+                               arc_planes=cfg.kos_arc_planes)
 
     def cp2(tau):
         return solve_final_approach(n, tau, cfg.dt_cp2_s, x_f1, x_f2, cfg.a_bar, cone, plume,
