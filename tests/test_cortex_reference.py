@@ -273,16 +273,12 @@ def test_real_eclipse_profile_hold_is_sunlit_by_an_independent_illumination_call
     from proxops.environment.ephemeris import sun_position_eci
     from proxops.scenarios.loader import load_scenario
     from proxops.systems.common import target_elements
-    from proxops.systems.cortex import eclipse_profile, plan_scenario
+    from proxops.systems.cortex import config_from_scenario, eclipse_profile, plan_scenario, scenario_axis
 
     sc = load_scenario("cortex-reference").scenario
     t, eta = eclipse_profile(sc)
     assert 0 < eta.mean() < 1  # the CSO orbit does see eclipses on 2022-05-01
     sunset = t[np.flatnonzero(np.diff(eta.astype(int)) == -1)[0] + 1]
-    from proxops.guidance.cortex.reference import plan_reference
-
-    from proxops.systems.cortex import config_from_scenario, scenario_axis
-
     plan = plan_reference(scenario_axis(sc), config_from_scenario(sc), eclipse=(t, eta), t0_s=float(sunset) + 60.0)
     assert plan.ok and plan.hold1_s > 0
     el = target_elements(sc.orbit)

@@ -55,7 +55,6 @@ from proxops.constraints.keep_out import KeepOutSphere
 from proxops.core.cw import cw_discretize_impulsive, cw_stm
 from proxops.solvers import ClarabelSOCP, SolveStatus
 
-TRACE = False
 SLACK_WEIGHT = 1e3  # cost of the plume-row slacks (scaled units; the plan's cost is ~1-10)
 DV_ZERO_MPS = 1e-6  # impulses below this are "no thrust" for the plume linearisation and checks
 
@@ -386,8 +385,6 @@ def solve_final_approach(n_rad_s: float, tau_s: float, dt_s: float, x0, xf, a_ba
         if prev_dv is not None:
             change = float(np.abs(dv - prev_dv).max())
             cost_change = abs(cost - prev_cost) / max(cost, 1e-12)
-            if TRACE:
-                print(it, change, cost_change, viol, delta, res.iterations, res.solve_time_s)
             if viol <= plume_tol_rad and (change <= scp_tol_mps or cost_change <= scp_cost_rtol):
                 out.status, out.reason = "converged", ""
                 return out
