@@ -149,6 +149,7 @@ def _mount_optional() -> None:
     for module, attr, name, kind in (
         ("proxops.cli_srf", "hop_times", "hop-times", "command"),
         ("proxops.cli_reach", "reach_app", "reach", "group"),
+        ("proxops.cli_cortex", "cortex_app", "cortex", "group"),
         ("proxops.cli_campaign", "mc", "mc", "command"),
         ("proxops.cli_campaign", "report", "report", "command"),
         ("proxops.cli_keys", "keys", "keys", "command"),

@@ -37,7 +37,8 @@ def check_scenario(loaded) -> None:
     dispersions table. Raises ProxopsInputError with one line; ``validate`` and ``mc`` call it."""
     from proxops.analysis.dispersions import parse_dispersions
 
-    loaded.system.build(loaded.scenario)
+    check = getattr(loaded.system, "check", None)  # planners without a closed loop check without building
+    check(loaded.scenario) if check is not None else loaded.system.build(loaded.scenario)
     parse_dispersions(loaded.scenario, loaded.scenario.dispersions)
 
 

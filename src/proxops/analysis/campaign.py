@@ -1078,7 +1078,9 @@ def run_campaign(scenario, n_runs: int | None = None, workers: int | None = None
     prep = _prepare(scenario, overrides)
     sc = prep.loaded.scenario
     plan = prep.plan
-    prep.loaded.system.build(sc)  # every check a run makes, once, before anything is written
+    from proxops.runner import check_scenario
+
+    check_scenario(prep.loaded)  # every check a run makes, once, before anything is written
     previous = read_manifest(Path(out)) if (resume and out is not None and Path(out).is_dir()) else None
     if seed is None:
         seed = previous["seed"] if previous and isinstance(previous.get("seed"), int) else int(sc.sim.seed)

@@ -15,6 +15,7 @@ SYSTEM_MODULES = {
     "srf": "proxops.systems.srf",
     "los": "proxops.systems.los",
     "underactuated": "proxops.systems.underactuated",
+    "cortex": "proxops.systems.cortex",
 }
 
 _SYSTEMS: dict[str, object] = {}

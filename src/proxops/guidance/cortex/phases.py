@@ -1,0 +1,474 @@
+"""The two convex phases of CORTEX reference generation (cortex-convex-guidance.md §3.1.1-3.1.2).
+
+Both are second-order cone programs on the impulsive CW discretisation (eq. 2,
+:func:`proxops.core.cw.cw_discretize_impulsive`), solved with Clarabel
+(:class:`proxops.solvers.ClarabelSOCP`)::
+
+    min  sum_k s_k                                        (17a / 20a)
+    s.t. x_0 = x_i,  x_N = x_f                            (17b / 20b)
+         x_{k+1} = Phi(dt_k) (x_k + [0; dv_k])            (17c / 20c, eq. 2)
+         ||dv_k|| <= s_k,  s_k <= a_bar dt_k              (17d-e / 20d-e)
+
+Node times ``t = [0 : dt : tau, tau]`` (eq. 17), N intervals, impulses at nodes
+0..N-1 as in eq. (2), plus a terminal burn at node N: ``x_N + [0; dv_N] = x_f``.
+Without it the last coast is fixed by the end state (at rest), and for CP1 ending at
+rest on the inflated KOS that coast starts inside the sphere whenever the CW
+acceleration at r_bar e points inwards (3 e_x^2 < e_z^2): CP1 would be infeasible for
+every tau (found on a third of the Fibonacci axes). The terminal burn is bounded like
+the others (a_bar dt). The bound (17e) uses each interval's own length (the last one
+may be shorter than dt; the paper writes dt_CP1 for every node).
+
+* CP1 (fly-around): keep-out sphere by supporting planes ``l_k . r_k >= rho_bar`` at
+  nodes that violate it (eq. 18), re-solved until no node violates; every node gets
+  at most one plane, so the loop ends after at most N solves (cap ``kos_max_iter``).
+* CP2 (final approach): approach cone (20f) as second-order cones at every free node
+  and the plume constraint (19d, impulse form of eq. 21) by successive convexification
+  (eq. 22) with an infinity-norm trust region on the impulses and slacks on the
+  linearised rows (exact penalty, so a poor linearisation is never an artificial
+  infeasibility); converged when the true plume constraint holds at every thrusting node
+  and the solution stops changing: impulses by less than ``scp_tol_mps`` or, because
+  the fuel-optimal problem is degenerate (many impulse distributions with one cost, so
+  the impulses can drift at constant cost), the cost by less than ``scp_cost_rtol``.
+  The rows are linearised in dv with r frozen at the previous iterate (the dv part of
+  grad h in eq. 22) plus, by default, the r part (``linearize_position``; faster and more often
+  converged on the Fibonacci axes than the dv part alone).
+
+The problem structure is built once per phase and duration; planes, linearised plume
+rows and trust-region bounds are changed in place (fixed sparsity pattern, explicit
+zeros for inactive rows), so Clarabel keeps its symbolic factorisation.
+
+Variables are scaled for conditioning: positions by L (the start range), velocities
+and impulses by V = a_bar dt (the largest impulse of a node).
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+import scipy.sparse as sp
+
+from proxops.constraints.approach_cone import ApproachCone, PlumeConstraint
+from proxops.constraints.keep_out import KeepOutSphere
+from proxops.core.cw import cw_discretize_impulsive, cw_stm
+from proxops.solvers import ClarabelSOCP, SolveStatus
+
+SLACK_WEIGHT = 1e3  # cost of the plume-row slacks (scaled units; the plan's cost is ~1-10)
+DV_ZERO_MPS = 1e-6  # impulses below this are "no thrust" for the plume linearisation and checks
+
+
+def node_times(tau_s: float, dt_s: float) -> np.ndarray:
+    """``[0 : dt : tau, tau]`` without a repeated last node (eq. 17 / 20 time vector), s."""
+    m = int(math.floor(tau_s / dt_s + 1e-9))
+    t = dt_s * np.arange(m + 1)
+    if tau_s - t[-1] > 1e-9 * max(1.0, tau_s):
+        t = np.append(t, tau_s)
+    else:
+        t[-1] = tau_s
+    return t
+
+
+@dataclass
+class PhaseResult:
+    """Outcome of one convex phase. ``status``: "converged", "infeasible", "not_converged"
+    (iteration cap) or "solver_error"; ``x`` (N+1, 6) node states, ``dv`` (N, 3) impulses."""
+
+    status: str
+    reason: str = ""
+    t: np.ndarray | None = None
+    x: np.ndarray | None = None
+    dv: np.ndarray | None = None
+    iterations: int = 0
+    solve_times_s: list = field(default_factory=list)
+    setup_time_s: float = 0.0
+
+    @property
+    def ok(self) -> bool:
+        return self.status == "converged"
+
+    @property
+    def dv_total_mps(self) -> float:
+        return float(np.linalg.norm(self.dv, axis=1).sum()) if self.dv is not None else math.nan
+
+
+class _PhaseSOCP:
+    """Sparse SOCP of one phase for a fixed node grid; optional KOS planes, cone and plume rows."""
+
+    def __init__(self, n_rad_s: float, t: np.ndarray, x0, xf, a_bar_mps2: float, *, kos: bool = False,
+                 cone: ApproachCone | None = None, plume: bool = False, arc: bool = False,
+                 solver_settings: dict | None = None):
+        self.t = t
+        self.N = N = len(t) - 1
+        self.M = M = N + 1  # impulses at nodes 0..N (the last one is the terminal burn)
+        self.dt = np.diff(t)
+        self.x0 = np.asarray(x0, float)
+        self.xf = np.asarray(xf, float)
+        self.L = max(float(np.linalg.norm(self.x0[:3])), float(np.linalg.norm(self.xf[:3])), 1e-3)
+        self.V = a_bar_mps2 * float(self.dt.max())
+        self.D = np.array([self.L] * 3 + [self.V] * 3)
+        self.nx = 6 * (N + 1)
+        self.iv = self.nx  # first impulse variable
+        self.isv = self.nx + 3 * M  # first slack variable
+        self.isig = self.nx + 4 * M  # plume-row slacks (virtual control, CP2 only)
+        self.nz = self.nx + 4 * M + (M if plume else 0)
+        self.smax = a_bar_mps2 * np.append(self.dt, self.dt.max()) / self.V
+
+        rows, cols, vals, b = [], [], [], []
+        r = 0
+
+        def put(row, col, val):
+            rows.append(np.atleast_1d(row))
+            cols.append(np.atleast_1d(col))
+            vals.append(np.atleast_1d(np.asarray(val, float)))
+
+        # --- equalities: x_0 = x_i, dynamics, x_N = x_f
+        put(np.arange(6), np.arange(6), np.ones(6))
+        b.append(self.x0 / self.D)
+        r = 6
+        phis = {}
+        for k in range(N):
+            key = round(float(self.dt[k]), 9)
+            if key not in phis:
+                Ad, Bd = cw_discretize_impulsive(n_rad_s, float(self.dt[k]))
+                phis[key] = (Ad / self.D[:, None] * self.D[None, :], Bd / self.D[:, None] * self.V)
+            Ad, Bd = phis[key]
+            rr = r + np.arange(6)
+            put(rr, 6 * (k + 1) + np.arange(6), np.ones(6))
+            ii, jj = np.meshgrid(rr, 6 * k + np.arange(6), indexing="ij")
+            put(ii.ravel(), jj.ravel(), -Ad.ravel())
+            ii, jj = np.meshgrid(rr, self.iv + 3 * k + np.arange(3), indexing="ij")
+            put(ii.ravel(), jj.ravel(), -Bd.ravel())
+            b.append(np.zeros(6))
+            r += 6
+        # x_N + [0; dv_N] = x_f: the end state is the state after the terminal burn
+        put(r + np.arange(6), 6 * N + np.arange(6), np.ones(6))
+        put(r + 3 + np.arange(3), self.iv + 3 * N + np.arange(3), np.ones(3))
+        b.append(self.xf / self.D)
+        r += 6
+        cones = [("zero", r)]
+        n_nonneg = 0
+        # --- s_k <= a_bar dt_k (17e)
+        put(r + np.arange(M), self.isv + np.arange(M), np.ones(M))
+        b.append(self.smax.copy())
+        r += M
+        n_nonneg += M
+        # --- KOS planes at free nodes 1..N-1 (eq. 18): -l . r_k <= -rho/L, inactive: 0 <= 1
+        self.kos_row0 = r
+        if kos:
+            nk = N - 1
+            for j in range(nk):
+                put(np.full(3, r + j), 6 * (j + 1) + np.arange(3), np.zeros(3))
+            b.append(np.ones(nk))
+            r += nk
+            n_nonneg += nk
+        # --- optional arc planes, one per interval k: l . r_k(s) >= rho on the coast after node k,
+        # r_k(s) linear in (x_k, dv_k); inactive: 0 <= 1
+        self.arc_row0 = r
+        if arc:
+            for k in range(N):
+                put(np.full(9, r + k), np.concatenate([6 * k + np.arange(6), self.iv + 3 * k + np.arange(3)]),
+                    np.zeros(9))
+            b.append(np.ones(N))
+            r += N
+            n_nonneg += N
+        # --- plume rows at nodes 0..N: a . r_k + g . dv_k <= b (eq. 22), inactive: 0 <= 1
+        self.plume_row0 = r
+        if plume:
+            for k in range(M):
+                put(np.full(6, r + k), np.concatenate([6 * k + np.arange(3), self.iv + 3 * k + np.arange(3)]),
+                    np.zeros(6))
+                put(r + k, self.isig + k, -1.0)
+            b.append(np.ones(M))
+            r += M
+            # slacks sigma_k >= 0
+            put(r + np.arange(M), self.isig + np.arange(M), -np.ones(M))
+            b.append(np.zeros(M))
+            r += M
+            n_nonneg += M
+            # trust region |dv - dv_m|_inf <= delta (as two rows per component)
+            self.trust_row0 = r
+            put(r + np.arange(3 * M), self.iv + np.arange(3 * M), np.ones(3 * M))
+            put(r + 3 * M + np.arange(3 * M), self.iv + np.arange(3 * M), -np.ones(3 * M))
+            b.append(np.full(6 * M, 10.0))
+            r += 6 * M
+            n_nonneg += 7 * M
+        cones.append(("nonneg", n_nonneg))
+        # --- ||dv_k|| <= s_k (17d)
+        for k in range(M):
+            put(r, self.isv + k, -1.0)
+            put(r + 1 + np.arange(3), self.iv + 3 * k + np.arange(3), -np.ones(3))
+            b.append(np.zeros(4))
+            cones.append(("soc", 4))
+            r += 4
+        # --- approach cone (20f) at free nodes 1..N-1: ||r|| <= e . r / cos(alpha)
+        if cone is not None:
+            c = cone.axis / math.cos(cone.half_angle_rad)
+            for k in range(1, N):
+                put(np.full(3, r), 6 * k + np.arange(3), -c)
+                put(r + 1 + np.arange(3), 6 * k + np.arange(3), -np.ones(3))
+                b.append(np.zeros(4))
+                cones.append(("soc", 4))
+                r += 4
+        self.m = r
+        self.rows = np.concatenate(rows)
+        self.cols = np.concatenate(cols)
+        self.vals = np.concatenate(vals)
+        self.b = np.concatenate(b)
+        # entry index of each (row, col) in self.vals, for in-place edits of plane/plume rows
+        self._entry = {}
+        self.cones = cones
+        q = np.zeros(self.nz)
+        q[self.isv : self.isv + M] = 1.0
+        if plume:
+            q[self.isig :] = SLACK_WEIGHT
+        self.q = q
+        self.solver = ClarabelSOCP(**(solver_settings or {}))
+        t0 = time.perf_counter()
+        self.solver.setup(None, q, self._A(), self.b, cones)
+        self.setup_time_s = time.perf_counter() - t0
+        self._kos_entries = self._row_entries(self.kos_row0, N - 1) if kos else None
+        self._arc_entries = self._row_entries(self.arc_row0, N) if arc else None
+        self._plume_entries = self._row_entries(self.plume_row0, M) if plume else None
+
+    def _A(self) -> sp.csc_matrix:
+        return sp.csc_matrix((self.vals, (self.rows, self.cols)), shape=(self.m, self.nz))
+
+    def _row_entries(self, row0: int, count: int) -> np.ndarray:
+        """Indices into self.vals of the entries of rows row0..row0+count-1, (count, k) in column order."""
+        out = []
+        for j in range(count):
+            idx = np.flatnonzero((self.rows == row0 + j) & (self.cols < self.isv))
+            out.append(idx[np.argsort(self.cols[idx])])
+        return np.array(out)
+
+    # ------------------------------------------------------------------ edits
+    def set_plane(self, j: int, normal) -> None:
+        """KOS plane at free node j+1: l . r >= rho (normal l unit, rho in m)."""
+        self.vals[self._kos_entries[j]] = -np.asarray(normal, float)
+
+    def set_kos_rhs(self, j: int, rho_m: float) -> None:
+        self.b[self.kos_row0 + j] = -rho_m / self.L
+
+    def set_arc_plane(self, k: int, normal, pos_rows: np.ndarray, rho_m: float) -> None:
+        """Plane l . r(s) >= rho on the coast of interval k, r(s) = pos_rows @ (x_k + [0; dv_k]) with
+        pos_rows = Phi(s)[0:3, :] (physical units); row scaled by 1/L."""
+        c = np.asarray(normal, float) @ pos_rows  # (6,): on [r_k, v_k + dv_k]
+        coef = np.concatenate([-c[:3], -c[3:] * self.V / self.L, -c[3:] * self.V / self.L])
+        self.vals[self._arc_entries[k]] = coef
+        self.b[self.arc_row0 + k] = -rho_m / self.L
+
+    def set_plume(self, a, g, bb) -> None:
+        """Plume rows a_k . r_k + g_k . dv_k <= b_k for all nodes (physical units), each row normalised."""
+        a_s = np.asarray(a) * self.L
+        g_s = np.asarray(g) * self.V
+        scale = np.maximum(np.maximum(np.abs(a_s).max(axis=1), np.abs(g_s).max(axis=1)), 1e-300)
+        coef = np.concatenate([a_s, g_s], axis=1) / scale[:, None]
+        self.vals[self._plume_entries.ravel()] = coef.ravel()
+        self.b[self.plume_row0 : self.plume_row0 + self.M] = np.asarray(bb) / scale
+
+    def set_trust(self, dv_ref, delta_mps: float) -> None:
+        ref = np.asarray(dv_ref, float).ravel() / self.V
+        d = delta_mps / self.V
+        n3 = 3 * self.M
+        self.b[self.trust_row0 : self.trust_row0 + n3] = ref + d
+        self.b[self.trust_row0 + n3 : self.trust_row0 + 2 * n3] = -ref + d
+
+    def push(self, A: bool = True) -> None:
+        self.solver.update(A=self._A() if A else None, b=self.b)
+
+    def solve(self):
+        res = self.solver.solve()
+        if res.x is None:
+            return res, None, None
+        z = res.x
+        x = z[: self.nx].reshape(self.N + 1, 6) * self.D
+        dv = z[self.iv : self.isv].reshape(self.M, 3) * self.V
+        return res, x, dv
+
+
+def _status_of(res) -> tuple[str, str]:
+    if res.status in (SolveStatus.INFEASIBLE,):
+        return "infeasible", f"SOCP infeasible ({res.info.get('raw_status', '')})"
+    if res.status == SolveStatus.UNBOUNDED:
+        return "solver_error", "SOCP reported unbounded"
+    return "solver_error", f"solver status {res.status.value} ({res.info.get('raw_status', res.info.get('error', ''))})"
+
+
+def solve_flyaround(n_rad_s: float, tau_s: float, dt_s: float, x0, xf, a_bar_mps2: float, rho_bar_m: float,
+                    kos_max_iter: int = 50, arc_planes: bool = False, solver_settings: dict | None = None) -> PhaseResult:
+    """CP1 (eqs. 17-18): fuel-optimal fly-around in ``tau_s`` outside the inflated KOS at the nodes.
+
+    ``arc_planes`` (not in the paper): once no node violates, also add one static plane per
+    coast interval at its deepest point inside the sphere (a linear constraint on x_k, dv_k),
+    re-solved until no node and no interval with a free plane row violates; an interval whose
+    coast still dips in after its plane keeps that (reported) penetration."""
+    t = node_times(tau_s, dt_s)
+    prob = _PhaseSOCP(n_rad_s, t, x0, xf, a_bar_mps2, kos=True, arc=arc_planes, solver_settings=solver_settings)
+    has_arc = np.zeros(prob.N, bool)
+    out = PhaseResult(status="not_converged", t=t, setup_time_s=prob.setup_time_s)
+    sphere = KeepOutSphere(rho_bar_m)
+    has_plane = np.zeros(prob.N - 1, bool)
+    for it in range(1, kos_max_iter + 1):
+        res, x, dv = prob.solve()
+        out.iterations = it
+        out.solve_times_s.append(res.solve_time_s)
+        if x is None or res.status not in (SolveStatus.OPTIMAL, SolveStatus.OPTIMAL_INACCURATE):
+            out.status, out.reason = _status_of(res)
+            if it > 1 and out.status == "infeasible":
+                out.reason += f" after {int(has_plane.sum())} KOS planes"
+            return out
+        out.x, out.dv = x, dv
+        dist = sphere.distance_to_surface(x[1:-1, :3])  # free nodes 1..N-1
+        bad = np.flatnonzero((dist < -1e-6 * rho_bar_m) & ~has_plane)
+        if bad.size == 0 and arc_planes:
+            rmin, s_min = arc_min_per_interval(n_rad_s, t, x, dv)
+            arc_bad = np.flatnonzero((rmin < rho_bar_m * (1 - 1e-6)) & ~has_arc)
+            if arc_bad.size:
+                for k in arc_bad:
+                    M = _stm_pos_rows(n_rad_s, np.array([s_min[k]]))[0]
+                    xk = x[k].copy()
+                    xk[3:] += dv[k]
+                    p = M @ xk
+                    prob.set_arc_plane(k, p / max(np.linalg.norm(p), 1e-12), M, rho_bar_m)
+                    has_arc[k] = True
+                prob.push()
+                continue
+        if bad.size == 0:
+            out.status, out.reason = "converged", ""
+            return out
+        normals, _ = sphere.halfspace(np.where(np.linalg.norm(x[1 + bad, :3], axis=1)[:, None] > 1e-9,
+                                               x[1 + bad, :3], np.asarray(x0, float)[:3]))
+        for j, nrm in zip(bad, normals):
+            prob.set_plane(j, nrm)
+            prob.set_kos_rhs(j, rho_bar_m)
+            has_plane[j] = True
+        prob.push()
+    out.reason = f"KOS planes still added after {kos_max_iter} solves (iteration cap)"
+    return out
+
+
+def solve_final_approach(n_rad_s: float, tau_s: float, dt_s: float, x0, xf, a_bar_mps2: float,
+                         cone: ApproachCone, plume: PlumeConstraint, scp_max_iter: int = 30,
+                         scp_tol_mps: float = 1e-5, plume_tol_rad: float = 1e-4,
+                         scp_cost_rtol: float = 1e-4, linearize_position: bool = True,
+                         solver_settings: dict | None = None) -> PhaseResult:
+    """CP2 (eqs. 20-22): fuel-optimal final approach inside the cone with the plume constraint
+    by successive convexification with a trust region."""
+    t = node_times(tau_s, dt_s)
+    prob = _PhaseSOCP(n_rad_s, t, x0, xf, a_bar_mps2, cone=cone, plume=True, solver_settings=solver_settings)
+    out = PhaseResult(status="not_converged", t=t, setup_time_s=prob.setup_time_s)
+    delta = a_bar_mps2 * float(prob.dt.max())  # the largest impulse: no restriction at first
+    prev_x = prev_dv = None
+    prev_viol = math.inf
+    for it in range(1, scp_max_iter + 1):
+        if prev_dv is not None:
+            a, g, bb = plume.linearization(prev_x[:, :3], prev_dv, DV_ZERO_MPS)
+            if not linearize_position:
+                a, bb = np.zeros_like(a), np.zeros_like(bb)
+            prob.set_plume(a, g, bb)
+            prob.set_trust(prev_dv, delta)
+            prob.push()
+        res, x, dv = prob.solve()
+        out.iterations = it
+        out.solve_times_s.append(res.solve_time_s)
+        if x is None or res.status not in (SolveStatus.OPTIMAL, SolveStatus.OPTIMAL_INACCURATE):
+            out.status, out.reason = _status_of(res)
+            if it > 1:
+                out.reason += f" at successive-convexification iteration {it}"
+            return out
+        margin = plume.margin_rad(x[:, :3], dv, DV_ZERO_MPS)
+        viol = float(max(0.0, -margin.min())) if margin.size else 0.0
+        out.x, out.dv = x, dv
+        cost = float(np.linalg.norm(dv, axis=1).sum())
+        if prev_dv is not None:
+            change = float(np.abs(dv - prev_dv).max())
+            cost_change = abs(cost - prev_cost) / max(cost, 1e-12)
+            if viol <= plume_tol_rad and (change <= scp_tol_mps or cost_change <= scp_cost_rtol):
+                out.status, out.reason = "converged", ""
+                return out
+            if viol > prev_viol + plume_tol_rad:
+                delta *= 0.5  # the linearisation over-reached: shrink the trust region
+        prev_x, prev_dv, prev_viol, prev_cost = x, dv, viol, cost
+    out.reason = f"plume successive convexification not converged in {scp_max_iter} iterations"
+    return out
+
+
+def propagate_impulses(n_rad_s: float, t: np.ndarray, x0, dv) -> np.ndarray:
+    """Node states (before each node's impulse) from x0 and the impulses dv (N or N+1 rows) by the
+    closed-form STM (independent of the solver)."""
+    x = np.empty((len(t), 6))
+    x[0] = x0
+    for k in range(len(t) - 1):
+        xk = x[k].copy()
+        xk[3:] += dv[k]
+        x[k + 1] = cw_stm(n_rad_s, float(t[k + 1] - t[k])) @ xk
+    return x
+
+
+def final_state(x, dv) -> np.ndarray:
+    """State after the terminal burn: x_N + [0; dv_N]."""
+    xf = np.array(x[-1], float)
+    xf[3:] += dv[-1]
+    return xf
+
+
+def _stm_pos_rows(n: float, s: np.ndarray) -> np.ndarray:
+    """Position rows Phi[0:3, :](s) of the CW STM for an array of times s: (len(s), 3, 6)."""
+    sn, cs = np.sin(n * s), np.cos(n * s)
+    z, o = np.zeros_like(s), np.ones_like(s)
+    rows = [
+        [4 - 3 * cs, z, z, sn / n, 2 * (1 - cs) / n, z],
+        [6 * (sn - n * s), o, z, -2 * (1 - cs) / n, (4 * sn - 3 * n * s) / n, z],
+        [z, z, cs, z, z, sn / n],
+    ]
+    return np.moveaxis(np.array(rows), -1, 0)
+
+
+def arc_min_per_interval(n_rad_s: float, t: np.ndarray, x, dv, samples: int = 61) -> tuple[np.ndarray, np.ndarray]:
+    """Sampled smallest range on each coast interval and the offset s (from the node) where it occurs."""
+    x = np.asarray(x, float)
+    xp = x[:-1].copy()
+    xp[:, 3:] += np.asarray(dv, float)[: len(xp)]
+    h = np.diff(t)
+    frac = np.linspace(0.0, 1.0, samples)
+    rmin, smin = np.empty(len(h)), np.empty(len(h))
+    for hk in np.unique(np.round(h, 9)):
+        ks = np.flatnonzero(np.isclose(h, hk))
+        M = _stm_pos_rows(n_rad_s, frac * hk)
+        rng = np.linalg.norm(np.einsum("sij,kj->ksi", M, xp[ks]), axis=2)
+        j = np.argmin(rng, axis=1)
+        rmin[ks] = rng[np.arange(len(ks)), j]
+        smin[ks] = frac[j] * hk
+    return rmin, smin
+
+
+def arc_min_distance(n_rad_s: float, t: np.ndarray, x, dv, samples: int = 61) -> tuple[float, float]:
+    """Smallest range ||r(t)|| on the continuous coast arcs between nodes (after each impulse):
+    ``samples`` points per interval, then a bounded scalar search around the worst sample.
+    Returns (min range m, time s)."""
+    from scipy.optimize import minimize_scalar
+
+    x = np.asarray(x, float)
+    xp = x[:-1].copy()
+    xp[:, 3:] += np.asarray(dv, float)[: len(xp)]
+    h = np.diff(t)
+    frac = np.linspace(0.0, 1.0, samples)
+    best = (math.inf, 0.0, 0, 0.0, 0.0)
+    for hk in np.unique(np.round(h, 9)):
+        ks = np.flatnonzero(np.isclose(h, hk))
+        M = _stm_pos_rows(n_rad_s, frac * hk)  # (S, 3, 6)
+        rng = np.linalg.norm(np.einsum("sij,kj->ksi", M, xp[ks]), axis=2)  # (K, S)
+        kk, j = np.unravel_index(int(np.argmin(rng)), rng.shape)
+        if rng[kk, j] < best[0]:
+            best = (float(rng[kk, j]), float(frac[j] * hk), int(ks[kk]), float(frac[max(j - 1, 0)] * hk),
+                    float(frac[min(j + 1, samples - 1)] * hk))
+    val, at, k, lo, hi = best
+    if hi > lo:
+        xk = xp[k]
+        f = lambda s: float(np.linalg.norm(_stm_pos_rows(n_rad_s, np.array([s]))[0] @ xk))  # noqa: E731
+        opt = minimize_scalar(f, bounds=(lo, hi), method="bounded", options={"xatol": 1e-6})
+        if opt.fun < val:
+            val, at = float(opt.fun), float(opt.x)
+    return val, float(t[k]) + at

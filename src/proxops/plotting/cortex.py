@@ -1,0 +1,134 @@
+"""CORTEX reference figures (cortex-convex-guidance.md Figs. 11-12): trajectories of both phases
+around the keep-out sphere and the approach cone, and the histograms of compute time, TOF and delta-v."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+
+from proxops.plotting.common import plt, save
+
+
+def _sphere(ax, radius: float, **kw) -> None:
+    u, v = np.mgrid[0 : 2 * np.pi : 24j, 0 : np.pi : 12j]
+    ax.plot_wireframe(radius * np.cos(u) * np.sin(v), radius * np.sin(u) * np.sin(v), radius * np.cos(v),
+                      linewidth=0.3, **kw)
+
+
+def _cone(ax, axis, half_angle: float, length: float, **kw) -> None:
+    e = np.asarray(axis, float) / np.linalg.norm(axis)
+    a = np.cross(e, [1.0, 0, 0]) if abs(e[0]) < 0.9 else np.cross(e, [0, 1.0, 0])
+    a /= np.linalg.norm(a)
+    b = np.cross(e, a)
+    phi = np.linspace(0, 2 * np.pi, 25)
+    for s in (0.5 * length, length):
+        rim = s * (e[None, :] + math.tan(half_angle) * (np.cos(phi)[:, None] * a + np.sin(phi)[:, None] * b))
+        ax.plot(rim[:, 0], rim[:, 1], rim[:, 2], lw=0.5, **kw)
+    for p in phi[::6]:
+        tip = length * (e + math.tan(half_angle) * (np.cos(p) * a + np.sin(p) * b))
+        ax.plot([0, tip[0]], [0, tip[1]], [0, tip[2]], lw=0.5, **kw)
+
+
+def _label(ax) -> None:
+    ax.set_xlabel("x radial [m]")
+    ax.set_ylabel("y along-track [m]")
+    ax.set_zlabel("z normal [m]")
+
+
+def _geometry(sc):
+    g, m = sc.geometry, sc.margins
+    return g.r_kos_m * m.kos, math.radians(g.cone_half_angle_deg) * m.cone
+
+
+def plan_figure(sc, plan, path: Path) -> Path:
+    """3-D view of one plan: fly-around (blue) around the inflated KOS, final approach (red) in the cone."""
+    traj = plan.trajectory()
+    return _plan_figure(sc, traj["x"], traj["phase"], plan.axis, path,
+                        f"tau1 {plan.tau1_s:.0f} s, tau2 {plan.tau2_s:.0f} s, dv {plan.dv_total_mps:.3f} m/s")
+
+
+def plan_figure_from_result(sc, result, path: Path) -> Path:
+    from proxops.systems.cortex import scenario_axis
+
+    return _plan_figure(sc, result.x_true, result.mode, scenario_axis(sc), path, sc.name)
+
+
+def _plan_figure(sc, x, phase, axis, path, title) -> Path:
+    rho, alpha_c = _geometry(sc)
+    phase = np.asarray(phase)
+    fig = plt.figure(figsize=(7, 6))
+    ax = fig.add_subplot(projection="3d")
+    _sphere(ax, rho, color="0.6")
+    _cone(ax, axis, alpha_c, rho, color="g")
+    fly = phase != "approach"
+    ax.plot(x[fly, 0], x[fly, 1], x[fly, 2], "b.-", lw=1, ms=3, label="fly-around (CP1)")
+    ax.plot(x[~fly, 0], x[~fly, 1], x[~fly, 2], "r.-", lw=1, ms=3, label="final approach (CP2)")
+    ax.plot(*x[0, :3], "go", label="start")
+    _label(ax)
+    ax.set_title(title, fontsize=9)
+    ax.legend(fontsize=8)
+    return save(fig, path)
+
+
+def fig11_trajectories(sc, results, path: Path) -> Path:
+    """Fig. 11: (a) fly-around references around the inflated KOS, (b) final approaches with their cones."""
+    rho, _ = _geometry(sc)
+    fig = plt.figure(figsize=(13, 6))
+    ax1 = fig.add_subplot(1, 2, 1, projection="3d")
+    ax2 = fig.add_subplot(1, 2, 2, projection="3d")
+    _sphere(ax1, rho, color="r")
+    for res in results:
+        mode = np.asarray(res.mode)
+        x = res.x_true
+        fly = mode != "approach"
+        ax1.plot(x[fly, 0], x[fly, 1], x[fly, 2], lw=0.7)
+        ax2.plot(x[~fly, 0], x[~fly, 1], x[~fly, 2], lw=0.7)
+    for ax, title in ((ax1, f"(a) fly-around, {len(results)} axes, KOS r = {rho:.0f} m"), (ax2, "(b) final approach")):
+        _label(ax)
+        ax.set_title(title, fontsize=10)
+    return save(fig, path)
+
+
+def fig12_histograms(table, path: Path) -> Path:
+    """Fig. 12: histograms of compute time, TOF (tau_1 + tau_2) and delta-v of the successful plans."""
+    from proxops.systems.cortex import PAPER_5_1_1
+
+    ok = table[table["success"].astype(bool)] if "success" in table else table
+    fig, axes = plt.subplots(1, 3, figsize=(13, 3.8))
+    items = (("metric.plan_wall_time_s", 1.0, "compute time per plan [s]", "compute_median_s"),
+             ("metric.tof_s", 1 / 60, "TOF tau_1 + tau_2 [min]", "tof_median_min"),
+             ("metric.dv_total_mps", 1.0, "delta-v [m/s]", "dv_median_mps"))
+    for ax, (col, scale, label, key) in zip(axes, items):
+        v = ok[col].astype(float).to_numpy() * scale
+        ax.hist(v, bins=20, color="C0", alpha=0.8)
+        ax.axvline(np.median(v), color="k", lw=1.2, label=f"median {np.median(v):.3g}")
+        if key != "compute_median_s":
+            ax.axvline(PAPER_5_1_1[key], color="r", ls="--", lw=1.2, label=f"paper {PAPER_5_1_1[key]:g}")
+        else:
+            ax.set_title(f"paper median {PAPER_5_1_1[key]:g} s (off scale)", fontsize=9)
+        ax.set_xlabel(label)
+        ax.legend(fontsize=8)
+        ax.grid(alpha=0.3)
+    axes[0].set_ylabel("plans")
+    return save(fig, path)
+
+
+def campaign_figures(out: Path) -> list[Path]:
+    """Figs. 11-12 of a ``proxops cortex references`` campaign folder."""
+    from proxops.analysis.campaign import _campaign_system, load_campaign  # noqa: PLC2701
+
+    camp = load_campaign(out)
+    table = camp.table
+    sc = _campaign_system(camp.manifest).scenario
+    results = []
+    for rid in table[table["success"].astype(bool)]["run_id"].tolist():
+        try:
+            results.append(camp.series(int(rid)))
+        except Exception:  # a campaign without series: Fig. 12 only
+            break
+    paths = [fig12_histograms(table, Path(out) / "fig12_histograms.png")]
+    if results:
+        paths.insert(0, fig11_trajectories(sc, results, Path(out) / "fig11_trajectories.png"))
+    return paths

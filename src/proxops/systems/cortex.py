@@ -1,0 +1,311 @@
+"""System ``cortex``: eclipse-aware convex reference generation (cortex-convex-guidance.md §3.1, §5.1.1).
+
+Scenario ``cortex-reference`` (src/proxops/scenarios/builtin/cortex-reference.toml)::
+
+    proxops cortex reference --axis -0.7071 -0.7071 0 --json
+    proxops cortex references --n 100 --workers 2 --out out/cortex
+    proxops run cortex-reference --json        # same plan through the runner
+
+A "run" of this system is one plan (no closed loop: the tracking guidance is issue
+"cortex (2/2)"): :meth:`CortexSystem.run` returns the reference as a SimResult (states at
+the nodes, impulses as ``u_cmd``), so the campaign engine plans the Fibonacci axes as
+a grid campaign (``[dispersions] "axis.fibonacci_index" = {grid = [...]}``).
+
+Eclipse: Earth shadow (conical umbra/penumbra by default) along the Keplerian CSO orbit
+of §5.1 from ``orbit.epoch_utc`` (:func:`proxops.environment.eclipse.eclipse_profile`),
+``samples_per_orbit`` = 1000 as in §3.1.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+from typing import Annotated, Literal
+
+import numpy as np
+from pydantic import Field, model_validator
+
+from proxops.scenarios.registry import register_system
+from proxops.scenarios.schema import OrbitSection, ScenarioBase, Section, Vector3
+
+PAPER_5_1_1 = {  # §5.1.1, 100 Fibonacci axes
+    "dv_median_mps": 0.6579, "dv_iqr_mps": 0.1600,
+    "tof_median_min": 12.07, "tof_iqr_min": 1.7723,
+    "compute_median_s": 30.9, "compute_iqr_s": 7.23, "compute_std_s": 5.01,
+}
+PAPER_5_1_2 = {"tof_min": 19.66, "tau1_min": 14.66, "tau2_min": 4.5, "dv_mps": 1.1740}  # fixed axis
+
+
+class ServicerSection(Section):
+    """Table 2 / §5.1: m_Serv = 500 kg, a_max = 1.2 N / 500 kg = 2.4 mm/s^2."""
+
+    mass_kg: Annotated[float, Field(gt=0.0)] = Field(500.0, description="servicer mass m_Serv (Table 2)")
+    a_max_mps2: Annotated[float, Field(gt=0.0)] = Field(2.4e-3, description="thrust acceleration limit a_max (1.2 N / 500 kg, §5.1)")
+
+
+class GeometrySection(Section):
+    """Table 2 radii and angles; ``start_*`` is x_i1 (default [0, -r_AS/2, 0] at rest)."""
+
+    r_rs_m: Annotated[float, Field(gt=0.0)] = Field(10_000.0, description="rendezvous-sphere radius r_RS (Table 2)")
+    r_as_m: Annotated[float, Field(gt=0.0)] = Field(75.0, description="approach-sphere radius r_AS (Table 2); the fly-around starts on it")
+    r_kos_m: Annotated[float, Field(gt=0.0)] = Field(15.0, description="keep-out sphere radius r_KOS (Table 2); must be < r_as_m")
+    plume_half_angle_deg: Annotated[float, Field(gt=0.0, lt=90.0)] = Field(20.0, description="plume half-angle alpha_p: no thrust towards the target inside it (19d)")
+    cone_half_angle_deg: Annotated[float, Field(gt=0.0, lt=90.0)] = Field(10.0, description="approach-cone half-angle alpha_c about the docking axis (20f)")
+    start_position_m: Vector3 | None = Field(None, description="fly-around start x_i1 in Hill (none: [0, -r_as_m/2, 0])")
+    start_velocity_mps: Vector3 = Field([0.0, 0.0, 0.0], description="fly-around start velocity in Hill (at rest by default)")
+    flyaround_end_range_m: Annotated[float, Field(gt=0.0)] | None = Field(None, description="fly-around end range on the docking axis (none: the inflated KOS radius rho_bar)")
+    approach_end_range_m: Annotated[float, Field(gt=0.0)] = Field(1.0, description="final-approach end range on the docking axis (x_f2 = [1 m e, 0])")
+    approach_end_position_m: Vector3 | None = Field(None, description="explicit final-approach end position in Hill (overrides approach_end_range_m)")
+
+    @model_validator(mode="after")
+    def _kos_inside_approach_sphere(self):
+        if self.r_kos_m >= self.r_as_m:
+            raise ValueError(f"geometry.r_kos_m = {self.r_kos_m} m must be smaller than r_as_m = {self.r_as_m} m")
+        return self
+
+
+class MarginsSection(Section):
+    """§3.1.1-3.1.2: a_bar = 0.8 a_max, rho_bar = 1.2 r_KOS, alpha_p_bar = 1.2 alpha_p, alpha_c_bar = 0.5 alpha_c."""
+
+    thrust: float = Field(0.8, description="thrust margin: planned limit a_bar = thrust x a_max (§3.1.1: 0.8)")
+    kos: float = Field(1.2, description="keep-out margin: planned radius rho_bar = kos x r_KOS (§3.1.1: 1.2)")
+    plume: float = Field(1.2, description="plume margin: planned half-angle = plume x alpha_p (§3.1.2: 1.2)")
+    cone: float = Field(0.5, description="cone margin: planned half-angle = cone x alpha_c (§3.1.2: 0.5)")
+
+
+class PlannerSection(Section):
+    """Outer search and the convex phases. Table 2: tau in [5, 60] min, eps_C = 100 (read in
+    minutes, the unit of tau in Table 2; see proxops.guidance.cortex.reference), dt_CP1 = 30 s,
+    dt_CP2 = 10 s."""
+
+    tau_lb_s: Annotated[float, Field(gt=0.0)] = Field(300.0, description="shortest phase duration tau_lb searched (Table 2: 5 min)")
+    tau_ub_s: Annotated[float, Field(gt=0.0)] = Field(3600.0, description="longest phase duration tau_ub searched (Table 2: 60 min)")
+    convergence_penalty_s: Annotated[float, Field(ge=0.0)] = Field(6000.0, description="penalty eps_C added to J when a phase does not converge (eq. 12; 100, read in minutes)")
+    dt_cp1_s: Annotated[float, Field(gt=0.0)] = Field(30.0, description="node spacing of the fly-around problem CP1 (Table 2: 30 s)")
+    dt_cp2_s: Annotated[float, Field(gt=0.0)] = Field(10.0, description="node spacing of the final-approach problem CP2 (Table 2: 10 s)")
+    kos_max_iter: Annotated[int, Field(ge=1)] = Field(50, description="CP1: most re-solves adding KOS supporting planes (eq. 18) before the status 'not converged'")
+    kos_arc_planes: bool = Field(False, description="CP1: also add planes at the deepest coast point between nodes (not in the paper)")
+    scp_max_iter: Annotated[int, Field(ge=1)] = Field(30, description="CP2: most successive-convexification iterations of the plume constraint (eqs. 21-22)")
+    scp_tol_mps: Annotated[float, Field(gt=0.0)] = Field(1e-5, description="CP2: convergence test on the change of the impulses between iterations")
+    plume_tol_deg: Annotated[float, Field(gt=0.0)] = Field(0.00573, description="CP2: plume constraint tolerance in the acceptance check")
+    search: Literal["auto", "scan"] = Field("auto", description="outer search over tau: auto (doubling then halving for CP1, scan for CP2) or scan (linear scans)")
+    start_delay_s: Annotated[float, Field(ge=0.0)] = Field(0.0, description="plan start t0 after orbit.epoch_utc (moves the plan within the eclipse cycle)")
+
+    @model_validator(mode="after")
+    def _bounds_ordered(self):
+        if self.tau_lb_s > self.tau_ub_s:
+            raise ValueError(f"planner.tau_lb_s = {self.tau_lb_s} s must not exceed tau_ub_s = {self.tau_ub_s} s")
+        return self
+
+
+class GuidanceSection(Section):
+    """Table 2 keys of the tracking guidance (issue "cortex (2/2)"; not used by the planner):
+    eps_P = 10, dt_g = 30 s, delta t_g = 2 s, recompute thresholds [30, 30, 15, 5] m."""
+
+    terminal_penalty: float = Field(10.0, description="tracking (cortex 2/2): terminal-error weight eps_P (Table 2: 10)")
+    dt_g_s: Annotated[float, Field(gt=0.0)] = Field(30.0, description="tracking (cortex 2/2): guidance interval Delta t_g (Table 2: 30 s)")
+    substep_s: Annotated[float, Field(gt=0.0)] = Field(2.0, description="tracking (cortex 2/2): impulse spacing delta t_g (Table 2: 2 s)")
+    recompute_hold1_m: float = Field(30.0, description="tracking (cortex 2/2): recompute threshold in the first hold (Table 1)")
+    recompute_flyaround_m: float = Field(30.0, description="tracking (cortex 2/2): recompute threshold in the fly-around (Table 1)")
+    recompute_hold2_m: float = Field(15.0, description="tracking (cortex 2/2): recompute threshold in the second hold (Table 1)")
+    recompute_approach_m: float = Field(5.0, description="tracking (cortex 2/2): recompute threshold in the final approach (Table 1)")
+
+
+class AxisSection(Section):
+    """Docking axis e in Hill (x radial, y along-track, z normal; the paper's frame, see
+    proxops.guidance.cortex.reference). With ``fibonacci_index`` set, the axis is point i of
+    an N-point Fibonacci sphere instead."""
+
+    docking_axis: Vector3 = Field([-math.sin(math.pi / 4), -math.sin(math.pi / 4), 0.0], description="docking axis e in Hill (x radial, y along-track, z normal); §5.1.2: [-sin 45, -sin 45, 0]")
+    fibonacci_n: Annotated[int, Field(ge=1)] = Field(100, description="points N of the Fibonacci sphere of docking axes (ref. 11)")
+    fibonacci_index: Annotated[int, Field(ge=0)] | None = Field(None, description="use point i of the N-point Fibonacci sphere as the axis (none: docking_axis)")
+
+    @model_validator(mode="after")
+    def _index_in_range(self):
+        if self.fibonacci_index is not None and self.fibonacci_index >= self.fibonacci_n:
+            raise ValueError(f"axis.fibonacci_index must be < fibonacci_n = {self.fibonacci_n}")
+        return self
+
+
+class EclipseSection(Section):
+    """Sunlight profile for the holds (eqs. 13-15). model "none" switches the holds off."""
+
+    model: Literal["conical", "cylindrical", "none"] = Field("conical", description="Earth shadow model of the sunlight profile for the holds; none switches the holds off")
+    samples_per_orbit: Annotated[int, Field(ge=10)] = Field(1000, description="sunlight samples per orbit (§3.1: 1000)")
+    orbits: Annotated[float, Field(gt=0.0)] = Field(4.0, description="length of the sunlight profile in orbits (two holds of up to an orbit plus two phases)")
+    sunlit_threshold: Annotated[float, Field(gt=0.0, le=1.0)] = Field(1.0, description="illumination fraction counted as sunlit (eta = 1); 1: full sun only")
+
+
+class CortexScenario(ScenarioBase):
+    orbit: OrbitSection = Field(description="target (client) orbit; §5.1 CSO elements and epoch")
+    servicer: ServicerSection = Field(ServicerSection(), description="servicer mass and thrust (Table 2)")
+    geometry: GeometrySection = Field(GeometrySection(), description="spheres, cone and plume angles, start and end states")
+    margins: MarginsSection = Field(MarginsSection(), description="planning margins on thrust, KOS, plume and cone (§3.1)")
+    planner: PlannerSection = Field(PlannerSection(), description="outer search and the convex phases CP1, CP2")
+    guidance: GuidanceSection = Field(GuidanceSection(), description="tracking guidance keys (cortex 2/2; unused by the planner)")
+    axis: AxisSection = Field(AxisSection(), description="docking axis, fixed or from a Fibonacci sphere")
+    eclipse: EclipseSection = Field(EclipseSection(), description="sunlight profile for the holds (eqs. 13-15)")
+
+
+def config_from_scenario(sc: CortexScenario):
+    """The planner configuration (SI) of a scenario; the checks of CortexConfig.validate apply."""
+    from proxops.core.cw import mean_motion
+    from proxops.guidance.cortex.reference import CortexConfig
+
+    g, m, p = sc.geometry, sc.margins, sc.planner
+    start = g.start_position_m if g.start_position_m is not None else [0.0, -g.r_as_m / 2.0, 0.0]
+    return CortexConfig(
+        mean_motion_rad_s=mean_motion(sc.orbit.sma_m), a_max_mps2=sc.servicer.a_max_mps2,
+        r_kos_m=g.r_kos_m, r_as_m=g.r_as_m, r_rs_m=g.r_rs_m,
+        plume_half_angle_rad=math.radians(g.plume_half_angle_deg), cone_half_angle_rad=math.radians(g.cone_half_angle_deg),
+        thrust_margin=m.thrust, kos_margin=m.kos, plume_margin=m.plume, cone_margin=m.cone,
+        tau_lb_s=p.tau_lb_s, tau_ub_s=p.tau_ub_s, convergence_penalty_s=p.convergence_penalty_s,
+        dt_cp1_s=p.dt_cp1_s, dt_cp2_s=p.dt_cp2_s, start_state=tuple(list(start) + list(g.start_velocity_mps)),
+        flyaround_end_range_m=g.flyaround_end_range_m, approach_end_range_m=g.approach_end_range_m,
+        approach_end_position_m=None if g.approach_end_position_m is None else tuple(g.approach_end_position_m),
+        kos_max_iter=p.kos_max_iter, kos_arc_planes=p.kos_arc_planes, scp_max_iter=p.scp_max_iter, scp_tol_mps=p.scp_tol_mps,
+        plume_tol_rad=math.radians(p.plume_tol_deg), search=p.search,
+    )
+
+
+def scenario_axis(sc: CortexScenario) -> np.ndarray:
+    from proxops.guidance.cortex.reference import fibonacci_axes, unit_axis
+
+    if sc.axis.fibonacci_index is not None:
+        return fibonacci_axes(sc.axis.fibonacci_n)[sc.axis.fibonacci_index]
+    return unit_axis(sc.axis.docking_axis)
+
+
+_PROFILES: dict = {}
+
+
+def eclipse_profile(sc: CortexScenario):
+    """(t_s, eta) sunlight flags along the CSO orbit from orbit.epoch_utc, or None (model "none").
+    Cached per process (every axis of a campaign shares it)."""
+    e = sc.eclipse
+    if e.model == "none":
+        return None
+    o = sc.orbit
+    key = (o.sma_m, o.ecc, o.inc_deg, o.raan_deg, o.argp_deg, o.nu_deg, o.epoch_utc, e.model, e.samples_per_orbit,
+           e.orbits, e.sunlit_threshold)
+    got = _PROFILES.get(key)
+    if got is None:
+        from proxops.environment.eclipse import eclipse_profile as profile
+        from proxops.guidance.cortex.holds import sunlit_flags
+        from proxops.systems.common import target_elements
+
+        t, illum = profile(target_elements(o), o.epoch_utc, n_per_orbit=e.samples_per_orbit, n_orbits=e.orbits,
+                           model=e.model)
+        got = (t, sunlit_flags(illum, e.sunlit_threshold))
+        _PROFILES[key] = got
+    return got
+
+
+def plan_scenario(sc: CortexScenario, axis=None):
+    """Plan the reference of a scenario (its axis, or ``axis`` when given)."""
+    from proxops.guidance.cortex.reference import plan_reference
+
+    cfg = config_from_scenario(sc)
+    e = scenario_axis(sc) if axis is None else axis
+    return plan_reference(e, cfg, eclipse=eclipse_profile(sc), t0_s=sc.planner.start_delay_s)
+
+
+def plan_to_result(sc: CortexScenario, plan):
+    """The plan as a SimResult (t, node states, impulses as u_cmd, phase as mode)."""
+    from proxops.sim.result import SimResult
+
+    traj = plan.trajectory()
+    if len(traj["t"]) == 0:
+        x0 = np.asarray(config_from_scenario(sc).start_state, float)
+        traj = {"t": np.zeros(1), "x": x0[None, :], "dv": np.zeros((1, 3)), "phase": ["none"]}
+    dv = traj["dv"]
+    n = len(traj["t"])
+    return SimResult(
+        t=traj["t"], x_true=traj["x"], x_est=traj["x"].copy(), u_cmd=dv, u_applied=dv.copy(),
+        dv_cum=np.cumsum(np.linalg.norm(dv, axis=1)), status=[plan.status] * n,
+        solve_time_s=np.zeros(n), mode=list(traj["phase"]), info={},
+        meta={"system": "cortex", "outcome": plan.status, "wall_time_s": plan.compute_time_s,
+              "control": "impulse", "frame": "Hill/RTN"},
+    )
+
+
+def summarize_plan(plan) -> dict:
+    return plan.summary()
+
+
+@register_system("cortex")
+class CortexSystem:
+    Scenario = CortexScenario
+
+    def run(self, sc: CortexScenario, seed: int = 0, progress: bool = False):
+        plan = plan_scenario(sc)
+        return summarize_plan(plan), {"plan": plan_to_result(sc, plan)}
+
+    def check(self, sc: CortexScenario) -> None:
+        """The checks a plan makes before solving (``validate`` and campaigns call this)."""
+        config_from_scenario(sc).validate()
+        scenario_axis(sc)
+
+    def build(self, sc: CortexScenario):
+        from proxops.errors import input_error
+
+        raise input_error("system", "cortex", "is a planner: use proxops run / proxops cortex reference (no closed loop)")
+
+    def summarize(self, sc: CortexScenario, result) -> dict:
+        return {}
+
+    def success(self, sc: CortexScenario, summary: dict) -> bool:
+        return str(summary.get("status", "")) == "ok"
+
+    def figures(self, sc: CortexScenario, results, out_dir) -> list[Path]:
+        from proxops.plotting.cortex import plan_figure_from_result
+
+        result = next(iter(results.values())) if isinstance(results, dict) else results
+        return [plan_figure_from_result(sc, result, Path(out_dir) / "reference_3d.png")]
+
+    def campaign_figures(self, sc: CortexScenario, results, out_dir) -> list[Path]:
+        from proxops.plotting.cortex import fig11_trajectories
+
+        return [fig11_trajectories(sc, results, Path(out_dir) / "fig11_trajectories.png")]
+
+    def campaign_table(self, sc: CortexScenario, table) -> str:
+        if "metric.dv_total_mps" not in table:
+            return ""
+        return statistics_table(campaign_statistics(table))
+
+
+def campaign_statistics(table) -> dict:
+    """Median / IQR of delta-v, TOF (tau_1 + tau_2) and compute time over the successful plans."""
+    ok = table[table["success"].astype(bool)] if "success" in table else table
+
+    def stats(col, scale=1.0):
+        v = ok[col].astype(float).to_numpy() * scale if col in ok else np.zeros(0)
+        if v.size == 0:
+            return {"median": math.nan, "iqr": math.nan, "max": math.nan, "std": math.nan}
+        q1, q2, q3 = np.percentile(v, [25, 50, 75])
+        return {"median": float(q2), "iqr": float(q3 - q1), "max": float(v.max()), "std": float(v.std(ddof=1)) if v.size > 1 else 0.0}
+
+    return {
+        "n_plans": int(len(table)), "n_ok": int(len(ok)),
+        "dv_mps": stats("metric.dv_total_mps"), "tof_min": stats("metric.tof_s", 1 / 60),
+        "total_time_min": stats("metric.total_time_s", 1 / 60),
+        "compute_s": stats("metric.plan_wall_time_s"),
+        "tau1_min": stats("metric.tau1_s", 1 / 60), "tau2_min": stats("metric.tau2_s", 1 / 60),
+        "hold_total_min": {"median": float(np.median((ok["metric.hold1_s"] + ok["metric.hold2_s"]).astype(float)) / 60)
+                           if len(ok) else math.nan},
+        "cp1_solve_median_s": float(np.nanmedian(ok["metric.cp1_solve_time_median_s"].astype(float))) if len(ok) else math.nan,
+        "cp2_solve_median_s": float(np.nanmedian(ok["metric.cp2_solve_time_median_s"].astype(float))) if len(ok) else math.nan,
+    }
+
+
+def statistics_table(st: dict) -> str:
+    """Markdown: our medians/IQRs next to §5.1.1."""
+    p = PAPER_5_1_1
+    return "\n".join([
+        f"| quantity ({st['n_ok']}/{st['n_plans']} plans ok) | median | IQR | paper median | paper IQR |",
+        "|---|---|---|---|---|",
+        f"| delta-v (m/s) | {st['dv_mps']['median']:.4f} | {st['dv_mps']['iqr']:.4f} | {p['dv_median_mps']} | {p['dv_iqr_mps']} |",
+        f"| TOF tau_1 + tau_2 (min) | {st['tof_min']['median']:.2f} | {st['tof_min']['iqr']:.4f} | {p['tof_median_min']} | {p['tof_iqr_min']} |",
+        f"| time with holds (min) | {st['total_time_min']['median']:.2f} | {st['total_time_min']['iqr']:.4f} | - | - |",
+        f"| compute time per plan (s) | {st['compute_s']['median']:.4f} | {st['compute_s']['iqr']:.4f} | {p['compute_median_s']} | {p['compute_iqr_s']} |",
+    ])
