@@ -31,7 +31,17 @@ class ThrusterModel:
     - ``magnitude_sigma``: relative 1-sigma magnitude error (e.g. 0.01 = 1 %).
     - ``pointing_sigma_rad``: 1-sigma pointing error (rad), a random small rotation.
     - ``missed_probability``: probability that a command is not executed at all.
-    (cortex-convex-guidance.md Alg. 3 / Table 3 execution-error model.)
+    - ``missed_window_s``: when set, the missed-thrust draw is made once per window of this
+      length (the first command in it) and cancels every command of the window: Algorithm 3
+      cancels all impulses of one guidance interval together (eq. 28).
+    - ``elevation_sigma_rad`` / ``azimuth_sigma_rad``: 1-sigma errors of the two direction
+      angles of eq. (29) in the Hill frame, beta = asin(dv_z/|dv|) (out of plane) and
+      alpha = atan2(dv_x, dv_y) (in plane, from along-track towards radial), re-composed as
+      |dv| [cos b sin a, cos b cos a, sin b] (Alg. 3 step 5). The printed
+      alpha = atan(v_t / v_n) does not invert step 5; atan2(v_r, v_t) does.
+    (cortex-convex-guidance.md Alg. 3 / Table 3 execution-error model; eq. 28 draws
+    M ~ N(0, 1) and compares it with p, which misses with probability Phi(p) ~ 0.5: the
+    text's "with probability p" is implemented: U(0, 1) < p.)
     """
 
     max_per_axis: float | None = None
@@ -40,9 +50,30 @@ class ThrusterModel:
     magnitude_sigma: float = 0.0
     pointing_sigma_rad: float = 0.0
     missed_probability: float = 0.0
+    missed_window_s: float | None = None
+    elevation_sigma_rad: float = 0.0
+    azimuth_sigma_rad: float = 0.0
+
+    def __post_init__(self):
+        from proxops.errors import input_error
+
+        p = self.missed_probability
+        if not (isinstance(p, (int, float)) and 0.0 <= p <= 1.0):
+            raise input_error("missed_probability", p, "must be a probability in [0, 1]")
+        if self.missed_window_s is not None and not (math.isfinite(self.missed_window_s) and self.missed_window_s > 0):
+            raise input_error("missed_window_s", self.missed_window_s, "must be a finite number > 0", "s")
+        self._window = None
+        self._window_missed = False
 
     def apply(self, t: float, u: np.ndarray, kind: str, rng: np.random.Generator) -> np.ndarray:
         u = np.array(u, dtype=float)
+        if self.missed_window_s is not None and self.missed_probability > 0.0:
+            window = math.floor(t / self.missed_window_s + 1e-9)
+            if window != self._window:
+                self._window = window
+                self._window_missed = bool(rng.random() < self.missed_probability)
+            if self._window_missed:
+                return np.zeros_like(u)
         if self.max_per_axis is not None:
             u = np.clip(u, -self.max_per_axis, self.max_per_axis)
         norm = float(np.linalg.norm(u))
@@ -51,13 +82,28 @@ class ThrusterModel:
             norm = self.max_norm
         if norm == 0.0 or norm < self.min_impulse:
             return np.zeros_like(u)
-        if self.missed_probability > 0.0 and rng.random() < self.missed_probability:
+        if self.missed_window_s is None and self.missed_probability > 0.0 and rng.random() < self.missed_probability:
             return np.zeros_like(u)
         if self.magnitude_sigma > 0.0:
             u *= 1.0 + self.magnitude_sigma * rng.standard_normal()
         if self.pointing_sigma_rad > 0.0 and u.size == 3:
             u = _rotate_small(u, self.pointing_sigma_rad * rng.standard_normal(3))
+        if (self.elevation_sigma_rad > 0.0 or self.azimuth_sigma_rad > 0.0) and u.size == 3:
+            u = perturb_angles(u, self.elevation_sigma_rad * rng.standard_normal(),
+                               self.azimuth_sigma_rad * rng.standard_normal())
         return u
+
+
+def perturb_angles(dv: np.ndarray, d_beta: float, d_alpha: float) -> np.ndarray:
+    """Eq. (29), Alg. 3 step 5: add d_beta to beta = asin(dv_z/|dv|) and d_alpha to
+    alpha = atan2(dv_x, dv_y), keep |dv|; returns |dv| [cos b sin a, cos b cos a, sin b]."""
+    m = math.sqrt(float(dv @ dv))
+    if m == 0.0:
+        return dv
+    beta = math.asin(max(-1.0, min(1.0, float(dv[2]) / m))) + d_beta
+    alpha = math.atan2(float(dv[0]), float(dv[1])) + d_alpha
+    cb = math.cos(beta)
+    return np.array([m * cb * math.sin(alpha), m * cb * math.cos(alpha), m * math.sin(beta)])
 
 
 def _rotate_small(v: np.ndarray, rotation_vector: np.ndarray) -> np.ndarray:

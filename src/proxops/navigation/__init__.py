@@ -27,6 +27,17 @@ class GaussianNavigation:
     position_sigma_m: float = 0.0
     velocity_sigma_mps: float = 0.0
     sigma: np.ndarray | None = None
+    range_scale_m: float | None = None  # range-dependent sigmas (see scale())
+    range_floor: float = 0.0
+
+    def scale(self, x: np.ndarray) -> float:
+        """1 without ``range_scale_m``; else floor + (1 - floor) ||r|| / range_scale_m (both sigmas
+        are multiplied by it): cortex-convex-guidance.md §5.1.2, sigma_r = (Delta r / 3)
+        (0.02 + 0.98 ||r|| / r_AS) with floor 0.02 and range_scale_m = r_AS."""
+        if self.range_scale_m is None:
+            return 1.0
+        r = float(np.linalg.norm(x[:3]))
+        return self.range_floor + (1.0 - self.range_floor) * r / self.range_scale_m
 
     def measure(self, t: float, x_true: np.ndarray, rng: np.random.Generator) -> np.ndarray:
         x = np.array(x_true, dtype=float)
@@ -37,4 +48,4 @@ class GaussianNavigation:
             sigma = np.concatenate([np.full(half, self.position_sigma_m), np.full(x.size - half, self.velocity_sigma_mps)])
         if not sigma.any():
             return x
-        return x + sigma * rng.standard_normal(x.size)
+        return x + self.scale(x) * sigma * rng.standard_normal(x.size)

@@ -3,6 +3,7 @@
 Each sample k at t_k = k * controller.dt:
 
 1. x_true = plant.relative_state(state); x_est = navigation.measure(t, x_true, rng)
+   (a controller with ``observe_truth(t, x_true)`` -- a safety monitor -- is shown the truth)
 2. cmd = controller.step(t, x_est)                  (Command: u, kind, status, ...)
 3. u = actuator.apply(t, cmd.u, cmd.kind, rng)     (limits, min impulse, errors)
 4. impulse: state = plant.apply_impulse(...) then coast dt; acceleration: ZOH over dt
@@ -81,6 +82,7 @@ def simulate(setup: Setup, seed: int = 0, progress: bool = False) -> SimResult:
     wall0 = time.perf_counter()
     x0 = plant.relative_state(state)
     ctrl.reset(0.0, x0)
+    observe = getattr(ctrl, "observe_truth", None)  # supervisors that monitor the true state (cortex triggers)
     outcome = "completed"
     last_mode = None
     k = 0
@@ -102,6 +104,8 @@ def simulate(setup: Setup, seed: int = 0, progress: bool = False) -> SimResult:
                 status.append("")
                 modes.append(last_mode or "")
                 break
+            if observe is not None:
+                observe(t, xr)
             cmd = ctrl.step(t, xe)
             if cmd.stop:
                 outcome = cmd.mode or "stopped"
@@ -150,6 +154,7 @@ def simulate(setup: Setup, seed: int = 0, progress: bool = False) -> SimResult:
         position_slice=list(position_slice),
         velocity_slice=list(getattr(plant, "velocity_slice", (3, 6))),
         max_violation=max_violation,
+        final_plant_state=np.asarray(state, dtype=float).tolist(),
     )
     return SimResult(
         t=t_rec[:n],

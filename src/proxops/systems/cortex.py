@@ -26,7 +26,7 @@ import numpy as np
 from pydantic import Field, model_validator
 
 from proxops.scenarios.registry import register_system
-from proxops.scenarios.schema import OrbitSection, ScenarioBase, Section, Vector3
+from proxops.scenarios.schema import OrbitSection, Probability, ScenarioBase, Section, TruthSection, Vector3
 
 PAPER_5_1_1 = {  # §5.1.1, 100 Fibonacci axes
     "dv_median_mps": 0.6579, "dv_iqr_mps": 0.1600,
@@ -109,6 +109,28 @@ class GuidanceSection(Section):
     recompute_flyaround_m: float = Field(30.0, description="tracking (cortex 2/2): recompute threshold in the fly-around (Table 1)")
     recompute_hold2_m: float = Field(15.0, description="tracking (cortex 2/2): recompute threshold in the second hold (Table 1)")
     recompute_approach_m: float = Field(5.0, description="tracking (cortex 2/2): recompute threshold in the final approach (Table 1)")
+    closed_loop: bool = Field(False, description="run the tracking loop (cortex 2/2) against the truth; false: plan only")
+    max_recomputes: Annotated[int, Field(ge=0)] = Field(3, description="reference regenerations per run before the next recompute trigger aborts (not in the paper)")
+    abort_at_s: Annotated[float, Field(ge=0.0)] | None = Field(None, description="ground abort command at this time (s from the start; none: no command)")
+    buffer_tol_m: Annotated[float, Field(ge=0.0)] = Field(0.1, description="buffered KOS / cone recomputes only beyond this (the reference lies on both buffered boundaries)")
+    plume_in_tracking: bool = Field(True, description="final approach: CP_g keeps each impulse in a plume half-space about the reference (not in the paper; false: the printed CP_g)")
+    plume_min_dv_mps: Annotated[float, Field(ge=0.0)] = Field(1e-4, description="impulses below this are not thrust for the plume triggers (minimum impulse bit)")
+    null_tol_mps: Annotated[float, Field(gt=0.0)] = Field(1e-3, description="velocity nulling before a re-plan / retreat ends below this speed")
+    passive_orbits: Annotated[float, Field(gt=0.0)] = Field(2.0, description="after an abort: orbits of thrust-free truth propagation checked outside the KOS")
+
+
+class ErrorsSection(Section):
+    """Execution errors of Algorithm 3 at the levels of Table 3 (0 = none). sigma_r of §5.1.2:
+    (delta_r_m / 3) (0.02 + 0.98 ||r|| / r_AS), split equally over the three axes (the printed
+    Delta r delta / sqrt(3)); sigma_v = 0.001 sigma_r. The injection errors enter as navigation
+    errors (what the guidance sees); thrust errors through the thruster model."""
+
+    delta_r_m: Annotated[float, Field(ge=0.0)] = Field(0.0, description="position error level Delta r of Table 3 (low 0.1 m, high 1.0 m)")
+    sigma_dv: Annotated[float, Field(ge=0.0)] = Field(0.0, description="relative 1-sigma impulse magnitude error (Table 3 prints m/s; eq. 29 makes it relative: low 0.1, high 0.2)")
+    sigma_beta_deg: Annotated[float, Field(ge=0.0)] = Field(0.0, description="1-sigma out-of-plane direction error beta (Table 3: 0.5 / 1.0 deg)")
+    sigma_alpha_deg: Annotated[float, Field(ge=0.0)] = Field(0.0, description="1-sigma in-plane direction error alpha (Table 3: 0.5 / 1.0 deg)")
+    p_misthrust: Probability = Field(0.0, description="probability that all impulses of a guidance interval are missed (Table 3: 0.05 / 0.10)")
+    velocity_ratio_per_s: Annotated[float, Field(ge=0.0)] = Field(0.001, description="sigma_v / sigma_r (§5.1.2: 0.001 1/s)")
 
 
 class AxisSection(Section):
@@ -145,6 +167,8 @@ class CortexScenario(ScenarioBase):
     guidance: GuidanceSection = Field(GuidanceSection(), description="tracking guidance keys (cortex 2/2; unused by the planner)")
     axis: AxisSection = Field(AxisSection(), description="docking axis, fixed or from a Fibonacci sphere")
     eclipse: EclipseSection = Field(EclipseSection(), description="sunlight profile for the holds (eqs. 13-15)")
+    truth: TruthSection = Field(TruthSection(), description="truth dynamics of the closed loop (guidance.closed_loop)")
+    errors: ErrorsSection = Field(ErrorsSection(), description="Algorithm 3 execution errors (Table 3)")
 
 
 def config_from_scenario(sc: CortexScenario):
@@ -238,6 +262,10 @@ class CortexSystem:
     Scenario = CortexScenario
 
     def run(self, sc: CortexScenario, seed: int = 0, progress: bool = False):
+        if sc.guidance.closed_loop:
+            from proxops.systems.cortex_loop import run_closed_loop
+
+            return run_closed_loop(sc, seed=seed, progress=progress)
         plan = plan_scenario(sc)
         return summarize_plan(plan), {"plan": plan_to_result(sc, plan)}
 
@@ -245,30 +273,52 @@ class CortexSystem:
         """The checks a plan makes before solving (``validate`` and campaigns call this)."""
         config_from_scenario(sc).validate()
         scenario_axis(sc)
+        if sc.guidance.closed_loop:
+            from proxops.systems.cortex_loop import check_loop
+
+            check_loop(sc)
 
     def build(self, sc: CortexScenario):
         from proxops.errors import input_error
 
+        if sc.guidance.closed_loop:
+            from proxops.systems.cortex_loop import build_setup
+
+            return build_setup(sc)[0]
         raise input_error("system", "cortex", "is a planner: use proxops run / proxops cortex reference (no closed loop)")
 
     def summarize(self, sc: CortexScenario, result) -> dict:
         return {}
 
     def success(self, sc: CortexScenario, summary: dict) -> bool:
+        if sc.guidance.closed_loop:
+            return str(summary.get("status", "")) == "docked"
         return str(summary.get("status", "")) == "ok"
 
     def figures(self, sc: CortexScenario, results, out_dir) -> list[Path]:
+        if sc.guidance.closed_loop:
+            from proxops.plotting.cortex_loop import run_figure
+
+            return [run_figure(sc, next(iter(results.values())), Path(out_dir) / "tracking.png")]
         from proxops.plotting.cortex import plan_figure_from_result
 
         result = next(iter(results.values())) if isinstance(results, dict) else results
         return [plan_figure_from_result(sc, result, Path(out_dir) / "reference_3d.png")]
 
     def campaign_figures(self, sc: CortexScenario, results, out_dir) -> list[Path]:
+        if sc.guidance.closed_loop:
+            from proxops.plotting.cortex_loop import campaign_figures
+
+            return campaign_figures(sc, results, Path(out_dir))
         from proxops.plotting.cortex import fig11_trajectories
 
         return [fig11_trajectories(sc, results, Path(out_dir) / "fig11_trajectories.png")]
 
     def campaign_table(self, sc: CortexScenario, table) -> str:
+        if sc.guidance.closed_loop:
+            from proxops.systems.cortex_loop import table4
+
+            return table4(sc, table)
         if "metric.dv_total_mps" not in table:
             return ""
         return statistics_table(campaign_statistics(table))
