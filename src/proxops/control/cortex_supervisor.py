@@ -31,8 +31,11 @@ Choices the paper leaves open (documented keys of the scenario, stated in the re
   rho_bar - tol; more than tol outside the buffered cone). Measured: without it the error-free
   nominal run recomputes at 474 s (0.1 mm outside the buffered cone);
 * plume in CP_g (deviation from §3.2.1, which leaves the plume out of CP_g): in the final approach
-  CP_g carries one half-space per impulse, the dv-linearisation of eq. (21) at the reference
-  (position and impulse of the reference at that time, alpha_p_bar), which always admits dv = 0.
+  CP_g carries one SOFT half-space per impulse (slack cost 10 per unit of a_max delta_t_g), the
+  dv-linearisation of eq. (21) at the reference (position and impulse of the reference at that
+  time, alpha_p_bar). Hard rows forbid every braking correction (measured: low-error runs drift to
+  the true cone edge and abort); soft rows keep the nominal clean and leave real conflicts to the
+  plume triggers (recompute / abort).
   Measured: with the printed CP_g the error-free nominal run commands a braking impulse 8.6 deg
   from the target direction and aborts on C_plume at 528 s (``plume_in_tracking = false``
   reproduces it);
@@ -311,13 +314,12 @@ class CortexSupervisor:
         self._socp: dict = {}
         self.reset(0.0, timeline.state(0.0))
 
-    # CP_g structures, built once per (N_sub, cone) and updated in place
-    def _problem(self, n_sub: int, coned: bool) -> TrackingSOCP:
-        key = (n_sub, coned)
+    # CP_g structures, built once per (N_sub, cone, plume) and updated in place
+    def _problem(self, n_sub: int, coned: bool, plume: bool) -> TrackingSOCP:
+        key = (n_sub, coned, plume)
         if key not in self._socp:
             self._socp[key] = TrackingSOCP(self.n, n_sub, self.dt, self.a_max, self.s.terminal_penalty,
-                                           cone=self.cone if coned else None,
-                                           plume=coned and self.s.plume_in_tracking and self.plume_bar is not None)
+                                           cone=self.cone if coned else None, plume=plume)
         return self._socp[key]
 
     def reset(self, t0: float, x0: np.ndarray) -> None:
@@ -335,6 +337,7 @@ class CortexSupervisor:
         self.ground_abort_done = False
         self.solve_times: list[float] = []
         self.final_target = None
+        self.relaxed = None
 
     def observe_truth(self, t: float, x_true: np.ndarray) -> None:
         """Engine hook: the true relative state at this sample (triggers are evaluated on it)."""
@@ -360,6 +363,8 @@ class CortexSupervisor:
             solve_time, status = 0.0, "ok"
             if not self.queue:
                 dv, solve_time, status = self._guidance(t, x_est, seg)
+                if self.relaxed:
+                    events.append(("cpg_relaxed", self.relaxed))
                 if dv is None:
                     if self.mode == "retreat":
                         return Command(u=np.zeros(3), kind="impulse", status=status, solve_time_s=solve_time,
@@ -378,21 +383,37 @@ class CortexSupervisor:
         return Command(u=np.zeros(3), kind="impulse", mode=self.mode, stop=True)
 
     def _guidance(self, t, x_est, seg):
+        """Solve CP_g for the interval starting at t. In the approach the problem carries the cone and
+        the plume half-spaces; when that is infeasible (the state near the cone edge with an outward
+        velocity: 2 s impulses of a_max delta_t_g cannot keep the next node inside) it is re-solved
+        without the plume rows, then without the cone (event ``cpg_relaxed``): the triggers of Table 1,
+        not the solver, decide what happens when the constraints are broken."""
         t_next = min(t + self.s.dt_g_s, seg.t1)
         n_sub = max(1, int(round((t_next - t) / self.dt)))
-        prob = self._problem(n_sub, self.mode == "approach")
         x_T = self.timeline.state(t + n_sub * self.dt)
-        if prob.has_plume:
-            from proxops.guidance.cortex.phases import DV_ZERO_MPS
+        approach = self.mode == "approach"
+        plume = approach and self.s.plume_in_tracking and self.plume_bar is not None
+        ladder = [(approach, plume)] + ([(True, False)] if plume else []) + ([(False, False)] if approach else [])
+        total = 0.0
+        self.relaxed = None
+        for coned, with_plume in ladder:
+            prob = self._problem(n_sub, coned, with_plume)
+            if with_plume:
+                from proxops.guidance.cortex.phases import DV_ZERO_MPS
 
-            tj = t + self.dt * np.arange(n_sub)
-            r_ref = np.array([self.timeline.state(tt)[:3] for tt in tj])
-            dv_ref = np.array([seg.impulse(tt) for tt in tj])
-            _, g, _ = self.plume_bar.linearization(r_ref, dv_ref, DV_ZERO_MPS)
-            prob.set_plume(g)
-        dv, res = prob.solve(x_est, x_T)
-        self.solve_times.append(res.solve_time_s)
-        return dv, res.solve_time_s, res.status.value
+                tj = t + self.dt * np.arange(n_sub)
+                r_ref = np.array([self.timeline.state(tt)[:3] for tt in tj])
+                dv_ref = np.array([seg.impulse(tt) for tt in tj])
+                _, g, _ = self.plume_bar.linearization(r_ref, dv_ref, DV_ZERO_MPS)
+                prob.set_plume(g)
+            dv, res = prob.solve(x_est, x_T)
+            self.solve_times.append(res.solve_time_s)
+            total += res.solve_time_s
+            if dv is not None:
+                if (coned, with_plume) != ladder[0]:
+                    self.relaxed = f"CP_g {ladder[0]} {res.status.value} -> solved with cone={coned}, plume={with_plume}"
+                return dv, total, res.status.value
+        return None, total, res.status.value
 
     def _trigger(self, t, x_est, trig, events, solve_time=0.0, status="ok") -> Command:
         kind, reason = trig

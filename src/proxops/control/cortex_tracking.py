@@ -55,10 +55,11 @@ def substeps(dt_g_s: float, substep_s: float) -> int:
 class TrackingSOCP:
     """CP_g for a fixed number of impulses ``n_sub`` spaced ``substep_s`` apart (eq. 27).
 
-    ``cone`` (an :class:`proxops.constraints.approach_cone.ApproachCone`) adds (27g)."""
+    ``cone`` (an :class:`proxops.constraints.approach_cone.ApproachCone`) adds (27g); ``plume`` adds
+    soft plume half-spaces (not in the paper, see :meth:`set_plume`)."""
 
     def __init__(self, n_rad_s: float, n_sub: int, substep_s: float, a_max_mps2: float, terminal_penalty: float,
-                 cone=None, plume: bool = False, solver_settings: dict | None = None):
+                 cone=None, plume: bool = False, plume_weight: float = 100.0, solver_settings: dict | None = None):
         if not (math.isfinite(terminal_penalty) and terminal_penalty > 0):
             raise input_error("guidance.terminal_penalty", terminal_penalty, "must be a finite number > 0")
         if not (math.isfinite(a_max_mps2) and a_max_mps2 > 0):
@@ -73,7 +74,8 @@ class TrackingSOCP:
         self.iv = self.nx
         self.isv = self.nx + 3 * N
         self.ie = self.isv + N
-        nz = self.ie + 1
+        self.isig = self.ie + 1  # plume slacks (only with plume)
+        nz = self.ie + 1 + (N if plume else 0)
         phi = self.phi = cw_stm(n_rad_s, self.substep_s)
         Ad = phi / D[:, None] * D[None, :]
         Bd = phi[:, 3:6] / D[:, None] * V
@@ -101,15 +103,19 @@ class TrackingSOCP:
         b.append(np.ones(N))
         r += N
         n_nonneg = N
-        # optional plume half-spaces g_j . dv_j <= 0 (see set_plume); placeholders 0 . dv <= 0
+        # optional soft plume half-spaces g_j . dv_j - sig_j <= 0, sig_j >= 0 (see set_plume)
         self.plume_row0 = r
         self.has_plume = bool(plume)
         if plume:
             for j in range(N):
                 put(np.full(3, r + j), self.iv + 3 * j + np.arange(3), np.zeros(3))
+                put(r + j, self.isig + j, -1.0)
             b.append(np.zeros(N))
             r += N
-            n_nonneg += N
+            put(r + np.arange(N), self.isig + np.arange(N), -np.ones(N))
+            b.append(np.zeros(N))
+            r += N
+            n_nonneg += 2 * N
         cones.append(("nonneg", n_nonneg))
         # (27d) ||dv_j|| <= s_j
         for j in range(N):
@@ -139,6 +145,8 @@ class TrackingSOCP:
         q = np.zeros(nz)
         q[self.isv : self.isv + N] = 1.0
         q[self.ie] = float(terminal_penalty) / V  # objective divided by V (Delta-v in units of V)
+        if plume:
+            q[self.isig :] = plume_weight
         self.q = q
         self.A = A
         self.cones = cones
@@ -157,7 +165,8 @@ class TrackingSOCP:
         self._A_dirty = False
 
     def set_plume(self, g_rows) -> None:
-        """Plume rows g_j . dv_j <= 0 (g_j (N, 3), physical units; normalised here): the
+        """Soft plume rows g_j . dv_j <= sig_j, cost ``plume_weight`` sig_j (g_j (N, 3), physical units;
+        normalised here, sig in units of a_max delta_t_g): the
         dv-linearisation of eq. (21) about the reference (r_ref_j, dv_ref_j), a half-space inside the
         allowed thrust set at r = r_ref_j (:meth:`PlumeConstraint.linearization`)."""
         g = np.asarray(g_rows, float)
