@@ -27,8 +27,9 @@ Choices the paper leaves open (documented keys of the scenario, stated in the re
   aborting impulse is not executed); impulses below ``plume_min_dv_mps`` do not count as thrust;
 * buffered KOS and cone: the reference lies ON both buffered boundaries (the second hold
   station-keeps at x_f1 = rho_bar e, Table 2; CP2 nodes touch the alpha_c_bar cone), so any tracking
-  error, however small, would trip them: they fire only beyond ``buffer_tol_m`` (range below
-  rho_bar - tol; more than tol outside the buffered cone). Measured: without it the error-free
+  error, however small, would trip them: they fire only beyond a tolerance (range below
+  rho_bar - ``buffer_tol_m``; more than ``cone_buffer_tol_deg`` off the axis beyond alpha_c_bar, an
+  angle so that it stays well inside the true cone near the apex). Measured: without it the error-free
   nominal run recomputes at 474 s (0.1 mm outside the buffered cone);
 * plume in CP_g (deviation from §3.2.1, which leaves the plume out of CP_g): in the final approach
   CP_g carries one SOFT half-space per impulse (slack cost 10 per unit of a_max delta_t_g), the
@@ -190,6 +191,7 @@ class CortexTriggers:
     eps_r_m: dict  # phase -> threshold
     plume_min_dv_mps: float = 1e-4
     buffer_tol_m: float = 0.1
+    cone_buffer_tol_rad: float = math.radians(1.0)
 
     def __post_init__(self):
         for phase, v in self.eps_r_m.items():
@@ -216,8 +218,10 @@ class CortexTriggers:
         if phase in ("hold1", "flyaround", "hold2") and rng < self.rho_bar_m - self.buffer_tol_m:
             return "recompute", f"C_KOS_bar: range {rng:.3f} m < rho_bar {self.rho_bar_m:g} m"
         if phase == "approach":
-            if self.cone_bar.violation(0.0, r) > self.buffer_tol_m:
-                return "recompute", f"C_cone_bar: outside the buffered cone by {self.cone_bar.violation(0.0, r):.4f} m"
+            off = math.acos(max(-1.0, min(1.0, float(r @ self.cone_bar.axis) / max(rng, 1e-12))))
+            if off > self.cone_bar.half_angle_rad + self.cone_buffer_tol_rad:
+                return "recompute", (f"C_cone_bar: {math.degrees(off):.2f} deg off the axis > alpha_c_bar "
+                                     f"{math.degrees(self.cone_bar.half_angle_rad):g} deg")
             if thrusting and self.plume_bar.violation(0.0, r, dv) > 0:
                 ang = math.degrees(float(self.plume_bar.angle_rad(r, dv)))
                 return "recompute", f"C_plume_bar: thrust {ang:.2f} deg from the target direction < alpha_p_bar"
@@ -291,6 +295,8 @@ class SupervisorSettings:
     r_as_m: float = 75.0
     plume_in_tracking: bool = True
     insertion_intervals: int = 2
+    null_timeout_s: float = 120.0  # nulling longer than this (thrusters failed): recompute -> abort, abort -> retreat plan
+    plume_weight: float = 1e4
 
 
 class CortexSupervisor:
@@ -319,7 +325,8 @@ class CortexSupervisor:
         key = (n_sub, coned, plume)
         if key not in self._socp:
             self._socp[key] = TrackingSOCP(self.n, n_sub, self.dt, self.a_max, self.s.terminal_penalty,
-                                           cone=self.cone if coned else None, plume=plume)
+                                           cone=self.cone if coned else None, plume=plume,
+                                           plume_weight=self.s.plume_weight)
         return self._socp[key]
 
     def reset(self, t0: float, x0: np.ndarray) -> None:
@@ -338,6 +345,7 @@ class CortexSupervisor:
         self.solve_times: list[float] = []
         self.final_target = None
         self.relaxed = None
+        self.null_since = None
 
     def observe_truth(self, t: float, x_true: np.ndarray) -> None:
         """Engine hook: the true relative state at this sample (triggers are evaluated on it)."""
@@ -351,6 +359,10 @@ class CortexSupervisor:
                 and self.mode in TRACK_PHASES + ("null",)):
             self.ground_abort_done = True
             return self._start_abort(t, x_est, "ground abort command", events)
+        if self.mode == "null":  # nulling before a re-plan: the abort conditions still apply
+            trig = self.triggers.check(self.null_phase, x_true[:3], x_true[:3], None)
+            if trig is not None and trig[0] == "abort":
+                return self._start_abort(t, x_est, trig[1], events)
         if self.mode in ("null", "abort_null"):
             return self._null(t, x_est, events)
         if self.mode in TRACK_PHASES or self.mode == "retreat":
@@ -444,10 +456,17 @@ class CortexSupervisor:
     def _null(self, t, x_est, events) -> Command:
         v = np.asarray(x_est[3:6], float)
         speed = float(np.linalg.norm(v))
-        if speed > self.s.null_tol_mps:
+        if self.null_since is None:
+            self.null_since = t
+        timed_out = t - self.null_since > self.s.null_timeout_s
+        if timed_out and self.after_null == "recompute":
+            self.null_since = None
+            return self._start_abort(t, x_est, f"velocity not nulled in {self.s.null_timeout_s:g} s (thrusters?)", events)
+        if speed > self.s.null_tol_mps and not timed_out:
             dv = -v if speed <= self.dv_max else -v * (self.dv_max / speed)
             return Command(u=dv, kind="impulse", mode=self.mode, events=events, info={"phase": PHASE_INDEX[self.mode]})
-        # velocity nulled: plan
+        # velocity nulled (or the abort's nulling timed out): plan
+        self.null_since = None
         if self.after_null == "recompute":
             tl = self._replan(t, x_est)
             if tl is None:

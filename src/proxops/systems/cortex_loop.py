@@ -100,10 +100,12 @@ def build_setup(sc):
         r_kos_m=cfg.r_kos_m, rho_bar_m=cfg.rho_bar,
         cone=ApproachCone(axis, cfg.cone_half_angle_rad), cone_bar=ApproachCone(axis, cfg.alpha_c_bar),
         plume=PlumeConstraint(cfg.plume_half_angle_rad), plume_bar=PlumeConstraint(cfg.alpha_p_bar),
-        eps_r_m=_eps_r(g), buffer_tol_m=g.buffer_tol_m, plume_min_dv_mps=g.plume_min_dv_mps)
+        eps_r_m=_eps_r(g), buffer_tol_m=g.buffer_tol_m,
+        cone_buffer_tol_rad=math.radians(g.cone_buffer_tol_deg), plume_min_dv_mps=g.plume_min_dv_mps)
     settings = SupervisorSettings(dt_g_s=g.dt_g_s, substep_s=g.substep_s, terminal_penalty=g.terminal_penalty,
                                   max_recomputes=g.max_recomputes, null_tol_mps=g.null_tol_mps, abort_at_s=g.abort_at_s,
-                                  r_as_m=cfg.r_as_m, plume_in_tracking=g.plume_in_tracking)
+                                  r_as_m=cfg.r_as_m, plume_in_tracking=g.plume_in_tracking,
+                                  plume_weight=g.plume_weight)
     replanner = CortexReplanner(cfg, axis, eclipse=eclipse_profile(sc), t0_offset_s=sc.planner.start_delay_s)
     ctrl = CortexSupervisor(n, cfg.a_max_mps2, timeline, triggers, replanner, settings,
                             ApproachCone(axis, cfg.cone_half_angle_rad), plume_bar=PlumeConstraint(cfg.alpha_p_bar))

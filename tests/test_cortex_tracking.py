@@ -1,0 +1,232 @@
+"""CORTEX closed loop (cortex-convex-guidance.md §3.2-3.4): CP_g, Table 1 triggers, execution
+errors (Algorithm 3), reduced closed-loop runs on the CW truth, bad input."""
+
+import math
+
+import numpy as np
+import pytest
+
+from proxops.actuators import ThrusterModel, perturb_angles
+from proxops.constraints.approach_cone import ApproachCone, PlumeConstraint
+from proxops.control.cortex_supervisor import CortexTriggers, safe_orbit_state
+from proxops.control.cortex_tracking import TrackingSOCP, substeps
+from proxops.core.cw import cw_stm, mean_motion
+from proxops.errors import ProxopsInputError
+from proxops.navigation import GaussianNavigation
+
+N_RAD = mean_motion(6878.1e3)
+AXIS = np.array([-1.0, -1.0, 0.0]) / math.sqrt(2)
+
+
+def _reachable_target(x0, dv):
+    x = np.array(x0, float)
+    for d in dv:
+        x[3:] += d
+        x = cw_stm(N_RAD, 2.0) @ x
+    return x
+
+
+def test_cpg_reaches_a_reachable_target_and_respects_the_bounds():
+    """A target made by propagating admissible impulses (CW STM, independent of the solver) is reached:
+    terminal miss ~0, every impulse within a_max delta_t_g, dynamics of eq. 2 satisfied."""
+    rng = np.random.default_rng(3)
+    a_max = 2.4e-3
+    dv_true = rng.uniform(-1, 1, (15, 3)) * a_max * 2.0 / math.sqrt(3)
+    x0 = np.array([0.0, -37.5, 0.0, 0.01, 0.0, 0.0])
+    xT = _reachable_target(x0, dv_true)
+    prob = TrackingSOCP(N_RAD, 15, 2.0, a_max, 10.0)
+    dv, res = prob.solve(x0, xT)
+    assert dv is not None
+    assert np.linalg.norm(dv, axis=1).max() <= a_max * 2.0 * (1 + 1e-9)
+    x_pred = prob.predicted_states(x0, dv)
+    assert np.linalg.norm(x_pred[-1] - xT) < 1e-6
+    # cost no larger than the generating impulses (they are feasible)
+    assert np.linalg.norm(dv, axis=1).sum() <= np.linalg.norm(dv_true, axis=1).sum() + 1e-6
+
+
+def test_cpg_update_equals_rebuild_and_cone_holds():
+    cone = ApproachCone(AXIS, math.radians(10))
+    prob = TrackingSOCP(N_RAD, 15, 2.0, 2.4e-3, 10.0, cone=cone)
+    x0 = np.concatenate([17.0 * AXIS, -0.02 * AXIS])
+    xT = np.concatenate([16.0 * AXIS + [0.3, -0.3, 0.0], np.zeros(3)])
+    for shift in (0.0, 0.2, -0.1):
+        xs = x0 + np.array([shift, 0, 0, 0, 0, 0])
+        dv_u, _ = prob.solve(xs, xT)
+        dv_r, _ = prob.solve(xs, xT, rebuild=True)
+        np.testing.assert_allclose(dv_u, dv_r, atol=1e-7)
+        x_pred = prob.predicted_states(xs, dv_u)
+        assert cone.margin(x_pred[1:, :3]).min() >= -1e-6  # (27g) from j = 2
+
+
+def test_bad_substep_and_penalty():
+    with pytest.raises(ProxopsInputError, match="substep_s"):
+        substeps(30.0, 7.0)
+    assert substeps(30.0, 2.0) == 15
+    with pytest.raises(ProxopsInputError, match="terminal_penalty"):
+        TrackingSOCP(N_RAD, 15, 2.0, 2.4e-3, 0.0)
+
+
+def _triggers(**kw):
+    return CortexTriggers(r_kos_m=15.0, rho_bar_m=18.0, cone=ApproachCone(AXIS, math.radians(10)),
+                          cone_bar=ApproachCone(AXIS, math.radians(5)), plume=PlumeConstraint(math.radians(20)),
+                          plume_bar=PlumeConstraint(math.radians(24)),
+                          eps_r_m={"hold1": 30.0, "flyaround": 30.0, "hold2": 15.0, "approach": 5.0}, **kw)
+
+
+def test_table1_boundaries():
+    tr = _triggers()
+    r = np.array([0.0, -14.99, 0.0])
+    assert tr.check("flyaround", r, r, None)[0] == "abort"  # true KOS
+    r = np.array([0.0, -15.01, 0.0])
+    assert tr.check("flyaround", r, r, None)[0] == "recompute"  # buffered KOS (below 18 - 0.1)
+    r = np.array([0.0, -17.95, 0.0])
+    assert tr.check("hold2", r, r, None) is None  # on the buffered sphere within the tolerance
+    assert tr.check("approach", 0.5 * AXIS, 0.5 * AXIS, None) is None  # KOS does not apply in the approach
+    # tracking error per phase (eps_r = 5 m in the approach, 30 m in the fly-around)
+    assert tr.check("approach", 10 * AXIS, 10 * AXIS + [0, 0, 5.01], None)[0] == "recompute"
+    assert tr.check("flyaround", np.array([0, -40.0, 0]), np.array([0, -40.0 + 29.9, 0]), None) is None
+    # cone: 11 deg off the axis aborts, 7 deg recomputes (5 + 1 deg tolerance), 5.5 deg passes
+    def at(deg):
+        c, s = math.cos(math.radians(deg)), math.sin(math.radians(deg))
+        return 5.0 * (c * AXIS + s * np.array([0, 0, 1.0]))
+    assert tr.check("approach", at(11), at(11), None)[0] == "abort"
+    assert tr.check("approach", at(7), at(7), None)[0] == "recompute"
+    assert tr.check("approach", at(5.5), at(5.5), None) is None
+    # plume: thrust 10 deg from the target direction aborts, 22 deg recomputes, 90 deg passes
+    r = 5.0 * AXIS
+    def thrust(deg):
+        c, s = math.cos(math.radians(deg)), math.sin(math.radians(deg))
+        return 1e-3 * (c * AXIS + s * np.array([0, 0, 1.0]))
+    assert tr.check("approach", r, r, thrust(10))[0] == "abort"
+    assert tr.check("approach", r, r, thrust(22))[0] == "recompute"
+    assert tr.check("approach", r, r, thrust(90)) is None
+    assert tr.check("approach", r, r, 1e-6 * AXIS) is None  # below the minimum impulse bit
+
+
+def test_bad_recompute_threshold():
+    with pytest.raises(ProxopsInputError, match="recompute_approach"):
+        CortexTriggers(r_kos_m=15.0, rho_bar_m=18.0, cone=None, cone_bar=None, plume=None, plume_bar=None,
+                       eps_r_m={"approach": 0.0})
+
+
+def test_safe_orbit_is_a_closed_cw_ellipse_outside_the_kos():
+    """x_S of §3.4 under the CW STM: periodic (returns after one orbit) and its smallest range is the
+    radial semi-axis r_AS/4 = 18.75 m > r_KOS = 15 m."""
+    xs = safe_orbit_state(N_RAD, 75.0)
+    period = 2 * math.pi / N_RAD
+    np.testing.assert_allclose(cw_stm(N_RAD, period) @ xs, xs, atol=1e-9)
+    ranges = [np.linalg.norm((cw_stm(N_RAD, t) @ xs)[:3]) for t in np.linspace(0, period, 2001)]
+    assert min(ranges) == pytest.approx(18.75, rel=1e-5)
+
+
+def test_execution_errors_of_algorithm3():
+    rng = np.random.default_rng(0)
+    dv = np.array([0.003, -0.002, 0.001])
+    # eq. 29 with zero angle errors is the identity; magnitude kept for any angles
+    np.testing.assert_allclose(perturb_angles(dv, 0.0, 0.0), dv, atol=1e-15)
+    assert np.linalg.norm(perturb_angles(dv, 0.1, -0.2)) == pytest.approx(np.linalg.norm(dv))
+    # missed thrust: "with probability p", all impulses of a window together
+    act = ThrusterModel(missed_probability=0.1, missed_window_s=30.0)
+    missed = 0
+    n_windows = 4000
+    for w in range(n_windows):
+        out = [act.apply(30.0 * w + 2.0 * j, dv, "impulse", rng) for j in range(15)]
+        zero = [not o.any() for o in out]
+        assert all(zero) or not any(zero)
+        missed += zero[0]
+    # binomial(4000, 0.1): 5 sigma = 95
+    assert abs(missed - 400) < 95
+    with pytest.raises(ProxopsInputError, match="missed_probability"):
+        ThrusterModel(missed_probability=1.5)
+    # sigma_r of §5.1.2 scales with range: 0.02 at the target, 1 at r_AS
+    nav = GaussianNavigation(1.0, 0.001, range_scale_m=75.0, range_floor=0.02)
+    assert nav.scale(np.zeros(6)) == pytest.approx(0.02)
+    assert nav.scale(np.array([0, 75.0, 0, 0, 0, 0])) == pytest.approx(1.0)
+
+
+# ------------------------------------------------------------------ reduced closed loops (CW truth)
+def _run(overrides, seed=0):
+    from proxops.scenarios.loader import load_scenario
+    from proxops.systems.cortex_loop import run_closed_loop
+
+    sc = load_scenario("cortex-nominal", ["truth.model=cw", "eclipse.model=none"] + overrides).scenario
+    return run_closed_loop(sc, seed=seed)
+
+
+def test_nominal_docks_at_the_mm_level():
+    summary, res = _run([])
+    assert summary["status"] == "docked" and summary["recomputes"] == 0 and summary["aborts"] == 0
+    assert summary["terminal_position_error_m"] < 1e-3  # mm level
+    assert summary["terminal_velocity_error_mps"] < 5e-3  # mm/s level
+    assert summary["koz_violations"] == summary["cone_violations"] == summary["plume_violations"] == 0
+
+
+def test_ground_abort_ends_passively_safe():
+    summary, res = _run(["guidance.abort_at_s=150"])
+    assert summary["status"] == "aborted" and summary["abort_reason"] == "ground abort command"
+    assert summary["passive_safe"] and summary["passive_min_range_m"] > 15.0
+    assert summary["safe_orbit_error_m"] < 0.01
+    events = [e for e in res["run"].events if e[1] == "abort"]
+    assert events and events[0][0] == pytest.approx(150.0)
+
+
+class _DeadThrusters:
+    """Injected fault: every thruster fails at ``t_fail`` (engine failure, §5.2.2)."""
+
+    def __init__(self, t_fail):
+        self.t_fail = t_fail
+
+    def apply(self, t, u, kind, rng):
+        return np.zeros(3) if t >= self.t_fail else np.array(u, float)
+
+
+@pytest.mark.parametrize("t_fail", [60.0, 420.0])
+def test_no_true_violation_without_an_abort_at_that_step(t_fail):
+    """Thrusters die in the fly-around (60 s) or the approach (420 s). Every sample at which the TRUE
+    state breaks the KOS (holds, fly-around) or the cone (approach) while tracking must carry an abort
+    event at that time; after it the mode is no longer a tracking phase."""
+    from proxops.scenarios.loader import load_scenario
+    from proxops.sim.engine import simulate
+    from proxops.systems.cortex_loop import build_setup
+
+    sc = load_scenario("cortex-nominal", ["truth.model=cw", "eclipse.model=none", "sim.duration_s=1500"]).scenario
+    setup, ctrl, plan = build_setup(sc)
+    setup.actuator = _DeadThrusters(t_fail)
+    res = simulate(setup)
+    cone = ApproachCone(AXIS, math.radians(10))
+    r = res.x_true[:, :3]
+    abort_times = sorted(e[0] for e in res.events if e[1] == "abort")
+    approach_started = False
+    first_bad = None
+    for k, mode in enumerate(res.mode):
+        approach_started |= mode == "approach"
+        kos = not approach_started and np.linalg.norm(r[k]) < 15.0
+        out = approach_started and mode in ("approach", "null") and cone.margin(r[k]) < 0
+        if kos or out:
+            first_bad = res.t[k]
+            break
+    if first_bad is not None:  # the first true violation carries the abort event of that sample
+        assert abort_times and abort_times[0] == pytest.approx(first_bad)
+    else:
+        assert res.meta["outcome"] in ("docked", "aborted")
+    # after the abort no sample is in a tracking phase
+    if abort_times:
+        later = [m for t, m in zip(res.t, res.mode) if t > abort_times[0]]
+        assert not set(later) & {"hold1", "flyaround", "hold2", "approach"}
+
+
+@pytest.mark.parametrize("setting, field", [
+    ("errors.p_misthrust=1.5", "p_misthrust"),
+    ("guidance.substep_s=7", "substep_s"),
+    ("guidance.recompute_approach_m=0", "recompute_approach_m"),
+    ("guidance.recompute_hold2_m=-1", "recompute_hold2_m"),
+])
+def test_cli_bad_input_is_one_line_exit_2(setting, field):
+    import subprocess
+    import sys
+
+    proc = subprocess.run([sys.executable, "-m", "proxops.cli", "run", "cortex-nominal", "--json", "--set", setting],
+                          capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 2
+    lines = [ln for ln in proc.stderr.strip().splitlines() if ln.strip()]
+    assert len(lines) == 1 and field in lines[0] and "Traceback" not in proc.stderr
