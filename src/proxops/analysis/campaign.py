@@ -374,6 +374,14 @@ def _dask_client(scheduler, connect_timeout_s: float):
             )
         kwargs["scheduler_file"] = str(path)
     else:
+        from distributed.comm.addressing import parse_address, parse_host_port
+
+        try:  # checked before a Client exists: a half-built Client prints a traceback when collected
+            scheme, location = parse_address(text)
+            if scheme in ("tcp", "tls"):
+                parse_host_port(location)
+        except ValueError as exc:
+            raise ProxopsInputError(f"--scheduler {text!r}: {exc}; give tcp://HOST:PORT or a scheduler file") from None
         kwargs["address"] = text
     try:
         return Client(**kwargs)
