@@ -279,7 +279,8 @@ def _new_pool(workers: int) -> ProcessPoolExecutor:
 
 
 def _stop_pool(pool: ProcessPoolExecutor, force: bool) -> None:
-    """Shut a pool down; ``force`` also terminates workers still running a batch (given up)."""
+    """Shut a pool down and wait for its workers (their queues and semaphores are released
+    before this process exits); ``force`` first terminates workers still running a batch."""
     processes = list((getattr(pool, "_processes", None) or {}).values())
     pool.shutdown(wait=False, cancel_futures=True)
     if force:
@@ -288,6 +289,8 @@ def _stop_pool(pool: ProcessPoolExecutor, force: bool) -> None:
                 proc.terminate()
             except Exception:  # already gone
                 pass
+    with _sigint_blocked():  # a Ctrl-C now would leave half-closed queues behind
+        pool.shutdown(wait=True)
 
 
 def shutdown_pools(force: bool = False) -> None:
@@ -295,9 +298,7 @@ def shutdown_pools(force: bool = False) -> None:
     terminates busy ones instead of waiting for them."""
     while _POOLS:
         _, pool = _POOLS.popitem()
-        if force:
-            _stop_pool(pool, force=True)
-        pool.shutdown(wait=True, cancel_futures=True)
+        _stop_pool(pool, force)
 
 
 atexit.register(shutdown_pools)
