@@ -45,8 +45,10 @@ Choices the paper leaves open (documented keys of the scenario, stated in the re
 * regeneration in the final approach re-plans CP2 only (from the current state to x_f2); in the
   holds and the fly-around the whole planner runs from the current state (holds re-evaluated on
   the sunlight profile); a start inside the buffered KOS shrinks the planning sphere to 0.95 of
-  the current range (else CP1 is infeasible at once). After ``max_recomputes`` the next recompute
-  trigger aborts;
+  the current range (else CP1 is infeasible at once). A regeneration tries at most
+  ``replan_candidates`` durations per phase from tau_lb (an onboard time budget: measured, a failing
+  CP2 regeneration over the whole [5, 60] min grid took 90 s of CPU); none converged -> abort.
+  After ``max_recomputes`` the next recompute trigger aborts;
 * retreat: CP1 (same planner, KOS planes) from the nulled state to the safe circumnavigation
   state x_S = [0, r_AS/2, 0, n r_AS/4, 0, 0] (x_dot = (n/2) y, y_dot = 0, y = r_AS/2, §3.4),
   tracked with CP_g; on arrival the thrusters stop and the run ends ``aborted``; the system then
@@ -232,8 +234,9 @@ class CortexTriggers:
 class CortexReplanner:
     """The planner of cortex (1/2) called from the loop: full plan, approach only, retreat."""
 
-    def __init__(self, cfg, axis, eclipse=None, t0_offset_s: float = 0.0):
+    def __init__(self, cfg, axis, eclipse=None, t0_offset_s: float = 0.0, max_candidates: int = 30):
         self.cfg, self.axis, self.eclipse, self.t0_offset_s = cfg, np.asarray(axis, float), eclipse, t0_offset_s
+        self.max_candidates = int(max_candidates)  # durations tried per phase in a regeneration (time budget)
 
     def _cfg_from(self, x0):
         r0 = float(np.linalg.norm(x0[:3]))
@@ -242,7 +245,9 @@ class CortexReplanner:
         margin = cfg.kos_margin if r0 > cfg.rho_bar else max(1.0, 0.95 * r0 / cfg.r_kos_m)
         if margin * cfg.r_kos_m >= r0:
             margin = 1.0
-        return replace(cfg, start_state=tuple(float(v) for v in x0), kos_margin=margin, flyaround_end_range_m=rho_end)
+        tau_ub = min(cfg.tau_ub_s, cfg.tau_lb_s + (self.max_candidates - 1) * max(cfg.dt_cp1_s, cfg.dt_cp2_s))
+        return replace(cfg, start_state=tuple(float(v) for v in x0), kos_margin=margin, flyaround_end_range_m=rho_end,
+                       tau_ub_s=tau_ub)
 
     def full(self, x0, t_now: float):
         from proxops.guidance.cortex.reference import plan_reference
@@ -252,7 +257,7 @@ class CortexReplanner:
     def _scan(self, solve, dt):
         from proxops.guidance.cortex.reference import _first_converged, duration_grid
 
-        grid = duration_grid(self.cfg.tau_lb_s, self.cfg.tau_ub_s, dt)
+        grid = duration_grid(self.cfg.tau_lb_s, self.cfg.tau_ub_s, dt)[: self.max_candidates]
         i, res = _first_converged(solve, grid, False, [], "replan")
         return None if i is None else res[i]
 

@@ -117,6 +117,7 @@ class GuidanceSection(Section):
     plume_weight: Annotated[float, Field(gt=0.0)] = Field(1e4, description="cost of the plume-row slacks in CP_g per unit of a_max delta_t_g (against 1 per unit of delta-v)")
     plume_in_tracking: bool = Field(True, description="final approach: CP_g keeps each impulse in a plume half-space about the reference (not in the paper; false: the printed CP_g)")
     plume_min_dv_mps: Annotated[float, Field(ge=0.0)] = Field(1e-4, description="impulses below this are not thrust for the plume triggers (minimum impulse bit)")
+    replan_candidates: Annotated[int, Field(ge=1)] = Field(30, description="regeneration: most phase durations tried from tau_lb (onboard time budget; none converged -> abort)")
     null_tol_mps: Annotated[float, Field(gt=0.0)] = Field(1e-3, description="velocity nulling before a re-plan / retreat ends below this speed")
     passive_orbits: Annotated[float, Field(gt=0.0)] = Field(2.0, description="after an abort: orbits of thrust-free truth propagation checked outside the KOS")
 

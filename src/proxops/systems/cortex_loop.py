@@ -106,7 +106,8 @@ def build_setup(sc):
                                   max_recomputes=g.max_recomputes, null_tol_mps=g.null_tol_mps, abort_at_s=g.abort_at_s,
                                   r_as_m=cfg.r_as_m, plume_in_tracking=g.plume_in_tracking,
                                   plume_weight=g.plume_weight)
-    replanner = CortexReplanner(cfg, axis, eclipse=eclipse_profile(sc), t0_offset_s=sc.planner.start_delay_s)
+    replanner = CortexReplanner(cfg, axis, eclipse=eclipse_profile(sc), t0_offset_s=sc.planner.start_delay_s,
+                                max_candidates=g.replan_candidates)
     ctrl = CortexSupervisor(n, cfg.a_max_mps2, timeline, triggers, replanner, settings,
                             ApproachCone(axis, cfg.cone_half_angle_rad), plume_bar=PlumeConstraint(cfg.alpha_p_bar))
     x0 = np.asarray(cfg.start_state, float)
