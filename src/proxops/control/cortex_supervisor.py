@@ -42,7 +42,8 @@ Choices the paper leaves open (documented keys of the scenario, stated in the re
   reproduces it);
 * nulling (recompute and abort): impulses of at most a_max delta_t_g against the measured velocity
   until |v| <= ``null_tol_mps`` (the paper nulls "immediately");
-* regeneration in the final approach re-plans CP2 only (from the current state to x_f2); in the
+* regeneration in the final approach re-plans CP2 only (from the current state to x_f2) and, when
+  that fails, the whole planner (back out to x_f1, then CP2); in the
   holds and the fly-around the whole planner runs from the current state (holds re-evaluated on
   the sunlight profile); a start inside the buffered KOS shrinks the planning sphere to 0.95 of
   the current range (else CP1 is infeasible at once). A regeneration tries at most
@@ -65,7 +66,7 @@ import numpy as np
 from proxops.constraints.approach_cone import ApproachCone, PlumeConstraint
 from proxops.control.cortex_tracking import TrackingSOCP, substeps
 from proxops.core.cw import cw_stm
-from proxops.errors import input_error
+from proxops.errors import ProxopsInputError, input_error
 from proxops.sim.protocols import Command
 
 TRACK_PHASES = ("hold1", "flyaround", "hold2", "approach")
@@ -500,8 +501,14 @@ class CortexSupervisor:
         x0 = np.asarray(x_est, float)
         if self.null_phase == "approach":
             res = self.replanner.approach(x0, self.x_f2)
-            return None if res is None else phase_timeline("approach", res, self.n, t)
-        plan = self.replanner.full(x0, t)
+            if res is not None:
+                return phase_timeline("approach", res, self.n, t)
+            # no final approach from here (typically: outside the planning cone): the whole planner,
+            # back out to x_f1 on the axis and in again
+        try:
+            plan = self.replanner.full(x0, t)
+        except ProxopsInputError:  # e.g. a start inside the true KOS: the planner cannot start there
+            return None
         if not plan.ok:
             return None
         return timeline_from_plan(plan, self.n, t, self.dt)
