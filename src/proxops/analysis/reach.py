@@ -67,6 +67,7 @@ from scipy.stats import norm
 from proxops.constraints.los_corridor import LosCorridor
 from proxops.core.constants import MU_EARTH
 from proxops.core.cw import cw_discretize_zoh, mean_motion
+from proxops.dynamics.tumbling_target import sync_range
 from proxops.errors import ProxopsError, input_error
 from proxops.solvers import HighsLP, SolveStatus
 
@@ -171,12 +172,6 @@ class UnitRowCorridor:
         return self.h - np.asarray(p_body, dtype=float) @ self.G.T
 
 
-def sync_range(omega_rad_s: float, a_max_mps2: float) -> float:
-    """r_sync = 2 a_max / w_t^2 (m), eq. (14)."""
-    _check_combo(omega_rad_s, a_max_mps2)
-    return 2.0 * a_max_mps2 / omega_rad_s**2
-
-
 def slack_rate(corridor: LosCorridor, points: np.ndarray, omega_rad_s: float) -> np.ndarray:
     """ds_i/dt = -G_i v_rot (row units per s) for an inertially stationary chaser, eq. (13).
 
@@ -203,7 +198,7 @@ def certified_mask(
     """s_i - delta_i - Delta_i > 0 for all rows (eq. 16) and |p| < r_sync (eq. 14). Bool (n,)."""
     p = np.atleast_2d(np.asarray(points, float))
     margin = corridor.slack_body(p) - erosion(corridor, p, omega_rad_s, a_max_mps2) - np.asarray(tightening)
-    return np.all(margin > 0.0, axis=1) & (np.linalg.norm(p, axis=1) < sync_range(omega_rad_s, a_max_mps2))
+    return np.all(margin > 0.0, axis=1) & (np.linalg.norm(p, axis=1) < sync_range(a_max_mps2, omega_rad_s))
 
 
 def required_ratio(
@@ -786,7 +781,7 @@ def analyse_combo(
     res = ComboResult(
         omega_deg_s=float(omega_deg_s),
         a_max_mps2=float(a_max_mps2),
-        r_sync_m=sync_range(w, a_max_mps2),
+        r_sync_m=sync_range(a_max_mps2, w),
         nominal=nominal,
         stochastic=stochastic,
         robust=robust,

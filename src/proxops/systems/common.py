@@ -63,9 +63,14 @@ def force_models(orbit: OrbitSection, truth: TruthSection):
     )
 
 
-def navigation_model(nav: NavigationSection):
+def navigation_model(nav: NavigationSection, per_state_sigma=None):
+    """The navigation of a [navigation] section (the one place it is built): perfect when both
+    sigmas are 0, else Gaussian. ``per_state_sigma(position_sigma_m, velocity_sigma_mps)`` maps
+    the two sigmas onto a state layout other than [r; v] (e.g. the planar CubeSat's)."""
     if nav.position_sigma_m == 0.0 and nav.velocity_sigma_mps == 0.0:
         return PerfectNavigation()
+    if per_state_sigma is not None:
+        return GaussianNavigation(sigma=per_state_sigma(nav.position_sigma_m, nav.velocity_sigma_mps))
     return GaussianNavigation(nav.position_sigma_m, nav.velocity_sigma_mps)
 
 

@@ -38,6 +38,7 @@ from proxops.errors import ProxopsInputError, input_error
 from proxops.scenarios.registry import register_system
 from proxops.scenarios.schema import InitialSection, OrbitSection, ScenarioBase, Section, TruthSection, Vector3
 from proxops.sim.engine import Setup
+from proxops.solvers.stats import solve_time_stats
 
 ENGINE_STEPS_PER_ORBIT = 720
 
@@ -418,8 +419,7 @@ def summarize_result(sc: SrfScenario, result) -> dict:
         sel = np.nan_to_num(mask) > 0
         st = result.solve_time_s[sel]
         if st.size:
-            out["mpc_solve_ms"] = {"median": float(np.median(st) * 1e3), "p95": float(np.percentile(st, 95) * 1e3),
-                                   "max": float(st.max() * 1e3)}
+            out["mpc_solve_ms"] = solve_time_stats(st)
     return out
 
 
@@ -454,15 +454,3 @@ class SrfSystem:
         return bool(summary.get("reached_reference") and not summary.get("koz_violated")
                     and summary.get("abort_safe_all"))
 
-    def campaign_figures(self, sc: SrfScenario, results: list, out_dir) -> list[Path]:
-        """Monte Carlo overlay (Figs. 5/7/10) from a campaign's saved series."""
-        from proxops.plotting import srf as plots
-
-        theta_deg = sc.approach.angle_deg
-        return [plots.plot_mc_overlay(results, Path(out_dir) / "srf_mc_overlay.png", theta_deg=theta_deg,
-                                      koz_radius_m=sc.keep_out.radius_m, title=f"{sc.name}: Monte Carlo")]
-
-    def figures(self, sc: SrfScenario, results, out_dir) -> list[Path]:
-        from proxops.plotting import srf as plots
-
-        return plots.scenario_figures(sc, results, Path(out_dir))

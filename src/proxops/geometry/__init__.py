@@ -1,0 +1,1 @@
+"""Polytopes and support functions shared by reach, cortex and hybrid."""
