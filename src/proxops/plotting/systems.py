@@ -24,15 +24,20 @@ def _module(system_name: str):
         return None
 
 
+def _draw(system_name: str, system, hook: str, function: str, sc, results, out_dir) -> list[Path] | None:
+    """The system's own hook if it has one, else ``proxops.plotting.<system>.<function>``, else None."""
+    draw = getattr(system, hook, None)
+    if draw is None:
+        mod = _module(system_name)
+        draw = getattr(mod, function, None) if mod is not None else None
+    return None if draw is None else list(draw(sc, results, Path(out_dir)))
+
+
 def run_figures(system_name: str, system, sc, results: dict, out_dir: Path) -> list[Path]:
     """Figures of one run (all its labelled results) under ``out_dir``."""
-    hook = getattr(system, "figures", None)
-    if hook is not None:
-        return list(hook(sc, results, out_dir))
-    mod = _module(system_name)
-    draw = getattr(mod, "run_figures", None) if mod is not None else None
-    if draw is not None:
-        return list(draw(sc, results, Path(out_dir)))
+    paths = _draw(system_name, system, "figures", "run_figures", sc, results, out_dir)
+    if paths is not None:
+        return paths
     from proxops.plotting.common import plot_run
 
     return [plot_run(next(iter(results.values())), Path(out_dir) / "trajectory.png", title=sc.name)]
@@ -40,9 +45,4 @@ def run_figures(system_name: str, system, sc, results: dict, out_dir: Path) -> l
 
 def mc_figures(system_name: str, system, sc, results: list, out_dir: Path) -> list[Path]:
     """System-specific figures of a campaign from saved series ([] when the system has none)."""
-    hook = getattr(system, "campaign_figures", None)
-    if hook is not None:
-        return list(hook(sc, results, out_dir))
-    mod = _module(system_name)
-    draw = getattr(mod, "mc_figures", None) if mod is not None else None
-    return list(draw(sc, results, Path(out_dir))) if draw is not None else []
+    return _draw(system_name, system, "campaign_figures", "mc_figures", sc, results, out_dir) or []

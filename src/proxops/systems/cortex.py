@@ -19,7 +19,6 @@ of §5.1 from ``orbit.epoch_utc`` (:func:`proxops.environment.eclipse.eclipse_pr
 from __future__ import annotations
 
 import math
-from pathlib import Path
 from typing import Annotated, Literal
 
 import numpy as np

@@ -28,7 +28,6 @@ prints the paper's layout with our columns next to the paper's. Standalone:
 
 from __future__ import annotations
 
-from pathlib import Path
 from typing import Annotated, Literal
 
 import numpy as np

@@ -27,7 +27,6 @@ that the next disturbance makes infeasible.
 from __future__ import annotations
 
 import math
-from pathlib import Path
 from typing import Annotated, Literal
 
 import numpy as np

@@ -23,7 +23,6 @@ each run over the fastest).
 from __future__ import annotations
 
 import math
-from pathlib import Path
 from typing import Annotated, Literal
 
 import numpy as np
