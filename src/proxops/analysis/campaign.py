@@ -1,6 +1,6 @@
 """Monte Carlo campaigns: dispersed closed-loop runs on a local process pool or Dask.
 
-A campaign is a scenario (its ``[dispersions]`` table, see :mod:`proxops.analysis.dispersions`),
+A campaign is a scenario (its ``[dispersions]`` table, see :mod:`proxops.scenarios.dispersions`),
 a campaign seed and a number of runs. Run ``i`` gets its own seeds from the numpy
 SeedSequence spawn tree of the campaign seed: child ``(i, 0)`` seeds the simulation (navigation
 noise, thrust errors, missed thrusts), child ``(i, 1)`` draws the dispersed values. Its row
@@ -46,7 +46,7 @@ from typing import Any, Sequence
 import numpy as np
 import pandas as pd
 
-from proxops.analysis.dispersions import DispersionPlan, apply_values, parse_dispersions
+from proxops.scenarios.dispersions import DispersionPlan, apply_values, parse_dispersions
 from proxops.analysis.statistics import (
     METRIC_PREFIX,
     DISP_PREFIX,

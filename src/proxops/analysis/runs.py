@@ -27,7 +27,7 @@ def check_scenario(loaded) -> None:
     """Every check a run makes before its first step: the schema (done when loading), the
     system's build (geometry, feasibility of the hop ladder, KOZ vs start...) and the
     dispersions table. Raises ProxopsInputError with one line; ``validate`` and ``mc`` call it."""
-    from proxops.analysis.dispersions import parse_dispersions
+    from proxops.scenarios.dispersions import parse_dispersions
 
     check = getattr(loaded.system, "check", None)  # planners without a closed loop check without building
     check(loaded.scenario) if check is not None else loaded.system.build(loaded.scenario)

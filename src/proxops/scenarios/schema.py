@@ -191,13 +191,13 @@ class ScenarioBase(Section):
     actuator: ActuatorSection = Field(ActuatorSection(), description="thruster limits and errors (default ideal)")
     dispersions: dict[str, Any] = Field(
         {}, description="Monte Carlo spread or parameter grid: \"section.key\" = {kind = ...} entries "
-        "(validated by proxops.analysis.dispersions)")
+        "(validated by proxops.scenarios.dispersions)")
 
     @model_validator(mode="after")
     def _dispersions_address_existing_keys(self):
-        """Each [dispersions] entry must name a key of this scenario (proxops.analysis.dispersions)."""
+        """Each [dispersions] entry must name a key of this scenario (proxops.scenarios.dispersions)."""
         if self.dispersions:
-            from proxops.analysis.dispersions import parse_dispersions
+            from proxops.scenarios.dispersions import parse_dispersions
 
             parse_dispersions(self)
         return self
