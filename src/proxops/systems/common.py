@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from proxops.actuators import IdealActuator, ThrusterModel
+from proxops.actuators import IdealActuator, thruster_from_values
 from proxops.navigation import GaussianNavigation, PerfectNavigation
 from proxops.scenarios.schema import ActuatorSection, InitialSection, NavigationSection, OrbitSection, TruthSection
 
@@ -75,13 +75,8 @@ def navigation_model(nav: NavigationSection, per_state_sigma=None):
 
 
 def actuator_model(act: ActuatorSection):
+    """Ideal for the default section, else the thruster model of its values (one declaration:
+    proxops.actuators.THRUSTER_PARAMETERS)."""
     if act == ActuatorSection():
         return IdealActuator()
-    return ThrusterModel(
-        max_per_axis=act.max_per_axis,
-        max_norm=act.max_norm,
-        min_impulse=act.min_impulse,
-        magnitude_sigma=act.magnitude_sigma,
-        pointing_sigma_rad=np.radians(act.pointing_sigma_deg),
-        missed_probability=act.missed_probability,
-    )
+    return thruster_from_values(act.model_dump())
