@@ -49,10 +49,11 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from proxops.core.constants import MU_EARTH
-from proxops.core.cw import cw_matrices
+from numba import njit
+
 from proxops.core.quaternion import (
-    quat_conjugate,
-    quat_kinematics,
+    dcm_kernel,
+    kinematics_kernel,
     quat_multiply,
     quat_rotate,
     quat_rotate_inverse,
@@ -200,6 +201,8 @@ class HybridParams:
     snap_time_s: float = 593.0  # §VII ("approximately t = 593 s")
     J_c: np.ndarray = field(init=False, repr=False, compare=False)
     J_d: np.ndarray = field(init=False, repr=False, compare=False)
+    J_c_inv: np.ndarray = field(init=False, repr=False, compare=False)
+    J_d_inv: np.ndarray = field(init=False, repr=False, compare=False)
     P_c: np.ndarray = field(init=False, repr=False, compare=False)
     P_d: np.ndarray = field(init=False, repr=False, compare=False)
 
@@ -234,6 +237,8 @@ class HybridParams:
             raise input_error("port_deputy_m", Pd.tolist(), f"must lie on or inside the deputy cuboid {dd.tolist()} m", "m")
         object.__setattr__(self, "J_c", Jc)
         object.__setattr__(self, "J_d", Jd)
+        object.__setattr__(self, "J_c_inv", np.linalg.inv(Jc))
+        object.__setattr__(self, "J_d_inv", np.linalg.inv(Jd))
         object.__setattr__(self, "P_c", Pc)
         object.__setattr__(self, "P_d", Pd)
 
@@ -315,26 +320,57 @@ def check_not_interpenetrating(params: HybridParams, x, name: str = "initial_sta
 # --------------------------------------------------------------------------------------
 # flow
 # --------------------------------------------------------------------------------------
+@njit(cache=True)
+def _cross(a, b):
+    out = np.empty(3)
+    out[0] = a[1] * b[2] - a[2] * b[1]
+    out[1] = a[2] * b[0] - a[0] * b[2]
+    out[2] = a[0] * b[1] - a[1] * b[0]
+    return out
+
+
+@njit(cache=True)
+def _cw(x, dx, i, F, m, n):
+    """CW (eq. 21 with the standard G2 = -2 omega_t^x: x'' = 3n^2 x + 2n y') for the CoM
+    whose position starts at index i (velocity at i + 3)."""
+    dx[i : i + 3] = x[i + 3 : i + 6]
+    dx[i + 3] = 3.0 * n * n * x[i] + 2.0 * n * x[i + 4] + F[0] / m
+    dx[i + 4] = -2.0 * n * x[i + 3] + F[1] / m
+    dx[i + 5] = -n * n * x[i + 2] + F[2] / m
+
+
+@njit(cache=True)
+def truth_rhs_kernel(x, u, m_c, m_d, J_c, J_c_inv, J_d, J_d_inv, n):
+    """numba kernel of :func:`truth_rhs` (same layout; plain float64 arrays)."""
+    dx = np.empty(26)
+    wt = np.array([0.0, 0.0, n])
+    Rc = dcm_kernel(x[12:16])  # C_{T<-C}
+    Rd = dcm_kernel(x[19:23])  # C_{T<-D}
+    F_T = Rd @ u[0:3]
+    _cw(x, dx, 0, np.zeros(3), m_c, n)  # chief CoM
+    _cw(x, dx, 6, F_T, m_d, n)  # deputy CoM
+    wc, wd = x[16:19], x[23:26]
+    dx[12:16] = kinematics_kernel(x[12:16], wc - Rc.T @ wt)
+    dx[16:19] = J_c_inv @ (-_cross(wc, J_c @ wc))  # eq. 23
+    dx[19:23] = kinematics_kernel(x[19:23], wd - Rd.T @ wt)
+    dx[23:26] = J_d_inv @ (u[3:6] - _cross(wd, J_d @ wd))  # eq. 24
+    return dx
+
+
 def truth_rhs(t: float, x: np.ndarray, u: np.ndarray, params: HybridParams) -> np.ndarray:
     """dx/dt of the direct two-body truth (layout in the module doc); eqs. 21 (corrected
-    G2), 23, 24 and the attitude kinematics relative to the rotating T."""
-    n = params.mean_motion_rad_s
-    A, _ = cw_matrices(n)
-    G1, G2 = A[3:6, 0:3], A[3:6, 3:6]
-    wt = params.omega_t
-    u = np.asarray(u, dtype=float)
-    qc, wc, qd, wd = x[SL_QC], x[SL_WC], x[SL_QD], x[SL_WD]
-    F_T = quat_rotate(qd, u[0:3])  # C_{T<-D} F_d
-    dx = np.empty(N_TRUTH)
-    dx[SL_RC] = x[SL_VC]
-    dx[SL_VC] = G1 @ x[SL_RC] + G2 @ x[SL_VC]
-    dx[SL_RD] = x[SL_VD]
-    dx[SL_VD] = G1 @ x[SL_RD] + G2 @ x[SL_VD] + F_T / params.mass_deputy_kg
-    dx[SL_QC] = quat_kinematics(qc, wc - quat_rotate_inverse(qc, wt))
-    dx[SL_WC] = np.linalg.solve(params.J_c, -np.cross(wc, params.J_c @ wc))
-    dx[SL_QD] = quat_kinematics(qd, wd - quat_rotate_inverse(qd, wt))
-    dx[SL_WD] = np.linalg.solve(params.J_d, u[3:6] - np.cross(wd, params.J_d @ wd))
-    return dx
+    G2), 23, 24 and the attitude kinematics relative to the rotating T (numba kernel)."""
+    return truth_rhs_kernel(
+        np.asarray(x, dtype=float),
+        np.asarray(u, dtype=float),
+        params.mass_chief_kg,
+        params.mass_deputy_kg,
+        params.J_c,
+        params.J_c_inv,
+        params.J_d,
+        params.J_d_inv,
+        params.mean_motion_rad_s,
+    )
 
 
 def propagate_truth(x0, t_span, params: HybridParams, u_of_t=None, t_eval=None, rtol=1e-11, atol=1e-12, events=None):
