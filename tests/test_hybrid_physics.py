@@ -50,6 +50,7 @@ from proxops.dynamics.two_rigid_bodies import (
     contact_normal_velocity,
     kinetic_energy,
     latch_snap_jump,
+    latch_wrench,
     momenta,
     propagate_truth,
     truth_rhs,
@@ -368,3 +369,59 @@ def test_q_d_composition():
     np.testing.assert_allclose(xr[S_OM], HybridInitialState().omega_rad_s, atol=1e-15)
     np.testing.assert_allclose(xr[S_OMC], HybridInitialState().omega_c_rad_s, atol=1e-15)
     np.testing.assert_allclose(xr[S_RN], 120 / 480 * np.array([2.0, 0, 0]), atol=1e-15)
+
+
+# ----------------------------------------------------------------------------- latch (eq. 81)
+def _near_docked(params=P):
+    p = np.array([-0.5, 0.5, 0.5, 0.5])
+    R = quat_to_dcm(p).T
+    d = params.P_c - params.P_d
+    omc = np.array([-0.0024, 0.0024, -0.0024])
+    ic = HybridInitialState(
+        rho0_m=tuple(R.T @ (d + np.array([0.003, 0.01, 0.002]))), rho0_dot_m_s=tuple(R.T @ np.cross(omc, d) + 0.002),
+        omega_rad_s=(0.01, 0.0, 0.005), q=(0.0, 0.0, 0.0, 1.0), omega_c_rad_s=tuple(omc), p=tuple(p),
+    )  # fmt: skip
+    return truth_state_from_initial(params, ic)
+
+
+def test_latch_is_an_internal_pair():
+    """The latch forces sum to zero and their moments plus torques about T's origin too."""
+    x = _near_docked()
+    F, tau_d, tau_c = latch_wrench(x, P)
+    assert np.linalg.norm(F) > 1e-3
+    moment = (
+        np.cross(x[SL_RD], F) + quat_rotate(x[SL_QD], tau_d) + np.cross(x[SL_RC], -F) + quat_rotate(x[SL_QC], tau_c)
+    )
+    np.testing.assert_allclose(moment, 0.0, atol=1e-15)
+
+
+def test_latched_pair_com_follows_cw():
+    """Internal latch loads leave the pair's CoM on its CW trajectory (closed form)."""
+    x0 = _near_docked()
+    t = 30.0
+    sol = propagate_truth(x0, (0.0, t), P, latched=True, rtol=1e-10, atol=1e-12)
+    m = P.mass_total_kg
+
+    def com(x):
+        return np.concatenate([(P.mass_chief_kg * x[SL_RC] + P.mass_deputy_kg * x[SL_RD]) / m,
+                               (P.mass_chief_kg * x[SL_VC] + P.mass_deputy_kg * x[SL_VD]) / m])  # fmt: skip
+
+    np.testing.assert_allclose(com(sol.y[:, -1]), cw_stm(P.mean_motion_rad_s, t) @ com(x0), atol=1e-10)
+
+
+def test_latch_dissipates_energy():
+    """Near-inertial frame (n = 1e-12 rad/s): kinetic energy + latch spring energy
+    (1/2 K_T |rho|^2 + 1/2 K_R theta^2) never increases."""
+    params = HybridParams(mean_motion_rad_s=1e-12)
+    x0 = _near_docked(params)
+    ts = np.linspace(0.0, 20.0, 41)
+    sol = propagate_truth(x0, (0.0, 20.0), params, t_eval=ts, latched=True)
+
+    def energy(x):
+        xr = relative_from_truth(x, params)
+        theta = 2.0 * math.atan2(np.linalg.norm(xr[S_Q][:3]), xr[S_Q][3])
+        return kinetic_energy(x, params) + 0.5 * params.latch_KT * xr[S_RHO] @ xr[S_RHO] + 0.5 * params.latch_KR * theta**2
+
+    E = np.array([energy(sol.y[:, k]) for k in range(ts.size)])
+    assert np.all(np.diff(E) <= 1e-12 * E[0])
+    assert E[-1] < E[0]

@@ -373,15 +373,19 @@ def truth_rhs(t: float, x: np.ndarray, u: np.ndarray, params: HybridParams) -> n
     )
 
 
-def propagate_truth(x0, t_span, params: HybridParams, u_of_t=None, t_eval=None, rtol=1e-11, atol=1e-12, events=None):
-    """Reference integration of :func:`truth_rhs` with scipy's DOP853; ``u_of_t(t, x)``
-    gives the control (zero if None). Returns the scipy OdeResult."""
+def propagate_truth(
+    x0, t_span, params: HybridParams, u_of_t=None, t_eval=None, rtol=1e-11, atol=1e-12, events=None, latched=False
+):
+    """Reference integration of :func:`truth_rhs` (``latched``: :func:`truth_rhs_latched`)
+    with scipy's DOP853; ``u_of_t(t, x)`` gives the control (zero if None). Returns the
+    scipy OdeResult."""
     from scipy.integrate import solve_ivp
 
     zero = np.zeros(6)
+    rhs = truth_rhs_latched if latched else truth_rhs
 
     def f(t, x):
-        return truth_rhs(t, x, zero if u_of_t is None else u_of_t(t, x), params)
+        return rhs(t, x, zero if u_of_t is None else u_of_t(t, x), params)
 
     return solve_ivp(f, t_span, np.asarray(x0, float), method="DOP853", rtol=rtol, atol=atol, t_eval=t_eval, events=events)
 
@@ -562,3 +566,58 @@ def latch_snap_jump(x, params: HybridParams, impulse_Ns: float | None = None) ->
     rho0 = x[SL_RD] - x[SL_RC]
     e = rho0 / np.linalg.norm(rho0)
     return apply_impulse(x, params, rho0, J * e)  # applied at the deputy CoM: zero moment arm on both
+
+
+# --------------------------------------------------------------------------------------
+# post-capture latch (eqs. 40-42 and 81) as an internal force/torque pair on the truth
+# --------------------------------------------------------------------------------------
+def latch_wrench(x, params: HybridParams):
+    """Spring-damper latch of §IV.E / eq. 81 acting between the docking ports, as an
+    internal pair (momentum conserving): ``(F_T, tau_d_D, tau_c_C)``.
+
+    Force on the deputy at its port, T components: ``F = -C_{T<-C} (K_T rho + D_T rho')``
+    (eq. 40 replaces F_d by ``Q (-K_T rho - D_T rho')``, a force in D, i.e. the same vector;
+    K_T in N/m, D_T in N s/m); ``-F`` acts on the chief at its port. Torque on the deputy,
+    D components: ``-K_R theta e - D_R omega`` with ``theta e = 2 atan2(|q_eta|, q_mu)
+    q_eta/|q_eta|`` (eq. 42; K_R in N m/rad, D_R in N m s/rad) and its opposite on the chief.
+    Returned torques include the moments of the port forces about each CoM; both forces act
+    at the deputy's port point.
+
+    The paper's eqs. 40/42 apply the latch to the deputy only and give the chief the
+    composite dynamics (eq. 51); here both bodies feel it, which is the physical latch."""
+    x = np.asarray(x, float)
+    qc, qd = x[SL_QC], x[SL_QD]
+    Rc, Rd = quat_to_dcm(qc), quat_to_dcm(qd)  # C_{T<-C}, C_{T<-D}
+    q = quat_multiply(np.array([-qc[0], -qc[1], -qc[2], qc[3]]), qd)  # D rel. C
+    if q[3] < 0:
+        q = -q
+    Q = quat_to_dcm(q).T  # C_{D<-C}
+    R = Rc.T  # C_{C<-T}
+    omc = x[SL_WC] - R @ params.omega_t
+    om = x[SL_WD] - Q @ x[SL_WC]
+    wd = om + Q @ omc
+    rho0, rho0d = x[SL_RD] - x[SL_RC], x[SL_VD] - x[SL_VC]
+    rho = R @ rho0 + Q.T @ params.P_d - params.P_c
+    rhod = R @ rho0d - np.cross(omc, rho + params.P_c) + Q.T @ np.cross(wd, params.P_d)
+    F = -Rc @ (params.latch_KT * rho + params.latch_DT * rhod)
+    s = np.linalg.norm(q[:3])
+    theta_e = 2.0 * math.atan2(s, q[3]) * q[:3] / s if s > 1e-15 else 2.0 * q[:3]
+    tau = -params.latch_KR * theta_e - params.latch_DR * om  # on D, D components
+    # both forces act at the deputy's port (the latch's contact point), so the pair has no
+    # net moment: the latch conserves the pair's angular momentum (the damper force is not
+    # parallel to the port offset, so applying -F at the chief's own port would not)
+    arm_d, arm_c = Rd @ params.P_d, Rc @ (params.P_c + rho)
+    tau_d = tau + Rd.T @ np.cross(arm_d, F)
+    tau_c = -Q.T @ tau + Rc.T @ np.cross(arm_c, -F)
+    return F, tau_d, tau_c
+
+
+def truth_rhs_latched(t: float, x: np.ndarray, u: np.ndarray, params: HybridParams) -> np.ndarray:
+    """:func:`truth_rhs` plus the latch pair of :func:`latch_wrench` (post-capture, h = 1)."""
+    dx = truth_rhs(t, x, u, params)
+    F, tau_d, tau_c = latch_wrench(x, params)
+    dx[SL_VD] += F / params.mass_deputy_kg
+    dx[SL_VC] -= F / params.mass_chief_kg
+    dx[SL_WD] += params.J_d_inv @ tau_d
+    dx[SL_WC] += params.J_c_inv @ tau_c
+    return dx
