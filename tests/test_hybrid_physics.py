@@ -45,6 +45,7 @@ from proxops.dynamics.two_rigid_bodies import (
     HybridInitialState,
     HybridParams,
     contact_frame,
+    contact_event,
     contact_guard,
     contact_jump,
     contact_normal_velocity,
@@ -75,9 +76,7 @@ def _align_quats(X, Y):
 
 
 def _first_contact(x0, t_end=60.0, u_of_t=None):
-    ev = lambda t, y: contact_guard(y, P)  # noqa: E731
-    ev.terminal, ev.direction = True, -1
-    sol = propagate_truth(x0, (0.0, t_end), P, u_of_t=u_of_t, events=ev)
+    sol = propagate_truth(x0, (0.0, t_end), P, u_of_t=u_of_t, events=contact_event(P))
     assert sol.status == 1, "no contact found"
     return sol.t_events[0][0], sol.y_events[0][0]
 

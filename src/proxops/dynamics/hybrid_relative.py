@@ -381,6 +381,64 @@ def composite_com_ddot(x, u, params: HybridParams, corrected: bool = True) -> np
     return G1 @ x[S_RN] + G2 @ x[S_RND] + R.T @ Q.T @ np.asarray(u, float)[0:3] / params.mass_total_kg
 
 
+def reference_rhs(x_ref, params: HybridParams):
+    """f_T of eq. 52: the desired orbit r_des of the pair's CoM. The paper leaves it open;
+    our default is natural CW motion in T (a parking orbit that needs no thrust)."""
+    G1, G2 = _g_matrices(params, True)
+    x_ref = np.asarray(x_ref, dtype=float)
+    return np.concatenate([x_ref[3:6], G1 @ x_ref[0:3] + G2 @ x_ref[3:6]])
+
+
+def post_capture_rhs(x, u, params: HybridParams, corrected: bool = True) -> np.ndarray:
+    """f_1 of eq. 52 (numpy): the docked pair with the eq. 81 latch, built as the paper does:
+    the deputy's relative motion is f_0^2 / f_0^3 with the latch added to the deputy's force
+    and torque (eqs. 40, 42), the chief's rate follows the composite rigid body (eq. 51),
+    the pair's CoM follows eq. 48 and x_ref follows f_T (:func:`reference_rhs`).
+
+    Readings of the printed equations: eq. 40 writes ``-K_T rho - D_T rho'`` as an
+    acceleration but says it replaces F_d by ``Q(-K_T rho - D_T rho') + u1_bar``, a force;
+    we take the force (divided by m_d), consistent with the truth latch
+    (:func:`proxops.dynamics.two_rigid_bodies.latch_wrench`). The steady inputs u1_bar, u2_bar
+    (eqs. 41, 43) are the controller's business and enter through ``u``. With
+    ``corrected=False`` the printed G2, eq. 48 without Q^T and eq. 51 with J_c + J_d and the
+    (P_c - P_d) arm are used. This is an approximate model (the chief feels the latch only
+    through the composite eq. 51); benchmarks/bench_hybrid_physics.py measures it against
+    the latched two-body truth."""
+    x = np.asarray(x, dtype=float)
+    u = np.asarray(u, dtype=float)
+    G1, G2 = _g_matrices(params, corrected)
+    rho, rhod, om, q, p, omc = x[S_RHO], x[S_RHOD], x[S_OM], x[S_Q], x[S_P], x[S_OMC]
+    Q, R = quat_to_dcm(q).T, quat_to_dcm(p).T
+    s = np.linalg.norm(q[:3])
+    theta_e = 2.0 * np.arctan2(s, q[3]) * q[:3] / s if s > 1e-15 else 2.0 * q[:3]
+    F_latch = Q @ (-params.latch_KT * rho - params.latch_DT * rhod)  # in D
+    M_latch = -params.latch_KR * theta_e - params.latch_DR * om
+    F_d, M_d = u[0:3] + F_latch, u[3:6] + M_latch
+    if corrected:
+        omcd = composite_omega_c_dot(x, u, params)
+    else:
+        Rwt = R @ params.omega_t
+        W = omc + Rwt
+        J = params.J_c + params.J_d
+        arm = params.mass_chief_kg / params.mass_total_kg * (params.P_c - params.P_d)
+        omcd = np.cross(omc, Rwt) + np.linalg.solve(J, -np.cross(W, J @ W) + u[3:6] + np.cross(arm, u[0:3]))
+    omd = omega_dot(om, q, p, omc, M_d, params)
+    F_T = R.T @ ((Q.T if corrected else np.eye(3)) @ u[0:3])
+    return np.concatenate(
+        [
+            rhod,
+            rho_ddot(x, F_d, omd, omcd, params, corrected),
+            omd,
+            _quat_rate(_Np, q, om),
+            _quat_rate(_Np, p, omc),
+            omcd,
+            x[S_RND],
+            G1 @ x[S_RN] + G2 @ x[S_RND] + F_T / params.mass_total_kg,
+            reference_rhs(x[S_REF], params),
+        ]
+    )
+
+
 def relative_decoupling_jump(x, T_pi, params: HybridParams) -> np.ndarray:
     """g_1 of eq. 61: after an internal impulse T_pi (N s, T components; +T_pi on the chief,
     -T_pi on the deputy, eq. 57) along the CoM line: rates, attitudes, rho and the pair CoM
@@ -401,6 +459,8 @@ __all__ = [
     "impact_velocity",
     "omega_c_dot",
     "omega_dot",
+    "post_capture_rhs",
+    "reference_rhs",
     "relative_contact_jump",
     "relative_decoupling_jump",
     "relative_from_truth",

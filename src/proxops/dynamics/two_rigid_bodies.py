@@ -443,6 +443,19 @@ def contact_guard(x, params: HybridParams) -> float:
     return _closest_vertex(np.asarray(x, float), params)[0]
 
 
+def contact_event(params: HybridParams):
+    """``event(t, x)`` for ``solve_ivp`` / an event-locating engine: :func:`contact_guard`
+    crossing zero downwards (terminal). Locates the contact instant by root finding, so a
+    contact cannot tunnel through an integrator step longer than the contact itself."""
+
+    def event(t, x):
+        return contact_guard(x, params)
+
+    event.terminal = True
+    event.direction = -1
+    return event
+
+
 def _closest_vertex(x, params: HybridParams):
     """(g, which, vertex index, vertex position in T)."""
     Rc, Rd = quat_to_dcm(x[SL_QC]), quat_to_dcm(x[SL_QD])
