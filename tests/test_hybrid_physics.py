@@ -49,6 +49,7 @@ from proxops.dynamics.two_rigid_bodies import (
     contact_guard,
     contact_jump,
     contact_normal_velocity,
+    in_jump_set,
     kinetic_energy,
     latch_snap_jump,
     latch_wrench,
@@ -164,6 +165,9 @@ def test_casadi_and_numpy_evaluate_the_same_model():
     X, U = ca.SX.sym("x", 32), ca.SX.sym("u", 6)
     f = ca.Function("f", [X, U], [relative_rhs(X, U, P)])
     np.testing.assert_allclose(np.array(f(x, u)).ravel(), relative_rhs(x, u, P), rtol=0, atol=1e-15)
+    p, w = ca.SX.sym("p", 4), ca.SX.sym("w", 3)
+    g = ca.Function("k0", [p, w], [ca.vertcat(*steady_inputs(p, w, P))])
+    np.testing.assert_allclose(np.array(g(x[S_P], x[S_OMC])).ravel(), np.concatenate(steady_inputs(x[S_P], x[S_OMC], P)), atol=1e-15)
 
 
 def test_steady_inputs_hold_the_docked_configuration_in_the_truth():
@@ -271,6 +275,17 @@ def test_contact_jump_conserves_momentum_and_does_not_add_energy(e):
         assert contact_normal_velocity(xp, P, r, n) == pytest.approx(-e * contact_normal_velocity(x, P, r, n), abs=1e-10)
         np.testing.assert_array_equal(xp[SL_RC], x[SL_RC])
         np.testing.assert_array_equal(xp[SL_QD], x[SL_QD])
+
+
+def test_jump_set_is_contact_and_approach():
+    """D_0 (eq. 15 with eq. 33): in contact and approaching before the jump; after it the
+    bodies separate (v_rel > 0 for e > 0), so the state is no longer in D_0."""
+    x = _contacts()[0]
+    assert in_jump_set(x, P)
+    xp, _, _, _ = contact_jump(x, P, 0.5)
+    assert not in_jump_set(xp, P)
+    apart = truth_state_from_initial(P, HybridInitialState())
+    assert not in_jump_set(apart, P)
 
 
 def test_relative_jump_map_matches_truth_impulse():
