@@ -279,18 +279,18 @@ def _new_pool(workers: int) -> ProcessPoolExecutor:
 
 
 def _stop_pool(pool: ProcessPoolExecutor, force: bool) -> None:
-    """Shut a pool down and wait for its workers (their queues and semaphores are released
-    before this process exits); ``force`` first terminates workers still running a batch."""
-    processes = list((getattr(pool, "_processes", None) or {}).values())
-    pool.shutdown(wait=False, cancel_futures=True)
+    """Shut a pool down and join its manager thread and workers, so their pipes and semaphores
+    are released before this process exits; ``force`` first terminates busy workers. (One
+    ``shutdown`` call: after ``shutdown(wait=False)`` the executor forgets its thread and a
+    later ``wait=True`` would not join it.)"""
     if force:
-        for proc in processes:
+        for proc in list((getattr(pool, "_processes", None) or {}).values()):
             try:
                 proc.terminate()
             except Exception:  # already gone
                 pass
     with _sigint_blocked():  # a Ctrl-C now would leave half-closed queues behind
-        pool.shutdown(wait=True)
+        pool.shutdown(wait=True, cancel_futures=True)
 
 
 def shutdown_pools(force: bool = False) -> None:
