@@ -355,6 +355,8 @@ def test_composite_inertia_gives_the_pair_kinetic_energy():
         (lambda: HybridParams(port_deputy_m=(0.0, 0.0, -0.41)), "port_deputy_m"),
         (lambda: HybridParams(restitution=1.2), "restitution"),
         (lambda: HybridParams(restitution=-0.1), "restitution"),
+        (lambda: HybridParams(latch_KT=0.0), "latch_KT"),
+        (lambda: HybridParams(force_max_capture_N=-1.0), "force_max_capture_N"),
         (lambda: HybridInitialState(q=(0.57, 0.57, 0.57, 0.0)), "q = "),  # eq. 78 as printed
         (lambda: HybridInitialState(p=(0.5, 0.5, 0.5, 0.6)), "p = "),
         (lambda: truth_state_from_initial(P, HybridInitialState(rho0_m=(1.0, 0.0, 0.0))), "interpenetrate"),

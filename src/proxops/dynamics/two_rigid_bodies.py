@@ -187,10 +187,10 @@ class HybridParams:
     # (scenario key; e = 1 elastic, e = 0 plastic).
     restitution: float = 0.5
     # latch of eq. 81 (post-capture spring-damper): K_T = K_R = 5 I, D_T = D_R = 2 I
-    latch_KT: float = 5.0  # N/m (per unit mass in eq. 40's form, see hybrid_relative)
-    latch_DT: float = 2.0
-    latch_KR: float = 5.0
-    latch_DR: float = 2.0
+    latch_KT: float = 5.0  # N/m (eq. 40 read as a force, see hybrid_relative.post_capture_rhs)
+    latch_DT: float = 2.0  # N s/m
+    latch_KR: float = 5.0  # N m/rad
+    latch_DR: float = 2.0  # N m s/rad
     # actuation bounds (§VII): +-1 N / +-1 N m in capture, +-5 N / +-5 N m after capture
     force_max_capture_N: float = 1.0
     torque_max_capture_Nm: float = 1.0
@@ -217,8 +217,14 @@ class HybridParams:
             raise input_error("mean_motion_rad_s", self.mean_motion_rad_s, "must be a finite number > 0", "rad/s")
         if not (math.isfinite(self.restitution) and 0.0 <= self.restitution <= 1.0):
             raise input_error("restitution", self.restitution, "must lie in [0, 1] (0 plastic, 1 elastic)")
-        for name in ("latch_KT", "latch_DT", "latch_KR", "latch_DR"):
-            _check_positive(name, getattr(self, name), "")
+        for name, unit in (("latch_KT", "N/m"), ("latch_DT", "N s/m"), ("latch_KR", "N m/rad"), ("latch_DR", "N m s/rad"),
+                           ("force_max_capture_N", "N"), ("torque_max_capture_Nm", "N m"), ("force_max_post_N", "N"),
+                           ("torque_max_post_Nm", "N m"), ("horizon_capture_s", "s")):  # fmt: skip
+            _check_positive(name, getattr(self, name), unit)
+        for name, unit in (("snap_impulse_Ns", "N s"), ("snap_time_s", "s")):
+            value = getattr(self, name)
+            if not (isinstance(value, (int, float)) and math.isfinite(value) and value >= 0.0):
+                raise input_error(name, value, "must be a finite number >= 0", unit)
         dc, dd = np.asarray(self.dims_chief_m, float), np.asarray(self.dims_deputy_m, float)
         Jc = cuboid_inertia(self.mass_chief_kg, dc) if self.inertia_chief_kgm2 is None else self.inertia_chief_kgm2
         Jd = cuboid_inertia(self.mass_deputy_kg, dd) if self.inertia_deputy_kgm2 is None else self.inertia_deputy_kgm2
@@ -439,7 +445,9 @@ def kinetic_energy(x, params: HybridParams) -> float:
 def contact_guard(x, params: HybridParams) -> float:
     """Guard g(x) (m): the smallest signed distance of any corner of one cuboid to the
     surface of the other. Continuous; g > 0 apart, g = 0 at the contact instant, g < 0
-    interpenetrating. Use it as the event function for root finding."""
+    interpenetrating. Use it as the event function for root finding. In the docked
+    configuration (faces flush) g = 0 by construction: the contact event belongs to the
+    capture mode (h = 0) only."""
     return _closest_vertex(np.asarray(x, float), params)[0]
 
 
