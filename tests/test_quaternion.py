@@ -132,3 +132,5 @@ def test_numba_kernels_equal_the_numpy_functions():
         w = rng.standard_normal(3)
         np.testing.assert_allclose(Q.dcm_kernel(q), Q.quat_to_dcm(q), atol=1e-15)
         np.testing.assert_allclose(Q.kinematics_kernel(q, w), Q.quat_kinematics(q, w), atol=1e-15)
+        p = Q.quat_normalize(rng.standard_normal(4))
+        np.testing.assert_allclose(Q.multiply_kernel(p, q), Q.quat_multiply(p, q), atol=1e-15)

@@ -232,3 +232,14 @@ def kinematics_kernel(q, w):
     out[2] = 0.5 * (q[3] * w[2] + q[0] * w[1] - q[1] * w[0])
     out[3] = -0.5 * (q[0] * w[0] + q[1] * w[1] + q[2] * w[2])
     return out
+
+
+@njit(cache=True)
+def multiply_kernel(p, q):
+    """:func:`quat_multiply` (Hamilton, scalar last) for two quaternions inside numba code."""
+    out = np.empty(4)
+    out[0] = p[3] * q[0] + q[3] * p[0] + p[1] * q[2] - p[2] * q[1]
+    out[1] = p[3] * q[1] + q[3] * p[1] + p[2] * q[0] - p[0] * q[2]
+    out[2] = p[3] * q[2] + q[3] * p[2] + p[0] * q[1] - p[1] * q[0]
+    out[3] = p[3] * q[3] - p[0] * q[0] - p[1] * q[1] - p[2] * q[2]
+    return out

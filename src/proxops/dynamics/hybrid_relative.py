@@ -54,7 +54,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from proxops.core.quaternion import quat_conjugate, quat_multiply, quat_to_dcm
+from proxops.core.quaternion import quat_conjugate, quat_kinematics, quat_multiply, quat_to_dcm
 from proxops.dynamics.two_rigid_bodies import (
     SL_QC,
     SL_QD,
@@ -160,7 +160,9 @@ def _g_matrices(params: HybridParams, corrected: bool):
 
 
 def _quat_rate(o, q, w):
-    """eqs. 27/29: (q_eta', q_mu') = 0.5 ((q_eta^x + q_mu I) w, -q_eta^T w)."""
+    """eqs. 27/29: (q_eta', q_mu') = 0.5 ((q_eta^x + q_mu I) w, -q_eta^T w) (= quat_kinematics)."""
+    if o is _Np:
+        return quat_kinematics(q, w)
     e, m = q[0:3], q[3]
     return o.vcat([0.5 * (o.cross(e, w) + m * w), -0.5 * o.dot(e, w)])
 

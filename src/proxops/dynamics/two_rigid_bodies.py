@@ -54,6 +54,7 @@ from numba import njit
 from proxops.core.quaternion import (
     dcm_kernel,
     kinematics_kernel,
+    multiply_kernel,
     quat_multiply,
     quat_rotate,
     quat_rotate_inverse,
@@ -612,45 +613,59 @@ def latch_snap_jump(x, params: HybridParams, impulse_Ns: float | None = None) ->
 # --------------------------------------------------------------------------------------
 # post-capture latch (eqs. 40-42 and 81) as an internal force/torque pair on the truth
 # --------------------------------------------------------------------------------------
+@njit(cache=True)
+def _latch_kernel(x, P_c, P_d, KT, DT, KR, DR, n):
+    Rc = dcm_kernel(x[12:16])  # C_{T<-C}
+    Rd = dcm_kernel(x[19:23])  # C_{T<-D}
+    qc = x[12:16]
+    qc_conj = np.array([-qc[0], -qc[1], -qc[2], qc[3]])
+    q = multiply_kernel(qc_conj, x[19:23])  # D rel. C
+    if q[3] < 0:
+        q = -q
+    Q = Rd.T @ Rc  # C_{D<-C}
+    R = Rc.T  # C_{C<-T}
+    wt = np.array([0.0, 0.0, n])
+    omc = x[16:19] - R @ wt
+    om = x[23:26] - Q @ x[16:19]
+    wd = om + Q @ omc
+    rho0 = x[6:9] - x[0:3]
+    rho0d = x[9:12] - x[3:6]
+    rho = R @ rho0 + Q.T @ P_d - P_c
+    rhod = R @ rho0d - _cross(omc, rho + P_c) + Q.T @ _cross(wd, P_d)
+    F = -(Rc @ (KT * rho + DT * rhod))
+    s = math.sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2])
+    if s > 1e-15:
+        theta_e = 2.0 * math.atan2(s, q[3]) * q[0:3] / s
+    else:
+        theta_e = 2.0 * q[0:3]
+    tau = -KR * theta_e - DR * om  # on D, D components
+    arm_d = Rd @ P_d
+    arm_c = Rc @ (P_c + rho)
+    tau_d = tau + Rd.T @ _cross(arm_d, F)
+    tau_c = -(Q.T @ tau) + Rc.T @ _cross(arm_c, -F)
+    return F, tau_d, tau_c
+
+
 def latch_wrench(x, params: HybridParams):
     """Spring-damper latch of §IV.E / eq. 81 acting between the docking ports, as an
     internal pair (momentum conserving): ``(F_T, tau_d_D, tau_c_C)``.
 
     Force on the deputy at its port, T components: ``F = -C_{T<-C} (K_T rho + D_T rho')``
     (eq. 40 replaces F_d by ``Q (-K_T rho - D_T rho')``, a force in D, i.e. the same vector;
-    K_T in N/m, D_T in N s/m); ``-F`` acts on the chief at its port. Torque on the deputy,
-    D components: ``-K_R theta e - D_R omega`` with ``theta e = 2 atan2(|q_eta|, q_mu)
-    q_eta/|q_eta|`` (eq. 42; K_R in N m/rad, D_R in N m s/rad) and its opposite on the chief.
-    Returned torques include the moments of the port forces about each CoM; both forces act
-    at the deputy's port point.
+    K_T in N/m, D_T in N s/m); ``-F`` acts on the chief. Torque on the deputy, D components:
+    ``-K_R theta e - D_R omega`` with ``theta e = 2 atan2(|q_eta|, q_mu) q_eta/|q_eta|``
+    (eq. 42; K_R in N m/rad, D_R in N m s/rad) and its opposite on the chief. Returned
+    torques include the moments of the port forces about each CoM. Both forces act at the
+    deputy's port point, so the pair has no net moment and the latch conserves the pair's
+    angular momentum (the damper force is not parallel to the port offset, so applying -F at
+    the chief's own port would not).
 
     The paper's eqs. 40/42 apply the latch to the deputy only and give the chief the
     composite dynamics (eq. 51); here both bodies feel it, which is the physical latch."""
-    x = np.asarray(x, float)
-    qc, qd = x[SL_QC], x[SL_QD]
-    Rc, Rd = quat_to_dcm(qc), quat_to_dcm(qd)  # C_{T<-C}, C_{T<-D}
-    q = quat_multiply(np.array([-qc[0], -qc[1], -qc[2], qc[3]]), qd)  # D rel. C
-    if q[3] < 0:
-        q = -q
-    Q = quat_to_dcm(q).T  # C_{D<-C}
-    R = Rc.T  # C_{C<-T}
-    omc = x[SL_WC] - R @ params.omega_t
-    om = x[SL_WD] - Q @ x[SL_WC]
-    wd = om + Q @ omc
-    rho0, rho0d = x[SL_RD] - x[SL_RC], x[SL_VD] - x[SL_VC]
-    rho = R @ rho0 + Q.T @ params.P_d - params.P_c
-    rhod = R @ rho0d - np.cross(omc, rho + params.P_c) + Q.T @ np.cross(wd, params.P_d)
-    F = -Rc @ (params.latch_KT * rho + params.latch_DT * rhod)
-    s = np.linalg.norm(q[:3])
-    theta_e = 2.0 * math.atan2(s, q[3]) * q[:3] / s if s > 1e-15 else 2.0 * q[:3]
-    tau = -params.latch_KR * theta_e - params.latch_DR * om  # on D, D components
-    # both forces act at the deputy's port (the latch's contact point), so the pair has no
-    # net moment: the latch conserves the pair's angular momentum (the damper force is not
-    # parallel to the port offset, so applying -F at the chief's own port would not)
-    arm_d, arm_c = Rd @ params.P_d, Rc @ (params.P_c + rho)
-    tau_d = tau + Rd.T @ np.cross(arm_d, F)
-    tau_c = -Q.T @ tau + Rc.T @ np.cross(arm_c, -F)
-    return F, tau_d, tau_c
+    return _latch_kernel(
+        np.asarray(x, dtype=float), params.P_c, params.P_d, float(params.latch_KT), float(params.latch_DT),
+        float(params.latch_KR), float(params.latch_DR), params.mean_motion_rad_s,
+    )  # fmt: skip
 
 
 def truth_rhs_latched(t: float, x: np.ndarray, u: np.ndarray, params: HybridParams) -> np.ndarray:
