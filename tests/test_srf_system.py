@@ -100,3 +100,35 @@ def test_rbar_closed_loop_against_j2_truth():
                                atol=res.meta["dt_s"] / 2 + 1e-9)
     # KOZ check of the engine agrees with the summary
     assert res.meta["max_violation"].get("keep_out", 0.0) <= 0.0
+
+
+def test_vbar_passive_abort_over_three_orbits_against_j2_truth():
+    """Issue 11 / §2 "indefinite hold": the nominal V-bar run is abort-safe over the default 3-orbit
+    window from every hop impulse against J2 truth, and the return miss per orbit is reported.
+    Bound: the navigation floor of one white sample of c = vy + 2 n x (sigma 0.5 m, 0.5 mm/s ->
+    1.0 mm/s) times 3 t_orb is 22 m per orbit (1 sigma); before the drift rows the last hop missed by
+    88 m per orbit and entered the KOZ in the second orbit."""
+    from proxops.core.cw import mean_motion
+    from proxops.runner import execute
+
+    loaded = load_scenario("srf-vbar")
+    assert loaded.scenario.safety.abort_orbits == 3.0
+    summary, _ = execute(loaded)
+    assert summary["abort_window_orbits"] == 3.0 and summary["abort_required_orbits"] == 3.0
+    assert summary["abort_safe_all"] and summary["abort_safe_window_orbits"] == 3.0
+    n = mean_motion(8100e3)
+    floor = 3 * (2 * math.pi / n) * math.hypot(2 * n * 0.5, 0.0005)
+    for item in summary["abort"]:
+        assert item["min_koz_distance_m"] > 0.0
+        assert len(item["return_miss_m"]) == 3
+        assert item["return_miss_per_orbit_m"] < floor
+
+
+def test_rbar_and_glideslope_require_one_orbit_of_abort_safety():
+    """The paper: R-bar and glideslopes lack indefinite passive safety; success asks one orbit of them
+    and the summary reports their window (time to the first KOZ entry, capped at abort_orbits)."""
+    from proxops.systems.srf import required_abort_orbits
+
+    for name, expected in (("srf-vbar", 3.0), ("srf-rbar", 1.0), ("srf-glideslope-40", 1.0)):
+        assert required_abort_orbits(load_scenario(name).scenario) == expected
+    assert required_abort_orbits(load_scenario("srf-rbar", ["safety.abort_required_orbits=2"]).scenario) == 2.0

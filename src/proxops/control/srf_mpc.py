@@ -43,6 +43,8 @@ Corrections / choices (also in the report):
   unsafe drift can point across the orbit plane and buy safety with large out-of-plane
   impulses, or be empty. If that fails and the CBF rows are suspect, the problem without them is
   solved once; when it is feasible the hold impulse and its solution are tried as references.
+* Before relaxing, an infeasible problem is retried once about the hold impulse's drift (when
+  safe): half-spaces on a safe but far-off reference drift can cut off every solution.
 * Fallback (any failure): the previous plan's impulse for this node if its free drift passes
   the true check, else the hold impulse if its drift passes, else no impulse. (The drift window
   slides with time, so "no impulse" is certified only up to the previous window's end.)
@@ -56,6 +58,20 @@ Corrections / choices (also in the report):
   the optimiser lands on a vertex of (29n)-(29o) where any disturbance makes the next problem
   infeasible. ``hop_distance_weight_per_m2`` adds 1/2 w (a.p(J_m) - d_m)^2 towards Algorithm 1's
   distances d_m (hop-end positions are extra variables), which picks a robust interior split.
+
+* V-bar drift removal (not in the paper; needed for its "indefinite hold" claim): the free CW
+  motion after an impulse is periodic iff ``vy+ + 2 n x = 0`` (Hill; the secular term of y(t)
+  is ``-(6 n x0 + 3 vy0) t``). (29m) bounds the along-axis velocity *before* the hop-start
+  impulse to 2 mm/s, which leaves up to ``3 * 2 mm/s * t_orb`` (about 40 m at a = 8100 km) of
+  along-track drift per orbit, plus what the impulse itself adds. With ``drift_free_tol_mps``
+  every hop-start node j (node 0 and every hop end but the last) gets the row
+  ``|vy_j + u_jy + 2 n (x_j + y_j^2 / (2 r))| <= tol``: the ``y^2/(2 r)`` term (``orbit_radius_m``)
+  is the height of a point of the rectilinear Hill y axis above the target's circular orbit (0.25 m
+  at 2 km, 9 m of drift per orbit if ignored). ``c = vy + 2 n x (+ n y^2 / r)`` is a constant of
+  the free CW motion (dc/dt = ydd + 2 n xd = 0), so impulses change it by their y component only
+  and its value is the same at every future node: the controller averages the navigation samples
+  of c taken since its last impulse (one per engine step) instead of using the single noisy
+  estimate at the node (white 0.5 m / 0.5 mm/s noise alone is 1 mm/s on c, 22 m of drift per orbit).
 
 QP (solved by :class:`proxops.solvers.PiqpQP`, Clarabel as fallback): condensed in the
 impulses, variables scaled to z = u / u_max in [0, 1] plus the terminal position error in km.
@@ -104,6 +120,8 @@ class SrfMpcConfig:
     hop_distance_tol_m: list[float] | None = None  # per hop: |a . p(J_m) - d_m| <= tol_m (not in the paper)
     mid_hop_fuel_weight: float = 1.0  # R multiplier for impulses between hop instants (1 = paper)
     hop_distance_weight_per_m2: float = 0.0  # 1/2 w (a.p(J_m) - d_m)^2 towards Algorithm 1's distances (0 = paper)
+    drift_free_tol_mps: float | None = None  # V-bar: |vy+ + 2 n x| <= tol after every hop-start impulse (None = off)
+    orbit_radius_m: float | None = None  # curvature term of the drift-free row (None: rectilinear CW only)
     cbf: bool = True
     cbf_alpha_per_s: float = 0.01
     free_drift_s: float | None = None  # None: one orbital period
@@ -244,6 +262,8 @@ class SrfMpc:
                 raise input_error("hop_distances_m", hop_distances_m, "give the n_hops + 1 guidance distances "
                                   "when hop_distance_tol_m is set", "m")
             self.hop_targets_m = np.asarray(hop_distances_m, dtype=float)
+        # hop-start nodes (node 0 and every hop end but the terminal node): drift-free rows
+        self.drift_nodes = np.array([0] + schedule.hop_nodes[:-1].tolist(), dtype=int)
         self._layout()
         pdiag = np.zeros(self._nz)
         pdiag[self._ie:self._ie + 3] = c.q_terminal_per_m2 * KM**2
@@ -267,9 +287,20 @@ class SrfMpc:
         self.finished = False
         self.last_drift = None  # (tau, states) of the last accepted free drift
         self.solve_log: list[dict] = []
+        self._c_sum, self._c_count = 0.0, 0  # drift invariant samples since the last impulse
+
+    def drift_invariant(self, x) -> float:
+        """c = vy + 2 n (x + y^2 / (2 r)) (m/s): constant on free CW motion, zero for a drift-free one."""
+        c = float(x[4] + 2.0 * self.n_orb * x[0])
+        if self.cfg.orbit_radius_m:
+            c += self.n_orb * float(x[1]) ** 2 / self.cfg.orbit_radius_m
+        return c
 
     def step(self, t: float, x_est) -> Command:
         x = np.asarray(x_est, dtype=float)
+        if self.cfg.drift_free_tol_mps is not None and x.size == 6 and np.all(np.isfinite(x)):
+            self._c_sum += self.drift_invariant(x)
+            self._c_count += 1
         k = int(round(t / self.dt))
         N = self.sched.n
         if k > self.sched.steps[-1] or self.finished:
@@ -291,6 +322,8 @@ class SrfMpc:
             self.plan[node:] = res.u
         u = np.where(np.abs(u) < 1e-7, 0.0, u)
         self.used_l1 += float(np.abs(u).sum())
+        if np.any(u):
+            self._c_sum, self._c_count = 0.0, 0
         if node == N:
             self.finished = True
         info = {"solved": 1.0, "node": float(node), "relax": float(res.relax), "qp_iterations": float(res.iterations),
@@ -349,6 +382,12 @@ class SrfMpc:
             Sj = self._S[int(j)]
             rows.append(zcoef(self.b @ Sj[:3] / KM)[None]); kinds.append(("hop_r", int(j)))
             rows.append(zcoef(self.a @ Sj[3:])[None]); kinds.append(("hop_w", int(j)))
+        if c.drift_free_tol_mps is not None:
+            for j in self.drift_nodes:
+                Sj = self._S[int(j)]
+                row = Sj[4] + 2.0 * self.n_orb * Sj[0]  # vy + 2 n x from earlier impulses (Hill)
+                row[3 * int(j) + 1] += 1.0  # + the impulse of node j itself (post-impulse vy)
+                rows.append(zcoef(row)[None]); kinds.append(("drift", int(j)))
         if c.vbar_rows or c.hop_distance_tol_m is not None:
             nodes = [0] + self.sched.hop_nodes.tolist()
             rx = [self.a @ self._S[j][:3] for j in nodes]
@@ -425,6 +464,13 @@ class SrfMpc:
                 else:
                     v = float(self.a @ xj[3:])
                     lo.append(-tol_w - v); hi.append(tol_w - v)
+                continue
+            if tag == "drift":
+                if j < i or relax >= 3:
+                    lo.append(-OFF); hi.append(OFF)
+                    continue
+                v = self.drift_invariant(x) if self._c_count == 0 else self._c_sum / self._c_count
+                lo.append(-c.drift_free_tol_mps - v); hi.append(c.drift_free_tol_mps - v)
                 continue
             nodes = [0] + self.sched.hop_nodes.tolist()
             if tag == "dist":
@@ -535,6 +581,11 @@ class SrfMpc:
                         sol, status = self._scp(i, x, u_ref, relax)
                         if sol is not None:
                             break
+            if sol is None and self._n_cbf and not np.allclose(first_ref, hold := self.hold_impulse(x)) \
+                    and self.check_drift(x, hold)[0]:
+                # half-spaces on a safe but far-off reference (e.g. no plan yet and a drifting start) can cut
+                # off every drift-free impulse: retry about the hold drift before relaxing anything
+                sol, status = self._scp(i, x, hold, relax)
             if sol is not None:
                 sol.events = events
                 return sol

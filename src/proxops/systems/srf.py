@@ -22,6 +22,14 @@ finds cheaper multi-impulse transfers that are not hops). V-bar keeps the paper'
 plus a tiny quadratic pull (1e-7 per m^2) of the hop ends towards Algorithm 1's distances: radial
 hops cost the same fuel for any split, and without it the split sits on a vertex of (29n)-(29o)
 that the next disturbance makes infeasible.
+
+Passive abort (§2: V-bar "returning to its initial position after each hop ... an indefinite hold"):
+V-bar adds a drift-free row after every hop-start impulse (``|vy+ + 2 n x_eff| <= 0.1 mm/s``,
+see :mod:`proxops.control.srf_mpc`), and :func:`passive_abort` propagates the unforced truth
+from every hop impulse over ``safety.abort_orbits`` (default 3) orbits, reporting the return miss
+after each whole orbit. Success requires the whole window for V-bar and one orbit for R-bar and
+glideslopes (which the paper says lack indefinite safety); all report ``safe_window_orbits``,
+the time to the first KOZ entry within the window.
 """
 
 from __future__ import annotations
@@ -78,6 +86,8 @@ class SrfMpcSection(Section):
     epsilon_m: Annotated[float, Field(ge=0.0)] = 50.0
     hop_distance_tol_frac: Annotated[float, Field(gt=0.0)] | None = None  # default None (V-bar), 0.1 (others)
     hop_distance_weight_per_m2: Annotated[float, Field(ge=0.0)] | None = None  # default 1e-7 (V-bar), 0 (others)
+    drift_free: bool = True  # V-bar only: |vy+ + 2 n x| <= drift_free_tol_mps after every hop-start impulse
+    drift_free_tol_mps: Annotated[float, Field(gt=0.0)] = 1e-4
     solver: Literal["piqp", "clarabel", "daqp"] = "piqp"
 
 
@@ -98,8 +108,11 @@ class SafetySection(Section):
     """Per-run safety and success evaluation."""
 
     reference_tolerance_m: Annotated[float, Field(gt=0.0)] = 5.0
-    abort_orbits: Annotated[float, Field(gt=0.0, le=5.0)] = 1.0
-    abort_samples: Annotated[int, Field(ge=10, le=100000)] = 721
+    abort_orbits: Annotated[float, Field(gt=0.0, le=10.0)] = 3.0  # passive-abort window checked on the truth
+    abort_samples_per_orbit: Annotated[int, Field(ge=10, le=100000)] = 720
+    # window that counts for success: None = the whole abort_orbits window for V-bar (indefinite hold,
+    # §2), 1 orbit for R-bar and glideslopes (the paper: no indefinite passive safety, §5.2, conclusion)
+    abort_required_orbits: Annotated[float, Field(gt=0.0, le=10.0)] | None = None
 
 
 class SrfScenario(ScenarioBase):
@@ -209,6 +222,8 @@ def build_controller(sc: SrfScenario, cbf: bool | None = None):
         mid_hop_fuel_weight=m.mid_hop_fuel_weight if m.mid_hop_fuel_weight is not None else (1.0 if vbar else 2.0),
         hop_distance_weight_per_m2=(m.hop_distance_weight_per_m2 if m.hop_distance_weight_per_m2 is not None
                                     else (1e-7 if vbar else 0.0)),
+        drift_free_tol_mps=m.drift_free_tol_mps if (vbar and m.drift_free) else None,
+        orbit_radius_m=sc.orbit.sma_m if (vbar and m.drift_free and sc.truth.model != "cw") else None,
         cbf=use_cbf, cbf_alpha_per_s=ko.alpha_per_s, free_drift_s=ko.free_drift_orbits * plan.period_s,
         free_drift_nodes=max(4, int(round(ko.free_drift_nodes_per_orbit * ko.free_drift_orbits))), solver=m.solver)
     from proxops.constraints.keep_out import KeepOutSphere
@@ -254,11 +269,37 @@ def _hermite_min_range(t, x, center) -> float:
     return min(best, float(np.min(np.linalg.norm(seg, axis=2))))
 
 
+def required_abort_orbits(sc: SrfScenario) -> float:
+    """Passive-abort window that counts for success (orbits): the whole ``safety.abort_orbits`` for
+    V-bar (the paper's indefinite hold), one orbit for R-bar and glideslopes, which the paper says
+    lack indefinite passive safety (§5.2 and conclusion) -- unless ``safety.abort_required_orbits``."""
+    s = sc.safety
+    if s.abort_required_orbits is not None:
+        return min(s.abort_required_orbits, s.abort_orbits)
+    return s.abort_orbits if _is_vbar(math.radians(sc.approach.angle_deg)) else min(1.0, s.abort_orbits)
+
+
+def _first_entry_s(t, x, center, radius) -> float:
+    """First time (s) the sampled drift is inside the sphere (Hermite-refined per segment); inf if never."""
+    p = np.linalg.norm(x[:, :3] - center, axis=1)
+    inside = np.nonzero(p < radius)[0]
+    k_in = int(inside[0]) if inside.size else None
+    for k in range(1, len(t)):  # the first segment whose interpolant dips inside
+        if k_in is not None and k > k_in:
+            break
+        if _hermite_min_range(t[k - 1:k + 1], x[k - 1:k + 1], center) < radius:
+            return float(t[k - 1])
+    return float(t[k_in]) if k_in is not None else math.inf
+
+
 def passive_abort(sc: SrfScenario, result) -> list[dict]:
     """From each hop impulse: propagate the unforced TRUTH for ``safety.abort_orbits`` orbits.
 
-    Returns per hop ``{t_s, min_range_m, min_koz_distance_m, safe, return_miss_m}``;
-    return_miss_m (V-bar) is the distance to the hop start point after one orbit."""
+    Returns per hop ``{t_s, dv_mps, min_range_m, min_koz_distance_m, safe, safe_window_orbits,
+    safe_required}``: ``safe`` over the whole window, ``safe_window_orbits`` the time to the first
+    KOZ entry (the window if none), ``safe_required`` over :func:`required_abort_orbits`, and
+    ``return_miss_m`` (distance to the hop start after 1, 2, ... whole orbits of the window) and
+    ``return_miss_per_orbit_m`` (the last of those divided by its number of orbits)."""
     from proxops.propagation.truth import CWPlant, RelativeTruth
     from proxops.systems.common import translational_plant
 
@@ -269,9 +310,10 @@ def passive_abort(sc: SrfScenario, result) -> list[dict]:
     full = plant.initial_state()
     t_now = 0.0
     out = []
-    times = np.linspace(0.0, sc.safety.abort_orbits * period, sc.safety.abort_samples)
+    window = sc.safety.abort_orbits
+    required = required_abort_orbits(sc)
+    times = np.linspace(0.0, window * period, int(round(window * sc.safety.abort_samples_per_orbit)) + 1)
     zero = np.zeros(3)
-    vbar = bool(result.meta.get("vbar", False))
     for t_hop in hop_starts:
         k = int(np.argmin(np.abs(result.t - t_hop)))
         if abs(result.t[k] - t_hop) > 1e-6 * max(1.0, t_hop) + 1e-9:
@@ -287,11 +329,17 @@ def passive_abort(sc: SrfScenario, result) -> list[dict]:
             drift = plant.free_drift(x_post, times)
         rng = _hermite_min_range(times, drift, np.zeros(3))
         koz_d = _hermite_min_range(times, drift, koz.center_m) - koz.radius_m
+        entry = _first_entry_s(times, drift, koz.center_m, koz.radius_m)
         item = {"t_s": float(result.t[k]), "dv_mps": float(np.linalg.norm(result.u_applied[k])),
-                "min_range_m": rng, "min_koz_distance_m": koz_d, "safe": bool(koz_d > 0.0)}
-        if vbar:
-            k_orbit = int(np.argmin(np.abs(times - period)))
-            item["return_miss_m"] = float(np.linalg.norm(drift[k_orbit, :3] - x_post[:3]))
+                "min_range_m": rng, "min_koz_distance_m": koz_d, "safe": bool(koz_d > 0.0),
+                "safe_window_orbits": float(min(entry / period, window)),
+                "safe_required": bool(entry > required * period * (1 - 1e-9))}
+        # every approach: V-bar should come back (a hold), R-bar and glideslopes drift away
+        whole = range(1, int(math.floor(window + 1e-9)) + 1)
+        misses = [float(np.linalg.norm(drift[int(np.argmin(np.abs(times - m * period))), :3] - x_post[:3]))
+                  for m in whole]
+        item["return_miss_m"] = misses
+        item["return_miss_per_orbit_m"] = misses[-1] / len(misses) if misses else math.nan
         out.append(item)
     return out
 
@@ -346,8 +394,13 @@ def summarize_result(sc: SrfScenario, result) -> dict:
         "abort_min_range_m": float(min(item["min_range_m"] for item in abort)) if abort else math.nan,
         "solves": int(np.nansum(result.info.get("solved", np.zeros(1)))),
     }
-    if abort and "return_miss_m" in abort[0]:
-        out["abort_return_miss_max_m"] = float(max(item["return_miss_m"] for item in abort))
+    if abort:
+        out["abort_window_orbits"] = sc.safety.abort_orbits
+        out["abort_required_orbits"] = required_abort_orbits(sc)
+        out["abort_safe_window_orbits"] = float(min(item["safe_window_orbits"] for item in abort))
+        out["abort_safe_required"] = bool(all(item["safe_required"] for item in abort))
+    if abort and "return_miss_per_orbit_m" in abort[0]:
+        out["abort_return_miss_per_orbit_max_m"] = float(max(item["return_miss_per_orbit_m"] for item in abort))
     mask = result.info.get("solved")
     if mask is not None:
         sel = np.nan_to_num(mask) > 0
@@ -387,7 +440,7 @@ class SrfSystem:
 
     def success(self, sc: SrfScenario, summary: dict) -> bool:
         return bool(summary.get("reached_reference") and not summary.get("koz_violated")
-                    and summary.get("abort_safe_all"))
+                    and summary.get("abort_safe_required", summary.get("abort_safe_all")))
 
     def campaign_figures(self, sc: SrfScenario, results: list, out_dir) -> list[Path]:
         """Monte Carlo overlay (Figs. 5/7/10) from a campaign's saved series."""
