@@ -24,8 +24,9 @@ hops cost the same fuel for any split, and without it the split sits on a vertex
 that the next disturbance makes infeasible.
 
 Passive abort (§2: V-bar "returning to its initial position after each hop ... an indefinite hold"):
-V-bar adds a drift-free row after every hop-start impulse (``|vy+ + 2 n x_eff| <= 0.1 mm/s``,
-see :mod:`proxops.control.srf_mpc`), and :func:`passive_abort` propagates the unforced truth
+V-bar adds a drift-free row after every hop-start impulse (``mpc.drift_free_tol_mps`` = 0.05 mm/s
+on the J2-aware invariant: chaser-minus-target specific energy over |v_t|, from an onboard target
+ephemeris; ``vy + 2 n x`` on CW truth; see :mod:`proxops.control.srf_mpc`), and :func:`passive_abort` propagates the unforced truth
 from every hop impulse over ``safety.abort_orbits`` (default 3) orbits, reporting the return miss
 after each whole orbit. Success requires the whole window for V-bar and one orbit for R-bar and
 glideslopes (which the paper says lack indefinite safety); all report ``safe_window_orbits``,
@@ -87,7 +88,7 @@ class SrfMpcSection(Section):
     hop_distance_tol_frac: Annotated[float, Field(gt=0.0)] | None = None  # default None (V-bar), 0.1 (others)
     hop_distance_weight_per_m2: Annotated[float, Field(ge=0.0)] | None = None  # default 1e-7 (V-bar), 0 (others)
     drift_free: bool = True  # V-bar only: |vy+ + 2 n x| <= drift_free_tol_mps after every hop-start impulse
-    drift_free_tol_mps: Annotated[float, Field(gt=0.0)] = 1e-4
+    drift_free_tol_mps: Annotated[float, Field(gt=0.0)] = 5e-5  # 1.1 m of drift per orbit at a = 8100 km
     solver: Literal["piqp", "clarabel", "daqp"] = "piqp"
 
 
@@ -169,6 +170,27 @@ def plan_of(sc: SrfScenario):
                      mean_motion(sc.orbit.sma_m), vbar_period_fraction=ap.vbar_period_fraction)
 
 
+def onboard_drift_model(sc: SrfScenario, dt: float, span_s: float):
+    """The MPC's J2-aware drift invariant: the target's ECI states every engine step over the mission
+    (the onboard ephemeris of the known target orbit, same force model as the truth: two-body or J2)."""
+    from proxops.control.srf_mpc import EnergyDrift
+    from proxops.core.constants import J2_EARTH, MU_EARTH, R_EARTH
+    from proxops.propagation.truth import RelativeTruth
+    from proxops.systems.common import target_elements
+
+    j2 = sc.truth.model == "j2"
+    plant = RelativeTruth(target_elements(sc.orbit), np.zeros(6), j2=j2, integrator=sc.truth.integrator)
+    n = int(math.ceil(span_s / dt)) + 3
+    states = np.empty((n, 6))
+    y = plant.initial_state()
+    zero = np.zeros(3)
+    for k in range(n):
+        states[k] = plant.target_state(y)
+        if k + 1 < n:
+            y = plant.propagate(k * dt, y, zero, dt)
+    return EnergyDrift(dt, states, MU_EARTH, J2_EARTH if j2 else 0.0, R_EARTH)
+
+
 def build_controller(sc: SrfScenario, cbf: bool | None = None):
     """(controller, plan, schedule) of a scenario; ``cbf`` overrides keep_out.cbf."""
     from proxops.control.srf_mpc import SrfMpc, SrfMpcConfig, build_schedule
@@ -223,7 +245,7 @@ def build_controller(sc: SrfScenario, cbf: bool | None = None):
         hop_distance_weight_per_m2=(m.hop_distance_weight_per_m2 if m.hop_distance_weight_per_m2 is not None
                                     else (1e-7 if vbar else 0.0)),
         drift_free_tol_mps=m.drift_free_tol_mps if (vbar and m.drift_free) else None,
-        orbit_radius_m=sc.orbit.sma_m if (vbar and m.drift_free and sc.truth.model != "cw") else None,
+        drift_model=onboard_drift_model(sc, dt, mission_s) if (vbar and m.drift_free and sc.truth.model != "cw") else None,
         cbf=use_cbf, cbf_alpha_per_s=ko.alpha_per_s, free_drift_s=ko.free_drift_orbits * plan.period_s,
         free_drift_nodes=max(4, int(round(ko.free_drift_nodes_per_orbit * ko.free_drift_orbits))), solver=m.solver)
     from proxops.constraints.keep_out import KeepOutSphere
