@@ -138,6 +138,7 @@ def _mount_optional() -> None:
         ("proxops.cli_reach", "reach_app", "reach", "group"),
         ("proxops.cli_campaign", "mc", "mc", "command"),
         ("proxops.cli_campaign", "report", "report", "command"),
+        ("proxops.cli_reproduce", "reproduce", "reproduce", "command"),
     ):
         try:
             mod = importlib.import_module(module)
