@@ -315,48 +315,45 @@ def reach_claims(ctx: Context) -> list[Claim]:
         "reach", "All analytical sets for the 20 combinations", f"{R.PAPER_TIMES_S['total']:.0f} s (Table 4)",
         f"{wall:.1f} s wall", REPRODUCED,
         "timing on a 2-core machine shared by 4 engineers; faster is the claim's direction", data={"wall_s": wall}))
-    if ctx.quick:
-        rows.append(Claim("reach", "§9 Monte Carlo: no certified start fails in closed loop",
-                          "certified sets inside the MC-feasible region (§9-10, Figs. 2-3)", "not run", REPRODUCED,
-                          "run `proxops reproduce reach` (full) or `proxops reach mc`", "not run in --quick (3 900 runs)"))
-    else:
-        from proxops.analysis import feasibility_maps as F
+    # §9 Monte Carlo: all 20 combinations (3 900 runs), one in --quick
+    from proxops.analysis import feasibility_maps as F
+    from proxops.systems.los import run_case
 
-        out = ctx.sub("reach-mc")
-        outcomes, mc_wall, new_runs = F.run_mc(out, workers=ctx.workers, progress=ctx.progress, resume=_resumable(out))
-        how = f"{mc_wall:.0f} s" if new_runs else f"reused from {out}"
-
-        from proxops.systems.los import run_case
-
-        bad = tot = not_viable = recovered = 0
-        for w in R.PAPER_OMEGAS_DEG_S:
-            for a in R.PAPER_A_MAX_MPS2:
-                cr = by[(w, a)]
-                fmap = F.feasibility_map(outcomes, grid, w, a)
-                sites = np.column_stack([fmap.sites, np.zeros(len(fmap.sites))])
-                sites_nom = R.certified_mask(R.LosCorridor(), sites, np.radians(w), a)
-                chk = F.certification_check(fmap, grid, cr.nominal, sites_nom)
-                bad += chk["nominal_ics_mc_infeasible"]
-                tot += chk["nominal_ics"]
-                failed = sites_nom & ~fmap.feasible
-                if failed.any():  # could ANY controller have kept them in the corridor for the 400 s?
-                    viable = R.viable_points(sites[failed], np.radians(w), a, n_back=400)
-                    not_viable += int(np.count_nonzero(~viable))
-                    for p in sites[failed][viable]:  # does the single-run MPC (N_p = 40 instead of 20) hold them?
-                        recovered += bool(run_case(w, a, list(p), mpc_config="single", duration_s=400.0)["feasible"])
-        rows.append(Claim(
-            "reach", "§9 Monte Carlo: no certified start fails in closed loop",
-            "certified sets inside the MC-feasible region (§9-10, Figs. 2-3)",
-            f"{bad} of {tot} certified initial conditions infeasible in closed loop ({len(outcomes)} runs, {how}); "
-            f"{not_viable} of those cannot be kept in the corridor by any input (400-step LP), {recovered} are held by "
-            f"the single-run MPC (N_p = 40), {bad - not_viable - recovered} remain",
-            REPRODUCED if bad == 0 else (EXPLAINED if not_viable + recovered == bad else UNEXPLAINED),
-            "J2 truth, the paper's MC MPC configuration (N_p = 20), 400 s; certified = nominal forward certificate at the "
-            "IC. A failed certified IC that no input sequence can keep inside (exact LP over 400 steps, box on the body "
-            "axes) is a limit of the certificate (a necessary-condition test), not of the MPC; one that the N_p = 40 "
-            "MPC holds is the short MC horizon's; the rest fail with both horizons although an input exists: not explained",
-            data={"certified_ics": tot, "certified_ics_infeasible": bad, "not_viable": not_viable,
-                  "recovered_np40": recovered, "runs": int(len(outcomes))}))
+    out = ctx.sub("reach-mc-quick" if ctx.quick else "reach-mc")
+    omegas, amaxs = ((2.0,), (0.10,)) if ctx.quick else (R.PAPER_OMEGAS_DEG_S, R.PAPER_A_MAX_MPS2)
+    outcomes, mc_wall, new_runs = F.run_mc(out, omegas, amaxs, workers=ctx.workers, progress=ctx.progress,
+                                           resume=_resumable(out))
+    how = f"{mc_wall:.0f} s" if new_runs else f"reused from {out}"
+    bad = tot = not_viable = recovered = 0
+    for w in omegas:
+        for a in amaxs:
+            cr = by[(w, a)]
+            fmap = F.feasibility_map(outcomes, grid, w, a)
+            sites = np.column_stack([fmap.sites, np.zeros(len(fmap.sites))])
+            sites_nom = R.certified_mask(R.LosCorridor(), sites, np.radians(w), a)
+            chk = F.certification_check(fmap, grid, cr.nominal, sites_nom)
+            bad += chk["nominal_ics_mc_infeasible"]
+            tot += chk["nominal_ics"]
+            failed = sites_nom & ~fmap.feasible
+            if failed.any():  # could ANY controller have kept them in the corridor for the 400 s?
+                viable = R.viable_points(sites[failed], np.radians(w), a, n_back=400)
+                not_viable += int(np.count_nonzero(~viable))
+                for p in sites[failed][viable]:  # does the single-run MPC (N_p = 40 instead of 20) hold them?
+                    recovered += bool(run_case(w, a, list(p), mpc_config="single", duration_s=400.0)["feasible"])
+    rows.append(Claim(
+        "reach", "§9 Monte Carlo: no certified start fails in closed loop",
+        "certified sets inside the MC-feasible region (§9-10, Figs. 2-3)",
+        f"{bad} of {tot} certified initial conditions infeasible in closed loop ({len(outcomes)} runs, {how}); "
+        f"{not_viable} of those cannot be kept in the corridor by any input (400-step LP), {recovered} are held by "
+        f"the single-run MPC (N_p = 40), {bad - not_viable - recovered} remain",
+        REPRODUCED if bad == 0 else (EXPLAINED if not_viable + recovered == bad else UNEXPLAINED),
+        "J2 truth, the paper's MC MPC configuration (N_p = 20), 400 s; certified = nominal forward certificate at the "
+        "IC. A failed certified IC that no input sequence can keep inside (exact LP over 400 steps, box on the body "
+        "axes) is a limit of the certificate (a necessary-condition test), not of the MPC; one that the N_p = 40 "
+        "MPC holds is the short MC horizon's; the rest fail with both horizons although an input exists: not explained",
+        "1 of 20 combinations (2 deg/s, 0.10 m/s^2: 195 runs)" if ctx.quick else "",
+        data={"certified_ics": tot, "certified_ics_infeasible": bad, "not_viable": not_viable,
+              "recovered_np40": recovered, "runs": int(len(outcomes))}))
     return rows
 
 
