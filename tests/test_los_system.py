@@ -99,7 +99,7 @@ def test_sweep_table_has_paper_layout():
 def _pin_boundary(w, a):
     """Issue 11: the zero-violation boundary of co-rotating starts is ~0.82 r_sync (measured by
     proxops.analysis.los_boundary; an LP over all box-bounded inputs puts the physical limit at
-    0.83-0.84), so "inside r_sync achieves zero violations" holds at 0.75 r_sync, not at 0.9."""
+    0.825-0.834), so "inside r_sync achieves zero violations" holds at 0.75 r_sync, not at 0.9."""
     from proxops.analysis.los_boundary import holds
 
     horizon = None if w >= 2.0 else 80  # 1 deg/s needs N_p = 80 to reach the boundary

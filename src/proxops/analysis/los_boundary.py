@@ -121,49 +121,79 @@ def summarize_boundaries(rows: list[dict]) -> dict:
 
 def open_loop_feasible(omega_deg_s: float, a_max_mps2: float, fraction: float, start: str = "body", *,
                        horizon_s: float = 600.0, dt: float = 2.0, half_angle_deg: float = 30.0,
-                       floor_m: float = 1.0, terminal_hold: bool = True) -> bool:
-    """Does ANY input sequence keep the chaser in the corridor for ``horizon_s`` and end at rest in the
-    body frame on a range it can hold (<= a_max / w_t^2)? An LP (HiGHS) on the planar body-frame
-    dynamics ``p'' = u + w^2 p - 2 w x p'`` (rotation about z at w_t; the orbital rate n is
-    neglected, n / w_t = 0.03 at 2 deg/s), ZOH inputs on a box on the body axes (as (11e)), the
-    corridor rows at z = 0 at every step; ``terminal_hold=False`` drops the end condition (only stay
-    inside for ``horizon_s``, what a closed-loop run of that length is scored on). This is the controller-independent (physical) bound of
-    :func:`holds`, up to the neglected orbit terms and the finite horizon."""
-    from scipy.linalg import expm
+                       floor_m: float = 1.0, terminal_hold: bool = True, altitude_km: float = 500.0) -> bool:
+    """Does ANY input sequence keep the chaser in the corridor for ``horizon_s`` (and, with
+    ``terminal_hold``, end at rest in the body frame on a range it can hold, <= a_max / w_t^2)?
+    An LP (HiGHS) on the same model as the MPC's prediction: CW in the Hill frame (mean motion of
+    the Table 1 orbit), the target body turning at w_t - n relative to it (BodyFrameModel), ZOH inputs
+    in a box on the body axes (as (11e)), the corridor rows (eq. 9) on the body-frame position at every
+    step, the start converted exactly as the los system does. States and inputs are LP variables with
+    the dynamics as equality rows (sparse). It is the controller-independent bound of :func:`holds` up
+    to J2 and the step size; ``terminal_hold=False`` only asks to stay inside for ``horizon_s``."""
+    import scipy.sparse as sp
 
     from proxops.constraints.los_corridor import LosCorridor
+    from proxops.core.constants import MU_EARTH, R_EARTH
+    from proxops.core.cw import mean_motion
+    from proxops.dynamics.tumbling_target import BodyFrameModel
     from proxops.guidance.los_regimes import sync_range
     from proxops.solvers.highs_lp import HighsLP
 
     w = math.radians(omega_deg_s)
     r0 = fraction * sync_range(a_max_mps2, w)
-    A = np.array([[0, 0, 1, 0], [0, 0, 0, 1], [w * w, 0, 0, 2 * w], [0, w * w, -2 * w, 0]], dtype=float)
-    M = expm(np.block([[A, np.vstack([np.zeros((2, 2)), np.eye(2)])], [np.zeros((2, 6))]]) * dt)
-    Ad, Bd = M[:4, :4], M[:4, 4:]
+    model = BodyFrameModel(mean_motion(R_EARTH + altitude_km * 1e3, MU_EARTH), w, dt)
+    x_body = np.array([0.0, r0, 0.0, 0.0, 0.0, 0.0])
+    if start == "lvlh":  # at rest in the Hill frame, as LosSystem's initial_velocity_frame = "lvlh"
+        x_hill = model.hill_from_body(0.0, x_body)
+        x_hill[3:6] = 0.0
+        x_body = model.body_from_hill(0.0, x_hill)
+    x0 = model.hill_from_body(0.0, x_body)
     K = int(round(horizon_s / dt))
-    x0 = np.array([0.0, r0, 0.0, 0.0]) if start == "body" else np.array([0.0, r0, w * r0, 0.0])
-    # ("lvlh" start at rest inertially: body-frame velocity -w x p = (w y, -w x) for rotation +w about z)
+    nx, nu = 6 * (K + 1), 3 * K
     cor = LosCorridor(math.radians(half_angle_deg), floor_m)
-    G2, h = cor.G[:, :2], cor.h
-    keep = np.linalg.norm(G2, axis=1) > 1e-12
-    G2, h = G2[keep], h[keep]
-    # condensed: x_k = Ad^k x0 + sum_{j<k} Ad^(k-1-j) Bd u_j
-    pw = [np.eye(4)]
-    for _ in range(K):
-        pw.append(Ad @ pw[-1])
-    rows, lo, hi = [], [], []
+    F = cor.G.shape[0]
+    eq_r, eq_c, eq_v = [], [], []
+    Phi, Bd = model.Phi, model.Bd
+
+    def put(rows, cols, vals, r0_, c0_, block):
+        rr, cc = np.nonzero(np.ones_like(block, dtype=bool))
+        rows.append(rr + r0_); cols.append(cc + c0_); vals.append(block[rr, cc])
+
+    put(eq_r, eq_c, eq_v, 0, 0, np.eye(6))  # x_0 = x0
+    rhs = [x0]
+    for k in range(K):
+        R_LB = model.rotation_body_from_hill(k * dt).T
+        r = 6 * (k + 1)
+        put(eq_r, eq_c, eq_v, r, 6 * (k + 1), np.eye(6))
+        put(eq_r, eq_c, eq_v, r, 6 * k, -Phi)
+        put(eq_r, eq_c, eq_v, r, nx + 3 * k, -Bd @ R_LB)
+        rhs.append(np.zeros(6))
+    n_eq = 6 * (K + 1)
+    in_r, in_c, in_v, lo, hi = [], [], [], [], []
+    row = n_eq
     for k in range(1, K + 1):
-        Sk = np.zeros((4, 2 * K))
-        for j in range(k):
-            Sk[:, 2 * j:2 * j + 2] = pw[k - 1 - j] @ Bd
-        free = pw[k] @ x0
-        rows.append(G2 @ Sk[:2]); lo.append(np.full(len(h), -np.inf)); hi.append(h - G2 @ free[:2])
-        if k == K and terminal_hold:  # end at rest, close enough to hold
-            rows.append(Sk[2:]); lo.append(-free[2:]); hi.append(-free[2:])
-            rows.append(Sk[1:2]); lo.append([-np.inf]); hi.append([a_max_mps2 / w**2 - free[1]])
-    lp = HighsLP()
-    lp.setup(np.zeros(2 * K), np.vstack(rows), np.concatenate(lo), np.concatenate(hi),
-             np.full(2 * K, -a_max_mps2), np.full(2 * K, a_max_mps2))
+        block = cor.G @ model.rotation_body_from_hill(k * dt)
+        put(in_r, in_c, in_v, row, 6 * k, np.hstack([block, np.zeros((F, 3))]))
+        lo.append(np.full(F, -np.inf)); hi.append(cor.h)
+        row += F
+    if terminal_hold:  # body-frame velocity 0 and body range <= a_max / w^2 at the end
+        from proxops.dynamics.tumbling_target import body_from_hill_matrix
+
+        T = body_from_hill_matrix(float(model.theta(K * dt)), model.w_rel)
+        put(in_r, in_c, in_v, row, 6 * K, T[3:6])
+        lo.append(np.zeros(3)); hi.append(np.zeros(3))
+        put(in_r, in_c, in_v, row + 3, 6 * K, T[1:2])
+        lo.append([-np.inf]); hi.append([a_max_mps2 / w**2])
+        row += 4
+    A = sp.csc_matrix((np.concatenate(eq_v + in_v), (np.concatenate(eq_r + in_r), np.concatenate(eq_c + in_c))),
+                      shape=(row, nx + nu))
+    b = np.concatenate(rhs)
+    rl = np.concatenate([b, np.concatenate([np.asarray(x, float) for x in lo])])
+    ru = np.concatenate([b, np.concatenate([np.asarray(x, float) for x in hi])])
+    lb = np.concatenate([np.full(nx, -np.inf), np.full(nu, -a_max_mps2)])
+    ub = np.concatenate([np.full(nx, np.inf), np.full(nu, a_max_mps2)])
+    lp = HighsLP(settings={"solver": "ipm"})  # IPM: infeasible cases in ~1 s (dual simplex: 14-67 s)
+    lp.setup(np.zeros(nx + nu), A, rl, ru, lb, ub)
     res = lp.solve()
     return bool(res.ok and res.x is not None)
 
