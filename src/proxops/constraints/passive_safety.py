@@ -34,3 +34,17 @@ def drift_safety(times, drift, koz: KeepOutSphere) -> dict:
     rng = hermite_min_range(times, drift, np.zeros(3))
     koz_d = hermite_min_range(times, drift, koz.center_m) - koz.radius_m
     return {"min_range_m": rng, "min_koz_distance_m": koz_d, "safe": bool(koz_d > 0.0)}
+
+
+def first_entry_time(t, x, center, radius) -> float:
+    """First sample time (s) of the segment where the drift enters the sphere (its Hermite
+    interpolant dips inside; also a sample inside); inf if it never does."""
+    p = np.linalg.norm(x[:, :3] - center, axis=1)
+    inside = np.nonzero(p < radius)[0]
+    k_in = int(inside[0]) if inside.size else None
+    for k in range(1, len(t)):  # the first segment whose interpolant dips inside
+        if k_in is not None and k > k_in:
+            break
+        if hermite_min_range(t[k - 1:k + 1], x[k - 1:k + 1], center) < radius:
+            return float(t[k - 1])
+    return float(t[k_in]) if k_in is not None else np.inf
