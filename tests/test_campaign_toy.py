@@ -20,6 +20,7 @@ from proxops.scenarios.registry import register_system
 from proxops.scenarios.schema import InitialSection, OrbitSection, ScenarioBase, Section, Vector3
 from proxops.sim.engine import Setup
 from proxops.systems.common import actuator_model, initial_hill_state, navigation_model
+from proxops.dynamics.plant import PlantBase
 
 TOY_SCENARIO = {
     "name": "toy",
@@ -55,7 +56,7 @@ class ToyScenario(ScenarioBase):
     toy: ToySection = ToySection()
 
 
-class ExactCWPlant:
+class ExactCWPlant(PlantBase):
     """CW truth propagated with the exact ZOH discretisation (closed form)."""
 
     n_x, n_u = 6, 3
