@@ -17,6 +17,7 @@ from pydantic import Field
 
 from proxops.core.cw import cw_input_matrix_zoh, cw_stm, mean_motion
 from proxops.scenarios.registry import register_system
+from proxops.systems.base import SystemBase
 from proxops.scenarios.schema import InitialSection, OrbitSection, ScenarioBase, Section, Vector3
 from proxops.sim.engine import Setup
 from proxops.systems.common import actuator_model, initial_hill_state, navigation_model
@@ -127,7 +128,7 @@ def _pass_gate() -> None:
 
 
 @register_system("campaign-toy")
-class ToySystem:
+class ToySystem(SystemBase):
     Scenario = ToyScenario
 
     def build(self, sc):

@@ -1,8 +1,8 @@
 """Run a scenario end to end: load -> build -> simulate -> summarise -> save.
 
 A system may run several closed loops for one scenario (e.g. with and without a
-constraint); it then defines ``run(sc, seed, progress) -> (summary, {label: SimResult})``.
-Otherwise the default is one ``simulate(system.build(sc))``.
+constraint) by overriding ``run(sc, seed, progress) -> (summary, {label: SimResult})``; the
+default (:class:`proxops.systems.base.SystemBase`) is one ``simulate(system.build(sc))``.
 """
 
 from __future__ import annotations
@@ -11,7 +11,6 @@ import json
 from pathlib import Path
 
 from proxops.scenarios.loader import load_scenario
-from proxops.sim.engine import simulate
 from proxops.sim.result import SimResult
 
 
@@ -19,14 +18,9 @@ def execute(loaded, seed: int | None = None, progress: bool = False) -> tuple[di
     """Run a loaded scenario; returns the summary and the results by label."""
     sc, system = loaded.scenario, loaded.system
     seed = sc.sim.seed if seed is None else seed
-    if hasattr(system, "run"):
-        extra, results = system.run(sc, seed=seed, progress=progress)
-        main = next(iter(results.values()))
-        summary = {"scenario": sc.name, "system": sc.system, **main.summary(), **extra}
-    else:
-        result = simulate(system.build(sc), seed=seed, progress=progress)
-        results = {"run": result}
-        summary = {"scenario": sc.name, "system": sc.system, **result.summary(), **system.summarize(sc, result)}
+    extra, results = system.run(sc, seed=seed, progress=progress)
+    main = next(iter(results.values()))
+    summary = {"scenario": sc.name, "system": sc.system, **main.summary(), **extra}
     summary["seed"] = seed
     return summary, results
 
@@ -37,8 +31,7 @@ def check_scenario(loaded) -> None:
     dispersions table. Raises ProxopsInputError with one line; ``validate`` and ``mc`` call it."""
     from proxops.analysis.dispersions import parse_dispersions
 
-    check = getattr(loaded.system, "check", None)  # planners without a closed loop check without building
-    check(loaded.scenario) if check is not None else loaded.system.build(loaded.scenario)
+    loaded.system.check(loaded.scenario)  # default: build; planners without a closed loop check without building
     parse_dispersions(loaded.scenario, loaded.scenario.dispersions)
 
 
@@ -60,9 +53,9 @@ def save_run(loaded, summary: dict, results: dict[str, SimResult], out: Path, fi
     (out / "summary.json").write_text(json.dumps(summary, indent=2, default=str))
     paths: list[Path] = []
     if figures:
-        draw = getattr(loaded.system, "figures", None)
-        if draw is not None:
-            paths = list(draw(loaded.scenario, results, out))
+        drawn = loaded.system.figures(loaded.scenario, results, out)
+        if drawn is not None:
+            paths = list(drawn)
         else:
             from proxops.plotting.common import plot_run
 

@@ -30,6 +30,7 @@ class Status(str, enum.Enum):
     NUMERICAL_ERROR = "numerical_error"  # includes solver exceptions and bad (NaN) data
     INFEASIBLE_SOLUTION = "infeasible_solution"  # solver said optimal, the returned point fails the check
     CBF_VIOLATION = "cbf_violation"  # successive convexification ended on a point that breaks the CBF
+    INVALID_INPUT = "invalid_input"  # the controller was given a non-finite state (nothing solved)
     FAILED = "failed"  # any other failure of a controller (detail in the step's events / info)
 
     @property

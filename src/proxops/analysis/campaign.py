@@ -71,7 +71,7 @@ MANIFEST = "campaign.json"
 START_METHOD = "spawn"  # spawn-safe everywhere; nothing is inherited from the parent
 MAX_POOL_RESTARTS = 10
 MAX_RUNS = 10_000_000  # rows of one campaign; items are made lazily, the table of results is what grows
-FAILED_STATUSES = ("failed", "failure", "error")
+from proxops.systems.base import FAILED_STATUSES  # noqa: E402,F401  (one home: the default SystemBase.success)
 
 
 class CampaignError(ProxopsError):
@@ -710,11 +710,7 @@ def campaign_run(spec: CampaignSpec, item: RunItem):
 def classify(system, sc, summary: dict) -> bool:
     """Success of one run: ``system.success(sc, summary)`` when the system defines it,
     otherwise the run did not end in a failed status."""
-    hook = getattr(system, "success", None)
-    if hook is not None:
-        return bool(hook(sc, summary))
-    status = str(summary.get("status", "")).lower()
-    return not status.startswith(FAILED_STATUSES)
+    return bool(system.success(sc, summary))  # default: SystemBase.success (status not failed)
 
 
 _SKIP_SUMMARY = {"scenario", "system", "seed", "out", "status"}
@@ -1337,18 +1333,16 @@ def _system_campaign_figures(manifest: dict, results: list, rdir: Path) -> list[
     """Figures the scenario's own system draws from saved series (``campaign_figures`` hook),
     e.g. the srf Monte Carlo overlays of Figs. 5/7/10 with the approach axis and keep-out zone."""
     loaded = _campaign_system(manifest)
-    draw = getattr(loaded.system, "campaign_figures", None)
-    if draw is None or not results:
+    if not results:
         return []
-    return list(draw(loaded.scenario, results, rdir))
+    return list(loaded.system.campaign_figures(loaded.scenario, results, rdir))
 
 
 def _system_campaign_table(manifest: dict, table: pd.DataFrame) -> str:
     """A Markdown table the system builds from the campaign rows (``campaign_table`` hook),
     e.g. Table 3 of tumbling-target-reachability.md for the los-sweep grid; '' if none."""
     loaded = _campaign_system(manifest)
-    build = getattr(loaded.system, "campaign_table", None)
-    return build(loaded.scenario, table) if build is not None else ""
+    return loaded.system.campaign_table(loaded.scenario, table)
 
 
 def _version() -> str:

@@ -73,6 +73,7 @@ from proxops.dynamics.planar_cubesat import (
 )
 from proxops.errors import input_error
 from proxops.sim.protocols import Command
+from proxops.status import Status
 
 VARIANTS = ("general", "averaged")
 # Warm solver: fatrop (structure-exploiting, ships with CasADi) measured ~3x faster than
@@ -491,7 +492,7 @@ class UnderactuatedNMPC:
         s[2] = wrap_angle(s[2])
         cfg = self.config
         if cfg.stop_when_docked and self.docking.contains(s):
-            return Command(u=np.zeros(N_CONTROL), status="ok", mode="docked", stop=True)
+            return Command(u=np.zeros(N_CONTROL), status=Status.OK, mode="docked", stop=True)
 
         # eq. 14: every N steps the bound becomes the mean of the last N values
         if cfg.variant == "averaged" and self._k >= cfg.average_window and self._k % cfg.average_window == 0:
@@ -539,8 +540,10 @@ class UnderactuatedNMPC:
                 u = np.clip(U0[0], *self.limits.control_bounds())
             else:
                 u = np.zeros(N_CONTROL)
-            return Command(u=u, status=status, solve_time_s=time.perf_counter() - t_start, mode=cfg.variant, info=info)
-        return Command(u=self._plan[1][0].copy(), status="ok", solve_time_s=time.perf_counter() - t_start,
+            st = Status.parse(status)  # solver words not in the vocabulary -> FAILED, kept as the detail
+            return Command(u=u, status=st, solve_time_s=time.perf_counter() - t_start, mode=cfg.variant,
+                           info=info, status_detail="" if st.value == status else status)
+        return Command(u=self._plan[1][0].copy(), status=Status.OK, solve_time_s=time.perf_counter() - t_start,
                        mode=cfg.variant, info=info)
 
     def _solver_time_s(self) -> float:

@@ -80,6 +80,7 @@ from proxops.errors import input_error
 from proxops.sim.protocols import Command
 from proxops.solvers import PiqpQP, SolveStatus, solve_qp
 from proxops.solvers.front import QuadraticProgram
+from proxops.status import Status
 
 KM = 1000.0
 OFF = 1e3  # bound of rows that are switched off (scaled units: km or m/s; both sides infinite makes PIQP zero the row)
@@ -185,7 +186,7 @@ class _Qp:
 @dataclass
 class _Solve:
     u: np.ndarray | None  # (M, 3) impulses u_i..u_N (m/s) or None
-    status: str
+    status: Status
     solve_time_s: float
     iterations: int = 0
     relax: int = 0
@@ -273,12 +274,12 @@ class SrfMpc:
         k = int(round(t / self.dt))
         N = self.sched.n
         if k > self.sched.steps[-1] or self.finished:
-            return Command(np.zeros(3), "impulse", "ok", mode="handover", stop=True)
+            return Command(np.zeros(3), "impulse", Status.OK, mode="handover", stop=True)
         node = self._node_of_step.get(k)
         hop = int(np.searchsorted(self.sched.hop_nodes, node if node is not None else self._node_before(k), side="right")) + 1
         mode = "brake" if node == N else f"hop {min(hop, len(self.sched.hop_nodes))}"
         if node is None:
-            return Command(np.zeros(3), "impulse", "ok", mode=mode, info={"solved": 0.0})
+            return Command(np.zeros(3), "impulse", Status.OK, mode=mode, info={"solved": 0.0})
         if node in self._hop_node_set:
             self.rx_hist[node] = float(self.a @ x[:3])
         res = self._solve_node(node, x)
@@ -510,7 +511,7 @@ class SrfMpc:
         c = self.cfg
         self._clock = [0.0, 0]  # solver seconds, iterations
         events = []
-        status = "infeasible"
+        status = Status.INFEASIBLE
         first_ref = self.plan[i].copy()
         ref_safe = self._n_cbf == 0 or self.check_drift(x, first_ref)[0]
         if not ref_safe:
@@ -522,7 +523,7 @@ class SrfMpc:
             # A reference whose drift is safe gives CBF rows that the reference itself satisfies, so an
             # infeasible problem is then blamed on the other rows (relax them); otherwise check without
             # the CBF rows and retry from better references.
-            suspect_cbf = status == "cbf_violation" or (status in ("infeasible", "infeasible_solution") and not ref_safe)
+            suspect_cbf = status is Status.CBF_VIOLATION or (status in (Status.INFEASIBLE, Status.INFEASIBLE_SOLUTION) and not ref_safe)
             if sol is None and self._n_cbf and suspect_cbf:
                 # Is it the CBF linearisation? Solve without the CBF rows once.
                 qp = self._build(i, x, None, relax, with_cbf=False)
@@ -543,25 +544,25 @@ class SrfMpc:
                                + f" at node {i} ({status})"))
         return _Solve(None, status, self._clock[0], self._clock[1], relax, events=events)
 
-    def _scp(self, i: int, x: np.ndarray, u_ref: np.ndarray, relax: int) -> tuple[_Solve | None, str]:
+    def _scp(self, i: int, x: np.ndarray, u_ref: np.ndarray, relax: int) -> tuple[_Solve | None, Status]:
         """Solve, check the true (29j), re-linearise about the solution; at most cbf_iterations solves."""
         c = self.cfg
-        status = "infeasible"
+        status = Status.INFEASIBLE
         for _ in range(max(1, c.cbf_iterations) if self._n_cbf else 1):
             qp = self._build(i, x, u_ref, relax)
             res, t_solve = self._run_solver(qp, i)
             self._clock[0] += t_solve
             self._clock[1] += res.iterations
             if res.x is None or not res.ok:
-                return None, str(res.status)
+                return None, res.status
             if qp.max_violation(res.x) > c.feasibility_tol:
-                return None, "infeasible_solution"
+                return None, Status.INFEASIBLE_SOLUTION
             z = res.x
             u = (z[:self._nu] - z[self._nu:2 * self._nu]).reshape(-1, 3)[i:] * c.u_max_mps
             ok, gmin, rmin = self.check_drift(x, u[0])
             if ok:
-                return _Solve(u, "optimal", self._clock[0], self._clock[1], relax, gmin, rmin), "optimal"
-            status = "cbf_violation"
+                return _Solve(u, Status.OPTIMAL, self._clock[0], self._clock[1], relax, gmin, rmin), Status.OPTIMAL
+            status = Status.CBF_VIOLATION
             u_ref = u[0]
         return None, status
 

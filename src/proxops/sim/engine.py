@@ -180,7 +180,7 @@ def simulate(setup: Setup, seed: int = 0, progress: bool = False) -> SimResult:
                 status.append(st)
                 modes.append(cmd.mode)
                 if st.flagged:
-                    events.append((t, "solver", st.value))
+                    events.append((t, "solver", cmd.status_detail or st.value))
                 if cmd.mode != last_mode and last_mode is not None:
                     events.append((t, "mode", f"{last_mode} -> {cmd.mode}"))
                 last_mode = cmd.mode

@@ -42,6 +42,7 @@ class Command:
     events: list[tuple[str, str]] = field(default_factory=list)  # (kind, message)
     info: dict = field(default_factory=dict)  # scalars recorded per step (e.g. value function)
     stop: bool = False  # controller declares the run finished (e.g. docked)
+    status_detail: str = ""  # the solver's own words for a failed status (message of the "solver" event)
 
 
 @runtime_checkable

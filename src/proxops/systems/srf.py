@@ -36,6 +36,7 @@ from pydantic import Field, model_validator
 from proxops.core.cw import cw_stm, mean_motion
 from proxops.errors import ProxopsInputError, input_error
 from proxops.scenarios.registry import register_system
+from proxops.systems.base import SystemBase
 from proxops.scenarios.schema import InitialSection, OrbitSection, ScenarioBase, Section, TruthSection, Vector3
 from proxops.sim.engine import Setup
 
@@ -424,7 +425,7 @@ def summarize_result(sc: SrfScenario, result) -> dict:
 
 
 @register_system("srf")
-class SrfSystem:
+class SrfSystem(SystemBase):
     Scenario = SrfScenario
 
     def build(self, sc: SrfScenario) -> Setup:

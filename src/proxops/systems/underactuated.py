@@ -30,6 +30,7 @@ import numpy as np
 from pydantic import Field, field_validator, model_validator
 
 from proxops.scenarios.registry import register_system
+from proxops.systems.base import SystemBase
 from proxops.scenarios.schema import ActuatorSection, ScenarioBase, Section
 from proxops.sim.engine import Setup
 
@@ -330,7 +331,7 @@ def _stats_ms(seconds: np.ndarray) -> dict:
 
 
 @register_system("underactuated")
-class UnderactuatedSystem:
+class UnderactuatedSystem(SystemBase):
     Scenario = UnderactuatedScenario
 
     def build(self, sc: UnderactuatedScenario) -> Setup:
