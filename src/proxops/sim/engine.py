@@ -41,7 +41,7 @@ from proxops.errors import input_error
 from proxops.navigation import PerfectNavigation
 from proxops.sim.protocols import Actuator, Controller, Navigation, Plant
 from proxops.sim.result import SimResult
-from proxops.status import Status, StopReason
+from proxops.status import NOT_FLAGGED, Status, StopReason
 
 STREAMS = ("navigation", "actuator", "plant", "controller")
 PERIOD_QUANTUM_S = 1e-6  # periods are commensurate on this grid
@@ -179,7 +179,7 @@ def simulate(setup: Setup, seed: int = 0, progress: bool = False) -> SimResult:
                 u_cmd[k], u_app[k], solve_t[k] = cmd.u, u, cmd.solve_time_s
                 status.append(st)
                 modes.append(cmd.mode)
-                if st.flagged:
+                if st not in NOT_FLAGGED:  # st.flagged, inline
                     events.append((t, "solver", cmd.status_detail or st.value))
                 if cmd.mode != last_mode and last_mode is not None:
                     events.append((t, "mode", f"{last_mode} -> {cmd.mode}"))
