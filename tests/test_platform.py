@@ -86,8 +86,9 @@ def test_single_rate_is_bit_identical_when_periods_are_given_equal():
 
 
 def test_schedule_grid_and_incommensurate_period():
-    assert schedule(10.0, None, None) == (10.0, 1, 1, 1)
-    assert schedule(30.0, 2.0, 0.5) == (0.5, 60, 4, 1)
+    assert schedule(10.0, None, None) == (10.0, 1, 1, 1, ())
+    assert schedule(30.0, 2.0, 0.5) == (0.5, 60, 4, 1, ())
+    assert schedule(2.0, None, None, [30.0]) == (2.0, 1, 1, 1, (15,))
     with pytest.raises(ProxopsInputError, match="navigation.period_s"):
         schedule(10.0, -1.0, None)
 
@@ -151,3 +152,48 @@ def test_status_vocabulary():
     assert Status.OPTIMAL_INACCURATE.ok and Status.OPTIMAL_INACCURATE.flagged
     assert not Status.OK.flagged and not Status.NONE.flagged and Status.INFEASIBLE.failed
     assert f"{Status.CBF_VIOLATION}" == "cbf_violation" and str(StopReason.CONTROLLER) == "controller"
+
+
+class Planner:
+    """Guidance every 30 s: the hold point is the current position pulled 10 % towards the origin."""
+
+    period_s = 30.0
+
+    def __init__(self):
+        self.ref, self.times = np.zeros(3), []
+
+    def reset(self, t0):
+        self.times = []
+
+    def update(self, t, x):
+        self.times.append(t)
+        self.ref = 0.9 * x[:3]
+        return [("replan", f"hold point {self.ref[0]:.3f} m")]
+
+
+class Tracker:
+    """PD on the planner's hold point every 2 s."""
+
+    dt = 2.0
+
+    def __init__(self, planner):
+        self.planner, self.seen = planner, []
+
+    def reset(self, t0, x0):
+        pass
+
+    def step(self, t, x):
+        self.seen.append((t, self.planner.ref.copy()))
+        return Command(u=1e-3 * (self.planner.ref - x[:3]) - 5e-2 * x[3:])
+
+
+def test_periodic_guidance_at_30s_feeds_a_2s_controller():
+    planner = Planner()
+    tracker = Tracker(planner)
+    res = simulate(Setup(plant=DoubleIntegrator(), controller=tracker, duration_s=120.0, periodic=[planner]))
+    np.testing.assert_allclose(planner.times, [0.0, 30.0, 60.0, 90.0])
+    assert len(res.events_of("replan")) == 4 and len(res.t) == 61  # base step 2 s
+    # the controller at t uses the plan of the last planner tick at or before t
+    for t, ref in tracker.seen:
+        k = int(np.searchsorted(res.t, 30.0 * (t // 30.0)))
+        np.testing.assert_allclose(ref, 0.9 * res.x_est[k, :3])

@@ -1,14 +1,17 @@
 """The one closed-loop engine: navigation -> controller -> actuator -> truth, multi-rate.
 
 Every component declares its period: ``controller.dt`` (s), ``navigation.period_s`` and
-``actuator.period_s`` (s, ``None`` = the controller's). The engine steps on their common grid
+``actuator.period_s`` (s, ``None`` = the controller's), and any number of further periodic
+components (``Setup.periodic``: e.g. a guidance planner every 30 s that updates the reference
+a 2 s tracking controller reads, :class:`proxops.sim.protocols.Periodic`). The engine steps on their common grid
 h (the greatest common divisor of the periods, commensurate to 1 us); the single-rate setup
 (all periods equal) is the one-component special case, h = controller.dt, and runs exactly the
 loop it always did. Each base tick k at t_k = k h:
 
 1. x_true = plant.relative_state(state); on navigation ticks x_est = navigation.measure(t, x_true,
    rng_nav) (held in between)
-2. on controller ticks cmd = controller.step(t, x_est)   (Command: u, kind, status, ...)
+2. each periodic component on its ticks: events += component.update(t, x_est); then on
+   controller ticks cmd = controller.step(t, x_est)   (Command: u, kind, status, ...)
 3. on actuator ticks (and every controller tick) u = actuator.apply(t, cmd.u, cmd.kind, rng_act)
    (an impulse only on the controller tick that commands it; an acceleration is held)
 4. impulse: state = plant.apply_impulse(...) then coast h; acceleration: ZOH over h (split into
@@ -39,7 +42,7 @@ from proxops.actuators import IdealActuator
 from proxops.dynamics.plant import translational_delta_v  # noqa: F401  (re-exported)
 from proxops.errors import input_error
 from proxops.navigation import PerfectNavigation
-from proxops.sim.protocols import Actuator, Controller, Navigation, Plant
+from proxops.sim.protocols import Actuator, Controller, Navigation, Periodic, Plant
 from proxops.sim.result import SimResult
 from proxops.status import NOT_FLAGGED, Status, StopReason
 
@@ -68,20 +71,23 @@ class Setup:
     stop_condition: Callable[[float, np.ndarray], str | None] | None = None
     check_substeps: int = 1
     meta: dict = field(default_factory=dict)
+    periodic: Sequence[Periodic] = ()  # further components on their own period (run before the controller)
 
 
-def schedule(ctrl_dt: float, nav_period: float | None, act_period: float | None) -> tuple[float, int, int, int]:
-    """Base step h (s) and the ticks per controller, navigation and actuator period.
+def schedule(ctrl_dt: float, nav_period: float | None, act_period: float | None,
+             extra_periods: Sequence[float] = ()) -> tuple[float, int, int, int, tuple[int, ...]]:
+    """Base step h (s) and the ticks per controller, navigation, actuator and extra period.
 
-    All periods equal (or None): ``(ctrl_dt, 1, 1, 1)`` exactly. Otherwise h is the greatest
-    common divisor of the periods on a 1 us grid and h = ctrl_dt / K_ctrl."""
+    All periods equal (or None): ``(ctrl_dt, 1, 1, 1, (1, ...))`` exactly. Otherwise h is the
+    greatest common divisor of the periods on a 1 us grid and h = ctrl_dt / K_ctrl."""
     periods = {"controller.dt": ctrl_dt, "navigation.period_s": nav_period or ctrl_dt,
                "actuator.period_s": act_period or ctrl_dt}
+    periods.update({f"periodic[{i}].period_s": p for i, p in enumerate(extra_periods)})
     for name, p in periods.items():
         if not (math.isfinite(p) and p > 0):
             raise input_error(name, p, "must be finite and > 0", "s")
     if len(set(periods.values())) == 1:
-        return ctrl_dt, 1, 1, 1
+        return ctrl_dt, 1, 1, 1, (1,) * len(extra_periods)
     ints = {}
     for name, p in periods.items():
         n = round(p / PERIOD_QUANTUM_S)
@@ -89,8 +95,8 @@ def schedule(ctrl_dt: float, nav_period: float | None, act_period: float | None)
             raise input_error(name, p, f"must be a multiple of {PERIOD_QUANTUM_S:g} s (multi-rate grid)", "s")
         ints[name] = n
     g = math.gcd(*ints.values())
-    k_ctrl, k_nav, k_act = (ints[n] // g for n in periods)
-    return ctrl_dt / k_ctrl, k_ctrl, k_nav, k_act
+    k_ctrl, k_nav, k_act, *k_extra = (ints[n] // g for n in periods)
+    return ctrl_dt / k_ctrl, k_ctrl, k_nav, k_act, tuple(k_extra)
 
 
 def simulate(setup: Setup, seed: int = 0, progress: bool = False) -> SimResult:
@@ -99,8 +105,12 @@ def simulate(setup: Setup, seed: int = 0, progress: bool = False) -> SimResult:
     streams = component_streams(seed)
     rng_nav, rng_act = streams["navigation"], streams["actuator"]
     plant.rng, ctrl.rng = streams["plant"], streams["controller"]
+    for comp in setup.periodic:
+        comp.reset(0.0)
     dt_ctrl = float(ctrl.dt)
-    h, k_ctrl, k_nav, k_act = schedule(dt_ctrl, nav.period_s, act.period_s)
+    h, k_ctrl, k_nav, k_act, k_extra = schedule(dt_ctrl, nav.period_s, act.period_s,
+                                                [float(c.period_s) for c in setup.periodic])
+    periodic = list(zip(setup.periodic, k_extra))
     single_rate = k_ctrl == k_nav == k_act == 1
     n_steps = int(round(setup.duration_s / h))
     layout = plant.layout
@@ -165,6 +175,9 @@ def simulate(setup: Setup, seed: int = 0, progress: bool = False) -> SimResult:
                 status.append(Status.NONE)
                 modes.append(last_mode or "")
                 break
+            for comp, k_comp in periodic:
+                if k % k_comp == 0:
+                    events.extend((t, kind, msg) for kind, msg in comp.update(t, xe))
             ctrl_tick = single_rate or k % k_ctrl == 0
             if ctrl_tick:
                 cmd = ctrl.step(t, xe)
@@ -233,6 +246,8 @@ def simulate(setup: Setup, seed: int = 0, progress: bool = False) -> SimResult:
     )
     if not single_rate:
         meta.update(base_step_s=h, navigation_period_s=h * k_nav, actuator_period_s=h * k_act)
+    if periodic:
+        meta.update(periodic_periods_s=[h * kp for _, kp in periodic])
     return SimResult(
         t=t_rec[:n],
         x_true=x_true[:n],

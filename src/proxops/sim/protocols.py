@@ -125,6 +125,20 @@ class Actuator(Protocol):
 
 
 @runtime_checkable
+class Periodic(Protocol):
+    """A further component on its own period (``Setup.periodic``), run on its ticks after
+    navigation and before the controller: e.g. a guidance planner every 30 s that re-plans the
+    reference a faster tracking controller (sharing the reference object) follows.
+    ``update(t, x_est)`` returns events ``(kind, message)``."""
+
+    period_s: float
+
+    def reset(self, t0: float) -> None: ...
+
+    def update(self, t: float, x_est: np.ndarray) -> list[tuple[str, str]]: ...
+
+
+@runtime_checkable
 class Constraint(Protocol):
     """A path constraint checked by the engine on the true measured state: ``violation(t, x)``
     >= 0 in the constraint's unit (m for keep-out and corridors), 0 when satisfied. Each

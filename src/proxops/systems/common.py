@@ -6,6 +6,7 @@ from __future__ import annotations
 import numpy as np
 
 from proxops.actuators import IdealActuator, ThrusterModel
+from proxops.core.layout import HILL_LAYOUT
 from proxops.navigation import GaussianNavigation, PerfectNavigation
 from proxops.scenarios.schema import ActuatorSection, InitialSection, NavigationSection, OrbitSection, TruthSection
 
@@ -66,7 +67,7 @@ def force_models(orbit: OrbitSection, truth: TruthSection):
 def navigation_model(nav: NavigationSection):
     if nav.position_sigma_m == 0.0 and nav.velocity_sigma_mps == 0.0:
         return PerfectNavigation()
-    return GaussianNavigation(nav.position_sigma_m, nav.velocity_sigma_mps)
+    return GaussianNavigation(nav.position_sigma_m, nav.velocity_sigma_mps, layout=HILL_LAYOUT)  # noise per block
 
 
 def actuator_model(act: ActuatorSection):
