@@ -242,3 +242,15 @@ def test_same_seed_campaigns_compare_equal_and_different_seeds_do_not(files):
     assert not any(is_timing_column(col) for col in a.columns)
     for col in ("metric.mpc_solve_ms.median", "metric.solve_time_ms.p95", "metric.wall_time_s", "run_cpu_s"):
         assert is_timing_column(col), col
+
+
+def test_malformed_scheduler_prints_one_line_in_a_real_process(tmp_path):
+    # a half-built distributed.Client used to print a traceback from __del__ when collected at exit
+    import subprocess
+    import sys
+
+    proc = subprocess.run([sys.executable, "-m", "proxops.entry", "mc", "station-keeping-mc", "--runs", "2",
+                           "--scheduler", "tcp://", "--out", str(tmp_path / "x")],
+                          capture_output=True, text=True, timeout=120)
+    lines = [ln for ln in proc.stderr.splitlines() if ln.strip()]
+    assert proc.returncode == 2 and len(lines) == 1 and lines[0].startswith("error: --scheduler"), proc.stderr

@@ -77,7 +77,7 @@ def _start(tmp_path: Path, workers: int, gate_open: int) -> tuple[subprocess.Pop
     return proc, out, gate
 
 
-def _wait_for(predicate, proc: subprocess.Popen, what: str, timeout: float = 90.0) -> None:
+def _wait_for(predicate, proc: subprocess.Popen, what: str, timeout: float = 300.0) -> None:
     t0 = time.monotonic()
     while not predicate():
         if proc.poll() is not None:

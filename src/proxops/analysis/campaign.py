@@ -279,15 +279,18 @@ def _new_pool(workers: int) -> ProcessPoolExecutor:
 
 
 def _stop_pool(pool: ProcessPoolExecutor, force: bool) -> None:
-    """Shut a pool down; ``force`` also terminates workers still running a batch (given up)."""
-    processes = list((getattr(pool, "_processes", None) or {}).values())
-    pool.shutdown(wait=False, cancel_futures=True)
+    """Shut a pool down and join its manager thread and workers, so their pipes and semaphores
+    are released before this process exits; ``force`` first terminates busy workers. (One
+    ``shutdown`` call: after ``shutdown(wait=False)`` the executor forgets its thread and a
+    later ``wait=True`` would not join it.)"""
     if force:
-        for proc in processes:
+        for proc in list((getattr(pool, "_processes", None) or {}).values()):
             try:
                 proc.terminate()
             except Exception:  # already gone
                 pass
+    with _sigint_blocked():  # a Ctrl-C now would leave half-closed queues behind
+        pool.shutdown(wait=True, cancel_futures=True)
 
 
 def shutdown_pools(force: bool = False) -> None:
@@ -295,9 +298,7 @@ def shutdown_pools(force: bool = False) -> None:
     terminates busy ones instead of waiting for them."""
     while _POOLS:
         _, pool = _POOLS.popitem()
-        if force:
-            _stop_pool(pool, force=True)
-        pool.shutdown(wait=True, cancel_futures=True)
+        _stop_pool(pool, force)
 
 
 atexit.register(shutdown_pools)
@@ -374,6 +375,14 @@ def _dask_client(scheduler, connect_timeout_s: float):
             )
         kwargs["scheduler_file"] = str(path)
     else:
+        from distributed.comm.addressing import parse_address, parse_host_port
+
+        try:  # checked before a Client exists: a half-built Client prints a traceback when collected
+            scheme, location = parse_address(text)
+            if scheme in ("tcp", "tls"):
+                parse_host_port(location)
+        except ValueError as exc:
+            raise ProxopsInputError(f"--scheduler {text!r}: {exc}; give tcp://HOST:PORT or a scheduler file") from None
         kwargs["address"] = text
     try:
         return Client(**kwargs)
