@@ -1,5 +1,7 @@
 """Guidance regimes for the approach to a tumbling target (tumbling-target-reachability.md §7)
-with the eq.-(11) MPC as safety filter; one Controller for the closed-loop engine.
+with the eq.-(11) MPC as safety filter; one Controller for the closed-loop engine, built on the
+generic :class:`proxops.control.supervisor.Supervisor` (sub-controllers far / close / hold, the
+§7 switching rule, hold absorbing; every regime change is a ``mode`` event).
 
 Regimes, by range r = |r_B| against r_sync = 2 a_max / w_t^2 (eq. 14):
 
