@@ -18,6 +18,7 @@ demo: $(STAMP)
 	$(BIN)/proxops demo --out out
 
 test: $(STAMP)
+	$(BIN)/lint-imports
 	$(BIN)/python -m pytest -q
 
 bench: $(STAMP)

@@ -115,13 +115,15 @@ def _pass_gate() -> None:
     gate = os.environ.get("PROXOPS_TOY_GATE")
     if not gate:
         return
-    import uuid
-
     os.makedirs(gate, exist_ok=True)
-    with open(os.path.join(gate, f"build-{uuid.uuid4().hex}"), "x"):
-        pass
-    n_started = sum(name.startswith("build-") for name in os.listdir(gate))
-    if n_started <= int(os.environ.get("PROXOPS_TOY_GATE_OPEN", "0")):
+    ordinal = 1  # this build's place in line: the first free number, claimed atomically (O_EXCL)
+    while True:
+        try:
+            os.close(os.open(os.path.join(gate, f"build-{ordinal:06d}"), os.O_CREAT | os.O_EXCL | os.O_WRONLY))
+            break
+        except FileExistsError:
+            ordinal += 1
+    if ordinal <= int(os.environ.get("PROXOPS_TOY_GATE_OPEN", "0")):
         return
     while not os.path.exists(os.path.join(gate, "release")):
         time.sleep(0.01)

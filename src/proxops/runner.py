@@ -1,8 +1,8 @@
 """Run a scenario end to end: load -> build -> simulate -> summarise -> save.
 
 A system may run several closed loops for one scenario (e.g. with and without a
-constraint) by overriding ``run(sc, seed, progress) -> (summary, {label: SimResult})``; the
-default (:class:`proxops.systems.base.SystemBase`) is one ``simulate(system.build(sc))``.
+constraint); it then defines ``run(sc, seed, progress) -> (summary, {label: SimResult})``.
+Otherwise the default is one ``simulate(system.build(sc))``.
 """
 
 from __future__ import annotations
@@ -11,28 +11,8 @@ import json
 from pathlib import Path
 
 from proxops.scenarios.loader import load_scenario
+from proxops.analysis.runs import check_scenario, execute  # noqa: F401 (re-exported)
 from proxops.sim.result import SimResult
-
-
-def execute(loaded, seed: int | None = None, progress: bool = False) -> tuple[dict, dict[str, SimResult]]:
-    """Run a loaded scenario; returns the summary and the results by label."""
-    sc, system = loaded.scenario, loaded.system
-    seed = sc.sim.seed if seed is None else seed
-    extra, results = system.run(sc, seed=seed, progress=progress)
-    main = next(iter(results.values()))
-    summary = {"scenario": sc.name, "system": sc.system, **main.summary(), **extra}
-    summary["seed"] = seed
-    return summary, results
-
-
-def check_scenario(loaded) -> None:
-    """Every check a run makes before its first step: the schema (done when loading), the
-    system's build (geometry, feasibility of the hop ladder, KOZ vs start...) and the
-    dispersions table. Raises ProxopsInputError with one line; ``validate`` and ``mc`` call it."""
-    from proxops.analysis.dispersions import parse_dispersions
-
-    loaded.system.check(loaded.scenario)  # default: build; planners without a closed loop check without building
-    parse_dispersions(loaded.scenario, loaded.scenario.dispersions)
 
 
 def run_scenario(name_or_path: str, overrides=(), seed: int | None = None, out: Path | None = None,
@@ -53,13 +33,9 @@ def save_run(loaded, summary: dict, results: dict[str, SimResult], out: Path, fi
     (out / "summary.json").write_text(json.dumps(summary, indent=2, default=str))
     paths: list[Path] = []
     if figures:
-        drawn = loaded.system.figures(loaded.scenario, results, out)
-        if drawn is not None:
-            paths = list(drawn)
-        else:
-            from proxops.plotting.common import plot_run
+        from proxops.plotting.systems import run_figures
 
-            paths = [plot_run(next(iter(results.values())), out / "trajectory.png", title=loaded.scenario.name)]
+        paths = run_figures(loaded.scenario.system, loaded.system, loaded.scenario, results, out)
     return paths
 
 

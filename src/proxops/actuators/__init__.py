@@ -73,6 +73,49 @@ class ThrusterModel(ActuatorBase):
         return u
 
 
+@dataclass(frozen=True)
+class ThrusterParameter:
+    """One parameter of :class:`ThrusterModel`, declared once for the model and the scenario's
+    ``[actuator]`` section (built from :data:`THRUSTER_PARAMETERS` in proxops.scenarios.schema).
+
+    field: ThrusterModel attribute (SI); key: scenario key (edge unit, e.g. ``_deg``);
+    default: scenario default (None: no limit); ge / gt / le: bounds of the scenario value;
+    to_model: scenario value -> model value (e.g. math.radians)."""
+
+    field: str
+    key: str
+    default: float | None
+    description: str
+    ge: float | None = None
+    gt: float | None = None
+    le: float | None = None
+    to_model: object = None
+
+
+THRUSTER_PARAMETERS = (
+    ThrusterParameter("max_per_axis", "max_per_axis", None, "per-axis saturation |u_i| <= max_per_axis, command "
+                      "unit (m/s^2 or m/s); none: no limit", gt=0.0),
+    ThrusterParameter("max_norm", "max_norm", None, "saturation of |u| (direction kept), command unit; none: no limit",
+                      gt=0.0),
+    ThrusterParameter("min_impulse", "min_impulse", 0.0, "commands with |u| below this fire nothing (minimum impulse "
+                      "bit), command unit", ge=0.0),
+    ThrusterParameter("magnitude_sigma", "magnitude_sigma", 0.0, "relative 1-sigma magnitude error (0.01 = 1 %)", ge=0.0),
+    ThrusterParameter("pointing_sigma_rad", "pointing_sigma_deg", 0.0, "1-sigma pointing error (random small rotation)",
+                      ge=0.0, to_model=math.radians),
+    ThrusterParameter("missed_probability", "missed_probability", 0.0, "probability that a command is not executed "
+                      "at all", ge=0.0, le=1.0),
+)
+
+
+def thruster_from_values(values: dict) -> ThrusterModel:
+    """A :class:`ThrusterModel` from scenario values keyed as in :data:`THRUSTER_PARAMETERS`."""
+    kwargs = {}
+    for p in THRUSTER_PARAMETERS:
+        v = values.get(p.key, p.default)
+        kwargs[p.field] = p.to_model(v) if (p.to_model is not None and v is not None) else v
+    return ThrusterModel(**kwargs)
+
+
 def _rotate_small(v: np.ndarray, rotation_vector: np.ndarray) -> np.ndarray:
     """Rotate the 3-vector ``v`` by the rotation vector (rad) with Rodrigues' formula
     (written on plain floats: this runs once per command in every Monte Carlo run)."""

@@ -57,11 +57,11 @@ Corrections / choices (also in the report):
   infeasible. ``hop_distance_weight_per_m2`` adds 1/2 w (a.p(J_m) - d_m)^2 towards Algorithm 1's
   distances d_m (hop-end positions are extra variables), which picks a robust interior split.
 
-QP (solved by :class:`proxops.solvers.PiqpQP`, Clarabel as fallback): condensed in the
+QP (solved by the persistent adapter of ``solver``, PIQP by default, Clarabel as fallback): condensed in the
 impulses, variables scaled to z = u / u_max in [0, 1] plus the terminal position error in km.
 The prediction blocks Phi(t_j - t_l) of the whole node grid are built once at construction;
 the shrinking horizon keeps one sparsity pattern (past impulses fixed to 0 by their bounds,
-past hop rows switched off), so a single PIQP solver is set up once and updated in place.
+past hop rows switched off), so a single solver is set up once and updated in place.
 Every accepted solution is checked for feasibility against its own rows.
 """
 
@@ -78,8 +78,7 @@ from proxops.constraints.keep_out import KeepOutSphere
 from proxops.core.cw import cw_stm
 from proxops.errors import input_error
 from proxops.sim.protocols import Command
-from proxops.solvers import PiqpQP, SolveStatus, solve_qp
-from proxops.solvers.front import QuadraticProgram
+from proxops.solvers import QuadraticProgram, SolveStatus, make_qp_solver, solve_qp, successive_convexification
 from proxops.status import Status
 
 KM = 1000.0
@@ -167,6 +166,10 @@ class _Qp:
     lb: np.ndarray
     ub: np.ndarray
     n_imp: int  # impulses in this horizon (N - i + 1)
+
+    def as_form(self) -> QuadraticProgram:
+        """Canonical QP with explicit equality rows (fixed row structure for in-place updates)."""
+        return QuadraticProgram(self.P, self.q, self.G, self.g_lo, self.g_hi, self.lb, self.ub, self.A_eq, self.b_eq)
 
     def as_program(self) -> QuadraticProgram:
         A = sp.vstack([self.A_eq, self.G], format="csc")
@@ -488,18 +491,21 @@ class SrfMpc:
         return _Qp(self._P, self._c, A_eq, b_eq, G, g_lo, g_hi, lb, ub, N - i + 1)
 
     def _run_solver(self, qp: _Qp, i: int, persistent: bool = True):
-        """Solve with the persistent PIQP solver (one-shot PIQP for other sparsity patterns);
-        Clarabel when PIQP fails for any reason but a certified infeasibility. Returns (result, seconds)."""
+        """Solve with the persistent adapter of ``cfg.solver`` (``setup(problem)`` once, ``update``
+        in place: the same calls for PIQP, Clarabel or DAQP; a one-shot solve for other sparsity
+        patterns); Clarabel when the solver fails for any reason but a certified infeasibility.
+        Returns (result, seconds)."""
         t0 = time.perf_counter()
-        if self.cfg.solver == "piqp" and persistent:
+        if persistent:
             if self._solver is None:
-                self._solver = PiqpQP(max_iter=80)  # normal solves take 20-35 iterations
-                self._solver.setup(qp.P, qp.q, qp.A_eq, qp.b_eq, qp.G, qp.g_lo, qp.g_hi, qp.lb, qp.ub)
+                # PIQP: normal solves take 20-35 iterations
+                self._solver = make_qp_solver(self.cfg.solver, **({"max_iter": 80} if self.cfg.solver == "piqp" else {}))
+                self._solver.setup(qp.as_form())
             else:
-                self._solver.update(A=qp.A_eq, b=qp.b_eq, G=qp.G, h_l=qp.g_lo, h_u=qp.g_hi, x_lb=qp.lb, x_ub=qp.ub)
+                self._solver.update(A_eq=qp.A_eq, b_eq=qp.b_eq, A=qp.G, bl=qp.g_lo, bu=qp.g_hi, lb=qp.lb, ub=qp.ub)
             res = self._solver.solve()
         else:
-            res = solve_qp(qp.as_program(), self.cfg.solver if self.cfg.solver != "piqp" else "piqp")
+            res = solve_qp(qp.as_program(), self.cfg.solver)
         if (res.x is None or not res.ok) and res.status != SolveStatus.INFEASIBLE:
             fb = solve_qp(qp.as_program(), "clarabel")
             fb.info["primary"] = str(res.status)
@@ -545,11 +551,14 @@ class SrfMpc:
         return _Solve(None, status, self._clock[0], self._clock[1], relax, events=events)
 
     def _scp(self, i: int, x: np.ndarray, u_ref: np.ndarray, relax: int) -> tuple[_Solve | None, Status]:
-        """Solve, check the true (29j), re-linearise about the solution; at most cbf_iterations solves."""
+        """Solve, check the true (29j), re-linearise about the solution; at most cbf_iterations solves
+        (:func:`proxops.solvers.successive_convexification`, no trust region)."""
         c = self.cfg
-        status = Status.INFEASIBLE
-        for _ in range(max(1, c.cbf_iterations) if self._n_cbf else 1):
-            qp = self._build(i, x, u_ref, relax)
+        ref = [u_ref]
+        checked = {}
+
+        def solve():
+            qp = self._build(i, x, ref[0], relax)
             res, t_solve = self._run_solver(qp, i)
             self._clock[0] += t_solve
             self._clock[1] += res.iterations
@@ -558,13 +567,23 @@ class SrfMpc:
             if qp.max_violation(res.x) > c.feasibility_tol:
                 return None, Status.INFEASIBLE_SOLUTION
             z = res.x
-            u = (z[:self._nu] - z[self._nu:2 * self._nu]).reshape(-1, 3)[i:] * c.u_max_mps
-            ok, gmin, rmin = self.check_drift(x, u[0])
-            if ok:
-                return _Solve(u, Status.OPTIMAL, self._clock[0], self._clock[1], relax, gmin, rmin), Status.OPTIMAL
-            status = Status.CBF_VIOLATION
-            u_ref = u[0]
-        return None, status
+            return (z[:self._nu] - z[self._nu:2 * self._nu]).reshape(-1, 3)[i:] * c.u_max_mps, None
+
+        def converged(u, _prev):
+            checked["drift"] = self.check_drift(x, u[0])
+            return checked["drift"][0]
+
+        def relinearize(u, _radius):
+            ref[0] = u[0]
+
+        out = successive_convexification(solve, converged, relinearize,
+                                         max_iter=max(1, c.cbf_iterations) if self._n_cbf else 1)
+        if out.converged:
+            _, gmin, rmin = checked["drift"]
+            return _Solve(out.iterate, Status.OPTIMAL, self._clock[0], self._clock[1], relax, gmin, rmin), Status.OPTIMAL
+        if out.failure:  # the subproblem's status (solve() below returns Status members)
+            return None, Status.parse(out.failure)
+        return None, Status.CBF_VIOLATION
 
     # ------------------------------------------------------------------ safety
     def drift_states(self, x: np.ndarray, u0: np.ndarray) -> np.ndarray:

@@ -97,6 +97,19 @@ class TumblingTarget:
         return np.concatenate([R @ r_B, R @ (v_B + cross3(self.omega_body, r_B))])
 
 
+def sync_range(a_max_mps2: float, tumble_rate_rad_s: float) -> float:
+    """r_sync = 2 a_max / w_t^2 (m), tumbling-target-reachability.md eq. (14): inside it the chaser's
+    acceleration a_max (m/s^2) can follow the rotating docking axis (tumble rate w_t, rad/s, either
+    sign). inf for a target at rest (w_t = 0). The one home of this formula (guidance, reach, los)."""
+    if not (math.isfinite(a_max_mps2) and a_max_mps2 > 0.0):
+        raise input_error("a_max", a_max_mps2, "must be finite and > 0", "m/s^2")
+    if not math.isfinite(tumble_rate_rad_s):
+        raise input_error("omega", tumble_rate_rad_s, "tumble rate must be finite", "rad/s")
+    if tumble_rate_rad_s == 0.0:
+        return math.inf
+    return 2.0 * a_max_mps2 / tumble_rate_rad_s**2
+
+
 def body_state_from_offset(R_IB: np.ndarray, omega_body: np.ndarray, eci_offset: np.ndarray) -> np.ndarray:
     """Eqs. (7)-(8): r_B = R_IB^T dr, v_B = R_IB^T dv - w_B x r_B."""
     d = np.asarray(eci_offset, float)

@@ -42,17 +42,10 @@ import numpy as np
 from proxops.constraints.los_corridor import LosCorridor
 from proxops.control.los_mpc import LosMpc, LosMpcConfig
 from proxops.control.supervisor import Supervisor
-from proxops.dynamics.tumbling_target import BodyFrameModel, cross3, rot_z
+from proxops.dynamics.tumbling_target import BodyFrameModel, cross3, rot_z, sync_range
 from proxops.errors import input_error
 from proxops.sim.protocols import Command
 from proxops.status import Status
-
-
-def sync_range(a_max: float, tumble_rate_rad_s: float) -> float:
-    """r_sync = 2 a_max / w_t^2 (m), eq. (14)."""
-    if tumble_rate_rad_s == 0.0:
-        return float("inf")
-    return 2.0 * a_max / tumble_rate_rad_s**2
 
 
 def auto_hold_range(a_max: float, tumble_rate_rad_s: float) -> float:

@@ -132,3 +132,14 @@ def campaign_figures(out: Path) -> list[Path]:
     if results:
         paths.insert(0, fig11_trajectories(sc, results, Path(out) / "fig11_trajectories.png"))
     return paths
+
+
+def run_figures(sc, results, out_dir: Path) -> list[Path]:
+    """``proxops run --out`` figure: the planned reference in 3-D."""
+    result = next(iter(results.values())) if isinstance(results, dict) else results
+    return [plan_figure_from_result(sc, result, Path(out_dir) / "reference_3d.png")]
+
+
+def mc_figures(sc, results, out_dir: Path) -> list[Path]:
+    """Campaign figure: Fig. 11 trajectories."""
+    return [fig11_trajectories(sc, results, Path(out_dir) / "fig11_trajectories.png")]

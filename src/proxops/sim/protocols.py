@@ -154,9 +154,9 @@ class System(Protocol):
     """One paper's system: its scenario model and how a scenario becomes a run.
 
     Defaults for every hook below ``summarize`` are in :class:`proxops.systems.base.SystemBase`:
-    ``run`` = one ``simulate(build(sc))``; ``check`` = build; ``figures`` = the trajectory plot;
-    ``success`` = the run did not end in a failed status; ``campaign_figures`` = none;
-    ``campaign_table`` = ``""``."""
+    ``run`` = one ``simulate(build(sc))``; ``check`` = build; ``success`` = the run did not end
+    in a failed status; ``campaign_table`` = ``""``. Figures are found by convention in
+    ``proxops.plotting.<system>`` (``run_figures``, ``mc_figures``; :mod:`proxops.plotting.systems`)."""
 
     Scenario: type  # pydantic model (subclass of proxops.scenarios.schema.ScenarioBase)
 
@@ -179,9 +179,5 @@ class System(Protocol):
     def success(self, sc, summary: dict) -> bool:
         """Whether a campaign run counts as a success."""
         ...
-
-    def figures(self, sc, results: dict, out_dir: Path) -> list[Path]: ...
-
-    def campaign_figures(self, sc, results, out_dir: Path) -> list[Path]: ...
 
     def campaign_table(self, sc, table) -> str: ...

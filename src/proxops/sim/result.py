@@ -19,6 +19,7 @@ import numpy as np
 import pandas as pd
 
 from proxops.core.layout import StateLayout
+from proxops.solvers.stats import solve_time_stats
 from proxops.status import Status
 
 
@@ -103,11 +104,7 @@ class SimResult:
             "wall_time_s": float(self.meta.get("wall_time_s", 0.0)),
             "steps": int(len(self.t) - 1),
             "solver_failures": int(sum(Status.parse(s).flagged for s in self.status)),
-            "solve_time_ms": {
-                "median": float(np.median(solved) * 1e3) if solved.size else 0.0,
-                "p95": float(np.percentile(solved, 95) * 1e3) if solved.size else 0.0,
-                "max": float(solved.max() * 1e3) if solved.size else 0.0,
-            },
+            "solve_time_ms": solve_time_stats(solved),
             "events": counts,
         }
 

@@ -3,13 +3,12 @@
 
 A system overrides ``build`` and ``summarize`` (and ``Scenario``); everything else has a
 default here: ``run`` is one closed loop, ``check`` builds it, ``success`` is "the run did not
-end in a failed status", ``figures`` returns None (the caller draws the standard trajectory
-figure), ``campaign_figures`` none and ``campaign_table`` ``""``.
+end in a failed status" and ``campaign_table`` ``""``. Figures are not a system hook: they are
+found by convention in ``proxops.plotting.<system>`` (:mod:`proxops.plotting.systems`), so
+systems never import plotting.
 """
 
 from __future__ import annotations
-
-from pathlib import Path
 
 from proxops.sim.engine import simulate
 
@@ -39,13 +38,6 @@ class SystemBase:
     def success(self, sc, summary: dict) -> bool:
         """A campaign run succeeds unless its summary status starts with failed/failure/error."""
         return not str(summary.get("status", "")).lower().startswith(FAILED_STATUSES)
-
-    def figures(self, sc, results: dict, out_dir: Path) -> list[Path] | None:
-        """The run's figures; None: the caller draws the standard trajectory figure."""
-        return None
-
-    def campaign_figures(self, sc, results, out_dir: Path) -> list[Path]:
-        return []
 
     def campaign_table(self, sc, table) -> str:
         return ""

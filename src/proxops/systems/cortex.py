@@ -19,7 +19,6 @@ of §5.1 from ``orbit.epoch_utc`` (:func:`proxops.environment.eclipse.eclipse_pr
 from __future__ import annotations
 
 import math
-from pathlib import Path
 from typing import Annotated, Literal
 
 import numpy as np
@@ -258,17 +257,6 @@ class CortexSystem(SystemBase):
 
     def success(self, sc: CortexScenario, summary: dict) -> bool:
         return Status.parse(summary.get("status", "")) is Status.OK
-
-    def figures(self, sc: CortexScenario, results, out_dir) -> list[Path]:
-        from proxops.plotting.cortex import plan_figure_from_result
-
-        result = next(iter(results.values())) if isinstance(results, dict) else results
-        return [plan_figure_from_result(sc, result, Path(out_dir) / "reference_3d.png")]
-
-    def campaign_figures(self, sc: CortexScenario, results, out_dir) -> list[Path]:
-        from proxops.plotting.cortex import fig11_trajectories
-
-        return [fig11_trajectories(sc, results, Path(out_dir) / "fig11_trajectories.png")]
 
     def campaign_table(self, sc: CortexScenario, table) -> str:
         if "metric.dv_total_mps" not in table:

@@ -27,18 +27,19 @@ that the next disturbance makes infeasible.
 from __future__ import annotations
 
 import math
-from pathlib import Path
 from typing import Annotated, Literal
 
 import numpy as np
 from pydantic import Field, model_validator
 
+from proxops.constraints.passive_safety import drift_safety, hermite_min_range
 from proxops.core.cw import cw_stm, mean_motion
 from proxops.errors import ProxopsInputError, input_error
 from proxops.scenarios.registry import register_system
 from proxops.systems.base import SystemBase
 from proxops.scenarios.schema import InitialSection, OrbitSection, ScenarioBase, Section, TruthSection, Vector3
 from proxops.sim.engine import Setup
+from proxops.solvers.stats import solve_time_stats
 
 ENGINE_STEPS_PER_ORBIT = 720
 
@@ -280,22 +281,6 @@ class _Handover:
 
 
 # --------------------------------------------------------------------------- safety
-def _hermite_min_range(t, x, center) -> float:
-    """Minimum |p - c| along cubic Hermite interpolants between samples (positions + velocities)."""
-    t = np.asarray(t, dtype=float)
-    p = x[:, :3] - center
-    v = x[:, 3:6]
-    best = float(np.min(np.linalg.norm(p, axis=1)))
-    if len(t) < 2:
-        return best
-    s = np.linspace(0.0, 1.0, 21)[1:-1, None, None]
-    h00, h10 = 2 * s**3 - 3 * s**2 + 1, s**3 - 2 * s**2 + s
-    h01, h11 = -2 * s**3 + 3 * s**2, s**3 - s**2
-    dt = np.diff(t)[None, :, None]
-    seg = h00 * p[:-1] + h10 * dt * v[:-1] + h01 * p[1:] + h11 * dt * v[1:]
-    return min(best, float(np.min(np.linalg.norm(seg, axis=2))))
-
-
 def passive_abort(sc: SrfScenario, result) -> list[dict]:
     """From each hop impulse: propagate the unforced TRUTH for ``safety.abort_orbits`` orbits.
 
@@ -327,10 +312,8 @@ def passive_abort(sc: SrfScenario, result) -> list[dict]:
             drift = plant.free_drift(plant.with_relative_state(full, x_post), times)
         else:
             drift = plant.free_drift(x_post, times)
-        rng = _hermite_min_range(times, drift, np.zeros(3))
-        koz_d = _hermite_min_range(times, drift, koz.center_m) - koz.radius_m
         item = {"t_s": float(result.t[k]), "dv_mps": float(np.linalg.norm(result.u_applied[k])),
-                "min_range_m": rng, "min_koz_distance_m": koz_d, "safe": bool(koz_d > 0.0)}
+                **drift_safety(times, drift, koz)}
         if vbar:
             k_orbit = int(np.argmin(np.abs(times - period)))
             item["return_miss_m"] = float(np.linalg.norm(drift[k_orbit, :3] - x_post[:3]))
@@ -379,8 +362,8 @@ def summarize_result(sc: SrfScenario, result) -> dict:
     hop_nodes = result.meta.get("hop_node_times_s", [])
     hop_start_times = [0.0] + list(hop_nodes)[:-1]
     abort = passive_abort(sc, result)
-    min_range_fine = _hermite_min_range(result.t, result.x_true, np.zeros(3))
-    koz_fine = _hermite_min_range(result.t, result.x_true, koz.center_m) - koz.radius_m
+    min_range_fine = hermite_min_range(result.t, result.x_true, np.zeros(3))
+    koz_fine = hermite_min_range(result.t, result.x_true, koz.center_m) - koz.radius_m
     period = float(result.meta.get("period_s", 1.0))
     out = {
         "approach_deg": sc.approach.angle_deg,
@@ -419,8 +402,7 @@ def summarize_result(sc: SrfScenario, result) -> dict:
         sel = np.nan_to_num(mask) > 0
         st = result.solve_time_s[sel]
         if st.size:
-            out["mpc_solve_ms"] = {"median": float(np.median(st) * 1e3), "p95": float(np.percentile(st, 95) * 1e3),
-                                   "max": float(st.max() * 1e3)}
+            out["mpc_solve_ms"] = solve_time_stats(st)
     return out
 
 
@@ -455,15 +437,3 @@ class SrfSystem(SystemBase):
         return bool(summary.get("reached_reference") and not summary.get("koz_violated")
                     and summary.get("abort_safe_all"))
 
-    def campaign_figures(self, sc: SrfScenario, results: list, out_dir) -> list[Path]:
-        """Monte Carlo overlay (Figs. 5/7/10) from a campaign's saved series."""
-        from proxops.plotting import srf as plots
-
-        theta_deg = sc.approach.angle_deg
-        return [plots.plot_mc_overlay(results, Path(out_dir) / "srf_mc_overlay.png", theta_deg=theta_deg,
-                                      koz_radius_m=sc.keep_out.radius_m, title=f"{sc.name}: Monte Carlo")]
-
-    def figures(self, sc: SrfScenario, results, out_dir) -> list[Path]:
-        from proxops.plotting import srf as plots
-
-        return plots.scenario_figures(sc, results, Path(out_dir))
