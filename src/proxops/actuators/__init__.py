@@ -1,9 +1,12 @@
-"""Thruster models between the controller's command and the truth (all effects optional)."""
+"""Thruster models between the controller's command and the truth (all effects optional).
+
+Every model follows :class:`proxops.sim.protocols.Actuator`: ``apply(t, u, kind, rng)`` and
+``period_s`` (None = once per controller sample)."""
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -11,7 +14,17 @@ from proxops.core.constants import G0
 
 
 @dataclass
-class IdealActuator:
+class ActuatorBase:
+    """Defaults of an actuator model: applied once per controller sample."""
+
+    period_s: float | None = field(default=None, kw_only=True)
+
+    def apply(self, t: float, u: np.ndarray, kind: str, rng: np.random.Generator) -> np.ndarray:
+        raise NotImplementedError
+
+
+@dataclass
+class IdealActuator(ActuatorBase):
     """Applies the command unchanged."""
 
     def apply(self, t: float, u: np.ndarray, kind: str, rng: np.random.Generator) -> np.ndarray:
@@ -19,7 +32,7 @@ class IdealActuator:
 
 
 @dataclass
-class ThrusterModel:
+class ThrusterModel(ActuatorBase):
     """Limits and execution errors of a translational thruster set.
 
     Units follow the command kind: m/s^2 for ``acceleration``, m/s for ``impulse``.

@@ -56,8 +56,9 @@ from proxops.analysis.statistics import (
 )
 from proxops.errors import ProxopsInputError
 
+from proxops.systems.base import FAILED_STATUSES  # noqa: F401  (one home: the default SystemBase.success)
+
 MAX_RUNS = 10_000_000  # rows of one campaign; items are made lazily, the table of results is what grows
-FAILED_STATUSES = ("failed", "failure", "error")
 
 
 from proxops.exec.backends import (  # noqa: E402,F401 (public names re-exported from here)
@@ -158,13 +159,9 @@ def campaign_run(spec: CampaignSpec, item: RunItem):
 
 
 def classify(system, sc, summary: dict) -> bool:
-    """Success of one run: ``system.success(sc, summary)`` when the system defines it,
-    otherwise the run did not end in a failed status."""
-    hook = getattr(system, "success", None)
-    if hook is not None:
-        return bool(hook(sc, summary))
-    status = str(summary.get("status", "")).lower()
-    return not status.startswith(FAILED_STATUSES)
+    """Success of one run: ``system.success(sc, summary)`` (default: SystemBase.success, the run
+    did not end in a failed status)."""
+    return bool(system.success(sc, summary))
 
 
 _SKIP_SUMMARY = {"scenario", "system", "seed", "out", "status"}

@@ -75,6 +75,7 @@ from proxops.errors import input_error
 from proxops.sim.protocols import Command
 from proxops.solvers.casadi_nlp import Buffered as _Buffered
 from proxops.solvers.casadi_nlp import CasadiNLP, NonlinearProgram
+from proxops.status import Status
 
 VARIANTS = ("general", "averaged")
 # Warm solver: fatrop (structure-exploiting, ships with CasADi) measured ~3x faster than
@@ -319,7 +320,9 @@ class _Nlp:
         Returns (result or None, status, iterations, warm_used); the result holds copies of
         ``x``, ``lam_g`` and ``lam_x``. Wall time inside the solvers accumulates in
         ``solver_time_s``."""
+        self.last_status = Status.FAILED  # the vocabulary status of a failed solve (the returned text is the detail)
         if not (np.all(np.isfinite(s)) and np.all(np.isfinite(w0))):
+            self.last_status = Status.INVALID_INPUT
             return None, "invalid_input", 0, False  # fatrop does not return from a NaN guess
         ubg = self.ubg
         if self.augmented:
@@ -343,6 +346,7 @@ class _Nlp:
             if res.info["success"] and self.feasible(res.x, s, ubg):
                 return {"x": res.x, "lam_g": res.info["lam_g"], "lam_x": res.info["lam_x"]}, "ok", iters, key == "warm"
             status = f"{name}:{res.info['raw_status']}"
+            self.last_status = Status.INFEASIBLE_SOLUTION if res.info["success"] else res.status
         return None, status, iters, False
 
 
@@ -453,7 +457,7 @@ class UnderactuatedNMPC:
         s[2] = wrap_angle(s[2])
         cfg = self.config
         if cfg.stop_when_docked and self.docking.contains(s):
-            return Command(u=np.zeros(N_CONTROL), status="ok", mode="docked", stop=True)
+            return Command(u=np.zeros(N_CONTROL), status=Status.OK, mode="docked", stop=True)
 
         # eq. 14: every N steps the bound becomes the mean of the last N values
         if cfg.variant == "averaged" and self._k >= cfg.average_window and self._k % cfg.average_window == 0:
@@ -501,8 +505,10 @@ class UnderactuatedNMPC:
                 u = np.clip(U0[0], *self.limits.control_bounds())
             else:
                 u = np.zeros(N_CONTROL)
-            return Command(u=u, status=status, solve_time_s=time.perf_counter() - t_start, mode=cfg.variant, info=info)
-        return Command(u=self._plan[1][0].copy(), status="ok", solve_time_s=time.perf_counter() - t_start,
+            st = nlp.last_status  # the solver's own words ("ipopt:Infeasible_Problem_Detected") are the detail
+            return Command(u=u, status=st, solve_time_s=time.perf_counter() - t_start, mode=cfg.variant,
+                           info=info, status_detail="" if st.value == status else status)
+        return Command(u=self._plan[1][0].copy(), status=Status.OK, solve_time_s=time.perf_counter() - t_start,
                        mode=cfg.variant, info=info)
 
     def _solver_time_s(self) -> float:

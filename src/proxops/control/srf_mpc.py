@@ -100,6 +100,7 @@ from proxops.core.cw import cw_stm
 from proxops.errors import input_error
 from proxops.sim.protocols import Command
 from proxops.solvers import QuadraticProgram, SolveStatus, make_qp_solver, solve_qp, successive_convexification
+from proxops.status import Status
 
 KM = 1000.0
 OFF = 1e3  # bound of rows that are switched off (scaled units: km or m/s; both sides infinite makes PIQP zero the row)
@@ -263,7 +264,7 @@ class _Qp:
 @dataclass
 class _Solve:
     u: np.ndarray | None  # (M, 3) impulses u_i..u_N (m/s) or None
-    status: str
+    status: Status
     solve_time_s: float
     iterations: int = 0
     relax: int = 0
@@ -381,12 +382,12 @@ class SrfMpc:
         k = int(round(t / self.dt))
         N = self.sched.n
         if k > self.sched.steps[-1] or self.finished:
-            return Command(np.zeros(3), "impulse", "ok", mode="handover", stop=True)
+            return Command(np.zeros(3), "impulse", Status.OK, mode="handover", stop=True)
         node = self._node_of_step.get(k)
         hop = int(np.searchsorted(self.sched.hop_nodes, node if node is not None else self._node_before(k), side="right")) + 1
         mode = "brake" if node == N else f"hop {min(hop, len(self.sched.hop_nodes))}"
         if node is None:
-            return Command(np.zeros(3), "impulse", "ok", mode=mode, info={"solved": 0.0})
+            return Command(np.zeros(3), "impulse", Status.OK, mode=mode, info={"solved": 0.0})
         if node in self._hop_node_set:
             self.rx_hist[node] = float(self.a @ x[:3])
         res = self._solve_node(node, x)
@@ -647,7 +648,7 @@ class SrfMpc:
         c = self.cfg
         self._clock = [0.0, 0]  # solver seconds, iterations
         events = []
-        status = "infeasible"
+        status = Status.INFEASIBLE
         first_ref = self.plan[i].copy()
         if self.cfg.drift_free_tol_mps is not None and not np.any(first_ref):
             # no plan yet: the drift-free hold is much nearer the drift-free solution than a drifting
@@ -663,7 +664,7 @@ class SrfMpc:
             # A reference whose drift is safe gives CBF rows that the reference itself satisfies, so an
             # infeasible problem is then blamed on the other rows (relax them); otherwise check without
             # the CBF rows and retry from better references.
-            suspect_cbf = status == "cbf_violation" or (status in ("infeasible", "infeasible_solution") and not ref_safe)
+            suspect_cbf = status is Status.CBF_VIOLATION or (status in (Status.INFEASIBLE, Status.INFEASIBLE_SOLUTION) and not ref_safe)
             if sol is None and self._n_cbf and suspect_cbf:
                 # Is it the CBF linearisation? Solve without the CBF rows once.
                 qp = self._build(i, x, None, relax, with_cbf=False)
@@ -689,7 +690,7 @@ class SrfMpc:
                                + f" at node {i} ({status})"))
         return _Solve(None, status, self._clock[0], self._clock[1], relax, events=events)
 
-    def _scp(self, i: int, x: np.ndarray, u_ref: np.ndarray, relax: int) -> tuple[_Solve | None, str]:
+    def _scp(self, i: int, x: np.ndarray, u_ref: np.ndarray, relax: int) -> tuple[_Solve | None, Status]:
         """Solve, check the true (29j), re-linearise about the solution; at most cbf_iterations solves
         (:func:`proxops.solvers.successive_convexification`, no trust region)."""
         c = self.cfg
@@ -702,9 +703,9 @@ class SrfMpc:
             self._clock[0] += t_solve
             self._clock[1] += res.iterations
             if res.x is None or not res.ok:
-                return None, str(res.status)
+                return None, res.status
             if qp.max_violation(res.x) > c.feasibility_tol:
-                return None, "infeasible_solution"
+                return None, Status.INFEASIBLE_SOLUTION
             z = res.x
             return (z[:self._nu] - z[self._nu:2 * self._nu]).reshape(-1, 3)[i:] * c.u_max_mps, None
 
@@ -719,10 +720,10 @@ class SrfMpc:
                                          max_iter=max(1, c.cbf_iterations) if self._n_cbf else 1)
         if out.converged:
             _, gmin, rmin = checked["drift"]
-            return _Solve(out.iterate, "optimal", self._clock[0], self._clock[1], relax, gmin, rmin), "optimal"
-        if out.status == "failed":
-            return None, out.failure
-        return None, "cbf_violation"
+            return _Solve(out.iterate, Status.OPTIMAL, self._clock[0], self._clock[1], relax, gmin, rmin), Status.OPTIMAL
+        if out.failure:  # the subproblem's status (solve() below returns Status members)
+            return None, Status.parse(out.failure)
+        return None, Status.CBF_VIOLATION
 
     # ------------------------------------------------------------------ safety
     def drift_states(self, x: np.ndarray, u0: np.ndarray) -> np.ndarray:

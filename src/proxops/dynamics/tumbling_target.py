@@ -45,6 +45,7 @@ from proxops.core.constants import MU_EARTH
 from proxops.core.cw import cw_discretize_zoh
 from proxops.core.quaternion import IDENTITY, dcm_to_quat, quat_normalize, quat_propagate, quat_to_dcm
 from proxops.errors import input_error
+from proxops.dynamics.plant import PlantBase
 
 
 # --------------------------------------------------------------------------------------
@@ -344,7 +345,7 @@ class NonlinearBodyStep:
 # --------------------------------------------------------------------------------------
 # truth plant reporting the body-frame relative state
 # --------------------------------------------------------------------------------------
-class TumblingTargetTruth:
+class TumblingTargetTruth(PlantBase):
     """Plant (proxops.sim.protocols) around an Encke truth (e.g.
     :class:`proxops.propagation.truth.RelativeTruth`, two-body + J2) and a tumbling target.
 

@@ -119,5 +119,4 @@ def _system_campaign_table(manifest: dict, table: pd.DataFrame) -> str:
     """A Markdown table the system builds from the campaign rows (``campaign_table`` hook),
     e.g. Table 3 of tumbling-target-reachability.md for the los-sweep grid; '' if none."""
     loaded = _campaign_system(manifest)
-    build = getattr(loaded.system, "campaign_table", None)
-    return build(loaded.scenario, table) if build is not None else ""
+    return loaded.system.campaign_table(loaded.scenario, table)  # default (SystemBase): ""

@@ -1,7 +1,8 @@
 """Systems by name. A system turns a validated scenario into a simulator Setup.
 
 A system object has ``Scenario`` (a pydantic model subclassing ScenarioBase),
-``build(sc) -> Setup`` and ``summarize(sc, result) -> dict``; it registers itself with
+``build(sc) -> Setup`` and ``summarize(sc, result) -> dict`` (the other hooks default in
+:class:`proxops.systems.base.SystemBase`); it registers itself with
 ``@register_system(name)`` when its module is imported. Figures live in
 ``proxops.plotting.<name>`` (see :mod:`proxops.plotting.systems`).
 
@@ -21,7 +22,7 @@ import pkgutil
 
 SYSTEMS_PACKAGE = "proxops.systems"
 ENTRY_POINT_GROUP = "proxops.systems"
-_HELPERS = {"common"}  # modules of proxops.systems that are not systems
+_HELPERS = {"common", "base"}  # modules of proxops.systems that are not systems (helpers, SystemBase)
 
 
 def _discover() -> dict[str, str]:

@@ -6,6 +6,7 @@ from __future__ import annotations
 import numpy as np
 
 from proxops.actuators import IdealActuator, thruster_from_values
+from proxops.core.layout import HILL_LAYOUT
 from proxops.navigation import GaussianNavigation, PerfectNavigation
 from proxops.scenarios.schema import ActuatorSection, InitialSection, NavigationSection, OrbitSection, TruthSection
 
@@ -71,7 +72,7 @@ def navigation_model(nav: NavigationSection, per_state_sigma=None):
         return PerfectNavigation()
     if per_state_sigma is not None:
         return GaussianNavigation(sigma=per_state_sigma(nav.position_sigma_m, nav.velocity_sigma_mps))
-    return GaussianNavigation(nav.position_sigma_m, nav.velocity_sigma_mps)
+    return GaussianNavigation(nav.position_sigma_m, nav.velocity_sigma_mps, layout=HILL_LAYOUT)  # noise per block
 
 
 def actuator_model(act: ActuatorSection):

@@ -25,7 +25,9 @@ import numpy as np
 from pydantic import Field, model_validator
 
 from proxops.scenarios.registry import register_system
+from proxops.systems.base import SystemBase
 from proxops.scenarios.schema import OrbitSection, ScenarioBase, Section, Vector3
+from proxops.status import Status
 
 PAPER_5_1_1 = {  # §5.1.1, 100 Fibonacci axes
     "dv_median_mps": 0.6579, "dv_iqr_mps": 0.1600,
@@ -233,7 +235,7 @@ def summarize_plan(plan) -> dict:
 
 
 @register_system("cortex")
-class CortexSystem:
+class CortexSystem(SystemBase):
     Scenario = CortexScenario
 
     def run(self, sc: CortexScenario, seed: int = 0, progress: bool = False):
@@ -254,7 +256,7 @@ class CortexSystem:
         return {}
 
     def success(self, sc: CortexScenario, summary: dict) -> bool:
-        return str(summary.get("status", "")) == "ok"
+        return Status.parse(summary.get("status", "")) is Status.OK
 
     def campaign_table(self, sc: CortexScenario, table) -> str:
         if "metric.dv_total_mps" not in table:

@@ -36,8 +36,10 @@ from pydantic import Field
 from proxops.core.cw import mean_motion
 from proxops.dynamics.tumbling_target import sync_range
 from proxops.scenarios.registry import register_system
+from proxops.systems.base import SystemBase
 from proxops.scenarios.schema import OrbitSection, ScenarioBase, Section, TruthSection, Vector3
 from proxops.sim.engine import Setup
+from proxops.status import Status
 
 VIOLATION_TOLERANCE_M = 1e-3  # §9 step 3
 COMPLETED_OUTCOMES = ("completed", "hold_reached")  # ran to T_sim (or stopped at hold on request)
@@ -196,7 +198,7 @@ def summarize_result(sc: LosScenario, result) -> dict:
     viol = np.asarray(corridor.violation_body(result.x_true[:, :3]))
     outcome = result.meta.get("outcome", "completed")
     n_viol = int(np.sum(viol > VIOLATION_TOLERANCE_M))
-    qp_infeasible = outcome == "qp_infeasible" or any(s == "infeasible" for s in result.status)
+    qp_infeasible = outcome == "qp_infeasible" or any(Status.parse(s) is Status.INFEASIBLE for s in result.status)
     hold = any(kind == "hold" for _, kind, _ in result.events) or outcome == "hold_reached"
     w = np.radians(sc.target.tumble_rate_deg_s)
     r_sync = sync_range(sc.chaser.a_max_mps2, w) if w > 0 else float("inf")
@@ -315,7 +317,7 @@ def sweep_table(source) -> str:
 
 
 @register_system("los")
-class LosSystem:
+class LosSystem(SystemBase):
     Scenario = LosScenario
 
     def build(self, sc: LosScenario) -> Setup:

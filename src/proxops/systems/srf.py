@@ -45,6 +45,7 @@ from proxops.constraints.passive_safety import drift_safety, first_entry_time, h
 from proxops.core.cw import cw_stm, mean_motion
 from proxops.errors import ProxopsInputError, input_error
 from proxops.scenarios.registry import register_system
+from proxops.systems.base import SystemBase
 from proxops.scenarios.schema import InitialSection, OrbitSection, ScenarioBase, Section, TruthSection, Vector3
 from proxops.sim.engine import Setup
 from proxops.solvers.stats import solve_time_stats
@@ -471,7 +472,7 @@ def summarize_result(sc: SrfScenario, result) -> dict:
 
 
 @register_system("srf")
-class SrfSystem:
+class SrfSystem(SystemBase):
     Scenario = SrfScenario
 
     def build(self, sc: SrfScenario) -> Setup:

@@ -29,6 +29,7 @@ import numpy as np
 from pydantic import Field, field_validator, model_validator
 
 from proxops.scenarios.registry import register_system
+from proxops.systems.base import SystemBase
 from proxops.scenarios.schema import ActuatorSection, ScenarioBase, Section
 from proxops.sim.engine import Setup
 from proxops.solvers.stats import solve_time_stats
@@ -315,7 +316,7 @@ def summarize_result(sc: UnderactuatedScenario, result) -> dict:
 
 
 @register_system("underactuated")
-class UnderactuatedSystem:
+class UnderactuatedSystem(SystemBase):
     Scenario = UnderactuatedScenario
 
     def build(self, sc: UnderactuatedScenario) -> Setup:
