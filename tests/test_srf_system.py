@@ -105,9 +105,12 @@ def test_rbar_closed_loop_against_j2_truth():
 def test_vbar_passive_abort_over_three_orbits_against_j2_truth():
     """Issue 11 / §2 "indefinite hold": the nominal V-bar run is abort-safe over the default 3-orbit
     window from every hop impulse against J2 truth, and the return miss per orbit is reported.
-    Bound: the navigation floor of one white sample of c = vy + 2 n x (sigma 0.5 m, 0.5 mm/s ->
-    1.0 mm/s) times 3 t_orb is 22 m per orbit (1 sigma); before the drift rows the last hop missed by
-    88 m per orbit and entered the KOZ in the second orbit."""
+    Bounds: the first hop's drift row sees one white sample of c = vy + 2 n x (sigma 0.5 m, 0.5 mm/s
+    -> 1.0 mm/s), which times 3 t_orb is 22 m per orbit at 1 sigma: asserted at 3 sigma (65 m). Later
+    hops average c over the ~360 samples of the previous hop (1 sigma ~1.2 m per orbit) plus the J2
+    model residual: asserted below 10 m. Measured with seeds 0-3: first hop 2.4-57.8 m, later hops
+    1.4-5.8 m per orbit. Before the drift rows the last hop missed by 88 m per orbit and entered the
+    KOZ in the second orbit."""
     from proxops.core.cw import mean_motion
     from proxops.runner import execute
 
@@ -117,11 +120,11 @@ def test_vbar_passive_abort_over_three_orbits_against_j2_truth():
     assert summary["abort_window_orbits"] == 3.0 and summary["abort_required_orbits"] == 3.0
     assert summary["abort_safe_all"] and summary["abort_safe_window_orbits"] == 3.0
     n = mean_motion(8100e3)
-    floor = 3 * (2 * math.pi / n) * math.hypot(2 * n * 0.5, 0.0005)
-    for item in summary["abort"]:
+    floor = 3 * (2 * math.pi / n) * math.hypot(2 * n * 0.5, 0.0005)  # 1 sigma, one sample of c
+    for j, item in enumerate(summary["abort"]):
         assert item["min_koz_distance_m"] > 0.0
         assert len(item["return_miss_m"]) == 3
-        assert item["return_miss_per_orbit_m"] < floor
+        assert item["return_miss_per_orbit_m"] < (3 * floor if j == 0 else 10.0)
 
 
 def test_rbar_and_glideslope_require_one_orbit_of_abort_safety():
