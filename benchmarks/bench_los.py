@@ -23,7 +23,7 @@ import time  # noqa: E402
 
 import numpy as np  # noqa: E402
 
-from proxops.guidance.los_regimes import sync_range  # noqa: E402
+from proxops.dynamics.tumbling_target import sync_range  # noqa: E402
 from proxops.sim.engine import simulate  # noqa: E402
 from proxops.systems.los import (  # noqa: E402
     SWEEP_A_MAX_MPS2,

@@ -17,9 +17,11 @@ from pydantic import Field
 
 from proxops.core.cw import cw_input_matrix_zoh, cw_stm, mean_motion
 from proxops.scenarios.registry import register_system
+from proxops.systems.base import SystemBase
 from proxops.scenarios.schema import InitialSection, OrbitSection, ScenarioBase, Section, Vector3
 from proxops.sim.engine import Setup
 from proxops.systems.common import actuator_model, initial_hill_state, navigation_model
+from proxops.dynamics.plant import PlantBase
 
 TOY_SCENARIO = {
     "name": "toy",
@@ -55,7 +57,7 @@ class ToyScenario(ScenarioBase):
     toy: ToySection = ToySection()
 
 
-class ExactCWPlant:
+class ExactCWPlant(PlantBase):
     """CW truth propagated with the exact ZOH discretisation (closed form)."""
 
     n_x, n_u = 6, 3
@@ -128,7 +130,7 @@ def _pass_gate() -> None:
 
 
 @register_system("campaign-toy")
-class ToySystem:
+class ToySystem(SystemBase):
     Scenario = ToyScenario
 
     def build(self, sc):

@@ -8,9 +8,10 @@ from proxops.navigation import GaussianNavigation
 from proxops.sim.engine import Setup, simulate
 from proxops.sim.protocols import Command
 from proxops.sim.result import SimResult
+from proxops.dynamics.plant import PlantBase
 
 
-class DoubleIntegrator:
+class DoubleIntegrator(PlantBase):
     """3-D double integrator: exact ZOH solution r += v dt + a dt^2/2, v += a dt."""
 
     n_x, n_u = 6, 3

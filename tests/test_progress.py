@@ -139,7 +139,10 @@ def test_campaign_bars_count_runs_including_resumed_ones(monkeypatch, tmp_path):
         def close(self):
             pass
 
+    from proxops.exec import backends
+
     monkeypatch.setattr(campaign, "_bar", Bar)
+    monkeypatch.setattr(backends, "_bar", Bar)  # map_runs lives in the execution layer
     data = copy.deepcopy(toy.TOY_SCENARIO)
     campaign.run_campaign(data, n_runs=5, workers=1, seed=3, out=tmp_path / "c", progress=True)
     campaign.run_campaign(data, n_runs=9, workers=1, seed=3, out=tmp_path / "c", resume=True, progress=True)

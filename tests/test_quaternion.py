@@ -123,3 +123,14 @@ def test_bad_input_raises_clear_error():
         Q.quat_normalize([0, 0, 0, 0])
     with pytest.raises(ProxopsInputError, match="rotation axis"):
         Q.quat_from_axis_angle([0, 0, 0], 1.0)
+
+
+def test_numba_kernels_equal_the_numpy_functions():
+    rng = np.random.default_rng(3)
+    for _ in range(20):
+        q = Q.quat_normalize(rng.standard_normal(4))
+        w = rng.standard_normal(3)
+        np.testing.assert_allclose(Q.dcm_kernel(q), Q.quat_to_dcm(q), atol=1e-15)
+        np.testing.assert_allclose(Q.kinematics_kernel(q, w), Q.quat_kinematics(q, w), atol=1e-15)
+        p = Q.quat_normalize(rng.standard_normal(4))
+        np.testing.assert_allclose(Q.multiply_kernel(p, q), Q.quat_multiply(p, q), atol=1e-15)

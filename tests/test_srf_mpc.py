@@ -151,3 +151,39 @@ def test_schedule_rounds_hops_to_engine_steps_and_rejects_short_hops():
     assert sched.n == 10
     with pytest.raises(ProxopsInputError, match="dt_s"):
         build_schedule([30.0], 5, 10.0)
+
+
+@pytest.fixture(scope="module")
+def vbar_drift_free_run():
+    return run_loop(0.0, 3, drift_free_tol_mps=1e-4)
+
+
+def test_vbar_drift_free_rows_remove_the_secular_drift(vbar_drift_free_run):
+    """CW: y(t) has the secular term -(6 n x0 + 3 vy0) t, so after a hop impulse with
+    |vy+ + 2 n x| <= tol the drift returns within 3 t_orb tol per orbit of its start (closed-form STM)."""
+    res, ctrl, plan, sched, a = vbar_drift_free_run
+    tol = 1e-4
+    hop_starts = [0.0] + list(sched.times[sched.hop_nodes][:-1])
+    for t in hop_starts:
+        k = int(np.argmin(np.abs(res.t - t)))
+        x = res.x_true[k].copy()
+        x[3:6] += res.u_applied[k]
+        assert abs(x[4] + 2 * N_ORB * x[0]) <= tol * (1 + 1e-6) + 1e-9
+        for m in (1, 2, 3):
+            back = cw_stm(N_ORB, m * T_ORB) @ x
+            assert np.linalg.norm(back[:3] - x[:3]) <= m * 3 * T_ORB * tol + 1e-6
+    # the hops themselves are unchanged: radial impulses at the half-orbit instants
+    k = fired(res)
+    np.testing.assert_allclose(res.t[k] / (0.5 * T_ORB), np.round(res.t[k] / (0.5 * T_ORB)), atol=1e-9)
+
+
+def test_without_drift_rows_the_hop_tolerance_leaves_drift(vbar_run):
+    """Regression reference for the test above: (29m)'s 2 mm/s alone leaves more than 3 t_orb tol of drift."""
+    res, ctrl, plan, sched, a = vbar_run
+    worst = 0.0
+    for t in [0.0] + list(sched.times[sched.hop_nodes][:-1]):
+        k = int(np.argmin(np.abs(res.t - t)))
+        x = res.x_true[k].copy()
+        x[3:6] += res.u_applied[k]
+        worst = max(worst, abs(x[4] + 2 * N_ORB * x[0]))
+    assert worst > 1e-4

@@ -76,7 +76,9 @@ def test_case1_general_docks():
 
 def test_figures_are_written(case1_averaged, tmp_path):
     loaded, summary, results = case1_averaged
-    paths = loaded.system.figures(loaded.scenario, results, tmp_path)
+    from proxops.plotting.systems import run_figures  # systems never import plotting: found by convention
+
+    paths = run_figures("underactuated", loaded.system, loaded.scenario, results, tmp_path)
     names = {p.name for p in paths}
     assert {"trajectory_averaged.png", "value_function_averaged.png", "states_averaged.png"} <= names
     assert all(p.stat().st_size > 5000 for p in paths)

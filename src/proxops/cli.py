@@ -154,6 +154,7 @@ def _mount_optional() -> None:
         ("proxops.cli_campaign", "report", "report", "command"),
         ("proxops.cli_keys", "keys", "keys", "command"),
         ("proxops.cli_propagate", "propagate", "propagate", "command"),
+        ("proxops.cli_reproduce", "reproduce", "reproduce", "command"),
     ):
         try:
             mod = importlib.import_module(module)

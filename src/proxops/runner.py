@@ -11,35 +11,8 @@ import json
 from pathlib import Path
 
 from proxops.scenarios.loader import load_scenario
-from proxops.sim.engine import simulate
+from proxops.analysis.runs import check_scenario, execute  # noqa: F401 (re-exported)
 from proxops.sim.result import SimResult
-
-
-def execute(loaded, seed: int | None = None, progress: bool = False) -> tuple[dict, dict[str, SimResult]]:
-    """Run a loaded scenario; returns the summary and the results by label."""
-    sc, system = loaded.scenario, loaded.system
-    seed = sc.sim.seed if seed is None else seed
-    if hasattr(system, "run"):
-        extra, results = system.run(sc, seed=seed, progress=progress)
-        main = next(iter(results.values()))
-        summary = {"scenario": sc.name, "system": sc.system, **main.summary(), **extra}
-    else:
-        result = simulate(system.build(sc), seed=seed, progress=progress)
-        results = {"run": result}
-        summary = {"scenario": sc.name, "system": sc.system, **result.summary(), **system.summarize(sc, result)}
-    summary["seed"] = seed
-    return summary, results
-
-
-def check_scenario(loaded) -> None:
-    """Every check a run makes before its first step: the schema (done when loading), the
-    system's build (geometry, feasibility of the hop ladder, KOZ vs start...) and the
-    dispersions table. Raises ProxopsInputError with one line; ``validate`` and ``mc`` call it."""
-    from proxops.analysis.dispersions import parse_dispersions
-
-    check = getattr(loaded.system, "check", None)  # planners without a closed loop check without building
-    check(loaded.scenario) if check is not None else loaded.system.build(loaded.scenario)
-    parse_dispersions(loaded.scenario, loaded.scenario.dispersions)
 
 
 def run_scenario(name_or_path: str, overrides=(), seed: int | None = None, out: Path | None = None,
@@ -60,13 +33,9 @@ def save_run(loaded, summary: dict, results: dict[str, SimResult], out: Path, fi
     (out / "summary.json").write_text(json.dumps(summary, indent=2, default=str))
     paths: list[Path] = []
     if figures:
-        draw = getattr(loaded.system, "figures", None)
-        if draw is not None:
-            paths = list(draw(loaded.scenario, results, out))
-        else:
-            from proxops.plotting.common import plot_run
+        from proxops.plotting.systems import run_figures
 
-            paths = [plot_run(next(iter(results.values())), out / "trajectory.png", title=loaded.scenario.name)]
+        paths = run_figures(loaded.scenario.system, loaded.system, loaded.scenario, results, out)
     return paths
 
 

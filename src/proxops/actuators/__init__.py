@@ -1,9 +1,12 @@
-"""Thruster models between the controller's command and the truth (all effects optional)."""
+"""Thruster models between the controller's command and the truth (all effects optional).
+
+Every model follows :class:`proxops.sim.protocols.Actuator`: ``apply(t, u, kind, rng)`` and
+``period_s`` (None = once per controller sample)."""
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -11,7 +14,17 @@ from proxops.core.constants import G0
 
 
 @dataclass
-class IdealActuator:
+class ActuatorBase:
+    """Defaults of an actuator model: applied once per controller sample."""
+
+    period_s: float | None = field(default=None, kw_only=True)
+
+    def apply(self, t: float, u: np.ndarray, kind: str, rng: np.random.Generator) -> np.ndarray:
+        raise NotImplementedError
+
+
+@dataclass
+class IdealActuator(ActuatorBase):
     """Applies the command unchanged."""
 
     def apply(self, t: float, u: np.ndarray, kind: str, rng: np.random.Generator) -> np.ndarray:
@@ -19,7 +32,7 @@ class IdealActuator:
 
 
 @dataclass
-class ThrusterModel:
+class ThrusterModel(ActuatorBase):
     """Limits and execution errors of a translational thruster set.
 
     Units follow the command kind: m/s^2 for ``acceleration``, m/s for ``impulse``.
@@ -104,6 +117,49 @@ def perturb_angles(dv: np.ndarray, d_beta: float, d_alpha: float) -> np.ndarray:
     alpha = math.atan2(float(dv[0]), float(dv[1])) + d_alpha
     cb = math.cos(beta)
     return np.array([m * cb * math.sin(alpha), m * cb * math.cos(alpha), m * math.sin(beta)])
+
+
+@dataclass(frozen=True)
+class ThrusterParameter:
+    """One parameter of :class:`ThrusterModel`, declared once for the model and the scenario's
+    ``[actuator]`` section (built from :data:`THRUSTER_PARAMETERS` in proxops.scenarios.schema).
+
+    field: ThrusterModel attribute (SI); key: scenario key (edge unit, e.g. ``_deg``);
+    default: scenario default (None: no limit); ge / gt / le: bounds of the scenario value;
+    to_model: scenario value -> model value (e.g. math.radians)."""
+
+    field: str
+    key: str
+    default: float | None
+    description: str
+    ge: float | None = None
+    gt: float | None = None
+    le: float | None = None
+    to_model: object = None
+
+
+THRUSTER_PARAMETERS = (
+    ThrusterParameter("max_per_axis", "max_per_axis", None, "per-axis saturation |u_i| <= max_per_axis, command "
+                      "unit (m/s^2 or m/s); none: no limit", gt=0.0),
+    ThrusterParameter("max_norm", "max_norm", None, "saturation of |u| (direction kept), command unit; none: no limit",
+                      gt=0.0),
+    ThrusterParameter("min_impulse", "min_impulse", 0.0, "commands with |u| below this fire nothing (minimum impulse "
+                      "bit), command unit", ge=0.0),
+    ThrusterParameter("magnitude_sigma", "magnitude_sigma", 0.0, "relative 1-sigma magnitude error (0.01 = 1 %)", ge=0.0),
+    ThrusterParameter("pointing_sigma_rad", "pointing_sigma_deg", 0.0, "1-sigma pointing error (random small rotation)",
+                      ge=0.0, to_model=math.radians),
+    ThrusterParameter("missed_probability", "missed_probability", 0.0, "probability that a command is not executed "
+                      "at all", ge=0.0, le=1.0),
+)
+
+
+def thruster_from_values(values: dict) -> ThrusterModel:
+    """A :class:`ThrusterModel` from scenario values keyed as in :data:`THRUSTER_PARAMETERS`."""
+    kwargs = {}
+    for p in THRUSTER_PARAMETERS:
+        v = values.get(p.key, p.default)
+        kwargs[p.field] = p.to_model(v) if (p.to_model is not None and v is not None) else v
+    return ThrusterModel(**kwargs)
 
 
 def _rotate_small(v: np.ndarray, rotation_vector: np.ndarray) -> np.ndarray:

@@ -61,14 +61,15 @@ import time
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.spatial import ConvexHull, HalfspaceIntersection, QhullError
+from scipy.spatial import HalfspaceIntersection, QhullError
 from scipy.stats import norm
 
 from proxops.constraints.los_corridor import LosCorridor
 from proxops.core.constants import MU_EARTH
 from proxops.core.cw import cw_discretize_zoh, mean_motion
-from proxops.errors import ProxopsError, input_error
-from proxops.solvers import HighsLP, SolveStatus
+from proxops.dynamics.tumbling_target import sync_range
+from proxops.errors import input_error
+from proxops.geometry.polytope import ConvexSection, SectionPolygon  # noqa: F401 (SectionPolygon re-exported)
 
 # --------------------------------------------------------------------------------------
 # paper numbers (used by tests, benchmarks and the CLI comparison columns)
@@ -171,12 +172,6 @@ class UnitRowCorridor:
         return self.h - np.asarray(p_body, dtype=float) @ self.G.T
 
 
-def sync_range(omega_rad_s: float, a_max_mps2: float) -> float:
-    """r_sync = 2 a_max / w_t^2 (m), eq. (14)."""
-    _check_combo(omega_rad_s, a_max_mps2)
-    return 2.0 * a_max_mps2 / omega_rad_s**2
-
-
 def slack_rate(corridor: LosCorridor, points: np.ndarray, omega_rad_s: float) -> np.ndarray:
     """ds_i/dt = -G_i v_rot (row units per s) for an inertially stationary chaser, eq. (13).
 
@@ -203,7 +198,7 @@ def certified_mask(
     """s_i - delta_i - Delta_i > 0 for all rows (eq. 16) and |p| < r_sync (eq. 14). Bool (n,)."""
     p = np.atleast_2d(np.asarray(points, float))
     margin = corridor.slack_body(p) - erosion(corridor, p, omega_rad_s, a_max_mps2) - np.asarray(tightening)
-    return np.all(margin > 0.0, axis=1) & (np.linalg.norm(p, axis=1) < sync_range(omega_rad_s, a_max_mps2))
+    return np.all(margin > 0.0, axis=1) & (np.linalg.norm(p, axis=1) < sync_range(a_max_mps2, omega_rad_s))
 
 
 def required_ratio(
@@ -321,233 +316,6 @@ def robust_tightening(
         rows = np.einsum("ia,jab->ijb", corridor.G, C)
         worst = np.maximum(worst, dist.w_max_mps2 * np.sum(np.linalg.norm(rows, axis=2), axis=1))
     return worst
-
-
-# --------------------------------------------------------------------------------------
-# convex 2-D sections of polyhedra by support-function LPs
-# --------------------------------------------------------------------------------------
-@dataclass
-class SectionPolygon:
-    """Result of :meth:`ConvexSection.polygon`.
-
-    vertices (k, 2): support points (feasible, so conv(vertices) is an inner bound);
-    directions (k, 2) unit vectors and support (k,) values: the outer bound
-    {p : directions @ p <= support}; empty when the section is empty; n_lp: LPs solved."""
-
-    vertices: np.ndarray
-    directions: np.ndarray
-    support: np.ndarray
-    n_lp: int
-    empty: bool = False
-
-    def ordered_vertices(self) -> np.ndarray:
-        """Vertices of conv(support points) counter-clockwise (for plotting); may be < 3."""
-        if self.empty:
-            return np.zeros((0, 2))
-        pts = np.unique(np.round(self.vertices, 9), axis=0)
-        if len(pts) < 3:
-            return pts
-        try:
-            hull = ConvexHull(pts)
-        except QhullError:
-            return pts
-        return pts[hull.vertices]
-
-
-class ConvexSection:
-    """The convex set P = {p in R^2 : exists u, A [p; u] <= b, lb <= [p; u] <= ub} (p = first 2 variables).
-
-    ``polygon`` computes support points in many directions (hot-started HiGHS LPs);
-    ``contains`` classifies query points exactly (inner hull / outer half-planes /
-    one feasibility LP per point in between)."""
-
-    # small LPs re-solved from the last basis: presolve only adds overhead (0.07 ms per solve)
-    HOT_SETTINGS = {"presolve": "off", "solver": "simplex"}
-
-    def __init__(self, A: np.ndarray, b: np.ndarray, lb: np.ndarray, ub: np.ndarray):
-        self.A = np.asarray(A, float)
-        self.b = np.asarray(b, float)
-        self.lb = np.asarray(lb, float)
-        self.ub = np.asarray(ub, float)
-        self.n_var = self.A.shape[1]
-        self.lp = HighsLP(settings=self.HOT_SETTINGS)
-        self._current = (np.zeros(self.n_var), self.lb.copy(), self.ub.copy())
-        self.lp.setup(self._current[0], self.A, None, self.b, self.lb, self.ub)
-        self.n_lp = 0
-        self.n_retry = 0  # cold re-solves after numerical trouble
-        self._poly: SectionPolygon | None = None
-
-    def set_box(self, lo: np.ndarray, hi: np.ndarray) -> None:
-        """Change the bounds of p (the first 2 variables)."""
-        self.lb[:2], self.ub[:2] = lo, hi
-        self._set(lb=self.lb.copy(), ub=self.ub.copy())
-        self._poly = None
-
-    def support_point(self, direction: np.ndarray) -> tuple[SolveStatus, np.ndarray | None]:
-        """(status, argmax d.p over P); the point is None unless the status is OPTIMAL."""
-        c = np.zeros(self.n_var)
-        c[:2] = -np.asarray(direction, float)
-        self._set(c=c)
-        res = self._solve()
-        if res.status is not SolveStatus.OPTIMAL:
-            return res.status, None
-        return res.status, res.x[:2].copy()
-
-    def _solve(self):
-        """Solve the current LP; on numerical trouble (neither optimal nor infeasible) rebuild the
-        solver cold, with presolve, and solve again (HiGHS hot starts can stall on long horizons)."""
-        res = self.lp.solve()
-        self.n_lp += 1
-        if res.status in (SolveStatus.OPTIMAL, SolveStatus.INFEASIBLE):
-            return res
-        c, lb, ub = self._current
-        fresh = HighsLP()
-        fresh.setup(c, self.A, None, self.b, lb, ub)
-        res = fresh.solve()
-        self.n_lp += 1
-        self.n_retry += 1
-        self.lp = HighsLP(settings=self.HOT_SETTINGS)
-        self.lp.setup(c, self.A, None, self.b, lb, ub)
-        return res
-
-    def _set(self, c=None, lb=None, ub=None) -> None:
-        """Change the LP's cost and/or variable bounds (kept for cold re-solves)."""
-        c0, lb0, ub0 = self._current
-        self._current = (c0 if c is None else c, lb0 if lb is None else lb, ub0 if ub is None else ub)
-        self.lp.update(c=c, lb=lb, ub=ub)
-
-    def polygon(self, n_directions: int = 48, refine_tol: float = 0.05, max_rounds: int = 6) -> SectionPolygon:
-        """Support points in n_directions evenly spread directions, then bisect the angular gaps whose
-        outer corner lies more than ``refine_tol`` (units of p) outside the inner edge."""
-        angles = list(np.linspace(0.0, 2 * np.pi, int(n_directions), endpoint=False))
-        pts: dict[float, np.ndarray] = {}
-        self.n_failed = 0
-        for ang in angles:
-            status, p = self.support_point([np.cos(ang), np.sin(ang)])
-            if status is SolveStatus.INFEASIBLE:
-                self._poly = SectionPolygon(np.zeros((0, 2)), np.zeros((0, 2)), np.zeros(0), self.n_lp, empty=True)
-                return self._poly
-            if p is None:
-                self.n_failed += 1  # numerical failure twice: leave the direction out (bounds stay valid)
-                continue
-            pts[ang] = p
-        if not pts:
-            raise ProxopsError("every support LP failed numerically; the section could not be computed")
-        for _ in range(max_rounds):
-            keys = sorted(pts)
-            new = []
-            for i, a0 in enumerate(keys):
-                a1 = keys[(i + 1) % len(keys)]
-                gap = (a1 - a0) % (2 * np.pi)
-                if gap < 1e-4:
-                    continue
-                d0 = np.array([np.cos(a0), np.sin(a0)])
-                d1 = np.array([np.cos(a1), np.sin(a1)])
-                p0, p1 = pts[a0], pts[a1]
-                h0, h1 = d0 @ p0, d1 @ p1
-                # corner of the two supporting lines; how far it sticks out beyond the chord p0-p1
-                det = d0[0] * d1[1] - d0[1] * d1[0]
-                if abs(det) < 1e-12:
-                    continue
-                corner = np.array([h0 * d1[1] - h1 * d0[1], d0[0] * h1 - d1[0] * h0]) / det
-                mid = a0 + 0.5 * gap
-                dm = np.array([np.cos(mid), np.sin(mid)])
-                if dm @ corner - max(dm @ p0, dm @ p1) > refine_tol:
-                    new.append(mid % (2 * np.pi))
-            if not new:
-                break
-            for ang in new:
-                _, p = self.support_point([np.cos(ang), np.sin(ang)])
-                if p is not None:
-                    pts[ang] = p
-        keys = sorted(pts)
-        dirs = np.array([[np.cos(a), np.sin(a)] for a in keys])
-        verts = np.array([pts[a] for a in keys])
-        self._poly = SectionPolygon(verts, dirs, np.einsum("ij,ij->i", dirs, verts), self.n_lp)
-        return self._poly
-
-    def _point_feasible(self, p: np.ndarray) -> bool:
-        """One feasibility LP with p fixed (bounds are restored by :meth:`contains`)."""
-        lb, ub = self.lb.copy(), self.ub.copy()
-        lb[:2] = ub[:2] = p
-        self._set(lb=lb, ub=ub)
-        return self._solve().status is SolveStatus.OPTIMAL
-
-    def contains(self, points: np.ndarray, tol: float = 1e-9) -> tuple[np.ndarray, int]:
-        """Exact membership of points (m, 2) in P; returns (mask, number of per-point LPs).
-
-        Points in the closed hull of the support points are feasible (convex combinations of
-        feasible points); points beyond a supporting half-plane are not; the rest get an LP."""
-        q = np.asarray(points, float)
-        poly = self._poly or self.polygon()
-        if poly.empty:
-            return np.zeros(len(q), bool), 0
-        inner_hp, outer_hp = self._halfplanes(tol)
-        outside = np.any(q @ outer_hp[:, :2].T > outer_hp[:, 2], axis=1)
-        inner = np.zeros(len(q), bool) if inner_hp is None else np.all(q @ inner_hp[:, :2].T <= inner_hp[:, 2], axis=1)
-        return self._settle(q, inner & ~outside, ~outside & ~inner)
-
-    def contains_grid(self, x: np.ndarray, y: np.ndarray, tol: float = 1e-9) -> tuple[np.ndarray, int]:
-        """:meth:`contains` for the rectangular grid x (nx,) by y (ny,), row-major (y slow) -> ((ny*nx,), n_lp).
-
-        Convexity makes each grid row an x-interval, so only O(ny * edges) work is done."""
-        x = np.asarray(x, float)
-        y = np.asarray(y, float)
-        poly = self._poly or self.polygon()
-        if poly.empty:
-            return np.zeros(x.size * y.size, bool), 0
-        inner_hp, outer_hp = self._halfplanes(tol)
-        X = np.broadcast_to(x, (y.size, x.size))
-        lo_o, hi_o = _row_intervals(outer_hp, y)
-        outside = (X < lo_o[:, None]) | (X > hi_o[:, None])
-        if inner_hp is None:
-            inner = np.zeros_like(outside)
-        else:
-            lo_i, hi_i = _row_intervals(inner_hp, y)
-            inner = (X >= lo_i[:, None]) & (X <= hi_i[:, None])
-        Yg = np.broadcast_to(y[:, None], X.shape)
-        q = np.column_stack([X.ravel(), Yg.ravel()])
-        return self._settle(q, (inner & ~outside).ravel(), (~outside & ~inner).ravel())
-
-    def _halfplanes(self, tol: float) -> tuple[np.ndarray | None, np.ndarray]:
-        """([a_x, a_y, b] rows) of the inner hull (None if degenerate) and of the outer bound, tol added to b."""
-        poly = self._poly
-        scale = 1.0 + np.abs(poly.vertices).max()
-        outer = np.column_stack([poly.directions, poly.support + tol * scale])
-        try:
-            eq = ConvexHull(np.unique(np.round(poly.vertices, 9), axis=0)).equations
-            inner = np.column_stack([eq[:, :2], -eq[:, 2] + tol * scale])
-        except (QhullError, ValueError):
-            inner = None  # degenerate (segment or point): everything undecided goes to the LP
-        return inner, outer
-
-    def _settle(self, q: np.ndarray, mask: np.ndarray, undecided: np.ndarray) -> tuple[np.ndarray, int]:
-        idx = np.flatnonzero(undecided)
-        mask = mask.copy()
-        if idx.size:
-            self._set(c=np.zeros(self.n_var))
-            for i in idx:
-                mask[i] = self._point_feasible(q[i, :2])
-            self._set(lb=self.lb, ub=self.ub)
-        return mask, int(idx.size)
-
-
-def _row_intervals(halfplanes: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """x-interval [lo, hi] per y of {p : a_x x + a_y y <= b for all rows} (empty: lo > hi)."""
-    ax, ay, b = halfplanes[:, 0], halfplanes[:, 1], halfplanes[:, 2]
-    rhs = b[None, :] - ay[None, :] * y[:, None]  # (ny, m): a_x x <= rhs
-    lo = np.full(y.size, -np.inf)
-    hi = np.full(y.size, np.inf)
-    pos, neg, zero = ax > 1e-12, ax < -1e-12, np.abs(ax) <= 1e-12
-    if pos.any():
-        hi = np.min(rhs[:, pos] / ax[pos], axis=1)
-    if neg.any():
-        lo = np.max(rhs[:, neg] / ax[neg], axis=1)
-    if zero.any():
-        bad = np.any(rhs[:, zero] < 0.0, axis=1)
-        lo = np.where(bad, np.inf, lo)
-        hi = np.where(bad, -np.inf, hi)
-    return lo, hi
 
 
 def planar_rows(corridor: LosCorridor, box_lo: np.ndarray, box_hi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -786,7 +554,7 @@ def analyse_combo(
     res = ComboResult(
         omega_deg_s=float(omega_deg_s),
         a_max_mps2=float(a_max_mps2),
-        r_sync_m=sync_range(w, a_max_mps2),
+        r_sync_m=sync_range(a_max_mps2, w),
         nominal=nominal,
         stochastic=stochastic,
         robust=robust,

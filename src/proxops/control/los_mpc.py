@@ -72,6 +72,7 @@ from proxops.constraints.los_corridor import LosCorridor
 from proxops.dynamics.tumbling_target import BodyFrameModel, body_from_hill_matrix, hill_from_body_matrix, rot_z
 from proxops.errors import input_error
 from proxops.solvers.daqp_qp import DaqpQP
+from proxops.status import Status
 
 PAPER_Q = (15.0, 30.0, 15.0, 1.0, 1.0, 1.0)
 _PREDICTION_CACHE: dict = {}  # (n, w_rel, dt, N) -> prediction blocks (Monte Carlo reuses them)
@@ -121,7 +122,7 @@ class MpcSolution:
     """Result of one MPC solve. ``u0`` is the body-axes input to apply (m/s^2) and
     ``u0_hill`` the same vector in LVLH components (what the plant receives)."""
 
-    status: str  # "optimal" | "infeasible" | other proxops.solvers status
+    status: Status  # the solver status (proxops.status)
     u0: np.ndarray
     u0_hill: np.ndarray
     inputs: np.ndarray | None  # (N, 3) planned body-axes inputs (m/s^2)
@@ -134,7 +135,7 @@ class MpcSolution:
 
     @property
     def ok(self) -> bool:
-        return self.status in ("optimal", "optimal_inaccurate")
+        return self.status.ok
 
 
 def _rotations_hill_from_body(theta: np.ndarray) -> np.ndarray:
@@ -319,7 +320,7 @@ class LosMpc:
             res = self._solver.solve()
             solve_time += res.solve_time_s
             iterations += res.iterations
-        status = str(res.status)
+        status = res.status
         R0 = rot_z(self.model.theta0_rad + self.model.w_rel * t)  # R_LB(theta_k)
         if res.x is None or not res.ok:
             u0 = self._shifted_plan()

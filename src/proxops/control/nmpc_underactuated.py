@@ -73,6 +73,9 @@ from proxops.dynamics.planar_cubesat import (
 )
 from proxops.errors import input_error
 from proxops.sim.protocols import Command
+from proxops.solvers.casadi_nlp import Buffered as _Buffered
+from proxops.solvers.casadi_nlp import CasadiNLP, NonlinearProgram
+from proxops.status import Status
 
 VARIANTS = ("general", "averaged")
 # Warm solver: fatrop (structure-exploiting, ships with CasADi) measured ~3x faster than
@@ -149,38 +152,6 @@ class NMPCConfig:
 def _check_int(name: str, value, minimum: int, unit: str) -> None:
     if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < minimum:
         raise input_error(name, value, f"must be an integer >= {minimum}", unit)
-
-
-class _Buffered:
-    """A CasADi Function evaluated on preallocated numpy arrays (``Function.buffer``).
-
-    ``__call__`` copies the given inputs (by position or by name; unset inputs keep their
-    last value) into the buffers, evaluates, and returns the output arrays by name. The
-    outputs are overwritten by the next call: copy what must be kept."""
-
-    def __init__(self, fn):
-        self.fn = fn
-        self.buffer, self._evaluate = fn.buffer()
-        self.names_in = fn.name_in()
-        self.inputs = {name: np.zeros(fn.nnz_in(i)) for i, name in enumerate(self.names_in)}
-        self.outputs = {name: np.zeros(fn.nnz_out(i)) for i, name in enumerate(fn.name_out())}
-        for i, name in enumerate(self.names_in):
-            self.buffer.set_arg(i, memoryview(self.inputs[name]))
-        for i, name in enumerate(fn.name_out()):
-            self.buffer.set_res(i, memoryview(self.outputs[name]))
-
-    def __call__(self, *args, **kwargs) -> dict:
-        for name, value in zip(self.names_in, args):
-            self.inputs[name][:] = value
-        for name, value in kwargs.items():
-            self.inputs[name][:] = value
-        self._evaluate()
-        if self.buffer.ret() != 0:
-            raise RuntimeError(f"evaluation of {self.fn.name()} failed (return code {self.buffer.ret()})")
-        return self.outputs
-
-    def stats(self) -> dict:
-        return self.buffer.stats()
 
 
 class _Nlp:
@@ -281,14 +252,13 @@ class _Nlp:
 
         wvec = ca.vcat(w)
         nlp = {"x": wvec, "f": objective + penalty, "g": ca.vcat(g), "p": s_meas}
-        self.solvers = {"warm": _make_solver(cfg, cfg.solver, nlp, equality, warm=True)}
+        # bounds fixed per NLP; ubg is set per solve
+        problem = NonlinearProgram(wvec, nlp["f"], nlp["g"], s_meas, self.lbw, self.ubw, self.lbg, self.ubg, equality)
+        self.solvers = {"warm": _make_solver(cfg, cfg.solver, problem, warm=True)}
         if not self.augmented:  # the bounded NLP is only ever warm started from the plain one
-            self.solvers["cold"] = _make_solver(cfg, "ipopt", nlp, equality, warm=False)
+            self.solvers["cold"] = _make_solver(cfg, "ipopt", problem, warm=False)
         # the warm solver takes multipliers (IPOPT) or only the primal guess (fatrop)
         self.warm_uses_multipliers = self.solvers["warm"][0] == "ipopt"
-        for name, solver in self.solvers.values():  # bounds fixed per NLP; ubg is set per solve
-            solver.inputs["lbx"][:], solver.inputs["ubx"][:] = self.lbw, self.ubw
-            solver.inputs["lbg"][:], solver.inputs["ubg"][:] = self.lbg, self.ubg
         self.g_fn = _Buffered(ca.Function("g", [wvec, s_meas], [nlp["g"]]).expand())
         self.value_fn = _Buffered(ca.Function("J", [wvec], [objective]).expand())
         self.costs_fn = f_stage.map(H)
@@ -350,7 +320,9 @@ class _Nlp:
         Returns (result or None, status, iterations, warm_used); the result holds copies of
         ``x``, ``lam_g`` and ``lam_x``. Wall time inside the solvers accumulates in
         ``solver_time_s``."""
+        self.last_status = Status.FAILED  # the vocabulary status of a failed solve (the returned text is the detail)
         if not (np.all(np.isfinite(s)) and np.all(np.isfinite(w0))):
+            self.last_status = Status.INVALID_INPUT
             return None, "invalid_input", 0, False  # fatrop does not return from a NaN guess
         ubg = self.ubg
         if self.augmented:
@@ -362,39 +334,33 @@ class _Nlp:
             if key not in self.solvers:
                 continue
             name, solver = self.solvers[key]
-            args = dict(x0=w0, p=s, ubg=ubg)
+            solver.update(p=s, ubg=ubg)
             if key == "warm" and lam_g0 is not None and self.warm_uses_multipliers:
-                args.update(lam_g0=lam_g0, lam_x0=lam_x0)
+                solver.warm_start(x=w0, lam_g=lam_g0, lam_x=lam_x0)
+            else:
+                solver.warm_start(x=w0)
             t_start = time.perf_counter()
-            try:
-                out = solver(**args)
-            except RuntimeError:  # evaluation errors -> a status, never a crash
-                status = f"{name}:error"
-                continue
-            finally:
-                self.solver_time_s += time.perf_counter() - t_start
-            stats = solver.stats()
-            iters += int(stats.get("iter_count", 0) or 0)
-            w = out["x"].copy()
-            if stats.get("success", False) and self.feasible(w, s, ubg):
-                return {"x": w, "lam_g": out["lam_g"].copy(), "lam_x": out["lam_x"].copy()}, "ok", iters, key == "warm"
-            status = f"{name}:{stats.get('return_status', 'failed')}"
+            res = solver.solve()  # CasadiNLP: evaluation errors are a status (raw "error")
+            self.solver_time_s += time.perf_counter() - t_start
+            iters += res.iterations
+            if res.info["success"] and self.feasible(res.x, s, ubg):
+                return {"x": res.x, "lam_g": res.info["lam_g"], "lam_x": res.info["lam_x"]}, "ok", iters, key == "warm"
+            status = f"{name}:{res.info['raw_status']}"
+            self.last_status = Status.INFEASIBLE_SOLUTION if res.info["success"] else res.status
         return None, status, iters, False
 
 
-def _make_solver(cfg: NMPCConfig, name: str, nlp: dict, equality: list, warm: bool):
-    import casadi as ca
-
+def _make_solver(cfg: NMPCConfig, name: str, problem: NonlinearProgram, warm: bool):
+    """A CasADi NLP adapter (:class:`proxops.solvers.casadi_nlp.CasadiNLP`) set up on ``problem``."""
     max_iter = cfg.max_iter if warm else 5 * cfg.max_iter
     if name == "fatrop":
         plugin = {"print_level": 0, "max_iter": max_iter, "tol": cfg.tol, **(WARM_FATROP if warm else {})}
-        opts = {"structure_detection": "auto", "equality": equality}
     else:
         plugin = {"print_level": 0, "sb": "yes", "max_iter": max_iter, "tol": cfg.tol, **(WARM_IPOPT if warm else {})}
-        opts = {}
     plugin.update(cfg.solver_options.get(name, {}))
-    opts.update({"expand": True, "print_time": False, name: plugin})
-    return name, _Buffered(ca.nlpsol(f"nmpc_{name}_{'warm' if warm else 'cold'}", name, nlp, opts))
+    solver = CasadiNLP(name, options=plugin, label=f"nmpc_{name}_{'warm' if warm else 'cold'}")
+    solver.setup(problem)
+    return name, solver
 
 
 class UnderactuatedNMPC:
@@ -491,7 +457,7 @@ class UnderactuatedNMPC:
         s[2] = wrap_angle(s[2])
         cfg = self.config
         if cfg.stop_when_docked and self.docking.contains(s):
-            return Command(u=np.zeros(N_CONTROL), status="ok", mode="docked", stop=True)
+            return Command(u=np.zeros(N_CONTROL), status=Status.OK, mode="docked", stop=True)
 
         # eq. 14: every N steps the bound becomes the mean of the last N values
         if cfg.variant == "averaged" and self._k >= cfg.average_window and self._k % cfg.average_window == 0:
@@ -539,8 +505,10 @@ class UnderactuatedNMPC:
                 u = np.clip(U0[0], *self.limits.control_bounds())
             else:
                 u = np.zeros(N_CONTROL)
-            return Command(u=u, status=status, solve_time_s=time.perf_counter() - t_start, mode=cfg.variant, info=info)
-        return Command(u=self._plan[1][0].copy(), status="ok", solve_time_s=time.perf_counter() - t_start,
+            st = nlp.last_status  # the solver's own words ("ipopt:Infeasible_Problem_Detected") are the detail
+            return Command(u=u, status=st, solve_time_s=time.perf_counter() - t_start, mode=cfg.variant,
+                           info=info, status_detail="" if st.value == status else status)
+        return Command(u=self._plan[1][0].copy(), status=Status.OK, solve_time_s=time.perf_counter() - t_start,
                        mode=cfg.variant, info=info)
 
     def _solver_time_s(self) -> float:

@@ -43,6 +43,9 @@ Corrections / choices (also in the report):
   unsafe drift can point across the orbit plane and buy safety with large out-of-plane
   impulses, or be empty. If that fails and the CBF rows are suspect, the problem without them is
   solved once; when it is feasible the hold impulse and its solution are tried as references.
+* With drift-free rows and no plan for the node yet, the first reference is the hold impulse.
+* Before relaxing, an infeasible problem is retried once about the hold impulse's drift (when
+  safe): half-spaces on a safe but far-off reference drift can cut off every solution.
 * Fallback (any failure): the previous plan's impulse for this node if its free drift passes
   the true check, else the hold impulse if its drift passes, else no impulse. (The drift window
   slides with time, so "no impulse" is certified only up to the previous window's end.)
@@ -57,11 +60,29 @@ Corrections / choices (also in the report):
   infeasible. ``hop_distance_weight_per_m2`` adds 1/2 w (a.p(J_m) - d_m)^2 towards Algorithm 1's
   distances d_m (hop-end positions are extra variables), which picks a robust interior split.
 
-QP (solved by :class:`proxops.solvers.PiqpQP`, Clarabel as fallback): condensed in the
+* V-bar drift removal (not in the paper; needed for its "indefinite hold" claim): the free CW
+  motion after an impulse is periodic iff ``c = vy+ + 2 n x = 0`` (Hill; the secular term of
+  y(t) is ``-(6 n x0 + 3 vy0) t``). (29m) bounds the along-axis velocity *before* the hop-start
+  impulse to 2 mm/s, which leaves up to ``3 * 2 mm/s * t_orb`` (about 40 m at a = 8100 km) of
+  along-track drift per orbit, plus what the impulse itself adds. With ``drift_free_tol_mps``
+  every hop-start node j (node 0 and every hop end but the last) gets the row
+  ``|c_avg + sum_{l=i..j} k_l . u_l| <= tol``. ``c`` is a constant of the free motion (CW:
+  dc/dt = ydd + 2 n xd = 0), so only impulses change it, by ``k_l . u_l`` (CW: k = e_y), and the
+  controller averages the navigation samples of c taken since its last impulse (one per engine
+  step) instead of using the single noisy estimate at the node (white 0.5 m / 0.5 mm/s noise is
+  1 mm/s on one sample of c, 22 m of drift per orbit).
+  J2-aware equivalent (``drift_model``, :class:`EnergyDrift`): on the nonlinear J2 truth ``vy + 2nx``
+  is not constant (measured: it swings by ~1 mm/s within a hop at 2 km, from the rectilinear-frame
+  curvature and the target orbit's J2-induced eccentricity), so c is the chaser-minus-target
+  specific energy (two-body + J2 potential, both conserved on the free motion: the J2 potential is
+  axisymmetric) divided by |v_t|: equal energies mean equal semi-major axes and no secular drift;
+  for a circular CW target it reduces to ``vy + 2 n x``. k_l = R^T v_t / |v_t| at node l.
+
+QP (solved by the persistent adapter of ``solver``, PIQP by default, Clarabel as fallback): condensed in the
 impulses, variables scaled to z = u / u_max in [0, 1] plus the terminal position error in km.
 The prediction blocks Phi(t_j - t_l) of the whole node grid are built once at construction;
 the shrinking horizon keeps one sparsity pattern (past impulses fixed to 0 by their bounds,
-past hop rows switched off), so a single PIQP solver is set up once and updated in place.
+past hop rows switched off), so a single solver is set up once and updated in place.
 Every accepted solution is checked for feasibility against its own rows.
 """
 
@@ -78,8 +99,8 @@ from proxops.constraints.keep_out import KeepOutSphere
 from proxops.core.cw import cw_stm
 from proxops.errors import input_error
 from proxops.sim.protocols import Command
-from proxops.solvers import PiqpQP, SolveStatus, solve_qp
-from proxops.solvers.front import QuadraticProgram
+from proxops.solvers import QuadraticProgram, SolveStatus, make_qp_solver, solve_qp, successive_convexification
+from proxops.status import Status
 
 KM = 1000.0
 OFF = 1e3  # bound of rows that are switched off (scaled units: km or m/s; both sides infinite makes PIQP zero the row)
@@ -104,6 +125,8 @@ class SrfMpcConfig:
     hop_distance_tol_m: list[float] | None = None  # per hop: |a . p(J_m) - d_m| <= tol_m (not in the paper)
     mid_hop_fuel_weight: float = 1.0  # R multiplier for impulses between hop instants (1 = paper)
     hop_distance_weight_per_m2: float = 0.0  # 1/2 w (a.p(J_m) - d_m)^2 towards Algorithm 1's distances (0 = paper)
+    drift_free_tol_mps: float | None = None  # V-bar: |vy+ + 2 n x| <= tol after every hop-start impulse (None = off)
+    drift_model: "EnergyDrift | None" = None  # J2-aware invariant from an onboard target ephemeris (None: CW's)
     cbf: bool = True
     cbf_alpha_per_s: float = 0.01
     free_drift_s: float | None = None  # None: one orbital period
@@ -111,6 +134,58 @@ class SrfMpcConfig:
     cbf_iterations: int = 3
     feasibility_tol: float = 1e-5  # on the scaled rows (km, m/s, u/u_max)
     solver: str = "piqp"
+
+
+@dataclass
+class EnergyDrift:
+    """J2-aware drift invariant from an onboard target ephemeris (Hill frame with the J2 frame rate).
+
+    ``states`` (K, 6): target ECI states at ``t = k dt`` (m, m/s); ``mu``, ``j2``, ``re``: the gravity
+    model (j2 = 0 for two-body). ``invariant(t, x) = (E_chaser - E_target) / |v_t|`` (m/s), with
+    E = |v|^2 / 2 + V(r) (two-body + J2, :func:`proxops.core.twobody.potential`); both energies are
+    conserved on the free motion, and equal energies mean no secular along-track drift."""
+
+    dt: float
+    states: np.ndarray
+    mu: float
+    j2: float
+    re: float
+
+    def target(self, t: float) -> np.ndarray:
+        k = int(round(t / self.dt))
+        if not 0 <= k < len(self.states) or abs(k * self.dt - t) > 1e-6 * max(1.0, t):
+            raise input_error("t", t, f"is not on the ephemeris grid (dt = {self.dt:g} s, {len(self.states)} points)", "s")
+        return self.states[k]
+
+    def _accel(self, r: np.ndarray) -> np.ndarray:
+        from proxops.core.twobody import accel_gravity_vec
+
+        return accel_gravity_vec(r, self.mu, self.j2, self.re)
+
+    def invariant(self, t: float, x) -> float:
+        from proxops.core.twobody import potential
+        from proxops.frames.hill import hill_to_eci_offset
+
+        tgt = self.target(t)
+        off = hill_to_eci_offset(tgt, np.asarray(x, dtype=float), self._accel(tgt[:3]))
+        r_c = tgt[:3] + off[:3]
+        v_t = tgt[3:]
+        d_kin = float(v_t @ off[3:] + 0.5 * off[3:] @ off[3:])
+        d_pot = potential(*r_c, self.mu, self.j2, self.re) - potential(*tgt[:3], self.mu, self.j2, self.re)
+        return (d_kin + d_pot) / float(np.linalg.norm(v_t))
+
+    def gain(self, t: float, x=None) -> np.ndarray:
+        """Change of the invariant per unit impulse at chaser Hill state ``x`` (Hill components):
+        ``C v_c / |v_t|`` with the chaser's inertial velocity ``C v_c = C v_t + rho' + w x rho``
+        (first order in the impulse; the rotating-frame term is 1.7 m/s at 2 km along-track)."""
+        from proxops.frames.hill import eci_vector_to_hill, hill_frame_rate
+
+        tgt = self.target(t)
+        v = eci_vector_to_hill(tgt, tgt[3:])
+        if x is not None:
+            x = np.asarray(x, dtype=float)
+            v = v + x[3:6] + np.cross(hill_frame_rate(tgt, self._accel(tgt[:3])), x[:3])
+        return v / float(np.linalg.norm(tgt[3:]))
 
 
 @dataclass
@@ -167,6 +242,10 @@ class _Qp:
     ub: np.ndarray
     n_imp: int  # impulses in this horizon (N - i + 1)
 
+    def as_form(self) -> QuadraticProgram:
+        """Canonical QP with explicit equality rows (fixed row structure for in-place updates)."""
+        return QuadraticProgram(self.P, self.q, self.G, self.g_lo, self.g_hi, self.lb, self.ub, self.A_eq, self.b_eq)
+
     def as_program(self) -> QuadraticProgram:
         A = sp.vstack([self.A_eq, self.G], format="csc")
         return QuadraticProgram(self.P, self.q, A, np.concatenate([self.b_eq, self.g_lo]),
@@ -185,7 +264,7 @@ class _Qp:
 @dataclass
 class _Solve:
     u: np.ndarray | None  # (M, 3) impulses u_i..u_N (m/s) or None
-    status: str
+    status: Status
     solve_time_s: float
     iterations: int = 0
     relax: int = 0
@@ -238,12 +317,15 @@ class SrfMpc:
         self._phi_tau = np.array([cw_stm(self.n_orb, t) for t in self.tau])
         self._node_of_step = {int(s): j for j, s in enumerate(schedule.steps)}
         self._hop_node_set = set(schedule.hop_nodes.tolist())
+        self.drift_model = c.drift_model
         self.hop_targets_m = None  # guidance distances d_0..d_n (m) for hop_distance_tol_m
         if c.hop_distance_tol_m is not None or c.hop_distance_weight_per_m2 > 0:
             if hop_distances_m is None or len(hop_distances_m) != len(schedule.hop_nodes) + 1:
                 raise input_error("hop_distances_m", hop_distances_m, "give the n_hops + 1 guidance distances "
                                   "when hop_distance_tol_m is set", "m")
             self.hop_targets_m = np.asarray(hop_distances_m, dtype=float)
+        # hop-start nodes (node 0 and every hop end but the terminal node): drift-free rows
+        self.drift_nodes = np.array([0] + schedule.hop_nodes[:-1].tolist(), dtype=int)
         self._layout()
         pdiag = np.zeros(self._nz)
         pdiag[self._ie:self._ie + 3] = c.q_terminal_per_m2 * KM**2
@@ -267,18 +349,45 @@ class SrfMpc:
         self.finished = False
         self.last_drift = None  # (tau, states) of the last accepted free drift
         self.solve_log: list[dict] = []
+        self._c_sum, self._c_count = 0.0, 0  # drift invariant samples since the last impulse
+
+    def drift_invariant(self, t: float, x) -> float:
+        """c (m/s): constant on the free motion, zero for a drift-free one (CW: vy + 2 n x)."""
+        if self.drift_model is not None:
+            return self.drift_model.invariant(t, x)
+        return float(x[4] + 2.0 * self.n_orb * x[0])
+
+    def _drift_gains(self, i: int, x: np.ndarray) -> np.ndarray:
+        """k_l (N+1, 3): change of c per unit impulse at node l (Hill), zero before node i. CW: e_y;
+        drift_model: at the chaser state predicted from x with the previous plan's impulses."""
+        N = self.sched.n
+        k = np.zeros((N + 1, 3))
+        if self.drift_model is None:
+            k[i:, 1] = 1.0
+            return k
+        plan = self.plan.copy()
+        plan[:i] = 0.0
+        flat = plan.ravel()
+        last = int(self.drift_nodes.max())
+        for l in range(i, min(last, N) + 1):
+            xl = x if l == i else self._phi[l, i] @ x + self._S[l] @ flat
+            k[l] = self.drift_model.gain(float(self.sched.times[l]), xl)
+        return k
 
     def step(self, t: float, x_est) -> Command:
         x = np.asarray(x_est, dtype=float)
+        if self.cfg.drift_free_tol_mps is not None and x.size == 6 and np.all(np.isfinite(x)):
+            self._c_sum += self.drift_invariant(t, x)
+            self._c_count += 1
         k = int(round(t / self.dt))
         N = self.sched.n
         if k > self.sched.steps[-1] or self.finished:
-            return Command(np.zeros(3), "impulse", "ok", mode="handover", stop=True)
+            return Command(np.zeros(3), "impulse", Status.OK, mode="handover", stop=True)
         node = self._node_of_step.get(k)
         hop = int(np.searchsorted(self.sched.hop_nodes, node if node is not None else self._node_before(k), side="right")) + 1
         mode = "brake" if node == N else f"hop {min(hop, len(self.sched.hop_nodes))}"
         if node is None:
-            return Command(np.zeros(3), "impulse", "ok", mode=mode, info={"solved": 0.0})
+            return Command(np.zeros(3), "impulse", Status.OK, mode=mode, info={"solved": 0.0})
         if node in self._hop_node_set:
             self.rx_hist[node] = float(self.a @ x[:3])
         res = self._solve_node(node, x)
@@ -291,6 +400,8 @@ class SrfMpc:
             self.plan[node:] = res.u
         u = np.where(np.abs(u) < 1e-7, 0.0, u)
         self.used_l1 += float(np.abs(u).sum())
+        if np.any(u):
+            self._c_sum, self._c_count = 0.0, 0
         if node == N:
             self.finished = True
         info = {"solved": 1.0, "node": float(node), "relax": float(res.relax), "qp_iterations": float(res.iterations),
@@ -349,6 +460,13 @@ class SrfMpc:
             Sj = self._S[int(j)]
             rows.append(zcoef(self.b @ Sj[:3] / KM)[None]); kinds.append(("hop_r", int(j)))
             rows.append(zcoef(self.a @ Sj[3:])[None]); kinds.append(("hop_w", int(j)))
+        if c.drift_free_tol_mps is not None:
+            for j in self.drift_nodes:
+                # c after node j's impulse: sum of k_l . u_l over l <= j. Full pattern (placeholders);
+                # the values are set per solve (k_l depends on the predicted chaser state with drift_model)
+                row = np.zeros(3 * (N + 1))
+                row[:3 * (int(j) + 1)] = 1.0
+                rows.append(zcoef(row)[None]); kinds.append(("drift", int(j)))
         if c.vbar_rows or c.hop_distance_tol_m is not None:
             nodes = [0] + self.sched.hop_nodes.tolist()
             rx = [self.a @ self._S[j][:3] for j in nodes]
@@ -377,6 +495,11 @@ class SrfMpc:
         self._n_eq = eq.shape[0] + 3
         r, col = np.nonzero(g_static)
         self._g_coo = (r, col, g_static[r, col])
+        # entries of the drift rows: value = sign * u_max * k_l[comp] for column (sign, l, comp)
+        drift_rows = [m + 3 for m, kd in enumerate(kinds[3:]) if isinstance(kd, tuple) and kd[0] == "drift"]
+        sel = np.nonzero(np.isin(r, drift_rows))[0]
+        ucol = np.where(col[sel] < nu, col[sel], col[sel] - nu)
+        self._drift_coo = (sel, ucol // 3, ucol % 3, np.where(col[sel] < nu, um, -um))
         self._n_g_static = g_static.shape[0]
         F = self._n_cbf
         self._cbf_rows = np.repeat(np.arange(2 * F), 3) + self._n_g_static
@@ -426,6 +549,13 @@ class SrfMpc:
                     v = float(self.a @ xj[3:])
                     lo.append(-tol_w - v); hi.append(tol_w - v)
                 continue
+            if tag == "drift":
+                if j < i or relax >= 3:
+                    lo.append(-OFF); hi.append(OFF)
+                    continue
+                v = self.drift_invariant(float(self.sched.times[i]), x) if self._c_count == 0 else self._c_sum / self._c_count
+                lo.append(-c.drift_free_tol_mps - v); hi.append(c.drift_free_tol_mps - v)
+                continue
             nodes = [0] + self.sched.hop_nodes.tolist()
             if tag == "dist":
                 m = j
@@ -455,6 +585,11 @@ class SrfMpc:
         g_lo = np.concatenate([brake_lo, np.array(lo, float)])
         g_hi = np.concatenate([brake_hi, np.array(hi, float)])
         gr, gc, gv = self._g_coo
+        if len(self._drift_coo[0]):
+            sel, node, comp, sign = self._drift_coo
+            gains = self._drift_gains(i, x)
+            gv = gv.copy()
+            gv[sel] = sign * gains[node, comp]
         n_cbf = self._n_cbf if with_cbf else 0
         if n_cbf:
             cx = self._phi_tau @ x  # (F, 6) drift without impulse
@@ -487,18 +622,21 @@ class SrfMpc:
         return _Qp(self._P, self._c, A_eq, b_eq, G, g_lo, g_hi, lb, ub, N - i + 1)
 
     def _run_solver(self, qp: _Qp, i: int, persistent: bool = True):
-        """Solve with the persistent PIQP solver (one-shot PIQP for other sparsity patterns);
-        Clarabel when PIQP fails for any reason but a certified infeasibility. Returns (result, seconds)."""
+        """Solve with the persistent adapter of ``cfg.solver`` (``setup(problem)`` once, ``update``
+        in place: the same calls for PIQP, Clarabel or DAQP; a one-shot solve for other sparsity
+        patterns); Clarabel when the solver fails for any reason but a certified infeasibility.
+        Returns (result, seconds)."""
         t0 = time.perf_counter()
-        if self.cfg.solver == "piqp" and persistent:
+        if persistent:
             if self._solver is None:
-                self._solver = PiqpQP(max_iter=80)  # normal solves take 20-35 iterations
-                self._solver.setup(qp.P, qp.q, qp.A_eq, qp.b_eq, qp.G, qp.g_lo, qp.g_hi, qp.lb, qp.ub)
+                # PIQP: normal solves take 20-35 iterations
+                self._solver = make_qp_solver(self.cfg.solver, **({"max_iter": 80} if self.cfg.solver == "piqp" else {}))
+                self._solver.setup(qp.as_form())
             else:
-                self._solver.update(A=qp.A_eq, b=qp.b_eq, G=qp.G, h_l=qp.g_lo, h_u=qp.g_hi, x_lb=qp.lb, x_ub=qp.ub)
+                self._solver.update(A_eq=qp.A_eq, b_eq=qp.b_eq, A=qp.G, bl=qp.g_lo, bu=qp.g_hi, lb=qp.lb, ub=qp.ub)
             res = self._solver.solve()
         else:
-            res = solve_qp(qp.as_program(), self.cfg.solver if self.cfg.solver != "piqp" else "piqp")
+            res = solve_qp(qp.as_program(), self.cfg.solver)
         if (res.x is None or not res.ok) and res.status != SolveStatus.INFEASIBLE:
             fb = solve_qp(qp.as_program(), "clarabel")
             fb.info["primary"] = str(res.status)
@@ -510,8 +648,12 @@ class SrfMpc:
         c = self.cfg
         self._clock = [0.0, 0]  # solver seconds, iterations
         events = []
-        status = "infeasible"
+        status = Status.INFEASIBLE
         first_ref = self.plan[i].copy()
+        if self.cfg.drift_free_tol_mps is not None and not np.any(first_ref):
+            # no plan yet: the drift-free hold is much nearer the drift-free solution than a drifting
+            # zero impulse, whose half-spaces gave 1.5 m/s detours from a dispersed start
+            first_ref = self.hold_impulse(x)
         ref_safe = self._n_cbf == 0 or self.check_drift(x, first_ref)[0]
         if not ref_safe:
             hold = self.hold_impulse(x)
@@ -522,7 +664,7 @@ class SrfMpc:
             # A reference whose drift is safe gives CBF rows that the reference itself satisfies, so an
             # infeasible problem is then blamed on the other rows (relax them); otherwise check without
             # the CBF rows and retry from better references.
-            suspect_cbf = status == "cbf_violation" or (status in ("infeasible", "infeasible_solution") and not ref_safe)
+            suspect_cbf = status is Status.CBF_VIOLATION or (status in (Status.INFEASIBLE, Status.INFEASIBLE_SOLUTION) and not ref_safe)
             if sol is None and self._n_cbf and suspect_cbf:
                 # Is it the CBF linearisation? Solve without the CBF rows once.
                 qp = self._build(i, x, None, relax, with_cbf=False)
@@ -535,6 +677,11 @@ class SrfMpc:
                         sol, status = self._scp(i, x, u_ref, relax)
                         if sol is not None:
                             break
+            if sol is None and self._n_cbf and not np.allclose(first_ref, hold := self.hold_impulse(x)) \
+                    and self.check_drift(x, hold)[0]:
+                # half-spaces on a safe but far-off reference (e.g. no plan yet and a drifting start) can cut
+                # off every drift-free impulse: retry about the hold drift before relaxing anything
+                sol, status = self._scp(i, x, hold, relax)
             if sol is not None:
                 sol.events = events
                 return sol
@@ -543,27 +690,40 @@ class SrfMpc:
                                + f" at node {i} ({status})"))
         return _Solve(None, status, self._clock[0], self._clock[1], relax, events=events)
 
-    def _scp(self, i: int, x: np.ndarray, u_ref: np.ndarray, relax: int) -> tuple[_Solve | None, str]:
-        """Solve, check the true (29j), re-linearise about the solution; at most cbf_iterations solves."""
+    def _scp(self, i: int, x: np.ndarray, u_ref: np.ndarray, relax: int) -> tuple[_Solve | None, Status]:
+        """Solve, check the true (29j), re-linearise about the solution; at most cbf_iterations solves
+        (:func:`proxops.solvers.successive_convexification`, no trust region)."""
         c = self.cfg
-        status = "infeasible"
-        for _ in range(max(1, c.cbf_iterations) if self._n_cbf else 1):
-            qp = self._build(i, x, u_ref, relax)
+        ref = [u_ref]
+        checked = {}
+
+        def solve():
+            qp = self._build(i, x, ref[0], relax)
             res, t_solve = self._run_solver(qp, i)
             self._clock[0] += t_solve
             self._clock[1] += res.iterations
             if res.x is None or not res.ok:
-                return None, str(res.status)
+                return None, res.status
             if qp.max_violation(res.x) > c.feasibility_tol:
-                return None, "infeasible_solution"
+                return None, Status.INFEASIBLE_SOLUTION
             z = res.x
-            u = (z[:self._nu] - z[self._nu:2 * self._nu]).reshape(-1, 3)[i:] * c.u_max_mps
-            ok, gmin, rmin = self.check_drift(x, u[0])
-            if ok:
-                return _Solve(u, "optimal", self._clock[0], self._clock[1], relax, gmin, rmin), "optimal"
-            status = "cbf_violation"
-            u_ref = u[0]
-        return None, status
+            return (z[:self._nu] - z[self._nu:2 * self._nu]).reshape(-1, 3)[i:] * c.u_max_mps, None
+
+        def converged(u, _prev):
+            checked["drift"] = self.check_drift(x, u[0])
+            return checked["drift"][0]
+
+        def relinearize(u, _radius):
+            ref[0] = u[0]
+
+        out = successive_convexification(solve, converged, relinearize,
+                                         max_iter=max(1, c.cbf_iterations) if self._n_cbf else 1)
+        if out.converged:
+            _, gmin, rmin = checked["drift"]
+            return _Solve(out.iterate, Status.OPTIMAL, self._clock[0], self._clock[1], relax, gmin, rmin), Status.OPTIMAL
+        if out.failure:  # the subproblem's status (solve() below returns Status members)
+            return None, Status.parse(out.failure)
+        return None, Status.CBF_VIOLATION
 
     # ------------------------------------------------------------------ safety
     def drift_states(self, x: np.ndarray, u0: np.ndarray) -> np.ndarray:

@@ -198,3 +198,48 @@ def quat_angle_between(p: np.ndarray, q: np.ndarray) -> np.ndarray:
     """Rotation angle (rad, in [0, pi]) of ``p* (x) q``; insensitive to the sign of either."""
     d = quat_multiply(quat_conjugate(p), q)
     return 2.0 * np.arctan2(np.linalg.norm(d[..., :3], axis=-1), np.abs(d[..., 3]))
+
+
+# --------------------------------------------------------------------------------------
+# numba kernels: the same formulas for one quaternion in hot loops (plant right-hand sides)
+# --------------------------------------------------------------------------------------
+from numba import njit  # noqa: E402
+
+
+@njit(cache=True)
+def dcm_kernel(q):
+    """:func:`quat_to_dcm` for one unit quaternion (float64[4]) inside numba code."""
+    x, y, z, w = q[0], q[1], q[2], q[3]
+    R = np.empty((3, 3))
+    R[0, 0] = w * w + x * x - y * y - z * z
+    R[0, 1] = 2 * (x * y - w * z)
+    R[0, 2] = 2 * (x * z + w * y)
+    R[1, 0] = 2 * (x * y + w * z)
+    R[1, 1] = w * w - x * x + y * y - z * z
+    R[1, 2] = 2 * (y * z - w * x)
+    R[2, 0] = 2 * (x * z - w * y)
+    R[2, 1] = 2 * (y * z + w * x)
+    R[2, 2] = w * w - x * x - y * y + z * z
+    return R
+
+
+@njit(cache=True)
+def kinematics_kernel(q, w):
+    """:func:`quat_kinematics` (``0.5 q (x) [w, 0]``) for one quaternion inside numba code."""
+    out = np.empty(4)
+    out[0] = 0.5 * (q[3] * w[0] + q[1] * w[2] - q[2] * w[1])
+    out[1] = 0.5 * (q[3] * w[1] + q[2] * w[0] - q[0] * w[2])
+    out[2] = 0.5 * (q[3] * w[2] + q[0] * w[1] - q[1] * w[0])
+    out[3] = -0.5 * (q[0] * w[0] + q[1] * w[1] + q[2] * w[2])
+    return out
+
+
+@njit(cache=True)
+def multiply_kernel(p, q):
+    """:func:`quat_multiply` (Hamilton, scalar last) for two quaternions inside numba code."""
+    out = np.empty(4)
+    out[0] = p[3] * q[0] + q[3] * p[0] + p[1] * q[2] - p[2] * q[1]
+    out[1] = p[3] * q[1] + q[3] * p[1] + p[2] * q[0] - p[0] * q[2]
+    out[2] = p[3] * q[2] + q[3] * p[2] + p[0] * q[1] - p[1] * q[0]
+    out[3] = p[3] * q[3] - p[0] * q[0] - p[1] * q[1] - p[2] * q[2]
+    return out

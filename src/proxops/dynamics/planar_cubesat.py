@@ -34,6 +34,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from proxops.errors import ProxopsInputError, input_error
+from proxops.core.layout import Block, StateLayout
+from proxops.dynamics.plant import PlantBase
 
 STATE_NAMES = ("x", "y", "theta", "vx", "vy", "omega")
 STATE_UNITS = ("m", "m", "rad", "m/s", "m/s", "rad/s")
@@ -252,21 +254,22 @@ def wrap_angle(a: float) -> float:
     return (a + math.pi) % (2.0 * math.pi) - math.pi
 
 
-class PlanarCubeSatPlant:
+class PlanarCubeSatPlant(PlantBase):
     """Truth plant (proxops.sim.protocols.Plant) for the planar deputy.
 
     The full state is the planar state itself: ``n_x = 6`` ``[x, y, theta, vx, vy, omega]``
     (``relative_state`` wraps theta to [-pi, pi)),
     ``n_u = 2`` ``[thrust N, wheel_acc rad/s^2]`` held constant over each step. Positions are
-    ``state[0:2]`` and velocities ``state[3:5]`` (``position_slice``/``velocity_slice`` tell
-    the engine). Integration: RK4 with ``substeps`` pieces per call of the same
+    ``state[0:2]`` and velocities ``state[3:5]`` (``layout`` tells the engine and the result). Integration: RK4 with ``substeps`` pieces per call of the same
     :func:`planar_rhs` the optimiser uses.
     """
 
     n_x = N_STATE
     n_u = N_CONTROL
-    position_slice = (0, 2)
-    velocity_slice = (3, 5)
+    layout = StateLayout(N_STATE, (Block("position", "position", 0, 2, ("x", "y")),
+                                   Block("attitude", "angle", 2, 3, ("theta",)),
+                                   Block("velocity", "velocity", 3, 5, ("vx", "vy")),
+                                   Block("rate", "rate", 5, 6, ("omega",))))
 
     def __init__(self, params: PlanarCubeSatParams, s0, substeps_per_s: float = 4.0):
         self.params = params

@@ -45,6 +45,7 @@ from proxops.core.constants import MU_EARTH
 from proxops.core.cw import cw_discretize_zoh
 from proxops.core.quaternion import IDENTITY, dcm_to_quat, quat_normalize, quat_propagate, quat_to_dcm
 from proxops.errors import input_error
+from proxops.dynamics.plant import PlantBase
 
 
 # --------------------------------------------------------------------------------------
@@ -94,6 +95,19 @@ class TumblingTarget:
         x = np.asarray(body_state, float)
         r_B, v_B = x[:3], x[3:6]
         return np.concatenate([R @ r_B, R @ (v_B + cross3(self.omega_body, r_B))])
+
+
+def sync_range(a_max_mps2: float, tumble_rate_rad_s: float) -> float:
+    """r_sync = 2 a_max / w_t^2 (m), tumbling-target-reachability.md eq. (14): inside it the chaser's
+    acceleration a_max (m/s^2) can follow the rotating docking axis (tumble rate w_t, rad/s, either
+    sign). inf for a target at rest (w_t = 0). The one home of this formula (guidance, reach, los)."""
+    if not (math.isfinite(a_max_mps2) and a_max_mps2 > 0.0):
+        raise input_error("a_max", a_max_mps2, "must be finite and > 0", "m/s^2")
+    if not math.isfinite(tumble_rate_rad_s):
+        raise input_error("omega", tumble_rate_rad_s, "tumble rate must be finite", "rad/s")
+    if tumble_rate_rad_s == 0.0:
+        return math.inf
+    return 2.0 * a_max_mps2 / tumble_rate_rad_s**2
 
 
 def body_state_from_offset(R_IB: np.ndarray, omega_body: np.ndarray, eci_offset: np.ndarray) -> np.ndarray:
@@ -331,7 +345,7 @@ class NonlinearBodyStep:
 # --------------------------------------------------------------------------------------
 # truth plant reporting the body-frame relative state
 # --------------------------------------------------------------------------------------
-class TumblingTargetTruth:
+class TumblingTargetTruth(PlantBase):
     """Plant (proxops.sim.protocols) around an Encke truth (e.g.
     :class:`proxops.propagation.truth.RelativeTruth`, two-body + J2) and a tumbling target.
 

@@ -1,5 +1,7 @@
 """Guidance regimes for the approach to a tumbling target (tumbling-target-reachability.md §7)
-with the eq.-(11) MPC as safety filter; one Controller for the closed-loop engine.
+with the eq.-(11) MPC as safety filter; one Controller for the closed-loop engine, built on the
+generic :class:`proxops.control.supervisor.Supervisor` (sub-controllers far / close / hold, the
+§7 switching rule, hold absorbing; every regime change is a ``mode`` event).
 
 Regimes, by range r = |r_B| against r_sync = 2 a_max / w_t^2 (eq. 14):
 
@@ -39,16 +41,11 @@ import numpy as np
 
 from proxops.constraints.los_corridor import LosCorridor
 from proxops.control.los_mpc import LosMpc, LosMpcConfig
-from proxops.dynamics.tumbling_target import BodyFrameModel, cross3, rot_z
+from proxops.control.supervisor import Supervisor
+from proxops.dynamics.tumbling_target import BodyFrameModel, cross3, rot_z, sync_range
 from proxops.errors import input_error
 from proxops.sim.protocols import Command
-
-
-def sync_range(a_max: float, tumble_rate_rad_s: float) -> float:
-    """r_sync = 2 a_max / w_t^2 (m), eq. (14)."""
-    if tumble_rate_rad_s == 0.0:
-        return float("inf")
-    return 2.0 * a_max / tumble_rate_rad_s**2
+from proxops.status import Status
 
 
 def auto_hold_range(a_max: float, tumble_rate_rad_s: float) -> float:
@@ -90,8 +87,24 @@ class LosGuidanceConfig:
                 raise input_error(f"guidance.{name}", v, "must be finite and > 0")
 
 
-class LosGuidanceController:
-    """Controller (proxops.sim.protocols): §7 regimes + eq.-(11) MPC safety filter.
+class _Regime:
+    """One §7 regime as a sub-controller of the supervisor; the state it shares with the other
+    regimes (reference range, previous input, MPC) lives in the LosGuidanceController."""
+
+    def __init__(self, owner: "LosGuidanceController", name: str):
+        self.owner, self.name, self.dt = owner, name, owner.dt
+
+    def reset(self, t0: float, x0: np.ndarray) -> None:
+        pass
+
+    def step(self, t: float, x_est: np.ndarray) -> Command:
+        return self.owner._regime_step(self.name, t, x_est)
+
+
+class LosGuidanceController(Supervisor):
+    """Controller (proxops.sim.protocols): §7 regimes + eq.-(11) MPC safety filter, on the
+    generic :class:`proxops.control.supervisor.Supervisor`: sub-controllers ``far``, ``close``
+    and ``hold`` (absorbing: the hold is latched), mode rule :meth:`regime_rule`, no dwell.
 
     Works on the body-frame relative state [r_B, v_B] (what
     :class:`proxops.dynamics.tumbling_target.TumblingTargetTruth` reports) and returns an
@@ -117,25 +130,33 @@ class LosGuidanceController:
         self.kd = 2.0 * self.g.pd_damping * self.g.pd_natural_frequency_rad_s
         self.W = np.array([0.0, 0.0, model.w_rel])
         self._step_numbers = np.arange(1.0, self.mpc.N + 1) if self.mpc is not None else None  # j = 1..N
+        super().__init__({name: _Regime(self, name) for name in ("far", "close", "hold")}, self.regime_rule,
+                         absorbing=("hold",), dt=self.dt)
         self.reset(0.0, np.zeros(6))
 
     # ------------------------------------------------------------------ protocol
     def reset(self, t0: float, x0: np.ndarray) -> None:
         self.r_ref = max(float(np.linalg.norm(np.asarray(x0, float)[:3])), self.hold_range)
-        self.mode = ""
-        self.mode_start = t0
         self.hold_reached = False
         self.u_prev = np.zeros(3)  # body axes
         if self.mpc is not None:
             self.mpc.reset()
+        super().reset(t0, x0)  # mode undetermined until the first sample
 
-    def step(self, t: float, x_est: np.ndarray) -> Command:
+    def regime_rule(self, t: float, x: np.ndarray, mode: str | None) -> str:
+        """§7: hold when |r - r_h| <= eps_h and |v_B| < v_switch (latched: ``hold`` is absorbing),
+        else far approach beyond r_sync and close approach inside."""
+        p, v = x[:3], x[3:6]
+        r = math.sqrt(p @ p)
+        if abs(r - self.hold_range) <= self.g.hold_band_m and math.sqrt(v @ v) < self.g.v_switch_mps:
+            return "hold"
+        return "far" if r > self.r_sync else "close"
+
+    def _regime_step(self, mode: str, t: float, x_est: np.ndarray) -> Command:
+        """The command of regime ``mode`` (reference, PD law, MPC safety filter)."""
         x = np.asarray(x_est, float)
         p, v = x[:3], x[3:6]
         r = math.sqrt(p @ p)
-        mode = self._regime(r, math.sqrt(v @ v))
-        if mode != self.mode:
-            self.mode, self.mode_start = mode, t
         v_achv = min(self.a_max * (t - self.mode_start + self.dt) / 2.0, self.g.v_max_mps)
         r_h = self.hold_range
         # reference range along +y_B
@@ -168,7 +189,7 @@ class LosGuidanceController:
         events: list = []
         stop = False
         if self.mpc is None:
-            u_body, status, solve_time = nominal_body(), "ok", 0.0
+            u_body, status, solve_time = nominal_body(), Status.OK, 0.0
         else:
             sol = self.mpc.solve(t, x, x_ref, self.u_prev)
             status, solve_time = sol.status, sol.solve_time_s
@@ -193,13 +214,6 @@ class LosGuidanceController:
                        info=info, stop=stop)
 
     # ------------------------------------------------------------------ pieces
-    def _regime(self, r: float, speed: float) -> str:
-        if self.mode == "hold":
-            return "hold"
-        if abs(r - self.hold_range) <= self.g.hold_band_m and speed < self.g.v_switch_mps:
-            return "hold"
-        return "far" if r > self.r_sync else "close"
-
     def _spiral_velocity(self, p_ref_B, v_ref, v_achv, R_LB) -> np.ndarray:
         """LVLH velocity of the spiral reference (axis point moving in at v_ref and
         co-rotating), limited in magnitude to v_achv (§7 far approach)."""

@@ -132,3 +132,22 @@ def campaign_figures(out: Path) -> list[Path]:
     if results:
         paths.insert(0, fig11_trajectories(sc, results, Path(out) / "fig11_trajectories.png"))
     return paths
+
+
+def run_figures(sc, results, out_dir: Path) -> list[Path]:
+    """``proxops run --out`` figure: the planned reference in 3-D (closed loop: trajectory and tracking error)."""
+    if sc.guidance.closed_loop:
+        from proxops.plotting.cortex_loop import run_figure
+
+        return [run_figure(sc, next(iter(results.values())), Path(out_dir) / "tracking.png")]
+    result = next(iter(results.values())) if isinstance(results, dict) else results
+    return [plan_figure_from_result(sc, result, Path(out_dir) / "reference_3d.png")]
+
+
+def mc_figures(sc, results, out_dir: Path) -> list[Path]:
+    """Campaign figure: Fig. 11 trajectories (closed loop: Figs. 13/14 and 15)."""
+    if sc.guidance.closed_loop:
+        from proxops.plotting.cortex_loop import campaign_figures
+
+        return campaign_figures(sc, results, Path(out_dir))
+    return [fig11_trajectories(sc, results, Path(out_dir) / "fig11_trajectories.png")]

@@ -94,3 +94,10 @@ def los_figures(sc, result, out_dir: Path) -> list[Path]:
     axes[0].set_title(title, fontsize=8)
     paths.append(save(fig, out_dir / "los_time.png"))
     return paths
+
+
+def run_figures(sc, results, out_dir: Path) -> list[Path]:
+    """``proxops run --out`` figures of a los run."""
+    if isinstance(results, dict):  # runner passes {label: SimResult}
+        results = next(iter(results.values()))
+    return los_figures(sc, results, Path(out_dir))

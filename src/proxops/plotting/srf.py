@@ -221,3 +221,12 @@ def scenario_figures(sc, results: dict, out_dir: Path) -> list[Path]:
                                      title=f"{sc.name} ({label})"))
         paths.append(plot_dv(res, out_dir / f"dv_{label}.png", title=f"{sc.name} ({label}): Δv per axis"))
     return paths
+
+
+run_figures = scenario_figures
+
+
+def mc_figures(sc, results: list, out_dir: Path) -> list[Path]:
+    """Monte Carlo overlay (Figs. 5/7/10) from a campaign's saved series."""
+    return [plot_mc_overlay(results, Path(out_dir) / "srf_mc_overlay.png", theta_deg=sc.approach.angle_deg,
+                            koz_radius_m=sc.keep_out.radius_m, title=f"{sc.name}: Monte Carlo")]

@@ -136,3 +136,6 @@ def scenario_figures(sc, results: dict, out_dir: Path) -> list[Path]:
         paths += plot_comparison(results, out_dir / "comparison_trajectories.png",
                                  out_dir / "comparison_value_functions.png", title=sc.name)
     return paths
+
+
+run_figures = scenario_figures

@@ -47,6 +47,7 @@ from proxops.errors import ProxopsError, input_error
 from proxops.frames.elements import OrbitalElements, check_perigee_above_surface, eci_to_elements, elements_to_eci
 from proxops.propagation import kernels, kernels_full as kf
 from proxops.propagation.reference import REFERENCE_ATOL
+from proxops.dynamics.plant import PlantBase
 
 DENSITY_STEP_S = 30.0
 # Default relative tolerance of the composed truth: 1e-11, one decade below RelativeTruth's.
@@ -95,7 +96,7 @@ class ForceModels:
         return replace(self, **{name: False})
 
 
-class ComposedTruth:
+class ComposedTruth(PlantBase):
     """Composed force-model truth for one target and one chaser (Plant protocol).
 
     Parameters

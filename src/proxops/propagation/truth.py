@@ -25,6 +25,7 @@ from proxops.errors import ProxopsError, input_error
 from proxops.frames.elements import OrbitalElements, check_perigee_above_surface, eci_to_elements, elements_to_eci
 from proxops.propagation import kernels
 from proxops.propagation.reference import REFERENCE_ATOL, REFERENCE_RTOL, propagate_reference
+from proxops.dynamics.plant import PlantBase
 
 _STATUS_TEXT = {
     kernels.STATUS_STEP_TOO_SMALL: "step size fell below the time resolution",
@@ -56,7 +57,7 @@ def _control(u, name: str = "u") -> np.ndarray:
     return arr
 
 
-class RelativeTruth:
+class RelativeTruth(PlantBase):
     """Nonlinear two-body (+ J2) truth for one target and one chaser (Plant protocol).
 
     Parameters
@@ -174,7 +175,7 @@ class RelativeTruth:
         return s[:6] + s[6:12]
 
 
-class CWPlant:
+class CWPlant(PlantBase):
     """Linear CW truth (Plant protocol): state = Hill relative state (6,).
 
     ``propagate`` uses the exact ZOH discretisation (cached per ``dt``); impulses add to

@@ -1,5 +1,5 @@
 """Schema of one ``[dispersions]`` entry (the kinds are explained in
-:mod:`proxops.analysis.dispersions`, which parses, checks and samples them).
+:mod:`proxops.scenarios.dispersions`, which parses, checks and samples them).
 
 It lives in the scenarios layer so that the scenario schema, ``--set`` overrides and the key
 reference (:mod:`proxops.scenarios.reference`) describe dispersions without importing analysis.

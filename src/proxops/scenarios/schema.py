@@ -11,8 +11,9 @@ from __future__ import annotations
 import math
 from typing import Annotated, Any, Literal
 
-from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
+from pydantic import BaseModel, ConfigDict, Field, create_model, field_validator, model_validator
 
+from proxops.actuators import THRUSTER_PARAMETERS
 from proxops.core.constants import R_EARTH
 
 
@@ -97,18 +98,20 @@ class NavigationSection(Section):
     velocity_sigma_mps: NonNegative = Field(0.0, description="1-sigma relative-velocity error per axis (0: perfect)")
 
 
-class ActuatorSection(Section):
-    """Thruster limits and execution errors (units follow the command: m/s^2 for
-    acceleration, m/s for impulses)."""
+def _actuator_fields() -> dict:
+    """Fields of [actuator] from the one declaration in proxops.actuators.THRUSTER_PARAMETERS."""
+    fields = {}
+    for p in THRUSTER_PARAMETERS:
+        bounds = {k: getattr(p, k) for k in ("ge", "gt", "le") if getattr(p, k) is not None}
+        typ = Annotated[float, Field(**bounds)]
+        fields[p.key] = (typ | None if p.default is None else typ, Field(p.default, description=p.description))
+    return fields
 
-    max_per_axis: Positive | None = Field(None, description="per-axis saturation |u_i| <= max_per_axis, command "
-                                          "unit (m/s^2 or m/s); none: no limit")
-    max_norm: Positive | None = Field(None, description="saturation of |u| (direction kept), command unit; none: no limit")
-    min_impulse: NonNegative = Field(0.0, description="commands with |u| below this fire nothing (minimum impulse bit), "
-                                     "command unit")
-    magnitude_sigma: NonNegative = Field(0.0, description="relative 1-sigma magnitude error (0.01 = 1 %)")
-    pointing_sigma_deg: NonNegative = Field(0.0, description="1-sigma pointing error (random small rotation)")
-    missed_probability: Probability = Field(0.0, description="probability that a command is not executed at all")
+
+ActuatorSection = create_model(
+    "ActuatorSection", __base__=Section, __module__=__name__,
+    __doc__="Thruster limits and execution errors (units follow the command: m/s^2 for\n    acceleration, m/s for "
+            "impulses).", **_actuator_fields())
 
 
 class SpacecraftSection(Section):
@@ -191,13 +194,13 @@ class ScenarioBase(Section):
     actuator: ActuatorSection = Field(ActuatorSection(), description="thruster limits and errors (default ideal)")
     dispersions: dict[str, Any] = Field(
         {}, description="Monte Carlo spread or parameter grid: \"section.key\" = {kind = ...} entries "
-        "(validated by proxops.analysis.dispersions)")
+        "(validated by proxops.scenarios.dispersions)")
 
     @model_validator(mode="after")
     def _dispersions_address_existing_keys(self):
-        """Each [dispersions] entry must name a key of this scenario (proxops.analysis.dispersions)."""
+        """Each [dispersions] entry must name a key of this scenario (proxops.scenarios.dispersions)."""
         if self.dispersions:
-            from proxops.analysis.dispersions import parse_dispersions
+            from proxops.scenarios.dispersions import parse_dispersions
 
             parse_dispersions(self)
         return self

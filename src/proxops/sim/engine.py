@@ -1,15 +1,31 @@
-"""The one closed-loop engine: navigation -> controller -> actuator -> truth.
+"""The one closed-loop engine: navigation -> controller -> actuator -> truth, multi-rate.
 
-Each sample k at t_k = k * controller.dt:
+Every component declares its period: ``controller.dt`` (s), ``navigation.period_s`` and
+``actuator.period_s`` (s, ``None`` = the controller's), and any number of further periodic
+components (``Setup.periodic``: e.g. a guidance planner every 30 s that updates the reference
+a 2 s tracking controller reads, :class:`proxops.sim.protocols.Periodic`). The engine steps on their common grid
+h (the greatest common divisor of the periods, commensurate to 1 us); the single-rate setup
+(all periods equal) is the one-component special case, h = controller.dt, and runs exactly the
+loop it always did. Each base tick k at t_k = k h:
 
-1. x_true = plant.relative_state(state); x_est = navigation.measure(t, x_true, rng)
-   (a controller with ``observe_truth(t, x_true)`` -- a safety monitor -- is shown the truth)
-2. cmd = controller.step(t, x_est)                  (Command: u, kind, status, ...)
-3. u = actuator.apply(t, cmd.u, cmd.kind, rng)     (limits, min impulse, errors)
-4. impulse: state = plant.apply_impulse(...) then coast dt; acceleration: ZOH over dt
-   (split into ``check_substeps`` pieces so constraints are checked between samples)
+1. x_true = plant.relative_state(state); on navigation ticks x_est = navigation.measure(t, x_true,
+   rng_nav) (held in between); a controller with ``observe_truth(t, x_true)`` (a safety monitor,
+   e.g. the cortex triggers of Table 1) is shown the truth before its step
+2. each periodic component on its ticks: events += component.update(t, x_est); then on
+   controller ticks cmd = controller.step(t, x_est)   (Command: u, kind, status, ...)
+3. on actuator ticks (and every controller tick) u = actuator.apply(t, cmd.u, cmd.kind, rng_act)
+   (an impulse only on the controller tick that commands it; an acceleration is held)
+4. impulse: state = plant.apply_impulse(...) then coast h; acceleration: ZOH over h (split into
+   ``check_substeps`` pieces so constraints are checked between samples); a plant with events
+   (``has_events``) returns the events it located inside the step (jump maps applied).
 
-Constraint violations, mode changes, solver failures and stops become events.
+Random streams: the run's ``seed`` spawns one named child stream per component
+(:func:`component_streams`: navigation, actuator, plant, controller), so adding a component
+never shifts another's draws. The plant and controller receive theirs as ``.rng``.
+
+Constraint violations, mode changes, flagged solver statuses, plant events and stops become
+events; ``meta["stop_reason"]`` is a :class:`proxops.status.StopReason`, ``meta["layout"]`` the
+plant's state layout.
 """
 
 from __future__ import annotations
@@ -17,15 +33,30 @@ from __future__ import annotations
 import math
 import sys
 import time
+import zlib
 from dataclasses import dataclass, field
 from typing import Callable, Sequence
 
 import numpy as np
 
 from proxops.actuators import IdealActuator
+from proxops.dynamics.plant import translational_delta_v  # noqa: F401  (re-exported)
+from proxops.errors import input_error
 from proxops.navigation import PerfectNavigation
-from proxops.sim.protocols import Controller, Plant
+from proxops.sim.protocols import Actuator, Controller, Navigation, Periodic, Plant
 from proxops.sim.result import SimResult
+from proxops.status import NOT_FLAGGED, Status, StopReason
+
+STREAMS = ("navigation", "actuator", "plant", "controller")
+PERIOD_QUANTUM_S = 1e-6  # periods are commensurate on this grid
+
+
+def component_streams(seed: int, names: Sequence[str] = STREAMS) -> dict[str, np.random.Generator]:
+    """One independent Generator per named component, a child of ``SeedSequence(seed)`` whose
+    spawn key is the CRC-32 of the name: the streams do not depend on which other components
+    exist or in which order they are asked for."""
+    return {name: np.random.default_rng(np.random.SeedSequence(seed, spawn_key=(zlib.crc32(name.encode()),)))
+            for name in names}
 
 
 @dataclass
@@ -35,24 +66,59 @@ class Setup:
     plant: Plant
     controller: Controller
     duration_s: float
-    navigation: object = field(default_factory=PerfectNavigation)
-    actuator: object = field(default_factory=IdealActuator)
+    navigation: Navigation = field(default_factory=PerfectNavigation)
+    actuator: Actuator = field(default_factory=IdealActuator)
     constraints: Sequence = ()
     stop_condition: Callable[[float, np.ndarray], str | None] | None = None
     check_substeps: int = 1
     meta: dict = field(default_factory=dict)
+    periodic: Sequence[Periodic] = ()  # further components on their own period (run before the controller)
+
+
+def schedule(ctrl_dt: float, nav_period: float | None, act_period: float | None,
+             extra_periods: Sequence[float] = ()) -> tuple[float, int, int, int, tuple[int, ...]]:
+    """Base step h (s) and the ticks per controller, navigation, actuator and extra period.
+
+    All periods equal (or None): ``(ctrl_dt, 1, 1, 1, (1, ...))`` exactly. Otherwise h is the
+    greatest common divisor of the periods on a 1 us grid and h = ctrl_dt / K_ctrl."""
+    periods = {"controller.dt": ctrl_dt, "navigation.period_s": nav_period or ctrl_dt,
+               "actuator.period_s": act_period or ctrl_dt}
+    periods.update({f"periodic[{i}].period_s": p for i, p in enumerate(extra_periods)})
+    for name, p in periods.items():
+        if not (math.isfinite(p) and p > 0):
+            raise input_error(name, p, "must be finite and > 0", "s")
+    if len(set(periods.values())) == 1:
+        return ctrl_dt, 1, 1, 1, (1,) * len(extra_periods)
+    ints = {}
+    for name, p in periods.items():
+        n = round(p / PERIOD_QUANTUM_S)
+        if n < 1 or abs(n * PERIOD_QUANTUM_S - p) > 1e-9 * max(1.0, p):
+            raise input_error(name, p, f"must be a multiple of {PERIOD_QUANTUM_S:g} s (multi-rate grid)", "s")
+        ints[name] = n
+    g = math.gcd(*ints.values())
+    k_ctrl, k_nav, k_act, *k_extra = (ints[n] // g for n in periods)
+    return ctrl_dt / k_ctrl, k_ctrl, k_nav, k_act, tuple(k_extra)
 
 
 def simulate(setup: Setup, seed: int = 0, progress: bool = False) -> SimResult:
     """Run one closed loop to ``setup.duration_s`` (or an earlier stop) and return its SimResult."""
-    plant, ctrl = setup.plant, setup.controller
-    rng = np.random.default_rng(seed)
-    dt = float(ctrl.dt)
-    n_steps = int(round(setup.duration_s / dt))
-    position_slice = getattr(plant, "position_slice", (0, 3))
+    plant, ctrl, nav, act = setup.plant, setup.controller, setup.navigation, setup.actuator
+    streams = component_streams(seed)
+    rng_nav, rng_act = streams["navigation"], streams["actuator"]
+    plant.rng, ctrl.rng = streams["plant"], streams["controller"]
+    for comp in setup.periodic:
+        comp.reset(0.0)
+    dt_ctrl = float(ctrl.dt)
+    h, k_ctrl, k_nav, k_act, k_extra = schedule(dt_ctrl, nav.period_s, act.period_s,
+                                                [float(c.period_s) for c in setup.periodic])
+    periodic = list(zip(setup.periodic, k_extra))
+    single_rate = k_ctrl == k_nav == k_act == 1
+    n_steps = int(round(setup.duration_s / h))
+    layout = plant.layout
 
     state = plant.initial_state()
-    delta_v = getattr(plant, "delta_v", translational_delta_v)
+    delta_v = plant.delta_v
+    has_events, plant_mode = plant.has_events, plant.mode
     n_x, n_u = plant.n_x, plant.n_u
     t_rec = np.zeros(n_steps + 1)
     x_true = np.zeros((n_steps + 1, n_x))
@@ -61,12 +127,14 @@ def simulate(setup: Setup, seed: int = 0, progress: bool = False) -> SimResult:
     u_app = np.zeros((n_steps + 1, n_u))
     dv_cum = np.zeros(n_steps + 1)
     solve_t = np.zeros(n_steps + 1)
-    status: list[str] = []
+    status: list[Status] = []
     modes: list[str] = []
+    plant_modes: list[str] = []
     info: dict[str, np.ndarray] = {}
     events: list[tuple[float, str, str]] = []
     max_violation: dict[str, float] = {}
     in_violation: dict[str, bool] = {}
+    zero_u = np.zeros(n_u)
 
     def check_constraints(t: float, xr: np.ndarray) -> None:
         for con in setup.constraints:
@@ -82,63 +150,86 @@ def simulate(setup: Setup, seed: int = 0, progress: bool = False) -> SimResult:
     wall0 = time.perf_counter()
     x0 = plant.relative_state(state)
     ctrl.reset(0.0, x0)
+    outcome, stop_reason = "completed", StopReason.COMPLETED
     observe = getattr(ctrl, "observe_truth", None)  # supervisors that monitor the true state (cortex triggers)
-    outcome = "completed"
     last_mode = None
+    cmd = None
+    u = zero_u
+    xe = x0
     k = 0
     try:  # the bar is cleared even when the run is interrupted (Ctrl-C)
         for k in range(n_steps + 1):
-            t = k * dt
+            t = k * h
             xr = plant.relative_state(state)
-            xe = setup.navigation.measure(t, xr, rng)
+            if single_rate or k % k_nav == 0:
+                xe = nav.measure(t, xr, rng_nav)
             t_rec[k], x_true[k], x_est[k] = t, xr, xe
+            plant_modes.append(plant_mode(state))
             check_constraints(t, xr)
             reason = setup.stop_condition(t, xr) if setup.stop_condition else None
             if reason:
-                outcome = reason
+                outcome, stop_reason = reason, StopReason.STOP_CONDITION
                 events.append((t, "stop", reason))
-                status.append("")
+                status.append(Status.NONE)
                 modes.append(last_mode or "")
                 break
             if k == n_steps:
-                status.append("")
+                status.append(Status.NONE)
                 modes.append(last_mode or "")
                 break
-            if observe is not None:
-                observe(t, xr)
-            cmd = ctrl.step(t, xe)
-            if cmd.stop:
-                outcome = cmd.mode or "stopped"
-                events.append((t, "stop", outcome))
-                status.append(cmd.status)
+            for comp, k_comp in periodic:
+                if k % k_comp == 0:
+                    events.extend((t, kind, msg) for kind, msg in comp.update(t, xe))
+            ctrl_tick = single_rate or k % k_ctrl == 0
+            if ctrl_tick:
+                if observe is not None:
+                    observe(t, xr)
+                cmd = ctrl.step(t, xe)
+                st = Status.parse(cmd.status)
+                if cmd.stop:
+                    outcome, stop_reason = cmd.mode or "stopped", StopReason.CONTROLLER
+                    events.append((t, "stop", outcome))
+                    status.append(st)
+                    modes.append(cmd.mode)
+                    break
+                u = np.asarray(act.apply(t, cmd.u, cmd.kind, rng_act), dtype=float)
+                u_cmd[k], u_app[k], solve_t[k] = cmd.u, u, cmd.solve_time_s
+                status.append(st)
                 modes.append(cmd.mode)
-                break
-            u = np.asarray(setup.actuator.apply(t, cmd.u, cmd.kind, rng), dtype=float)
-            u_cmd[k], u_app[k], solve_t[k] = cmd.u, u, cmd.solve_time_s
-            status.append(cmd.status)
-            modes.append(cmd.mode)
-            if cmd.status not in ("ok", "optimal"):
-                events.append((t, "solver", cmd.status))
-            if cmd.mode != last_mode and last_mode is not None:
-                events.append((t, "mode", f"{last_mode} -> {cmd.mode}"))
-            last_mode = cmd.mode
-            for kind, msg in cmd.events:
-                events.append((t, kind, msg))
-            for key, val in cmd.info.items():
-                series = info.get(key)
-                if series is None:
-                    series = info[key] = np.full(n_steps + 1, np.nan)
-                series[k] = val
-            dv_cum[k + 1] = dv_cum[k] + delta_v(u, cmd.kind, dt)
+                if st not in NOT_FLAGGED:  # st.flagged, inline
+                    events.append((t, "solver", cmd.status_detail or st.value))
+                if cmd.mode != last_mode and last_mode is not None:
+                    events.append((t, "mode", f"{last_mode} -> {cmd.mode}"))
+                last_mode = cmd.mode
+                for kind, msg in cmd.events:
+                    events.append((t, kind, msg))
+                for key, val in cmd.info.items():
+                    series = info.get(key)
+                    if series is None:
+                        series = info[key] = np.full(n_steps + 1, np.nan)
+                    series[k] = val
+            else:  # between controller samples: the command is held (an impulse is not repeated)
+                status.append(Status.NONE)
+                modes.append(last_mode or "")
+                if cmd.kind == "impulse":
+                    u = zero_u
+                elif k % k_act == 0:
+                    u = np.asarray(act.apply(t, cmd.u, cmd.kind, rng_act), dtype=float)
+                u_cmd[k], u_app[k] = (zero_u if cmd.kind == "impulse" else cmd.u), u
+            dv_cum[k + 1] = dv_cum[k] + delta_v(u, cmd.kind, h)
             if cmd.kind == "impulse":
-                if u.any():
+                if ctrl_tick and u.any():
                     state = plant.apply_impulse(t, state, u)
-                u_hold = np.zeros(n_u)
+                u_hold = zero_u
             else:
                 u_hold = u
-            sub_dt = dt / setup.check_substeps
+            sub_dt = h / setup.check_substeps
             for j in range(setup.check_substeps):
-                state = plant.propagate(t + j * sub_dt, state, u_hold, sub_dt)
+                if has_events:
+                    state, plant_events = plant.propagate_events(t + j * sub_dt, state, u_hold, sub_dt)
+                    events.extend(plant_events)
+                else:
+                    state = plant.propagate(t + j * sub_dt, state, u_hold, sub_dt)
                 if j < setup.check_substeps - 1:
                     check_constraints(t + (j + 1) * sub_dt, plant.relative_state(state))
             bar.update(1)
@@ -148,14 +239,20 @@ def simulate(setup: Setup, seed: int = 0, progress: bool = False) -> SimResult:
     meta = dict(setup.meta)
     meta.update(
         outcome=outcome,
+        stop_reason=stop_reason.value,
         seed=seed,
-        dt_s=dt,
+        dt_s=dt_ctrl,
         wall_time_s=time.perf_counter() - wall0,
-        position_slice=list(position_slice),
-        velocity_slice=list(getattr(plant, "velocity_slice", (3, 6))),
+        position_slice=list(layout.span("position") or (0, 3)),
+        velocity_slice=list(layout.span("velocity") or (3, 6)),
+        layout=layout.to_dict(),
         max_violation=max_violation,
         final_plant_state=np.asarray(state, dtype=float).tolist(),
     )
+    if not single_rate:
+        meta.update(base_step_s=h, navigation_period_s=h * k_nav, actuator_period_s=h * k_act)
+    if periodic:
+        meta.update(periodic_periods_s=[h * kp for _, kp in periodic])
     return SimResult(
         t=t_rec[:n],
         x_true=x_true[:n],
@@ -169,15 +266,8 @@ def simulate(setup: Setup, seed: int = 0, progress: bool = False) -> SimResult:
         info={key: arr[:n] for key, arr in info.items()},
         events=events,
         meta=meta,
+        plant_mode=plant_modes[:n],
     )
-
-
-def translational_delta_v(u: np.ndarray, kind: str, dt: float) -> float:
-    """Delta-v (m/s) of one applied command: |dv| for an impulse, |a| dt for a held
-    acceleration. Plants whose control is not a translational acceleration (e.g. thrust
-    in N plus a wheel command) define ``delta_v(u, kind, dt)`` themselves."""
-    norm_u = math.sqrt(u @ u)  # = np.linalg.norm(u), without its overhead
-    return norm_u if kind == "impulse" else norm_u * dt
 
 
 class _NoBar:

@@ -1,18 +1,27 @@
-"""Interfaces shared by every plant, controller, navigation and actuator model.
+"""Interfaces shared by every plant, controller, navigation, actuator, constraint and system.
 
 The closed-loop engine (:mod:`proxops.sim.engine`) only talks to these protocols, so
 a new paper's system is a new controller (and maybe a plant) plus scenarios.
 
 Conventions: SI units; relative states in Hill/RTN ``[x, y, z, vx, vy, vz]``
 (x radial out, y along-track, z orbit normal); time in seconds from scenario start.
+Every optional hook has a default in a base class: plants subclass
+:class:`proxops.dynamics.plant.PlantBase`, navigation models
+:class:`proxops.navigation.NavigationBase`, actuators :class:`proxops.actuators.ActuatorBase`,
+systems :class:`proxops.systems.base.SystemBase`. Outcomes use :class:`proxops.status.Status`
+(controller and solver) and :class:`proxops.status.StopReason` (why a run ended).
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Protocol, runtime_checkable
 
 import numpy as np
+
+from proxops.core.layout import Block, StateLayout  # noqa: F401  (re-exported: the layout record)
+from proxops.status import Status, StopReason  # noqa: F401  (re-exported)
 
 
 @dataclass
@@ -27,17 +36,22 @@ class Command:
 
     u: np.ndarray
     kind: str = "acceleration"  # "acceleration" | "impulse"
-    status: str = "ok"  # solver status as a string, "ok" for non-optimising laws
+    status: Status = Status.OK  # solver/controller outcome; Status.OK for laws that do not optimise
     solve_time_s: float = 0.0
     mode: str = ""  # guidance regime / controller mode, recorded as an event on change
     events: list[tuple[str, str]] = field(default_factory=list)  # (kind, message)
     info: dict = field(default_factory=dict)  # scalars recorded per step (e.g. value function)
     stop: bool = False  # controller declares the run finished (e.g. docked)
+    status_detail: str = ""  # the solver's own words for a failed status (message of the "solver" event)
 
 
 @runtime_checkable
 class Controller(Protocol):
-    """Every controller: ``reset`` once, then ``step(t, x_est) -> Command`` each sample."""
+    """Every controller: ``reset`` once, then ``step(t, x_est) -> Command`` each sample.
+
+    ``dt`` is also the controller's period in the multi-rate schedule. Before ``reset`` the
+    engine sets ``rng`` (numpy Generator): the controller's own random stream (e.g. for a
+    randomised planner); it must draw from nothing else."""
 
     dt: float  # sample time, s
 
@@ -49,10 +63,16 @@ class Controller(Protocol):
 @runtime_checkable
 class Plant(Protocol):
     """Truth model. Its full state may hold more than the relative state (e.g. the
-    target's inertial state); ``relative_state`` extracts what navigation measures."""
+    target's inertial state); ``relative_state`` extracts what navigation measures.
+
+    Defaults for everything below ``apply_impulse`` are in
+    :class:`proxops.dynamics.plant.PlantBase` (Hill layout, translational delta-v, no events)."""
 
     n_x: int  # length of the measured state returned by relative_state
     n_u: int  # length of the control vector
+    layout: StateLayout  # named blocks (units) of the measured state, stored with the result
+    has_events: bool  # True: the engine calls propagate_events (guards, jump maps) instead of propagate
+    rng: np.random.Generator | None  # the plant's own stream (process noise), set by the engine
 
     def initial_state(self) -> np.ndarray: ...
 
@@ -66,6 +86,98 @@ class Plant(Protocol):
         """Instantaneous velocity change ``dv`` (m/s) in the control frame."""
         ...
 
-    # Optional: ``delta_v(u, kind, dt) -> float`` (m/s) when the control is not a
-    # translational acceleration or impulse (the engine's default is |u| or |u| dt);
-    # ``position_slice`` / ``velocity_slice`` when the state is not [r(3), v(3)].
+    def propagate_events(self, t: float, state: np.ndarray, u: np.ndarray, dt: float
+                         ) -> tuple[np.ndarray, list[tuple[float, str, str]]]:
+        """Like ``propagate``, plus the events ``(t s, kind, message)`` located inside the step
+        (guard crossings, after which the plant applied its jump map and continued)."""
+        ...
+
+    def delta_v(self, u: np.ndarray, kind: str, dt: float) -> float:
+        """Delta-v (m/s) of the applied command ``u`` of ``kind`` held for ``dt`` s."""
+        ...
+
+    def mode(self, state: np.ndarray) -> str:
+        """The plant's discrete mode (recorded per step as ``SimResult.plant_mode``)."""
+        ...
+
+
+@runtime_checkable
+class Navigation(Protocol):
+    """What the controller sees: ``measure(t, x_true, rng) -> x_est`` (same layout and units
+    as the plant's measured state). ``period_s``: measurement period (s), None = the
+    controller's; the estimate is held between measurements."""
+
+    period_s: float | None
+
+    def measure(self, t: float, x_true: np.ndarray, rng: np.random.Generator) -> np.ndarray: ...
+
+
+@runtime_checkable
+class Actuator(Protocol):
+    """Between command and truth: ``apply(t, u, kind, rng) -> u_applied`` (limits, errors),
+    in the command's unit (m/s^2 for ``acceleration``, m/s for ``impulse``, or the plant's own
+    control units). ``period_s``: None = applied once per controller sample; a shorter period
+    re-applies a held acceleration command (fresh errors) on each of its ticks."""
+
+    period_s: float | None
+
+    def apply(self, t: float, u: np.ndarray, kind: str, rng: np.random.Generator) -> np.ndarray: ...
+
+
+@runtime_checkable
+class Periodic(Protocol):
+    """A further component on its own period (``Setup.periodic``), run on its ticks after
+    navigation and before the controller: e.g. a guidance planner every 30 s that re-plans the
+    reference a faster tracking controller (sharing the reference object) follows.
+    ``update(t, x_est)`` returns events ``(kind, message)``."""
+
+    period_s: float
+
+    def reset(self, t0: float) -> None: ...
+
+    def update(self, t: float, x_est: np.ndarray) -> list[tuple[str, str]]: ...
+
+
+@runtime_checkable
+class Constraint(Protocol):
+    """A path constraint checked by the engine on the true measured state: ``violation(t, x)``
+    >= 0 in the constraint's unit (m for keep-out and corridors), 0 when satisfied. Each
+    constraint also gives its solver rows to the controllers that enforce it."""
+
+    name: str
+
+    def violation(self, t: float, x: np.ndarray) -> float: ...
+
+
+@runtime_checkable
+class System(Protocol):
+    """One paper's system: its scenario model and how a scenario becomes a run.
+
+    Defaults for every hook below ``summarize`` are in :class:`proxops.systems.base.SystemBase`:
+    ``run`` = one ``simulate(build(sc))``; ``check`` = build; ``success`` = the run did not end
+    in a failed status; ``campaign_table`` = ``""``. Figures are found by convention in
+    ``proxops.plotting.<system>`` (``run_figures``, ``mc_figures``; :mod:`proxops.plotting.systems`)."""
+
+    Scenario: type  # pydantic model (subclass of proxops.scenarios.schema.ScenarioBase)
+
+    def build(self, sc) -> object:
+        """The :class:`proxops.sim.engine.Setup` of one closed loop."""
+        ...
+
+    def summarize(self, sc, result) -> dict:
+        """System-specific summary keys of one run (SI units, key suffixes name the unit)."""
+        ...
+
+    def run(self, sc, seed: int = 0, progress: bool = False) -> tuple[dict, dict]:
+        """``(extra summary, {label: SimResult})``; the first result is the main one."""
+        ...
+
+    def check(self, sc) -> None:
+        """Every check a run makes before its first step; raises ProxopsInputError (one line)."""
+        ...
+
+    def success(self, sc, summary: dict) -> bool:
+        """Whether a campaign run counts as a success."""
+        ...
+
+    def campaign_table(self, sc, table) -> str: ...

@@ -3,9 +3,10 @@
 On-disk layout of ``result.save(dir)``::
 
     dir/steps.parquet   one row per sample: t, x_true_<i>, x_est_<i>, u_cmd_<i>, u_applied_<i>,
-                        dv_cum, status, solve_time_s, mode, info_<key>
+                        dv_cum, status, solve_time_s, mode, info_<key>, plant_mode (when any is set)
     dir/events.parquet  t, kind, message
-    dir/meta.json       scenario name, seed, sizes, position/velocity slices, summary extras
+    dir/meta.json       scenario name, seed, stop_reason, state layout (blocks, names, units),
+                        position/velocity slices, summary extras
 """
 
 from __future__ import annotations
@@ -17,6 +18,10 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from proxops.core.layout import StateLayout
+from proxops.solvers.stats import solve_time_stats
+from proxops.status import Status
+
 
 @dataclass
 class SimResult:
@@ -26,23 +31,54 @@ class SimResult:
     u_cmd: np.ndarray  # (n, n_u) commanded control (m/s^2 or m/s)
     u_applied: np.ndarray  # (n, n_u) after the actuator model
     dv_cum: np.ndarray  # (n,) cumulative delta-v, m/s
-    status: list[str]  # (n,) controller/solver status
+    status: list[Status]  # (n,) controller/solver status (plain str values after load; they compare equal)
     solve_time_s: np.ndarray  # (n,)
     mode: list[str]  # (n,)
     info: dict[str, np.ndarray] = field(default_factory=dict)
     events: list[tuple[float, str, str]] = field(default_factory=list)
     meta: dict = field(default_factory=dict)
+    plant_mode: list[str] = field(default_factory=list)  # (n,) the plant's discrete mode ("" = none)
+
+    # --- state layout -------------------------------------------------------------
+    @property
+    def layout(self) -> StateLayout:
+        """The plant's state layout stored with the result (results saved before layouts
+        existed: position/velocity from the stored slices)."""
+        d = self.meta.get("layout")
+        if d is not None:
+            return d if isinstance(d, StateLayout) else StateLayout.from_dict(d)
+        return StateLayout.from_slices(self.x_true.shape[1], tuple(self.meta.get("position_slice", (0, 3))),
+                                       tuple(self.meta.get("velocity_slice", (3, 6))))
+
+    def block(self, name: str, estimate: bool = False) -> np.ndarray:
+        """Columns of the named layout block (true state, or the estimate)."""
+        b = self.layout.block(name)
+        return (self.x_est if estimate else self.x_true)[:, b.start:b.stop]
+
+    def _kind(self, kind: str) -> np.ndarray:
+        span = self.layout.span(kind)
+        if span is None:
+            raise KeyError(f"the state layout has no {kind} block")
+        return self.x_true[:, span[0]:span[1]]
 
     # --- derived quantities -------------------------------------------------------
     @property
     def position(self) -> np.ndarray:
-        lo, hi = self.meta.get("position_slice", (0, 3))
-        return self.x_true[:, lo:hi]
+        """(n, 2 or 3) first position block, m."""
+        return self._kind("position")
 
     @property
     def velocity(self) -> np.ndarray:
-        lo, hi = self.meta.get("velocity_slice", (3, 6))
-        return self.x_true[:, lo:hi]
+        """(n, 2 or 3) first velocity block, m/s."""
+        return self._kind("velocity")
+
+    @property
+    def attitude(self) -> np.ndarray:
+        """(n, 4) first quaternion block (scalar-last), or (n, 1) planar angle (rad)."""
+        span = self.layout.span("quaternion") or self.layout.span("angle")
+        if span is None:
+            raise KeyError("the state layout has no attitude (quaternion or angle) block")
+        return self.x_true[:, span[0]:span[1]]
 
     @property
     def range_m(self) -> np.ndarray:
@@ -67,12 +103,8 @@ class SimResult:
             "sim_time_s": float(self.t[-1] - self.t[0]),
             "wall_time_s": float(self.meta.get("wall_time_s", 0.0)),
             "steps": int(len(self.t) - 1),
-            "solver_failures": int(sum(s not in ("ok", "optimal", "") for s in self.status)),
-            "solve_time_ms": {
-                "median": float(np.median(solved) * 1e3) if solved.size else 0.0,
-                "p95": float(np.percentile(solved, 95) * 1e3) if solved.size else 0.0,
-                "max": float(solved.max() * 1e3) if solved.size else 0.0,
-            },
+            "solver_failures": int(sum(Status.parse(s).flagged for s in self.status)),
+            "solve_time_ms": solve_time_stats(solved),
             "events": counts,
         }
 
@@ -83,11 +115,13 @@ class SimResult:
             for i in range(arr.shape[1]):
                 cols[f"{name}_{i}"] = arr[:, i]
         cols["dv_cum"] = self.dv_cum
-        cols["status"] = list(self.status)
+        cols["status"] = [str(s) for s in self.status]
         cols["solve_time_s"] = self.solve_time_s
         cols["mode"] = list(self.mode)
         for key, arr in self.info.items():
             cols[f"info_{key}"] = arr
+        if any(self.plant_mode):
+            cols["plant_mode"] = list(self.plant_mode)
         return pd.DataFrame(cols)
 
     def save(self, directory: str | Path) -> Path:
@@ -127,6 +161,7 @@ class SimResult:
             info=info,
             events=[(float(r.t), str(r.kind), str(r.message)) for r in ev.itertuples()],
             meta=meta,
+            plant_mode=df["plant_mode"].tolist() if "plant_mode" in df.columns else [""] * len(df),
         )
 
 
@@ -135,4 +170,6 @@ def _jsonable(obj):
         return obj.item()
     if isinstance(obj, np.ndarray):
         return obj.tolist()
+    if isinstance(obj, StateLayout):
+        return obj.to_dict()
     return str(obj)

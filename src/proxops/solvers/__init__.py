@@ -1,23 +1,31 @@
-"""Thin adapters over QP / LP / SOCP solvers with one result type.
+"""One persistent interface over QP / SOCP / (MI)LP / NLP solvers, with one result type.
 
-Persistent adapters (``setup`` once, ``update`` in place, ``solve`` many times):
+Canonical forms (:mod:`proxops.solvers.forms`): :class:`QuadraticProgram`,
+:class:`ConicProblem` (SOCP), :class:`LinearProgram` ((MI)LP) and
+:class:`~proxops.solvers.casadi_nlp.NonlinearProgram`. Every adapter has the same calls:
+``setup(problem)`` once, ``update(**fields)`` in place (the form's field names),
+``warm_start(...)`` (a hint; returns whether the solver uses it) and ``solve()``:
 
 - :class:`DaqpQP`       dense QP, active set, warm-started working set (condensed MPC)
 - :class:`PiqpQP`       sparse QP/LP, proximal interior point (fuel problems)
 - :class:`ClarabelSOCP` conic QP / SOCP, interior point (cones, robust fallback)
 - :class:`HighsLP`      pure LP, dual simplex hot-started from the last basis
+- :class:`HighsMILP`    mixed-integer LP, HiGHS branch and cut
+- :class:`~proxops.solvers.casadi_nlp.CasadiNLP` NLP by IPOPT or fatrop (CasADi)
 
-Every ``solve`` returns a :class:`SolverResult` whose :class:`SolveStatus` comes from
-an explicit per-solver table; infeasible, inaccurate, iteration/time-limited and
-failed solves are statuses, never exceptions (only wrong shapes/unknown settings
-raise :class:`proxops.errors.ProxopsInputError`). Verify answers with
-:func:`check_feasibility` / :func:`check_conic_feasibility`.
+:func:`make_qp_solver` picks a QP adapter by name, so a controller is not welded to one
+solver. Every ``solve`` returns a :class:`SolverResult` whose :class:`SolveStatus` comes
+from an explicit per-solver table; infeasible, inaccurate, iteration/time-limited and
+failed solves are statuses, never exceptions (only wrong shapes/unknown settings raise
+:class:`proxops.errors.ProxopsInputError`). Verify answers with :func:`check_feasibility`
+/ :func:`check_conic_feasibility`. :func:`successive_convexification` is the shared
+SCP loop (re-linearisation callback, trust region, convergence test) of srf and cortex.
 
 Solver modules are imported lazily (on first use of an adapter). OSQP is not
 shipped: it gave false infeasibility on the seed problems (issues #4, #5).
 """
 
-from proxops.solvers.clarabel_socp import ClarabelSOCP, ConicProblem, build_conic_problem, conic_from_qp
+from proxops.solvers.clarabel_socp import ClarabelSOCP
 from proxops.solvers.daqp_qp import DaqpQP
 from proxops.solvers.feasibility import (
     FeasibilityReport,
@@ -25,10 +33,20 @@ from proxops.solvers.feasibility import (
     check_feasibility,
     max_violation,
 )
-from proxops.solvers.front import QuadraticProgram, solve_qp
-from proxops.solvers.highs_lp import HighsLP
+from proxops.solvers.forms import (
+    ConicProblem,
+    LinearProgram,
+    QuadraticProgram,
+    build_conic_problem,
+    conic_from_program,
+    conic_from_qp,
+)
+from proxops.solvers.front import make_qp_solver, solve_qp
+from proxops.solvers.highs_lp import HighsLP, HighsMILP
 from proxops.solvers.piqp_qp import PiqpQP
 from proxops.solvers.result import SolverResult, SolveStatus
+from proxops.solvers.scp import ScpResult, TrustRegion, successive_convexification
+from proxops.solvers.stats import solve_time_stats
 
 __all__ = [
     "ClarabelSOCP",
@@ -36,14 +54,22 @@ __all__ = [
     "DaqpQP",
     "FeasibilityReport",
     "HighsLP",
+    "HighsMILP",
+    "LinearProgram",
     "PiqpQP",
     "QuadraticProgram",
+    "ScpResult",
     "SolveStatus",
     "SolverResult",
+    "TrustRegion",
     "build_conic_problem",
     "check_conic_feasibility",
     "check_feasibility",
+    "conic_from_program",
     "conic_from_qp",
+    "make_qp_solver",
     "max_violation",
     "solve_qp",
+    "solve_time_stats",
+    "successive_convexification",
 ]

@@ -20,15 +20,22 @@ pattern, sets the solver up again (``info["rebuilt"] = True``).
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import time
-from dataclasses import dataclass, field
 
 import numpy as np
 import scipy.sparse as sp
 
 from proxops.errors import input_error
 from proxops.solvers import _util
+from proxops.solvers.forms import (  # noqa: F401 (build_conic_problem, conic_from_qp re-exported)
+    ConicProblem,
+    QuadraticProgram,
+    build_conic_problem,
+    conic_from_program,
+    conic_from_qp,
+)
 from proxops.solvers.result import SolverResult, SolveStatus, error_message, failed_result
 
 CONE_KINDS = ("zero", "nonneg", "soc")
@@ -48,101 +55,6 @@ STATUS_MAP = {
     "Unsolved": SolveStatus.NUMERICAL_ERROR,
     "CallbackTerminated": SolveStatus.NUMERICAL_ERROR,
 }
-
-
-@dataclass
-class ConicProblem:
-    """``min 1/2 x'Px + q'x s.t. A x + s = b, s in cones`` with named row blocks.
-
-    blocks maps "eq", "ineq", "lb", "ub", "soc0", "soc1", ... to row slices of A/b,
-    so callers can update parts of ``b`` (e.g. ``b[prob.blocks["ineq"]] = h_new``).
-    """
-
-    P: sp.csc_matrix | None
-    q: np.ndarray
-    A: sp.csc_matrix
-    b: np.ndarray
-    cones: list[tuple[str, int]]
-    blocks: dict[str, slice] = field(default_factory=dict)
-
-
-def build_conic_problem(q, P=None, *, eq=None, ineq=None, lb=None, ub=None, soc=()) -> ConicProblem:
-    """Assemble a :class:`ConicProblem`.
-
-    q: (n,) cost; P: (n, n) PSD or None;
-    eq: (A_eq, b_eq) for A_eq x = b_eq;
-    ineq: (G, h) for G x <= h (h may hold +inf: no constraint on that row);
-    lb, ub: (n,) variable bounds (+-inf allowed);
-    soc: sequence of (F, g, c, d) for ||F x + g||_2 <= c'x + d with F (k, n), g (k,),
-    c (n,), d scalar. As a cone row block: s = [c'x + d; F x + g] = b - A x, so
-    A = -[c'; F] and b = [d; g] (Clarabel form).
-    """
-    q = _util.vector("q", q, np.size(q))
-    n = q.shape[0]
-    rows, rhs, cones, blocks = [], [], [], {}
-    start = 0
-
-    def add(name, M, v, kind):
-        nonlocal start
-        k = M.shape[0]
-        if k == 0:
-            return
-        rows.append(sp.csc_matrix(M))
-        rhs.append(v)
-        if cones and cones[-1][0] == kind and kind != "soc":
-            cones[-1] = (kind, cones[-1][1] + k)
-        else:
-            cones.append((kind, k))
-        blocks[name] = slice(start, start + k)
-        start += k
-
-    if eq is not None:
-        A_eq, b_eq = eq
-        m = _util.rows_of("eq[0]", A_eq)
-        add("eq", _util.csc_matrix("eq[0]", A_eq, (m, n)), _util.vector("eq[1]", b_eq, m), "zero")
-    if ineq is not None:
-        G, h = ineq
-        m = _util.rows_of("ineq[0]", G)
-        add("ineq", _util.csc_matrix("ineq[0]", G, (m, n)), _util.vector("ineq[1]", h, m, allow_inf=True), "nonneg")
-    if lb is not None:  # -x <= -lb
-        add("lb", -sp.identity(n, format="csc"), -_util.vector("lb", lb, n, allow_inf=True), "nonneg")
-    if ub is not None:  # x <= ub
-        add("ub", sp.identity(n, format="csc"), _util.vector("ub", ub, n, allow_inf=True), "nonneg")
-    for i, cone in enumerate(soc):
-        if len(cone) != 4:
-            raise input_error(f"soc[{i}]", f"{len(cone)} items", "must be (F, g, c, d) for ||F x + g|| <= c'x + d")
-        F, g, c, d = cone
-        k = _util.rows_of(f"soc[{i}].F", F)
-        F = _util.csc_matrix(f"soc[{i}].F", F, (k, n))
-        c = _util.vector(f"soc[{i}].c", c, n)
-        M = sp.vstack([-sp.csc_matrix(c.reshape(1, n)), -F], format="csc")
-        v = np.concatenate([[float(d)], _util.vector(f"soc[{i}].g", g, k)])
-        add(f"soc{i}", M, v, "soc")
-    A = sp.vstack(rows, format="csc") if rows else sp.csc_matrix((0, n))
-    b = np.concatenate(rhs) if rhs else np.zeros(0)
-    P_mat = None if P is None else _util.csc_matrix("P", P, (n, n))
-    return ConicProblem(P=P_mat, q=q, A=A, b=b, cones=cones, blocks=blocks)
-
-
-def conic_from_qp(P, q, A=None, bl=None, bu=None, lb=None, ub=None) -> ConicProblem:
-    """Conic form of ``min 1/2 x'Px + q'x s.t. bl <= A x <= bu, lb <= x <= ub``.
-
-    Rows with bl == bu become equalities; the others give ``A x <= bu`` and
-    ``-A x <= -bl`` rows (infinite sides become ignored +inf rows).
-    """
-    q = _util.vector("q", q, np.size(q))
-    n = q.shape[0]
-    m = _util.rows_of("A", A)
-    A = _util.csc_matrix("A", A, (m, n))
-    bl = _util.vector("bl", bl, m, fill=-np.inf, allow_inf=True)
-    bu = _util.vector("bu", bu, m, fill=np.inf, allow_inf=True)
-    is_eq = bl == bu
-    A_csr = A.tocsr()
-    eq = (A_csr[is_eq], bu[is_eq]) if is_eq.any() else None
-    rest = ~is_eq
-    G = sp.vstack([A_csr[rest], -A_csr[rest]], format="csc")
-    h = np.concatenate([bu[rest], -bl[rest]])
-    return build_conic_problem(q, P, eq=eq, ineq=(G, h) if G.shape[0] else None, lb=lb, ub=ub)
 
 
 class ClarabelSOCP:
@@ -177,11 +89,33 @@ class ClarabelSOCP:
         self._data: dict | None = None
 
     # ------------------------------------------------------------------ set-up
-    def setup_problem(self, problem: ConicProblem) -> None:
-        """``setup`` from a :class:`ConicProblem`."""
-        self.setup(problem.P, problem.q, problem.A, problem.b, problem.cones)
+    def setup(self, problem, *args, **kwargs) -> None:
+        """Set up a :class:`ConicProblem` (``update`` takes P, q, A, b) or a
+        :class:`QuadraticProgram` (converted by :func:`conic_from_program`; ``update`` then takes
+        the QP's names and re-converts). The native signature ``setup(P, q, A, b, cones)`` is
+        still accepted (:meth:`setup_native`)."""
+        self._qp = None
+        if isinstance(problem, QuadraticProgram):
+            if args or kwargs:
+                raise input_error("ClarabelSOCP.setup", "extra arguments with a problem", "pass the problem only")
+            self._qp = dataclasses.replace(problem)
+            problem = conic_from_program(problem)
+        if isinstance(problem, ConicProblem):
+            if args or kwargs:
+                raise input_error("ClarabelSOCP.setup", "extra arguments with a problem", "pass the problem only")
+            self.setup_native(problem.P, problem.q, problem.A, problem.b, problem.cones)
+            return
+        self.setup_native(problem, *args, **kwargs)
 
-    def setup(self, P, q, A, b, cones) -> None:
+    def setup_problem(self, problem: ConicProblem) -> None:
+        """``setup`` from a :class:`ConicProblem` (kept for existing callers)."""
+        self.setup(problem)
+
+    def warm_start(self, x=None, y=None) -> bool:
+        """Clarabel (an interior-point method) has no warm start: nothing is used; returns False."""
+        return False
+
+    def setup_native(self, P, q, A, b, cones) -> None:
         """Set up the problem; cones is a sequence of (kind, dim), kind in zero/nonneg/soc,
         dims summing to the rows of A. P may be None (LP/SOCP); only its upper triangle is used."""
         q = _util.vector("q", q, np.size(q), allow_nan=True)
@@ -264,7 +198,26 @@ class ClarabelSOCP:
             self._solver_error = error_message(exc)
 
     # ------------------------------------------------------------------ update
-    def update(self, *, P=None, q=None, A=None, b=None) -> None:
+    def update(self, **fields) -> None:
+        """Change data in place: P, q, A, b of the conic form, or the fields of the
+        :class:`QuadraticProgram` it was set up from (re-converted; set up again when the
+        equality split changes the cones)."""
+        if self._qp is None:
+            self.update_native(**fields)
+            return
+        names = {f.name for f in dataclasses.fields(QuadraticProgram)}
+        unknown = sorted(set(fields) - names)
+        if unknown:
+            raise input_error("ClarabelSOCP.update", unknown, f"allowed: {', '.join(sorted(names))}")
+        qp = dataclasses.replace(self._qp, **fields)
+        conic = conic_from_program(qp)
+        if conic.cones != self.cones:
+            self.setup(qp)
+            return
+        self._qp = qp
+        self.update_native(P=conic.P if "P" in fields else None, q=conic.q, A=conic.A, b=conic.b)
+
+    def update_native(self, *, P=None, q=None, A=None, b=None) -> None:
         """Change data in place (same sizes and cones). A new sparsity pattern in P or A,
         or a nonneg row switching between finite and +inf b, sets the solver up again."""
         if self._data is None:

@@ -25,6 +25,7 @@ import numpy as np
 
 from proxops.errors import input_error
 from proxops.solvers import _util
+from proxops.solvers.forms import QuadraticProgram
 from proxops.solvers.result import SolverResult, SolveStatus, error_message, failed_result
 
 DAQP_INF = 1e30  # DAQP treats |bound| >= 1e30 as absent (DAQP_INF in constants.h)
@@ -78,12 +79,33 @@ class DaqpQP:
         if unknown:
             raise input_error("daqp settings", unknown, f"allowed keys: {sorted(allowed)}")
         self._native = native
-        self.warm_start = bool(warm_start)
+        self.warm_start_enabled = bool(warm_start)
         self._model = None
 
     # ------------------------------------------------------------------ set-up
-    def setup(self, H, f, A=None, bl=None, bu=None, lb=None, ub=None, *, soft_rows=None) -> None:
-        """Allocate the DAQP workspace for this problem.
+    def setup(self, problem, *args, soft_rows=None, **kwargs) -> None:
+        """Allocate the DAQP workspace for a :class:`QuadraticProgram` (the canonical entry,
+        shared by every QP adapter). Equality rows A_eq come first in DAQP's rows (bl = bu).
+        ``soft_rows`` masks the rows of ``problem.A`` DAQP may relax (see :meth:`setup_native`).
+        The native signature ``setup(H, f, A, bl, bu, lb, ub)`` is still accepted (forwarded
+        to :meth:`setup_native`); ``update`` then takes the native names."""
+        if not isinstance(problem, QuadraticProgram):
+            self._p_eq = None
+            self.setup_native(problem, *args, soft_rows=soft_rows, **kwargs)
+            return
+        if args or kwargs:
+            raise input_error("DaqpQP.setup", "extra arguments with a QuadraticProgram", "pass the problem only")
+        p = _util.rows_of("A_eq", problem.A_eq)
+        stacked = problem.stacked()
+        n = stacked.n
+        if soft_rows is not None and p:
+            soft_rows = np.concatenate([np.zeros(p, bool), np.asarray(soft_rows, bool).reshape(-1)])
+        self.setup_native(np.zeros((n, n)) if stacked.P is None else stacked.P, stacked.q, stacked.A,
+                          stacked.bl, stacked.bu, stacked.lb, stacked.ub, soft_rows=soft_rows)
+        self._p_eq = p
+
+    def setup_native(self, H, f, A=None, bl=None, bu=None, lb=None, ub=None, *, soft_rows=None) -> None:
+        """Allocate the DAQP workspace for this problem (DAQP's native form).
 
         H: (n, n) dense/sparse, symmetric PSD; f: (n,); A: (m, n) or None;
         bl, bu: (m,) row bounds (default -inf / +inf); lb, ub: (n,) variable bounds
@@ -166,12 +188,39 @@ class DaqpQP:
         return sense
 
     # ------------------------------------------------------------------ update
-    def update(self, *, H=None, f=None, A=None, bl=None, bu=None, lb=None, ub=None) -> None:
+    def update(self, *, P=None, q=None, A=None, bl=None, bu=None, lb=None, ub=None, A_eq=None, b_eq=None,
+               H=None, f=None) -> None:
         """Change problem data in place (same sizes); the working set is kept (warm start).
 
+        Names are those of :class:`QuadraticProgram` (``H``/``f`` are DAQP's names for
+        ``P``/``q``). ``A``, ``bl``, ``bu`` are the rows of the problem's A (after the A_eq rows).
         Changing which rows are equalities (bl == bu) resets the working set. After a
         failed set-up (e.g. crossed bounds or NaN data) the model is rebuilt instead.
         """
+        H = P if P is not None else H
+        f = q if q is not None else f
+        p = getattr(self, "_p_eq", None) or 0
+        if p:
+            if A is not None or A_eq is not None:
+                top = self._A[:p] if A_eq is None else _util.dense_matrix("A_eq", A_eq, (p, self.n), True)
+                rest = self._A[p:] if A is None else _util.dense_matrix("A", A, (self.m - p, self.n), True)
+                A = np.vstack([top, rest])
+            if bl is not None or bu is not None or b_eq is not None:
+                eq = self._bl[:p] if b_eq is None else _util.vector("b_eq", b_eq, p, allow_nan=True)
+                bl = np.concatenate([eq, self._bl[p:] if bl is None else
+                                     _util.vector("bl", bl, self.m - p, allow_inf=True, allow_nan=True)])
+                bu = np.concatenate([eq, self._bu[p:] if bu is None else
+                                     _util.vector("bu", bu, self.m - p, allow_inf=True, allow_nan=True)])
+        elif A_eq is not None or b_eq is not None:
+            raise input_error("A_eq/b_eq", "update without equality rows at setup", "set them up in the problem")
+        self._update(H=H, f=f, A=A, bl=bl, bu=bu, lb=lb, ub=ub)
+
+    def warm_start(self, x=None, y=None) -> bool:
+        """DAQP warm-starts from the previous working set by itself (unless ``warm_start=False``);
+        a primal/dual guess is not used. Returns True when the next solve is warm."""
+        return self.warm_start_enabled
+
+    def _update(self, *, H=None, f=None, A=None, bl=None, bu=None, lb=None, ub=None) -> None:
         if self._model is None:
             raise input_error("DaqpQP.update", "called before setup", "call setup() first")
         kwargs = {}
@@ -228,8 +277,9 @@ class DaqpQP:
         to them: do not modify them afterwards). Saves the ~50 us of input checking of
         :meth:`update`. After a failed set-up/update it falls back to :meth:`update`.
         """
-        if self._model is None or self._solver_error is not None or self._solver_flag < 0 or self._bad.fields:
-            self.update(f=f, bu=bu, bl=bl)
+        if (self._model is None or self._solver_error is not None or self._solver_flag < 0 or self._bad.fields
+                or getattr(self, "_p_eq", None)):
+            self.update(q=f, bu=bu, bl=bl)
             return
         kwargs = {}
         if f is not None:
@@ -270,7 +320,7 @@ class DaqpQP:
                       "error": "daqp rejected the problem data at setup/update"},
             )
         try:
-            if not self.warm_start:
+            if not self.warm_start_enabled:
                 self._model.update(sense=self._sense.copy())
             t0 = time.perf_counter()
             x, fval, flag, info = self._model.solve()

@@ -1,79 +1,49 @@
-"""One-shot front end: solve a :class:`QuadraticProgram` with any adapter.
+"""Front end over the adapters: a persistent QP solver by name, and one-shot ``solve_qp``.
 
-MPCs should keep a persistent adapter (``DaqpQP``, ``PiqpQP``, ``ClarabelSOCP``,
-``HighsLP``) and ``update`` it each step; ``solve_qp`` is for one-off problems,
-cross-checks and fallbacks (e.g. Clarabel after a DAQP failure).
+Controllers keep one persistent adapter (:func:`make_qp_solver`, or a class such as
+``DaqpQP``) and call ``setup(problem)`` once, ``update(...)`` each step and ``solve()``:
+the same calls whichever solver the scenario names. ``solve_qp`` is for one-off
+problems, cross-checks and fallbacks (e.g. Clarabel after a PIQP failure).
 """
 
 from __future__ import annotations
-
-from dataclasses import dataclass
 
 import numpy as np
 import scipy.sparse as sp
 
 from proxops.errors import input_error
-from proxops.solvers import _util
+from proxops.solvers.forms import LinearProgram, QuadraticProgram
 from proxops.solvers.result import SolverResult
 
 SOLVERS = ("daqp", "piqp", "clarabel", "highs")
+QP_SOLVERS = ("daqp", "piqp", "clarabel")
 
 
-@dataclass
-class QuadraticProgram:
-    """``min 1/2 x'Px + q'x  s.t.  bl <= A x <= bu,  lb <= x <= ub``.
+def make_qp_solver(solver: str, **settings):
+    """A persistent adapter for :class:`QuadraticProgram` problems: ``solver`` in
+    {"daqp", "piqp", "clarabel"}; ``settings`` go to the adapter's constructor."""
+    if solver == "daqp":
+        from proxops.solvers.daqp_qp import DaqpQP
 
-    P: (n, n) PSD or None (LP); A: (m, n) or None; bl/bu/lb/ub may hold +-inf or be None.
-    Rows with bl == bu are equalities.
-    """
+        return DaqpQP(**settings)
+    if solver == "piqp":
+        from proxops.solvers.piqp_qp import PiqpQP
 
-    P: object
-    q: np.ndarray
-    A: object = None
-    bl: np.ndarray | None = None
-    bu: np.ndarray | None = None
-    lb: np.ndarray | None = None
-    ub: np.ndarray | None = None
+        return PiqpQP(**settings)
+    if solver == "clarabel":
+        from proxops.solvers.clarabel_socp import ClarabelSOCP
+
+        return ClarabelSOCP(**settings)
+    raise input_error("solver", solver, f"allowed for QPs: {', '.join(QP_SOLVERS)}")
 
 
 def solve_qp(problem: QuadraticProgram, solver: str = "daqp", **settings) -> SolverResult:
     """Solve ``problem`` once with ``solver`` in {"daqp", "piqp", "clarabel", "highs"}.
 
     ``settings`` go to the adapter's constructor (e.g. ``max_iter=...``). "highs" only
-    accepts LPs (P None or zero). Returns the adapter's :class:`SolverResult`.
+    accepts LPs (P None or zero). Without A_eq, rows with bl == bu are equalities (PIQP
+    gets them as its equality rows). Returns the adapter's :class:`SolverResult`.
     """
-    q = _util.vector("q", problem.q, np.size(problem.q))
-    n = q.shape[0]
-    m = _util.rows_of("A", problem.A)
-    if solver == "daqp":
-        from proxops.solvers.daqp_qp import DaqpQP
-
-        P = np.zeros((n, n)) if problem.P is None else problem.P
-        adapter = DaqpQP(**settings)
-        adapter.setup(P, q, problem.A, problem.bl, problem.bu, problem.lb, problem.ub)
-        return adapter.solve()
-    if solver == "piqp":
-        from proxops.solvers.piqp_qp import PiqpQP
-
-        A = _util.csc_matrix("A", problem.A, (m, n)).tocsr()
-        bl = _util.vector("bl", problem.bl, m, fill=-np.inf, allow_inf=True)
-        bu = _util.vector("bu", problem.bu, m, fill=np.inf, allow_inf=True)
-        is_eq = bl == bu
-        adapter = PiqpQP(**settings)
-        adapter.setup(
-            problem.P, q,
-            A[is_eq] if is_eq.any() else None, bu[is_eq] if is_eq.any() else None,
-            A[~is_eq] if (~is_eq).any() else None,
-            bl[~is_eq] if (~is_eq).any() else None, bu[~is_eq] if (~is_eq).any() else None,
-            problem.lb, problem.ub,
-        )
-        return adapter.solve()
-    if solver == "clarabel":
-        from proxops.solvers.clarabel_socp import ClarabelSOCP, conic_from_qp
-
-        adapter = ClarabelSOCP(**settings)
-        adapter.setup_problem(conic_from_qp(problem.P, q, problem.A, problem.bl, problem.bu, problem.lb, problem.ub))
-        return adapter.solve()
     if solver == "highs":
         from proxops.solvers.highs_lp import HighsLP
 
@@ -83,7 +53,12 @@ def solve_qp(problem: QuadraticProgram, solver: str = "daqp", **settings) -> Sol
             if nnz:
                 raise input_error("solver", "highs", "HiGHS is used for LPs only (P must be None or zero); "
                                   "use daqp, piqp or clarabel for QPs")
+        lp = problem.stacked()
         adapter = HighsLP(**settings)
-        adapter.setup(q, problem.A, problem.bl, problem.bu, problem.lb, problem.ub)
+        adapter.setup(LinearProgram(lp.q, lp.A, lp.bl, lp.bu, lp.lb, lp.ub))
         return adapter.solve()
-    raise input_error("solver", solver, f"allowed: {', '.join(SOLVERS)}")
+    if solver not in SOLVERS:
+        raise input_error("solver", solver, f"allowed: {', '.join(SOLVERS)}")
+    adapter = make_qp_solver(solver, **settings)
+    adapter.setup(problem.split_equalities() if solver == "piqp" else problem)
+    return adapter.solve()

@@ -26,6 +26,7 @@ import numpy as np
 
 from proxops.errors import input_error
 from proxops.solvers import _util
+from proxops.solvers.forms import LinearProgram
 from proxops.solvers.result import SolverResult, SolveStatus, error_message, failed_result
 
 # highspy.HighsModelStatus names.
@@ -62,6 +63,7 @@ class HighsLP:
     """
 
     name = "highs"
+    mip = False
 
     def __init__(self, *, time_limit_s: float | None = None, max_iter: int | None = None,
                  verbose: bool = False, settings: dict | None = None):
@@ -75,9 +77,48 @@ class HighsLP:
         self._native = native
         self._h = None
         self._data: dict | None = None
+        self._integrality = None
 
     # ------------------------------------------------------------------ set-up
-    def setup(self, c, A=None, rl=None, ru=None, lb=None, ub=None) -> None:
+    def setup(self, problem, *args, **kwargs) -> None:
+        """Pass a :class:`LinearProgram` to HiGHS (the canonical entry; ``update`` takes its
+        names c, A, rl, ru, lb, ub). The positional form ``setup(c, A, rl, ru, lb, ub)`` is the same."""
+        if isinstance(problem, LinearProgram):
+            if args or kwargs:
+                raise input_error(f"{type(self).__name__}.setup", "extra arguments with a LinearProgram",
+                                  "pass the problem only")
+            integ = None
+            if problem.integrality is not None:
+                integ = np.asarray(problem.integrality, dtype=bool).reshape(-1)
+                if integ.shape != (np.size(problem.c),):
+                    raise input_error("integrality.shape", integ.shape, f"must be ({np.size(problem.c)},) like c")
+                if not self.mip and integ.any():
+                    raise input_error("integrality", "integer variables", "HighsLP solves LPs; use HighsMILP")
+            self._integrality = integ if self.mip else None
+            self.setup_native(problem.c, problem.A, problem.rl, problem.ru, problem.lb, problem.ub)
+            return
+        if self.mip:
+            raise input_error("HighsMILP.setup", "native arguments", "pass a LinearProgram with integrality")
+        self._integrality = None
+        self.setup_native(problem, *args, **kwargs)
+
+    def warm_start(self, x=None, y=None) -> bool:
+        """Hand HiGHS a starting point ``x`` (n,) (``setSolution``; for a MILP a first incumbent);
+        without ``x`` the last basis is kept (hot start). Returns True when HiGHS accepted it."""
+        if self._data is None:
+            raise input_error(f"{type(self).__name__}.warm_start", "called before setup", "call setup() first")
+        if x is None:
+            return True
+        sol = self._highspy.HighsSolution()
+        sol.col_value = list(_util.vector("x", x, self.n))
+        sol.value_valid = True
+        try:
+            status = self._h.setSolution(sol)
+        except Exception:  # noqa: BLE001 - an unusable guess is just not used
+            return False
+        return getattr(status, "name", "") != "kError"
+
+    def setup_native(self, c, A=None, rl=None, ru=None, lb=None, ub=None) -> None:
         """Pass the LP to HiGHS. A dense or sparse (m, n) or None; rl/ru default -inf/+inf,
         lb/ub default -inf/+inf (note: HiGHS's own default lb is 0, ours is free)."""
         c = _util.vector("c", c, np.size(c), allow_nan=True)
@@ -127,6 +168,9 @@ class HighsLP:
             lp.a_matrix_.start_ = A.indptr.astype(np.int32)
             lp.a_matrix_.index_ = A.indices.astype(np.int32)
             lp.a_matrix_.value_ = clean(A.data)
+            if self._integrality is not None:
+                kinds = (hs.HighsVarType.kContinuous, hs.HighsVarType.kInteger)
+                lp.integrality_ = [kinds[int(v)] for v in self._integrality]
             status = self._h.passModel(lp)
             if getattr(status, "name", "") == "kError":
                 self._solver_error = "highs rejected the model (passModel returned kError)"
@@ -203,6 +247,10 @@ class HighsLP:
             x = np.array(sol.col_value, dtype=float) if sol.value_valid else None
             dual = np.array(sol.row_dual, dtype=float) if sol.dual_valid else None
             primal_feasible = int(info.primal_solution_status) == 2
+            if self.mip:
+                iterations = int(info.mip_node_count)
+                info_extra.update(mip_gap=float(info.mip_gap), mip_dual_bound=float(info.mip_dual_bound),
+                                  simplex_iterations=int(info.simplex_iteration_count))
         except Exception as exc:
             return failed_result(self.name, error_message(exc))
         status = STATUS_MAP.get(raw, SolveStatus.NUMERICAL_ERROR)
@@ -218,3 +266,17 @@ class HighsLP:
             solver=self.name,
             info={"raw_status": raw, "dual": dual, **info_extra},
         )
+
+
+class HighsMILP(HighsLP):
+    """Persistent HiGHS branch-and-cut solver for a :class:`LinearProgram` with integer variables
+    (``integrality``); same settings, ``update`` and status map as :class:`HighsLP`.
+
+    ``iterations`` is the branch-and-bound node count; ``info`` adds ``mip_gap`` (relative
+    primal-dual gap at exit), ``mip_dual_bound`` and ``simplex_iterations``; ``dual`` is None
+    (a MILP has no LP duals). ``warm_start(x)`` gives HiGHS a first incumbent. Setting
+    ``settings={"mip_rel_gap": ...}`` changes HiGHS's optimality gap (default 1e-4).
+    """
+
+    name = "highs_mip"
+    mip = True

@@ -26,6 +26,7 @@ import numpy as np
 
 from proxops.errors import input_error
 from proxops.solvers import _util
+from proxops.solvers.forms import QuadraticProgram
 from proxops.solvers.result import SolverResult, SolveStatus, error_message, failed_result
 
 # piqp.Status values (docs/_common/status_code_table.md of PREDICT-EPFL/piqp).
@@ -40,6 +41,9 @@ STATUS_MAP = {
 }
 
 _MATRICES = ("P", "A", "G")
+# QuadraticProgram field -> PIQP name (A_eq rows are PIQP's equalities, the rows of A its G rows)
+_FORM_NAMES = {"P": "P", "q": "c", "A_eq": "A", "b_eq": "b", "A": "G", "bl": "h_l", "bu": "h_u",
+               "lb": "x_lb", "ub": "x_ub"}
 _VECTORS = ("c", "b", "h_l", "h_u", "x_lb", "x_ub")
 
 
@@ -72,8 +76,29 @@ class PiqpQP:
         self._data: dict | None = None
 
     # ------------------------------------------------------------------ set-up
-    def setup(self, P, c, A=None, b=None, G=None, h_l=None, h_u=None, x_lb=None, x_ub=None) -> None:
-        """Set up the problem. P may be None (LP); A/b and G/(h_l, h_u) come in pairs.
+    def setup(self, problem, *args, **kwargs) -> None:
+        """Set up a :class:`QuadraticProgram` (the canonical entry shared by every QP adapter):
+        A_eq/b_eq become PIQP's equality rows and the rows of A its ``h_l <= G x <= h_u`` rows,
+        as they are (rows of A with bl == bu are NOT moved: the row structure stays fixed so
+        ``update`` keeps PIQP's factorisation; :func:`solve_qp` splits them for one-off solves).
+        ``update`` then takes the form's names. The native signature
+        ``setup(P, c, A, b, G, h_l, h_u, x_lb, x_ub)`` is still accepted (:meth:`setup_native`)."""
+        if not isinstance(problem, QuadraticProgram):
+            self._form = False
+            self.setup_native(problem, *args, **kwargs)
+            return
+        if args or kwargs:
+            raise input_error("PiqpQP.setup", "extra arguments with a QuadraticProgram", "pass the problem only")
+        pr = problem
+        self.setup_native(pr.P, pr.q, pr.A_eq, pr.b_eq, pr.A, pr.bl, pr.bu, pr.lb, pr.ub)
+        self._form = True
+
+    def warm_start(self, x=None, y=None) -> bool:
+        """PIQP 0.7 has no primal/dual warm start (upstream PR #39): nothing is used; returns False."""
+        return False
+
+    def setup_native(self, P, c, A=None, b=None, G=None, h_l=None, h_u=None, x_lb=None, x_ub=None) -> None:
+        """Set up the problem in PIQP's form. P may be None (LP); A/b and G/(h_l, h_u) come in pairs.
 
         Matrices may be dense or scipy.sparse; vectors allow +-inf in h_l, h_u, x_lb,
         x_ub (an infinite side is no constraint). Shape errors raise ProxopsInputError;
@@ -140,9 +165,19 @@ class PiqpQP:
                 return
 
     # ------------------------------------------------------------------ update
-    def update(self, *, P=None, c=None, A=None, b=None, G=None, h_l=None, h_u=None,
-               x_lb=None, x_ub=None) -> None:
-        """Change data in place (same sizes). A matrix with a new sparsity pattern
+    def update(self, **fields) -> None:
+        """Change data in place (same sizes): the names of :class:`QuadraticProgram` when set up
+        from one (P, q, A_eq, b_eq, A, bl, bu, lb, ub), else PIQP's (:meth:`update_native`)."""
+        if getattr(self, "_form", False):
+            unknown = sorted(set(fields) - set(_FORM_NAMES))
+            if unknown:
+                raise input_error("PiqpQP.update", unknown, f"allowed: {', '.join(_FORM_NAMES)}")
+            fields = {_FORM_NAMES[k]: v for k, v in fields.items()}
+        self.update_native(**fields)
+
+    def update_native(self, *, P=None, c=None, A=None, b=None, G=None, h_l=None, h_u=None,
+                      x_lb=None, x_ub=None) -> None:
+        """Change data in place (same sizes, PIQP's names). A matrix with a new sparsity pattern
         triggers a full set-up (reported as ``info["rebuilt"]`` on the next result)."""
         if self._data is None:
             raise input_error("PiqpQP.update", "called before setup", "call setup() first")

@@ -10,31 +10,18 @@ Callers should still verify the returned ``x`` with
 
 from __future__ import annotations
 
-import enum
 import math
 from dataclasses import dataclass, field
 
 import numpy as np
 
+from proxops.status import Status
 
-class SolveStatus(enum.Enum):
-    """Outcome of one solve, common to all solvers. ``str(status)`` is its value."""
 
-    OPTIMAL = "optimal"
-    OPTIMAL_INACCURATE = "optimal_inaccurate"  # converged to reduced tolerances
-    INFEASIBLE = "infeasible"  # primal infeasible (certificate found)
-    UNBOUNDED = "unbounded"  # dual infeasible: objective unbounded below
-    MAX_ITER = "max_iter"
-    TIME_LIMIT = "time_limit"
-    NUMERICAL_ERROR = "numerical_error"  # includes solver exceptions and bad (NaN) data
-
-    @property
-    def ok(self) -> bool:
-        """True when the solve produced a usable solution (optimal or optimal_inaccurate)."""
-        return self in (SolveStatus.OPTIMAL, SolveStatus.OPTIMAL_INACCURATE)
-
-    def __str__(self) -> str:
-        return self.value
+# The one status vocabulary of solvers and controllers lives in proxops.status (lowest layer);
+# SolveStatus is that enum (members OPTIMAL, OPTIMAL_INACCURATE, INFEASIBLE, UNBOUNDED, MAX_ITER,
+# TIME_LIMIT, NUMERICAL_ERROR; ``str(status)`` is its value, ``status.ok`` a usable solution).
+SolveStatus = Status
 
 
 @dataclass

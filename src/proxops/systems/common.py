@@ -5,7 +5,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from proxops.actuators import IdealActuator, ThrusterModel
+from proxops.actuators import IdealActuator, thruster_from_values
+from proxops.core.layout import HILL_LAYOUT
 from proxops.navigation import GaussianNavigation, PerfectNavigation
 from proxops.scenarios.schema import ActuatorSection, InitialSection, NavigationSection, OrbitSection, TruthSection
 
@@ -63,20 +64,20 @@ def force_models(orbit: OrbitSection, truth: TruthSection):
     )
 
 
-def navigation_model(nav: NavigationSection):
+def navigation_model(nav: NavigationSection, per_state_sigma=None):
+    """The navigation of a [navigation] section (the one place it is built): perfect when both
+    sigmas are 0, else Gaussian. ``per_state_sigma(position_sigma_m, velocity_sigma_mps)`` maps
+    the two sigmas onto a state layout other than [r; v] (e.g. the planar CubeSat's)."""
     if nav.position_sigma_m == 0.0 and nav.velocity_sigma_mps == 0.0:
         return PerfectNavigation()
-    return GaussianNavigation(nav.position_sigma_m, nav.velocity_sigma_mps)
+    if per_state_sigma is not None:
+        return GaussianNavigation(sigma=per_state_sigma(nav.position_sigma_m, nav.velocity_sigma_mps))
+    return GaussianNavigation(nav.position_sigma_m, nav.velocity_sigma_mps, layout=HILL_LAYOUT)  # noise per block
 
 
 def actuator_model(act: ActuatorSection):
+    """Ideal for the default section, else the thruster model of its values (one declaration:
+    proxops.actuators.THRUSTER_PARAMETERS)."""
     if act == ActuatorSection():
         return IdealActuator()
-    return ThrusterModel(
-        max_per_axis=act.max_per_axis,
-        max_norm=act.max_norm,
-        min_impulse=act.min_impulse,
-        magnitude_sigma=act.magnitude_sigma,
-        pointing_sigma_rad=np.radians(act.pointing_sigma_deg),
-        missed_probability=act.missed_probability,
-    )
+    return thruster_from_values(act.model_dump())

@@ -19,7 +19,6 @@ of §5.1 from ``orbit.epoch_utc`` (:func:`proxops.environment.eclipse.eclipse_pr
 from __future__ import annotations
 
 import math
-from pathlib import Path
 from typing import Annotated, Literal
 
 import numpy as np
@@ -27,6 +26,8 @@ from pydantic import Field, model_validator
 
 from proxops.scenarios.registry import register_system
 from proxops.scenarios.schema import OrbitSection, Probability, ScenarioBase, Section, TruthSection, Vector3
+from proxops.status import Status
+from proxops.systems.base import SystemBase
 
 PAPER_5_1_1 = {  # §5.1.1, 100 Fibonacci axes
     "dv_median_mps": 0.6579, "dv_iqr_mps": 0.1600,
@@ -261,7 +262,7 @@ def summarize_plan(plan) -> dict:
 
 
 @register_system("cortex")
-class CortexSystem:
+class CortexSystem(SystemBase):
     Scenario = CortexScenario
 
     def run(self, sc: CortexScenario, seed: int = 0, progress: bool = False):
@@ -296,26 +297,7 @@ class CortexSystem:
     def success(self, sc: CortexScenario, summary: dict) -> bool:
         if sc.guidance.closed_loop:
             return str(summary.get("status", "")) == "docked"
-        return str(summary.get("status", "")) == "ok"
-
-    def figures(self, sc: CortexScenario, results, out_dir) -> list[Path]:
-        if sc.guidance.closed_loop:
-            from proxops.plotting.cortex_loop import run_figure
-
-            return [run_figure(sc, next(iter(results.values())), Path(out_dir) / "tracking.png")]
-        from proxops.plotting.cortex import plan_figure_from_result
-
-        result = next(iter(results.values())) if isinstance(results, dict) else results
-        return [plan_figure_from_result(sc, result, Path(out_dir) / "reference_3d.png")]
-
-    def campaign_figures(self, sc: CortexScenario, results, out_dir) -> list[Path]:
-        if sc.guidance.closed_loop:
-            from proxops.plotting.cortex_loop import campaign_figures
-
-            return campaign_figures(sc, results, Path(out_dir))
-        from proxops.plotting.cortex import fig11_trajectories
-
-        return [fig11_trajectories(sc, results, Path(out_dir) / "fig11_trajectories.png")]
+        return Status.parse(summary.get("status", "")) is Status.OK
 
     def campaign_table(self, sc: CortexScenario, table) -> str:
         if sc.guidance.closed_loop:

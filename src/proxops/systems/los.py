@@ -28,16 +28,18 @@ prints the paper's layout with our columns next to the paper's. Standalone:
 
 from __future__ import annotations
 
-from pathlib import Path
 from typing import Annotated, Literal
 
 import numpy as np
 from pydantic import Field
 
 from proxops.core.cw import mean_motion
+from proxops.dynamics.tumbling_target import sync_range
 from proxops.scenarios.registry import register_system
+from proxops.systems.base import SystemBase
 from proxops.scenarios.schema import OrbitSection, ScenarioBase, Section, TruthSection, Vector3
 from proxops.sim.engine import Setup
+from proxops.status import Status
 
 VIOLATION_TOLERANCE_M = 1e-3  # §9 step 3
 COMPLETED_OUTCOMES = ("completed", "hold_reached")  # ran to T_sim (or stopped at hold on request)
@@ -196,10 +198,10 @@ def summarize_result(sc: LosScenario, result) -> dict:
     viol = np.asarray(corridor.violation_body(result.x_true[:, :3]))
     outcome = result.meta.get("outcome", "completed")
     n_viol = int(np.sum(viol > VIOLATION_TOLERANCE_M))
-    qp_infeasible = outcome == "qp_infeasible" or any(s == "infeasible" for s in result.status)
+    qp_infeasible = outcome == "qp_infeasible" or any(Status.parse(s) is Status.INFEASIBLE for s in result.status)
     hold = any(kind == "hold" for _, kind, _ in result.events) or outcome == "hold_reached"
     w = np.radians(sc.target.tumble_rate_deg_s)
-    r_sync = 2 * sc.chaser.a_max_mps2 / w**2 if w > 0 else float("inf")
+    r_sync = sync_range(sc.chaser.a_max_mps2, w) if w > 0 else float("inf")
     r0 = float(np.linalg.norm(sc.chaser.initial_body_position_m))
     max_viol = float(viol.max()) if viol.size else 0.0
     return {
@@ -257,59 +259,20 @@ PAPER_TABLE3 = {
     (4.0, 0.10): (41.0, False, 113.2), (4.0, 0.05): (20.5, False, 67.3), (4.0, 0.02): (8.2, False, 62.1),
     (5.0, 0.10): (26.3, False, 75.0), (5.0, 0.05): (13.1, False, 63.9), (5.0, 0.02): (5.3, False, 51.1),
 }
-_SWEEP_METRICS = ("r_sync_m", "hold_reached", "r_min_m", "los_violations", "max_violation_m", "outcome", "feasible",
+SWEEP_METRICS = ("r_sync_m", "hold_reached", "r_min_m", "los_violations", "max_violation_m", "outcome", "feasible",
                   "initial_range_m", "total_dv_mps")
-
-
-def run_sweep(scenario: str = "los-sweep", workers: int | None = 1, out=None, use_campaign: bool = True,
-              overrides=(), progress: bool = False):
-    """Run the Table 3 sweep; returns a DataFrame with one row per (w_t, a_max, mode).
-
-    With ``use_campaign`` (default) the runs go through the campaign engine
-    (:func:`proxops.analysis.campaign.run_campaign`, grid dispersions of los-sweep.toml;
-    ``out`` keeps them on disk, ``workers`` > 1 runs in parallel); otherwise a plain loop
-    over the same grid (no dependency on the campaign engine)."""
-    import pandas as pd
-
-    if use_campaign:
-        from proxops.analysis.campaign import run_campaign
-
-        res = run_campaign(scenario, workers=workers, out=out, overrides=list(overrides), progress=progress)
-        return sweep_frame(res.table)
-    from proxops.scenarios.loader import load_scenario
-    from proxops.sim.engine import simulate
-
-    base = load_scenario(scenario, list(overrides)).scenario
-    rows = []
-    for mode in ("hard", "soft"):
-        for w in SWEEP_RATES_DEG_S:
-            for a in SWEEP_A_MAX_MPS2:
-                sc = base.model_copy(deep=True)
-                sc.target.tumble_rate_deg_s = w
-                sc.chaser.a_max_mps2 = a
-                sc.mpc.constraint_mode = mode
-                result = simulate(build_setup(sc), seed=sc.sim.seed)
-                summ = summarize_result(sc, result)
-                rows.append({"tumble_rate_deg_s": w, "a_max_mps2": a, "mode": mode,
-                             **{k: summ.get(k, result.summary().get(k)) for k in _SWEEP_METRICS if k != "total_dv_mps"},
-                             "total_dv_mps": float(result.dv_cum[-1])})
-    return pd.DataFrame(rows)
 
 
 def sweep_frame(table):
     """Campaign rows (``disp.*``/``metric.*`` columns) -> the sweep DataFrame of :func:`run_sweep`."""
     import pandas as pd
 
-    if not isinstance(table, pd.DataFrame):  # a campaign folder
-        from proxops.analysis.campaign import load_campaign
-
-        table = load_campaign(table).table
     out = pd.DataFrame({
         "tumble_rate_deg_s": table["disp.target.tumble_rate_deg_s"].astype(float),
         "a_max_mps2": table["disp.chaser.a_max_mps2"].astype(float),
         "mode": table["disp.mpc.constraint_mode"].astype(str) if "disp.mpc.constraint_mode" in table else "hard",
     })
-    for key in _SWEEP_METRICS:
+    for key in SWEEP_METRICS:
         col = "metric." + key
         out[key] = table[col] if col in table else np.nan
     return out
@@ -318,7 +281,8 @@ def sweep_frame(table):
 def sweep_table(source) -> str:
     """Table 3 in the paper's layout (Markdown), ours next to the paper's columns.
 
-    ``source``: DataFrame from :func:`run_sweep` or a campaign folder. Hold / r_min /
+    ``source``: sweep DataFrame (:func:`proxops.analysis.los_sweep.run_sweep`) or campaign rows
+    (a campaign folder: :func:`proxops.analysis.los_sweep.sweep_table`). Hold / r_min /
     violations are given for the hard (QP infeasible = failed run, §9.3) and the soft
     (exact-penalty slack, the run continues) constraint modes."""
     import pandas as pd
@@ -353,7 +317,7 @@ def sweep_table(source) -> str:
 
 
 @register_system("los")
-class LosSystem:
+class LosSystem(SystemBase):
     Scenario = LosScenario
 
     def build(self, sc: LosScenario) -> Setup:
@@ -373,31 +337,3 @@ class LosSystem:
         if not {"disp.target.tumble_rate_deg_s", "disp.chaser.a_max_mps2"} <= set(table.columns):
             return ""
         return sweep_table(sweep_frame(table))
-
-    def figures(self, sc: LosScenario, results, out_dir) -> list[Path]:
-        from proxops.plotting.los import los_figures
-
-        if isinstance(results, dict):  # runner passes {label: SimResult}
-            results = next(iter(results.values()))
-        return los_figures(sc, results, Path(out_dir))
-
-
-def main(argv=None) -> None:
-    """``python -m proxops.systems.los sweep [--workers N] [--out DIR] [--no-campaign]``:
-    run the Table 3 sweep and print it in the paper's layout."""
-    import argparse
-
-    parser = argparse.ArgumentParser(prog="python -m proxops.systems.los")
-    parser.add_argument("command", choices=["sweep"])
-    parser.add_argument("--workers", type=int, default=1)
-    parser.add_argument("--out", default=None)
-    parser.add_argument("--no-campaign", action="store_true", help="plain loop instead of the campaign engine")
-    parser.add_argument("--set", action="append", default=[], help="scenario override key=value")
-    args = parser.parse_args(argv)
-    df = run_sweep(workers=args.workers, out=args.out, use_campaign=not args.no_campaign, overrides=args.set,
-                   progress=True)
-    print(sweep_table(df))
-
-
-if __name__ == "__main__":
-    main()

@@ -22,22 +22,33 @@ finds cheaper multi-impulse transfers that are not hops). V-bar keeps the paper'
 plus a tiny quadratic pull (1e-7 per m^2) of the hop ends towards Algorithm 1's distances: radial
 hops cost the same fuel for any split, and without it the split sits on a vertex of (29n)-(29o)
 that the next disturbance makes infeasible.
+
+Passive abort (§2: V-bar "returning to its initial position after each hop ... an indefinite hold"):
+V-bar adds a drift-free row after every hop-start impulse (``mpc.drift_free_tol_mps`` = 0.05 mm/s
+on the J2-aware invariant: chaser-minus-target specific energy over |v_t|, from an onboard target
+ephemeris; ``vy + 2 n x`` on CW truth; see :mod:`proxops.control.srf_mpc`), and :func:`passive_abort` propagates the unforced truth
+from every hop impulse over ``safety.abort_orbits`` (default 3) orbits, reporting the return miss
+after each whole orbit. Success requires the whole window for V-bar and one orbit for R-bar and
+glideslopes (which the paper says lack indefinite safety); all report ``safe_window_orbits``,
+the time to the first KOZ entry within the window.
 """
 
 from __future__ import annotations
 
 import math
-from pathlib import Path
 from typing import Annotated, Literal
 
 import numpy as np
 from pydantic import Field, model_validator
 
+from proxops.constraints.passive_safety import drift_safety, first_entry_time, hermite_min_range
 from proxops.core.cw import cw_stm, mean_motion
 from proxops.errors import ProxopsInputError, input_error
 from proxops.scenarios.registry import register_system
+from proxops.systems.base import SystemBase
 from proxops.scenarios.schema import InitialSection, OrbitSection, ScenarioBase, Section, TruthSection, Vector3
 from proxops.sim.engine import Setup
+from proxops.solvers.stats import solve_time_stats
 
 ENGINE_STEPS_PER_ORBIT = 720
 
@@ -96,6 +107,11 @@ class SrfMpcSection(Section):
         "(none: off for V-bar, 0.1 others)")
     hop_distance_weight_per_m2: Annotated[float, Field(ge=0.0)] | None = Field(
         None, description="quadratic pull of hop ends towards Algorithm 1's distances (none: 1e-7 V-bar, 0 others)")
+    drift_free: bool = Field(
+        True, description="V-bar: |vy+ + 2 n x| (J2-aware energy form on J2 truth) <= drift_free_tol_mps after every "
+        "hop-start impulse, so the free drift returns to the hop start (not in the paper; its indefinite hold)")
+    drift_free_tol_mps: Annotated[float, Field(gt=0.0)] = Field(
+        5e-5, description="V-bar drift-free row tolerance (5e-5 m/s: 1.1 m of drift per orbit at a = 8100 km)")
     solver: Literal["piqp", "clarabel", "daqp"] = Field("piqp", description="QP solver of problem (29)")
 
 
@@ -120,10 +136,13 @@ class SafetySection(Section):
 
     reference_tolerance_m: Annotated[float, Field(gt=0.0)] = Field(
         5.0, description="success: final distance to the reference point at most this")
-    abort_orbits: Annotated[float, Field(gt=0.0, le=5.0)] = Field(
-        1.0, description="passive-abort check: free drift from every hop state over this many orbits")
-    abort_samples: Annotated[int, Field(ge=10, le=100000)] = Field(
-        721, description="samples of each passive-abort drift")
+    abort_orbits: Annotated[float, Field(gt=0.0, le=10.0)] = Field(
+        3.0, description="passive-abort check on the truth: free drift from every hop state over this many orbits")
+    abort_samples_per_orbit: Annotated[int, Field(ge=10, le=100000)] = Field(
+        720, description="samples per orbit of each passive-abort drift")
+    abort_required_orbits: Annotated[float, Field(gt=0.0, le=10.0)] | None = Field(
+        None, description="window that counts for success (none: all of abort_orbits for V-bar, the indefinite "
+        "hold of §2; 1 orbit for R-bar and glideslopes, which the paper says lack indefinite safety, §5.2)")
 
 
 class SrfScenario(ScenarioBase):
@@ -181,6 +200,27 @@ def plan_of(sc: SrfScenario):
                      mean_motion(sc.orbit.sma_m), vbar_period_fraction=ap.vbar_period_fraction)
 
 
+def onboard_drift_model(sc: SrfScenario, dt: float, span_s: float):
+    """The MPC's J2-aware drift invariant: the target's ECI states every engine step over the mission
+    (the onboard ephemeris of the known target orbit, same force model as the truth: two-body or J2)."""
+    from proxops.control.srf_mpc import EnergyDrift
+    from proxops.core.constants import J2_EARTH, MU_EARTH, R_EARTH
+    from proxops.propagation.truth import RelativeTruth
+    from proxops.systems.common import target_elements
+
+    j2 = sc.truth.model == "j2"
+    plant = RelativeTruth(target_elements(sc.orbit), np.zeros(6), j2=j2, integrator=sc.truth.integrator)
+    n = int(math.ceil(span_s / dt)) + 3
+    states = np.empty((n, 6))
+    y = plant.initial_state()
+    zero = np.zeros(3)
+    for k in range(n):
+        states[k] = plant.target_state(y)
+        if k + 1 < n:
+            y = plant.propagate(k * dt, y, zero, dt)
+    return EnergyDrift(dt, states, MU_EARTH, J2_EARTH if j2 else 0.0, R_EARTH)
+
+
 def build_controller(sc: SrfScenario, cbf: bool | None = None):
     """(controller, plan, schedule) of a scenario; ``cbf`` overrides keep_out.cbf."""
     from proxops.control.srf_mpc import SrfMpc, SrfMpcConfig, build_schedule
@@ -236,6 +276,8 @@ def build_controller(sc: SrfScenario, cbf: bool | None = None):
         mid_hop_fuel_weight=m.mid_hop_fuel_weight if m.mid_hop_fuel_weight is not None else (1.0 if vbar else 2.0),
         hop_distance_weight_per_m2=(m.hop_distance_weight_per_m2 if m.hop_distance_weight_per_m2 is not None
                                     else (1e-7 if vbar else 0.0)),
+        drift_free_tol_mps=m.drift_free_tol_mps if (vbar and m.drift_free) else None,
+        drift_model=onboard_drift_model(sc, dt, mission_s) if (vbar and m.drift_free and sc.truth.model != "cw") else None,
         cbf=use_cbf, cbf_alpha_per_s=ko.alpha_per_s, free_drift_s=ko.free_drift_orbits * plan.period_s,
         free_drift_nodes=max(4, int(round(ko.free_drift_nodes_per_orbit * ko.free_drift_orbits))), solver=m.solver)
     from proxops.constraints.keep_out import KeepOutSphere
@@ -279,27 +321,24 @@ class _Handover:
 
 
 # --------------------------------------------------------------------------- safety
-def _hermite_min_range(t, x, center) -> float:
-    """Minimum |p - c| along cubic Hermite interpolants between samples (positions + velocities)."""
-    t = np.asarray(t, dtype=float)
-    p = x[:, :3] - center
-    v = x[:, 3:6]
-    best = float(np.min(np.linalg.norm(p, axis=1)))
-    if len(t) < 2:
-        return best
-    s = np.linspace(0.0, 1.0, 21)[1:-1, None, None]
-    h00, h10 = 2 * s**3 - 3 * s**2 + 1, s**3 - 2 * s**2 + s
-    h01, h11 = -2 * s**3 + 3 * s**2, s**3 - s**2
-    dt = np.diff(t)[None, :, None]
-    seg = h00 * p[:-1] + h10 * dt * v[:-1] + h01 * p[1:] + h11 * dt * v[1:]
-    return min(best, float(np.min(np.linalg.norm(seg, axis=2))))
+def required_abort_orbits(sc: SrfScenario) -> float:
+    """Passive-abort window that counts for success (orbits): the whole ``safety.abort_orbits`` for
+    V-bar (the paper's indefinite hold), one orbit for R-bar and glideslopes, which the paper says
+    lack indefinite passive safety (§5.2 and conclusion) -- unless ``safety.abort_required_orbits``."""
+    s = sc.safety
+    if s.abort_required_orbits is not None:
+        return min(s.abort_required_orbits, s.abort_orbits)
+    return s.abort_orbits if _is_vbar(math.radians(sc.approach.angle_deg)) else min(1.0, s.abort_orbits)
 
 
 def passive_abort(sc: SrfScenario, result) -> list[dict]:
     """From each hop impulse: propagate the unforced TRUTH for ``safety.abort_orbits`` orbits.
 
-    Returns per hop ``{t_s, min_range_m, min_koz_distance_m, safe, return_miss_m}``;
-    return_miss_m (V-bar) is the distance to the hop start point after one orbit."""
+    Returns per hop ``{t_s, dv_mps, min_range_m, min_koz_distance_m, safe, safe_window_orbits,
+    safe_required}``: ``safe`` over the whole window, ``safe_window_orbits`` the time to the first
+    KOZ entry (the window if none), ``safe_required`` over :func:`required_abort_orbits`, and
+    ``return_miss_m`` (distance to the hop start after 1, 2, ... whole orbits of the window) and
+    ``return_miss_per_orbit_m`` (the last of those divided by its number of orbits)."""
     from proxops.propagation.truth import CWPlant, RelativeTruth
     from proxops.systems.common import translational_plant
 
@@ -310,9 +349,10 @@ def passive_abort(sc: SrfScenario, result) -> list[dict]:
     full = plant.initial_state()
     t_now = 0.0
     out = []
-    times = np.linspace(0.0, sc.safety.abort_orbits * period, sc.safety.abort_samples)
+    window = sc.safety.abort_orbits
+    required = required_abort_orbits(sc)
+    times = np.linspace(0.0, window * period, int(round(window * sc.safety.abort_samples_per_orbit)) + 1)
     zero = np.zeros(3)
-    vbar = bool(result.meta.get("vbar", False))
     for t_hop in hop_starts:
         k = int(np.argmin(np.abs(result.t - t_hop)))
         if abs(result.t[k] - t_hop) > 1e-6 * max(1.0, t_hop) + 1e-9:
@@ -326,13 +366,17 @@ def passive_abort(sc: SrfScenario, result) -> list[dict]:
             drift = plant.free_drift(plant.with_relative_state(full, x_post), times)
         else:
             drift = plant.free_drift(x_post, times)
-        rng = _hermite_min_range(times, drift, np.zeros(3))
-        koz_d = _hermite_min_range(times, drift, koz.center_m) - koz.radius_m
+        entry = first_entry_time(times, drift, koz.center_m, koz.radius_m)
         item = {"t_s": float(result.t[k]), "dv_mps": float(np.linalg.norm(result.u_applied[k])),
-                "min_range_m": rng, "min_koz_distance_m": koz_d, "safe": bool(koz_d > 0.0)}
-        if vbar:
-            k_orbit = int(np.argmin(np.abs(times - period)))
-            item["return_miss_m"] = float(np.linalg.norm(drift[k_orbit, :3] - x_post[:3]))
+                **drift_safety(times, drift, koz),
+                "safe_window_orbits": float(min(entry / period, window)),
+                "safe_required": bool(entry > required * period * (1 - 1e-9))}
+        # every approach: V-bar should come back (a hold), R-bar and glideslopes drift away
+        whole = range(1, int(math.floor(window + 1e-9)) + 1)
+        misses = [float(np.linalg.norm(drift[int(np.argmin(np.abs(times - m * period))), :3] - x_post[:3]))
+                  for m in whole]
+        item["return_miss_m"] = misses
+        item["return_miss_per_orbit_m"] = misses[-1] / len(misses) if misses else math.nan
         out.append(item)
     return out
 
@@ -378,8 +422,8 @@ def summarize_result(sc: SrfScenario, result) -> dict:
     hop_nodes = result.meta.get("hop_node_times_s", [])
     hop_start_times = [0.0] + list(hop_nodes)[:-1]
     abort = passive_abort(sc, result)
-    min_range_fine = _hermite_min_range(result.t, result.x_true, np.zeros(3))
-    koz_fine = _hermite_min_range(result.t, result.x_true, koz.center_m) - koz.radius_m
+    min_range_fine = hermite_min_range(result.t, result.x_true, np.zeros(3))
+    koz_fine = hermite_min_range(result.t, result.x_true, koz.center_m) - koz.radius_m
     period = float(result.meta.get("period_s", 1.0))
     out = {
         "approach_deg": sc.approach.angle_deg,
@@ -411,20 +455,24 @@ def summarize_result(sc: SrfScenario, result) -> dict:
         out["status"] = (f"failed: ended {arrival_err:.1f} m from the reference point (tolerance "
                          f"{sc.safety.reference_tolerance_m:g} m)" if reached_time else
                          f"failed: the run ended at {result.t[-1]:.1f} s, before the planned arrival at {t_arrival:.1f} s")
-    if abort and "return_miss_m" in abort[0]:
-        out["abort_return_miss_max_m"] = float(max(item["return_miss_m"] for item in abort))
+    if abort:
+        out["abort_window_orbits"] = sc.safety.abort_orbits
+        out["abort_required_orbits"] = required_abort_orbits(sc)
+        out["abort_safe_window_orbits"] = float(min(item["safe_window_orbits"] for item in abort))
+        out["abort_safe_required"] = bool(all(item["safe_required"] for item in abort))
+    if abort and "return_miss_per_orbit_m" in abort[0]:
+        out["abort_return_miss_per_orbit_max_m"] = float(max(item["return_miss_per_orbit_m"] for item in abort))
     mask = result.info.get("solved")
     if mask is not None:
         sel = np.nan_to_num(mask) > 0
         st = result.solve_time_s[sel]
         if st.size:
-            out["mpc_solve_ms"] = {"median": float(np.median(st) * 1e3), "p95": float(np.percentile(st, 95) * 1e3),
-                                   "max": float(st.max() * 1e3)}
+            out["mpc_solve_ms"] = solve_time_stats(st)
     return out
 
 
 @register_system("srf")
-class SrfSystem:
+class SrfSystem(SystemBase):
     Scenario = SrfScenario
 
     def build(self, sc: SrfScenario) -> Setup:
@@ -452,17 +500,5 @@ class SrfSystem:
 
     def success(self, sc: SrfScenario, summary: dict) -> bool:
         return bool(summary.get("reached_reference") and not summary.get("koz_violated")
-                    and summary.get("abort_safe_all"))
+                    and summary.get("abort_safe_required", summary.get("abort_safe_all")))
 
-    def campaign_figures(self, sc: SrfScenario, results: list, out_dir) -> list[Path]:
-        """Monte Carlo overlay (Figs. 5/7/10) from a campaign's saved series."""
-        from proxops.plotting import srf as plots
-
-        theta_deg = sc.approach.angle_deg
-        return [plots.plot_mc_overlay(results, Path(out_dir) / "srf_mc_overlay.png", theta_deg=theta_deg,
-                                      koz_radius_m=sc.keep_out.radius_m, title=f"{sc.name}: Monte Carlo")]
-
-    def figures(self, sc: SrfScenario, results, out_dir) -> list[Path]:
-        from proxops.plotting import srf as plots
-
-        return plots.scenario_figures(sc, results, Path(out_dir))

@@ -13,6 +13,7 @@ from pydantic import Field
 
 from proxops.core.cw import mean_motion
 from proxops.scenarios.registry import register_system
+from proxops.systems.base import SystemBase
 from proxops.scenarios.schema import InitialSection, OrbitSection, ScenarioBase, Section, TruthSection, Vector3
 from proxops.sim.engine import Setup
 from proxops.systems.common import actuator_model, initial_hill_state, navigation_model, translational_plant
@@ -39,7 +40,7 @@ class StationKeepingScenario(ScenarioBase):
 
 
 @register_system("station-keeping")
-class StationKeepingSystem:
+class StationKeepingSystem(SystemBase):
     Scenario = StationKeepingScenario
 
     def build(self, sc: StationKeepingScenario) -> Setup:

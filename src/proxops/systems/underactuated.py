@@ -23,15 +23,16 @@ each run over the fastest).
 from __future__ import annotations
 
 import math
-from pathlib import Path
 from typing import Annotated, Literal
 
 import numpy as np
 from pydantic import Field, field_validator, model_validator
 
 from proxops.scenarios.registry import register_system
+from proxops.systems.base import SystemBase
 from proxops.scenarios.schema import ActuatorSection, ScenarioBase, Section
 from proxops.sim.engine import Setup
+from proxops.solvers.stats import solve_time_stats
 
 DEG = math.pi / 180.0
 
@@ -245,7 +246,7 @@ def build_setup(sc: UnderactuatedScenario, run: dict | None = None) -> Setup:
     """Plant, NMPC and stop condition for one closed loop (``run`` from :func:`run_configs`)."""
     from proxops.control.nmpc_underactuated import NMPCConfig, UnderactuatedNMPC
     from proxops.dynamics.planar_cubesat import PlanarCubeSatPlant
-    from proxops.navigation import GaussianNavigation, PerfectNavigation
+    from proxops.systems.common import navigation_model
 
     run = run or run_configs(sc)[0]
     params, limits, docking = model_objects(sc, run["damping_Nms"])
@@ -265,12 +266,7 @@ def build_setup(sc: UnderactuatedScenario, run: dict | None = None) -> Setup:
     )
     controller = UnderactuatedNMPC(params, limits, config, docking)
     plant = PlanarCubeSatPlant(params, sc.initial_state.vector())
-    nav = sc.navigation
-    navigation = (
-        PerfectNavigation()
-        if nav.position_sigma_m == 0.0 and nav.velocity_sigma_mps == 0.0
-        else GaussianNavigation(sigma=planar_sigma(nav.position_sigma_m, nav.velocity_sigma_mps))
-    )
+    navigation = navigation_model(sc.navigation, per_state_sigma=planar_sigma)
 
     def docked(t: float, s: np.ndarray) -> str | None:
         return "docked" if docking.contains(s) else None
@@ -311,7 +307,7 @@ def summarize_result(sc: UnderactuatedScenario, result) -> dict:
             "vy_mps": float(result.x_true[-1, 4]),
             "omega_deg_s": float(np.degrees(result.x_true[-1, 5])),
         },
-        "solve_time_ms": _stats_ms(solved),  # whole controller step (shift + NLP + checks)
+        "solve_time_ms": solve_time_stats(solved),  # whole controller step (shift + NLP + checks)
         "solve_time_ms_per_step": [round(float(v) * 1e3, 3) for v in solved],
         "mean_iterations": float(np.nanmean(result.info["iterations"][: len(solved)])) if "iterations" in result.info and len(solved) else 0.0,
         "controller_wall_time_s": float(np.sum(solved)),
@@ -319,18 +315,8 @@ def summarize_result(sc: UnderactuatedScenario, result) -> dict:
     return out
 
 
-def _stats_ms(seconds: np.ndarray) -> dict:
-    if seconds.size == 0:
-        return {"median": 0.0, "p95": 0.0, "max": 0.0}
-    return {
-        "median": float(np.median(seconds) * 1e3),
-        "p95": float(np.percentile(seconds, 95) * 1e3),
-        "max": float(np.max(seconds) * 1e3),
-    }
-
-
 @register_system("underactuated")
-class UnderactuatedSystem:
+class UnderactuatedSystem(SystemBase):
     Scenario = UnderactuatedScenario
 
     def build(self, sc: UnderactuatedScenario) -> Setup:
@@ -364,7 +350,3 @@ class UnderactuatedSystem:
     def success(self, sc: UnderactuatedScenario, summary: dict) -> bool:
         return bool(summary.get("docked"))
 
-    def figures(self, sc: UnderactuatedScenario, results, out_dir) -> list[Path]:
-        from proxops.plotting import underactuated as plots
-
-        return plots.scenario_figures(sc, results, Path(out_dir))

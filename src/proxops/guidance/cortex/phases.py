@@ -53,7 +53,7 @@ import scipy.sparse as sp
 from proxops.constraints.approach_cone import ApproachCone, PlumeConstraint
 from proxops.constraints.keep_out import KeepOutSphere
 from proxops.core.cw import cw_discretize_impulsive, cw_stm
-from proxops.solvers import ClarabelSOCP, SolveStatus
+from proxops.solvers import ClarabelSOCP, ConicProblem, SolveStatus, TrustRegion, successive_convexification
 
 SLACK_WEIGHT = 1e3  # cost of the plume-row slacks (scaled units; the plan's cost is ~1-10)
 DV_ZERO_MPS = 1e-6  # impulses below this are "no thrust" for the plume linearisation and checks
@@ -226,7 +226,7 @@ class _PhaseSOCP:
         self.q = q
         self.solver = ClarabelSOCP(**(solver_settings or {}))
         t0 = time.perf_counter()
-        self.solver.setup(None, q, self._A(), self.b, cones)
+        self.solver.setup(ConicProblem(None, q, self._A(), self.b, cones))
         self.setup_time_s = time.perf_counter() - t0
         self._kos_entries = self._row_entries(self.kos_row0, N - 1) if kos else None
         self._arc_entries = self._row_entries(self.arc_row0, N) if arc else None
@@ -359,39 +359,44 @@ def solve_final_approach(n_rad_s: float, tau_s: float, dt_s: float, x0, xf, a_ba
     t = node_times(tau_s, dt_s)
     prob = _PhaseSOCP(n_rad_s, t, x0, xf, a_bar_mps2, cone=cone, plume=True, solver_settings=solver_settings)
     out = PhaseResult(status="not_converged", t=t, setup_time_s=prob.setup_time_s)
-    delta = a_bar_mps2 * float(prob.dt.max())  # the largest impulse: no restriction at first
-    prev_x = prev_dv = None
-    prev_viol = math.inf
-    for it in range(1, scp_max_iter + 1):
-        if prev_dv is not None:
-            a, g, bb = plume.linearization(prev_x[:, :3], prev_dv, DV_ZERO_MPS)
-            if not linearize_position:
-                a, bb = np.zeros_like(a), np.zeros_like(bb)
-            prob.set_plume(a, g, bb)
-            prob.set_trust(prev_dv, delta)
-            prob.push()
+    # the largest impulse: no restriction at first; halved when the plume violation grows
+    trust = TrustRegion(a_bar_mps2 * float(prob.dt.max()))
+
+    def relinearize(prev, delta):
+        a, g, bb = plume.linearization(prev["x"][:, :3], prev["dv"], DV_ZERO_MPS)
+        if not linearize_position:
+            a, bb = np.zeros_like(a), np.zeros_like(bb)
+        prob.set_plume(a, g, bb)
+        prob.set_trust(prev["dv"], delta)
+        prob.push()
+
+    def solve():
         res, x, dv = prob.solve()
-        out.iterations = it
+        out.iterations += 1
         out.solve_times_s.append(res.solve_time_s)
         if x is None or res.status not in (SolveStatus.OPTIMAL, SolveStatus.OPTIMAL_INACCURATE):
             out.status, out.reason = _status_of(res)
-            if it > 1:
-                out.reason += f" at successive-convexification iteration {it}"
-            return out
+            if out.iterations > 1:
+                out.reason += f" at successive-convexification iteration {out.iterations}"
+            return None, out.status
         margin = plume.margin_rad(x[:, :3], dv, DV_ZERO_MPS)
-        viol = float(max(0.0, -margin.min())) if margin.size else 0.0
         out.x, out.dv = x, dv
-        cost = float(np.linalg.norm(dv, axis=1).sum())
-        if prev_dv is not None:
-            change = float(np.abs(dv - prev_dv).max())
-            cost_change = abs(cost - prev_cost) / max(cost, 1e-12)
-            if viol <= plume_tol_rad and (change <= scp_tol_mps or cost_change <= scp_cost_rtol):
-                out.status, out.reason = "converged", ""
-                return out
-            if viol > prev_viol + plume_tol_rad:
-                delta *= 0.5  # the linearisation over-reached: shrink the trust region
-        prev_x, prev_dv, prev_viol, prev_cost = x, dv, viol, cost
-    out.reason = f"plume successive convexification not converged in {scp_max_iter} iterations"
+        return {"x": x, "dv": dv, "viol": float(max(0.0, -margin.min())) if margin.size else 0.0,
+                "cost": float(np.linalg.norm(dv, axis=1).sum())}, None
+
+    def converged(it, prev):
+        if prev is None:
+            return False
+        change = float(np.abs(it["dv"] - prev["dv"]).max())
+        cost_change = abs(it["cost"] - prev["cost"]) / max(it["cost"], 1e-12)
+        return it["viol"] <= plume_tol_rad and (change <= scp_tol_mps or cost_change <= scp_cost_rtol)
+
+    scp = successive_convexification(solve, converged, relinearize, max_iter=scp_max_iter, trust=trust,
+                                     merit=lambda it: it["viol"], merit_tol=plume_tol_rad)
+    if scp.converged:
+        out.status, out.reason = "converged", ""
+    elif scp.status == "max_iter":
+        out.reason = f"plume successive convexification not converged in {scp_max_iter} iterations"
     return out
 
 

@@ -1,0 +1,102 @@
+"""Engine overhead (issue 12): the time the closed-loop engine itself adds per step, measured on a
+plant and a controller that do (almost) nothing, single-rate and multi-rate; plus the wall time
+of two engine-bound built-in runs (station-keeping: J2 truth + LQR; los-tumble 120 s).
+
+    python benchmarks/bench_engine.py [N_STEPS]
+
+Compare against the code before a change by running the same file with PYTHONPATH pointing at
+the older tree (the script only uses the stable Setup / simulate / Command API). Best of 5
+repeats; the machine is shared, so the load average is printed with the numbers.
+"""
+
+from __future__ import annotations
+
+import os
+import sys
+import time
+
+for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ.setdefault(_var, "1")
+
+import numpy as np  # noqa: E402
+
+
+def _plant_class():
+    try:
+        from proxops.dynamics.plant import PlantBase
+    except ImportError:  # the tree before the platform change
+        PlantBase = object
+
+    class Still(PlantBase):
+        n_x, n_u = 6, 3
+
+        def initial_state(self):
+            return np.zeros(6)
+
+        def relative_state(self, s):
+            return s
+
+        def propagate(self, t, s, u, dt):
+            return s
+
+        def apply_impulse(self, t, s, dv):
+            return s
+
+    return Still
+
+
+class Hold:
+    def __init__(self, dt):
+        from proxops.sim.protocols import Command
+
+        self.dt, self.cmd = dt, Command(u=np.zeros(3))
+
+    def reset(self, t0, x0):
+        pass
+
+    def step(self, t, x):
+        return self.cmd
+
+
+def per_step_us(n_steps: int, nav_period: float | None = None, repeats: int = 5) -> float:
+    from proxops.navigation import PerfectNavigation
+    from proxops.sim.engine import Setup, simulate
+
+    best = float("inf")
+    for _ in range(repeats):
+        nav = PerfectNavigation() if nav_period is None else PerfectNavigation(period_s=nav_period)
+        setup = Setup(plant=_plant_class()(), controller=Hold(1.0), duration_s=float(n_steps), navigation=nav)
+        t0 = time.perf_counter()
+        res = simulate(setup)
+        wall = time.perf_counter() - t0
+        best = min(best, wall / (len(res.t) - 1))
+    return best * 1e6
+
+
+def builtin_wall_s(name: str, overrides: list[str], repeats: int = 5) -> float:
+    from proxops.runner import execute
+    from proxops.scenarios.loader import load_scenario
+
+    best = float("inf")
+    for _ in range(repeats):
+        loaded = load_scenario(name, overrides)
+        t0 = time.perf_counter()
+        execute(loaded)
+        best = min(best, time.perf_counter() - t0)
+    return best
+
+
+def main() -> None:
+    n = int(sys.argv[1]) if len(sys.argv) > 1 else 20000
+    print(f"load average {os.getloadavg()[0]:.2f} (2 cores)")
+    print(f"engine per-step overhead, single rate:          {per_step_us(n):6.2f} us/step ({n} steps, best of 5)")
+    try:
+        print(f"engine per-step overhead, navigation 10x faster: {per_step_us(n, nav_period=0.1):6.2f} us/base step")
+    except TypeError:
+        print("engine per-step overhead, multi-rate: not supported by this tree")
+    print(f"station-keeping (J2, 600 s, 60 steps) wall:       {builtin_wall_s('station-keeping', ['sim.duration_s=600']) * 1e3:7.1f} ms")
+    print(f"los-tumble (120 s, 120 MPC steps) wall:           {builtin_wall_s('los-tumble', ['sim.duration_s=120']) * 1e3:7.1f} ms")
+
+
+if __name__ == "__main__":
+    main()

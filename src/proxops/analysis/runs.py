@@ -1,0 +1,27 @@
+"""Run one loaded scenario (``execute``) and check it without running (``check_scenario``):
+shared by ``proxops run``, ``validate`` and the campaign workers."""
+
+from __future__ import annotations
+
+from proxops.sim.result import SimResult
+
+
+def execute(loaded, seed: int | None = None, progress: bool = False) -> tuple[dict, dict[str, SimResult]]:
+    """Run a loaded scenario; returns the summary and the results by label."""
+    sc, system = loaded.scenario, loaded.system
+    seed = sc.sim.seed if seed is None else seed
+    extra, results = system.run(sc, seed=seed, progress=progress)  # default (SystemBase): one simulate(build(sc))
+    main = next(iter(results.values()))
+    summary = {"scenario": sc.name, "system": sc.system, **main.summary(), **extra}
+    summary["seed"] = seed
+    return summary, results
+
+
+def check_scenario(loaded) -> None:
+    """Every check a run makes before its first step: the schema (done when loading), the
+    system's build (geometry, feasibility of the hop ladder, KOZ vs start...) and the
+    dispersions table. Raises ProxopsInputError with one line; ``validate`` and ``mc`` call it."""
+    from proxops.scenarios.dispersions import parse_dispersions
+
+    loaded.system.check(loaded.scenario)  # default: build; planners without a closed loop check without building
+    parse_dispersions(loaded.scenario, loaded.scenario.dispersions)

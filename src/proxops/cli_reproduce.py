@@ -1,0 +1,33 @@
+"""``proxops reproduce``: the command behind every headline claim, one table (see
+:mod:`proxops.report.reproduction` for the claims and their verdicts)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Annotated, Optional
+
+import typer
+
+from proxops.cli_common import emit
+
+
+def reproduce(
+    system: Annotated[str, typer.Argument(help="srf, los, reach, underactuated or all.")] = "all",
+    quick: Annotated[bool, typer.Option("--quick", help="Reduced campaigns (< 2 min); reduced rows say so.")] = False,
+    out: Annotated[Optional[Path], typer.Option("--out", help="Folder for reproduction.md, campaigns and figures "
+                                                "(default: out/ for a full run, nothing for --quick).")] = None,
+    workers: Annotated[int, typer.Option("--workers", help="Local worker processes for the campaigns.")] = 2,
+    as_json: Annotated[bool, typer.Option("--json", help="One JSON object on stdout.")] = False,
+):
+    """Run the commands behind every paper claim and print claim | paper | ours | verdict."""
+    from proxops.report.reproduction import markdown, reproduce as run, write_markdown
+
+    if out is None and not quick:
+        out = Path("out")
+    result = run(system, quick=quick, out=out, workers=workers, progress=not as_json)
+    if out is not None:
+        result["report"] = str(write_markdown(result, Path(out) / "reproduction.md"))
+    text = markdown(result, notes=False)
+    if "report" in result:
+        text += f"\nwritten to {result['report']}"
+    emit(result, as_json, text)

@@ -1,0 +1,1 @@
+"""Run and campaign reports (tables + figures): the layer above analysis and plotting."""

@@ -1,0 +1,43 @@
+"""Base class of every system: the defaults of the optional hooks of
+:class:`proxops.sim.protocols.System`.
+
+A system overrides ``build`` and ``summarize`` (and ``Scenario``); everything else has a
+default here: ``run`` is one closed loop, ``check`` builds it, ``success`` is "the run did not
+end in a failed status" and ``campaign_table`` ``""``. Figures are not a system hook: they are
+found by convention in ``proxops.plotting.<system>`` (:mod:`proxops.plotting.systems`), so
+systems never import plotting.
+"""
+
+from __future__ import annotations
+
+from proxops.sim.engine import simulate
+
+FAILED_STATUSES = ("failed", "failure", "error")  # run summary "status" prefixes counted as failures
+
+
+class SystemBase:
+    """Defaults for :class:`proxops.sim.protocols.System` (see module doc)."""
+
+    Scenario: type
+
+    def build(self, sc):
+        raise NotImplementedError(f"{type(self).__name__}.build")
+
+    def summarize(self, sc, result) -> dict:
+        return {}
+
+    def run(self, sc, seed: int = 0, progress: bool = False) -> tuple[dict, dict]:
+        """One closed loop: ``(summarize(sc, result), {"run": result})``."""
+        result = simulate(self.build(sc), seed=seed, progress=progress)
+        return self.summarize(sc, result), {"run": result}
+
+    def check(self, sc) -> None:
+        """The checks of a run before its first step: by default, build it (and discard it)."""
+        self.build(sc)
+
+    def success(self, sc, summary: dict) -> bool:
+        """A campaign run succeeds unless its summary status starts with failed/failure/error."""
+        return not str(summary.get("status", "")).lower().startswith(FAILED_STATUSES)
+
+    def campaign_table(self, sc, table) -> str:
+        return ""
