@@ -237,3 +237,12 @@ def test_bad_navigation_input_is_one_line_exit_2(args, fragment):
 def test_ekf_on_a_system_without_a_hill_state_is_refused():
     res = CliRunner().invoke(app, ["run", "underactuated-case1", *EKF])
     assert res.exit_code == 2 and "navigation.model" in res.stderr and "allowed: noise" in res.stderr, res.stderr
+
+
+@pytest.mark.parametrize("kind", ["range-bearing", "pose"])
+def test_fused_measurement_model_matches_h_and_jacobian(kind):
+    s = SensorModel(kind=kind)
+    x = np.array([120.0, -340.0, 55.0, 0.1, 0.2, 0.3])
+    zhat, H = s.h_and_jacobian(x)
+    np.testing.assert_allclose(zhat, s.h(x), rtol=1e-14)
+    np.testing.assert_allclose(H, s.jacobian(x), rtol=1e-14)

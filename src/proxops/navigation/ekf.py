@@ -77,6 +77,18 @@ def range_bearing_jacobian(rho: np.ndarray) -> np.ndarray:
     ])
 
 
+def _inv3(a: np.ndarray) -> np.ndarray:
+    """Inverse of a 3x3 matrix by its adjugate (no LAPACK call: the update's hot path)."""
+    (a00, a01, a02), (a10, a11, a12), (a20, a21, a22) = a.tolist()
+    c00, c01, c02 = a11 * a22 - a12 * a21, a12 * a20 - a10 * a22, a10 * a21 - a11 * a20
+    det = a00 * c00 + a01 * c01 + a02 * c02
+    return np.array([
+        [c00, a02 * a21 - a01 * a22, a01 * a12 - a02 * a11],
+        [c01, a00 * a22 - a02 * a20, a02 * a10 - a00 * a12],
+        [c02, a01 * a20 - a00 * a21, a00 * a11 - a01 * a10],
+    ]) / det
+
+
 @dataclass
 class SensorModel:
     """Simulated relative sensor (see the module docstring). Angles in rad, lengths in m."""
@@ -110,7 +122,7 @@ class SensorModel:
             f = self.sigma_floor_fraction
             s = s * (f + (1.0 - f) * rng_m / self.sigma_reference_range_m)
         if self.kind == "pose":
-            return np.full(3, s)
+            return np.array([s, s, s])
         return np.array([s, self.angle_sigma_rad, self.angle_sigma_rad])
 
     def h(self, x: np.ndarray) -> np.ndarray:
@@ -123,10 +135,27 @@ class SensorModel:
         """dh/dx (3x6)."""
         H = np.zeros((3, 6))
         if self.kind == "pose":
-            H[:, :3] = np.eye(3)
+            H[0, 0] = H[1, 1] = H[2, 2] = 1.0
         else:
-            H[:, :3] = -range_bearing_jacobian(-np.asarray(x[:3], dtype=float))
+            H[:, :3] = range_bearing_jacobian(-x[:3])
+            H[:, :3] *= -1.0
         return H
+
+    def h_and_jacobian(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(h(x), dh/dx) in one pass (the update's hot path; same formulas as h and jacobian)."""
+        H = np.zeros((3, 6))
+        if self.kind == "pose":
+            H[0, 0] = H[1, 1] = H[2, 2] = 1.0
+            return x[:3].copy(), H
+        x0, x1, x2 = -float(x[0]), -float(x[1]), -float(x[2])  # rho = -r
+        rh2 = x0 * x0 + x1 * x1
+        rh = math.sqrt(rh2)
+        r2 = rh2 + x2 * x2
+        r = math.sqrt(r2)
+        H[0, :3] = (-x0 / r, -x1 / r, -x2 / r)
+        H[1, :3] = (x1 / rh2, -x0 / rh2, 0.0)
+        H[2, :3] = (x0 * x2 / (r2 * rh), x1 * x2 / (r2 * rh), -rh / r2)
+        return np.array([r, math.atan2(x1, x0), math.asin(max(-1.0, min(1.0, x2 / r)))]), H
 
     def residual(self, z: np.ndarray, zhat: np.ndarray) -> np.ndarray:
         """z - zhat with the azimuth wrapped to (-pi, pi]."""
@@ -249,23 +278,31 @@ class RelativeEKF:
         self.t = t
 
     def update(self, t: float, z: np.ndarray) -> bool:
-        """Measurement update with ``z``; False (and an event) when the chi-square gate rejects it."""
-        H = self.sensor.jacobian(self.x)
-        R = np.diag(self.sensor.sigma(float(np.linalg.norm(self.x[:3]))) ** 2)
-        nu = self.sensor.residual(z, self.sensor.h(self.x))
-        S = H @ self.P @ H.T + R
-        Sinv_nu = np.linalg.solve(S, nu)
+        """Measurement update with ``z``; False (and an event) when the chi-square gate rejects it.
+
+        Joseph form expanded, (I-KH)P(I-KH)^T + KRK^T = P - K HP - (K HP)^T + K S K^T, with the
+        3x3 innovation covariance S inverted in closed form (adjugate)."""
+        x, P, sensor = self.x, self.P, self.sensor
+        zhat, H = sensor.h_and_jacobian(x)
+        r = math.sqrt(x[0] * x[0] + x[1] * x[1] + x[2] * x[2])
+        HP = H @ P
+        S = HP @ H.T
+        S.flat[::4] += sensor.sigma(r) ** 2
+        Sinv = _inv3(S)
+        nu = sensor.residual(z, zhat)
+        Sinv_nu = Sinv @ nu
         nis = float(nu @ Sinv_nu)
         self.nis.append(nis)
-        if nis > self.gate:
+        if not nis <= self.gate:  # NaN is rejected too
             self.rejected += 1
-            self.events.append(("nav-rejected", f"{self.sensor.kind} measurement rejected: NIS {nis:.3g} > "
-                                f"{self.gate:.3g} (chi-square {self.gate_probability:g}, {self.sensor.m} dof)"))
+            self.events.append(("nav-rejected", f"{sensor.kind} measurement rejected: NIS {nis:.3g} > "
+                                f"{self.gate:.3g} (chi-square {self.gate_probability:g}, {sensor.m} dof)"))
             return False
-        K = np.linalg.solve(S, H @ self.P).T
-        self.x = self.x + K @ nu
-        ikh = np.eye(6) - K @ H
-        self.P = ikh @ self.P @ ikh.T + K @ R @ K.T
+        K = HP.T @ Sinv
+        self.x = x + HP.T @ Sinv_nu
+        KHP = K @ HP
+        P = P - KHP - KHP.T + K @ S @ K.T
+        self.P = 0.5 * (P + P.T)
         self.updates += 1
         return True
 
