@@ -246,3 +246,22 @@ def test_fused_measurement_model_matches_h_and_jacobian(kind):
     zhat, H = s.h_and_jacobian(x)
     np.testing.assert_allclose(zhat, s.h(x), rtol=1e-14)
     np.testing.assert_allclose(H, s.jacobian(x), rtol=1e-14)
+
+
+def test_eclipse_dropout_follows_the_eclipse_profile():
+    """With eclipse_dropout the sensor gives nothing while proxops.environment.eclipse says the
+    target is in umbra, and measures while it is in full sunlight (500 km, i = 0, one orbit)."""
+    from proxops.environment.eclipse import eclipse_profile
+    from proxops.scenarios.schema import OrbitSection
+    from proxops.systems.common import target_elements, target_illumination
+
+    orbit = OrbitSection(altitude_km=500.0)
+    t, illum = eclipse_profile(target_elements(orbit), orbit.epoch_utc, n_per_orbit=200)
+    lit = target_illumination(orbit)
+    sensor = SensorModel(kind="pose", illuminated=lit)
+    rng = np.random.default_rng(0)
+    x = np.array([0.0, -100.0, 0.0, 0.0, 0.0, 0.0])
+    assert (illum == 0).any() and (illum == 1).any()
+    for tk, ik in zip(t[::5], illum[::5]):
+        if ik in (0.0, 1.0):
+            assert (sensor.draw(float(tk), x, rng) is None) == (ik == 0.0), tk
