@@ -265,3 +265,17 @@ def test_eclipse_dropout_follows_the_eclipse_profile():
     for tk, ik in zip(t[::5], illum[::5]):
         if ik in (0.0, 1.0):
             assert (sensor.draw(float(tk), x, rng) is None) == (ik == 0.0), tk
+
+
+def test_impulse_execution_error_enters_the_velocity_covariance():
+    """command_sigma_fraction f: P_vv grows by (f |dv|)^2 per axis at the burn (before the coast)."""
+    sensor = SensorModel(kind="pose")
+    ekf = RelativeEKF(N_LEO, sensor, np.eye(6) * 1e-6, q_m2_s3=0.0, command_sigma_fraction=0.02)
+    ekf.reset(0.0, np.zeros(6))
+    dv = np.array([0.3, 0.0, -0.4])
+    ekf.command(0.0, dv, "impulse")
+    ekf.propagate(20.0)
+    p_expected = np.eye(6) * 1e-6
+    p_expected[3:, 3:] += np.eye(3) * (0.02 * 0.5) ** 2
+    phi = cw_stm(N_LEO, 20.0)
+    np.testing.assert_allclose(ekf.P, phi @ p_expected @ phi.T, rtol=1e-12, atol=1e-18)

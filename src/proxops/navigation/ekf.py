@@ -197,6 +197,9 @@ class RelativeEKF:
     ``n``: mean motion (rad/s); ``q_m2_s3``: white-acceleration PSD per axis; ``p0``: initial
     covariance (6x6, SI, positive definite): the initial estimate is the truth plus one draw from
     N(0, p0) with the navigation stream. ``gate_probability``: chi-square gate confidence.
+    ``command_sigma_fraction``: the commanded control is executed with an isotropic 1-sigma error
+    of this fraction of its norm per axis (impulse: added to the velocity covariance at the burn;
+    acceleration: through the ZOH input matrix), so thruster errors do not look like outliers.
     The engine gives the commanded control through :meth:`command` and drains :attr:`events`.
     """
 
@@ -205,6 +208,7 @@ class RelativeEKF:
     p0: np.ndarray
     q_m2_s3: float = 1e-10
     gate_probability: float = 0.9999
+    command_sigma_fraction: float = 0.0  # 1-sigma execution error of a command, fraction of |u| per axis
     period_s: float | None = field(default=None, kw_only=True)
 
     def __post_init__(self):
@@ -270,11 +274,19 @@ class RelativeEKF:
             if self._impulse_t is not None and abs(self._impulse_t - self.t) < 1e-9:
                 x = x.copy()
                 x[3:6] += self._u
+                if self.command_sigma_fraction > 0.0:  # execution error of the impulse (m/s)
+                    self.P = self.P.copy()
+                    self.P.flat[21::7] += (self.command_sigma_fraction * float(np.linalg.norm(self._u))) ** 2
             self._impulse_t = None
             self.x = phi @ x
-        else:
-            self.x = phi @ x + bd @ self._u
+            self.P = phi @ self.P @ phi.T + qd
+            self.t = t
+            return
+        self.x = phi @ x + bd @ self._u
         self.P = phi @ self.P @ phi.T + qd
+        if self.command_sigma_fraction > 0.0 and self._u.any():  # ZOH acceleration error through B_zoh
+            su2 = (self.command_sigma_fraction * float(np.linalg.norm(self._u))) ** 2
+            self.P = self.P + su2 * (bd @ bd.T)
         self.t = t
 
     def update(self, t: float, z: np.ndarray) -> bool:

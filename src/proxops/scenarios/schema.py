@@ -126,6 +126,9 @@ class NavigationSection(Section):
     initial_covariance: list[list[float]] | None = Field(
         None, description="ekf: full 6x6 initial covariance (SI: m^2, m^2/s, m^2/s^2), positive definite; replaces "
         "the two initial sigmas")
+    command_sigma_fraction: NonNegative = Field(
+        0.0, description="ekf: 1-sigma execution error of each commanded impulse/acceleration per axis, as a "
+        "fraction of its norm (covers thruster magnitude and pointing errors)")
     gate_probability: Annotated[float, Field(gt=0.0, lt=1.0)] = Field(
         0.9999, description="ekf: chi-square gate confidence; a measurement beyond it is rejected (an event)")
 

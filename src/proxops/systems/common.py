@@ -126,7 +126,8 @@ def ekf_navigation(nav: NavigationSection, orbit: OrbitSection | None, control_d
                          sigma_floor_fraction=nav.sigma_floor_fraction, fov_rad=math.radians(nav.fov_deg),
                          boresight=boresight, outage_probability=nav.outage_probability, illuminated=illuminated)
     return RelativeEKF(mean_motion(orbit.sma_m), sensor, p0, q_m2_s3=nav.process_noise_m2_s3,
-                       gate_probability=nav.gate_probability, period_s=period)
+                       gate_probability=nav.gate_probability, command_sigma_fraction=nav.command_sigma_fraction,
+                       period_s=period)
 
 
 class target_illumination:  # noqa: N801 (a picklable callable)
