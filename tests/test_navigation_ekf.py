@@ -279,3 +279,36 @@ def test_impulse_execution_error_enters_the_velocity_covariance():
     p_expected[3:, 3:] += np.eye(3) * (0.02 * 0.5) ** 2
     phi = cw_stm(N_LEO, 20.0)
     np.testing.assert_allclose(ekf.P, phi @ p_expected @ phi.T, rtol=1e-12, atol=1e-18)
+
+
+def test_rejections_in_a_closed_loop_are_engine_events():
+    """A tight gate (50 %) rejects consistent measurements (and, once the accepted ones are biased
+    small, nearly all: the reason the default gate is 0.9999): each one is a nav-rejected event
+    of the run and counted in nav_rejected."""
+    import json
+
+    res = _run([*SK, *EKF, "--set", "navigation.gate_probability=0.5", "--set", "navigation.sensor=pose"])
+    s = json.loads(res.stdout)
+    assert s["events"].get("nav-rejected", 0) == s["nav_rejected"]
+    assert s["nav_rejected"] >= 0.2 * s["steps"]
+
+
+def test_the_filter_propagates_the_saturated_command():
+    """With a thruster limit the filter gets the limited command (actuator.limited), not the raw
+    one: station-keeping LQR at 1e-4 m/s^2 per axis saturates, and the filter stays within its
+    gate (no rejection) on a CW truth."""
+    import json
+
+    s = json.loads(_run([*SK, *EKF, "--set", "actuator.max_per_axis=1e-4"]).stdout)
+    assert s["nav_rejected"] == 0
+    assert s["nav_position_error_m"]["max"] < 5.0  # 1 m initial sigma per axis: |e0| < 5 m
+
+
+def test_limited_is_the_deterministic_part_of_apply():
+    from proxops.actuators import ThrusterModel
+
+    act = ThrusterModel(max_per_axis=0.5, max_norm=0.6, min_impulse=0.01)
+    rng = np.random.default_rng(0)
+    for u in ([1.0, -2.0, 0.1], [0.001, 0.0, 0.0], [0.2, 0.1, 0.0]):
+        np.testing.assert_array_equal(act.limited(np.array(u)), act.apply(0.0, np.array(u), "impulse", rng))
+    np.testing.assert_allclose(np.linalg.norm(act.limited(np.array([1.0, -2.0, 0.1]))), 0.6)

@@ -54,7 +54,9 @@ class ThrusterModel(ActuatorBase):
     pointing_sigma_rad: float = 0.0
     missed_probability: float = 0.0
 
-    def apply(self, t: float, u: np.ndarray, kind: str, rng: np.random.Generator) -> np.ndarray:
+    def limited(self, u: np.ndarray) -> np.ndarray:
+        """The deterministic part of :meth:`apply` (saturations, minimum impulse bit): what the
+        vehicle knows it commanded (a navigation filter propagates with it)."""
         u = np.array(u, dtype=float)
         if self.max_per_axis is not None:
             u = np.clip(u, -self.max_per_axis, self.max_per_axis)
@@ -64,6 +66,12 @@ class ThrusterModel(ActuatorBase):
             norm = self.max_norm
         if norm == 0.0 or norm < self.min_impulse:
             return np.zeros_like(u)
+        return u
+
+    def apply(self, t: float, u: np.ndarray, kind: str, rng: np.random.Generator) -> np.ndarray:
+        u = self.limited(u)
+        if not u.any():
+            return u
         if self.missed_probability > 0.0 and rng.random() < self.missed_probability:
             return np.zeros_like(u)
         if self.magnitude_sigma > 0.0:

@@ -10,7 +10,8 @@ loop it always did. Each base tick k at t_k = k h:
 
 1. x_true = plant.relative_state(state); on navigation ticks x_est = navigation.measure(t, x_true,
    rng_nav) (held in between); a filter's ``events`` list (if any) is drained into the run's events
-   and its ``command(t, u, kind)`` hook (if any) gets each controller command (step 2)
+   and its ``command(t, u, kind)`` hook (if any) gets each controller command after the actuator's
+   known saturations (``actuator.limited``, if any; not its random execution errors)
 2. each periodic component on its ticks: events += component.update(t, x_est); then on
    controller ticks cmd = controller.step(t, x_est)   (Command: u, kind, status, ...)
 3. on actuator ticks (and every controller tick) u = actuator.apply(t, cmd.u, cmd.kind, rng_act)
@@ -158,6 +159,7 @@ def simulate(setup: Setup, seed: int = 0, progress: bool = False) -> SimResult:
     k = 0
     nav_command = getattr(nav, "command", None)  # optional hooks of a filter: the commanded control,
     nav_events = getattr(nav, "events", None)  # and its events (e.g. rejected measurements), drained
+    act_limited = getattr(act, "limited", None)  # the filter gets the command after the known saturations
     try:  # the bar is cleared even when the run is interrupted (Ctrl-C)
         for k in range(n_steps + 1):
             t = k * h
@@ -196,7 +198,7 @@ def simulate(setup: Setup, seed: int = 0, progress: bool = False) -> SimResult:
                     break
                 u = np.asarray(act.apply(t, cmd.u, cmd.kind, rng_act), dtype=float)
                 if nav_command is not None:
-                    nav_command(t, cmd.u, cmd.kind)
+                    nav_command(t, cmd.u if act_limited is None else act_limited(cmd.u), cmd.kind)
                 u_cmd[k], u_app[k], solve_t[k] = cmd.u, u, cmd.solve_time_s
                 status.append(st)
                 modes.append(cmd.mode)
