@@ -1,7 +1,7 @@
 """Relative-navigation EKF cost (issue 17): time per propagation step (exact CW STM from the
 per-step cache, covariance prediction) and per measurement update (range-bearing and pose;
 Jacobian, gate, Joseph update), goal < 20 us each; and the wall-time slowdown of a small
-station-keeping campaign on the filter against noise on the truth.
+station-keeping campaign and of one srf-vbar run on the filter against noise on the truth.
 
     python benchmarks/bench_navigation.py [N_CALLS] [N_RUNS]
 
@@ -76,6 +76,24 @@ def campaign_slowdown(n_runs: int) -> tuple[float, float]:
     return times[0], times[1]
 
 
+def srf_run_slowdown(repeats: int = 3) -> tuple[float, float]:
+    """Best-of wall time of one srf-vbar run with noise on the truth and with srf-vbar-ekf."""
+    from proxops.scenarios.loader import load_scenario
+    from proxops.sim.engine import simulate
+
+    out = []
+    for name in ("srf-vbar", "srf-vbar-ekf"):
+        ld = load_scenario(name)
+        best = float("inf")
+        for _ in range(repeats):
+            setup = ld.system.build(ld.scenario)
+            t0 = time.perf_counter()
+            simulate(setup, seed=1)
+            best = min(best, time.perf_counter() - t0)
+        out.append(best)
+    return out[0], out[1]
+
+
 def main(n_calls: int = 20000, n_runs: int = 8) -> None:
     print(f"load average {os.getloadavg()[0]:.2f}")
     for key, us in filter_costs(n_calls).items():
@@ -83,6 +101,9 @@ def main(n_calls: int = 20000, n_runs: int = 8) -> None:
     t_noise, t_ekf = campaign_slowdown(n_runs)
     print(f"station-keeping-mc, {n_runs} runs x 2000 s, 1 worker: noise {t_noise:.2f} s, ekf {t_ekf:.2f} s, "
           f"slowdown x{t_ekf / t_noise:.2f}")
+    t_noise, t_ekf = srf_run_slowdown()
+    print(f"one srf run (1082 steps): srf-vbar {t_noise:.3f} s, srf-vbar-ekf {t_ekf:.3f} s, slowdown x{t_ekf / t_noise:.2f}"
+          f" ({(t_ekf - t_noise) / 1082 * 1e6:.0f} us per navigation tick, sensor draw included)")
 
 
 if __name__ == "__main__":
