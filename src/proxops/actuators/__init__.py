@@ -78,15 +78,10 @@ class ThrusterModel(ActuatorBase):
         self._window = None
         self._window_missed = False
 
-    def apply(self, t: float, u: np.ndarray, kind: str, rng: np.random.Generator) -> np.ndarray:
+    def limited(self, u: np.ndarray) -> np.ndarray:
+        """The deterministic part of :meth:`apply` (saturations, minimum impulse bit): what the
+        vehicle knows it commanded (a navigation filter propagates with it)."""
         u = np.array(u, dtype=float)
-        if self.missed_window_s is not None and self.missed_probability > 0.0:
-            window = math.floor(t / self.missed_window_s + 1e-9)
-            if window != self._window:
-                self._window = window
-                self._window_missed = bool(rng.random() < self.missed_probability)
-            if self._window_missed:
-                return np.zeros_like(u)
         if self.max_per_axis is not None:
             u = np.clip(u, -self.max_per_axis, self.max_per_axis)
         norm = float(np.linalg.norm(u))
@@ -95,6 +90,20 @@ class ThrusterModel(ActuatorBase):
             norm = self.max_norm
         if norm == 0.0 or norm < self.min_impulse:
             return np.zeros_like(u)
+        return u
+
+    def apply(self, t: float, u: np.ndarray, kind: str, rng: np.random.Generator) -> np.ndarray:
+        u = np.array(u, dtype=float)
+        if self.missed_window_s is not None and self.missed_probability > 0.0:
+            window = math.floor(t / self.missed_window_s + 1e-9)  # one draw per guidance window
+            if window != self._window:
+                self._window = window
+                self._window_missed = bool(rng.random() < self.missed_probability)
+            if self._window_missed:
+                return np.zeros_like(u)
+        u = self.limited(u)
+        if not u.any():
+            return u
         if self.missed_window_s is None and self.missed_probability > 0.0 and rng.random() < self.missed_probability:
             return np.zeros_like(u)
         if self.magnitude_sigma > 0.0:

@@ -3,7 +3,9 @@
 Every model follows :class:`proxops.sim.protocols.Navigation`: ``measure(t, x_true, rng)``
 and ``period_s`` (s between measurements, None = every controller sample). Noise is drawn
 per block of the plant's :class:`proxops.core.layout.StateLayout`: additive on position,
-velocity, angle and rate blocks, a small random rotation on a quaternion block.
+velocity, angle and rate blocks, a small random rotation on a quaternion block. :mod:`proxops.navigation.ekf` holds the relative-navigation filter
+(EKF on the Hill state fed by simulated sensors), which also takes the controller's commands
+(``command(t, u, kind)``) and reports rejected measurements through its ``events`` list.
 """
 
 from __future__ import annotations

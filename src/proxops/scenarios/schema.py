@@ -92,10 +92,45 @@ class OrbitSection(Section):
 
 
 class NavigationSection(Section):
-    """Navigation errors: white Gaussian, per axis, 1-sigma."""
+    """Navigation: ``noise`` (white Gaussian on the true state, per axis, 1-sigma) or ``ekf`` (an
+    extended Kalman filter on the Hill state, CW process model, fed by a simulated sensor:
+    proxops.navigation.ekf). The ``ekf`` keys are ignored by ``noise`` and vice versa."""
 
-    position_sigma_m: NonNegative = Field(0.0, description="1-sigma relative-position error per axis (0: perfect)")
-    velocity_sigma_mps: NonNegative = Field(0.0, description="1-sigma relative-velocity error per axis (0: perfect)")
+    model: Literal["noise", "ekf"] = Field("noise", description="noise: Gaussian error on the true state; ekf: "
+                                           "filter estimate from simulated sensor measurements")
+    position_sigma_m: NonNegative = Field(0.0, description="noise: 1-sigma relative-position error per axis (0: perfect)")
+    velocity_sigma_mps: NonNegative = Field(0.0, description="noise: 1-sigma relative-velocity error per axis (0: perfect)")
+    sensor: Literal["range-bearing", "pose"] = Field(
+        "range-bearing", description="ekf: range + azimuth + elevation (lidar/camera-like) or relative position (pose)")
+    range_sigma_m: NonNegative = Field(0.1, description="ekf: 1-sigma of the range (range-bearing) or of each "
+                                       "position axis (pose), at sigma_reference_range_m when that is set")
+    angle_sigma_deg: NonNegative = Field(0.05, description="ekf: 1-sigma of azimuth and elevation (range-bearing)")
+    sigma_reference_range_m: Positive | None = Field(
+        None, description="ekf: range sigma grows with range: sigma (f + (1 - f) range / this) (cortex §5.1.2 form); "
+        "none: constant")
+    sigma_floor_fraction: Probability = Field(0.02, description="ekf: f of the range law (cortex §5.1.2: 0.02)")
+    update_period_s: Positive | None = Field(None, description="ekf: sensor/filter update period, must divide the "
+                                             "control period (none: the control period)")
+    fov_deg: Annotated[float, Field(gt=0.0, le=180.0)] = Field(
+        180.0, description="ekf: full cone angle of the sensor's field of view about its boresight, (0, 180]")
+    boresight_hill: Vector3 | None = Field(None, description="ekf: sensor boresight in Hill axes (none: the line of "
+                                           "sight chaser -> target at t = 0)")
+    outage_probability: Probability = Field(0.0, description="ekf: probability that a measurement is lost (random outage)")
+    eclipse_dropout: bool = Field(False, description="ekf: no measurement while the target is in the Earth's shadow "
+                                  "(conical, proxops.environment.eclipse; orbit.epoch_utc)")
+    process_noise_m2_s3: NonNegative = Field(1e-9, description="ekf: white-acceleration power spectral density per "
+                                             "axis (covers J2 and other unmodelled accelerations)")
+    initial_position_sigma_m: Positive = Field(1.0, description="ekf: initial 1-sigma position error per axis (the "
+                                               "initial estimate is drawn from it)")
+    initial_velocity_sigma_mps: Positive = Field(0.01, description="ekf: initial 1-sigma velocity error per axis")
+    initial_covariance: list[list[float]] | None = Field(
+        None, description="ekf: full 6x6 initial covariance (SI: m^2, m^2/s, m^2/s^2), positive definite; replaces "
+        "the two initial sigmas")
+    command_sigma_fraction: NonNegative = Field(
+        0.0, description="ekf: 1-sigma execution error of each commanded impulse/acceleration per axis, as a "
+        "fraction of its norm (covers thruster magnitude and pointing errors)")
+    gate_probability: Annotated[float, Field(gt=0.0, lt=1.0)] = Field(
+        0.9999, description="ekf: chi-square gate confidence; a measurement beyond it is rejected (an event)")
 
 
 def _actuator_fields() -> dict:

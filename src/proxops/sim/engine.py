@@ -10,7 +10,10 @@ loop it always did. Each base tick k at t_k = k h:
 
 1. x_true = plant.relative_state(state); on navigation ticks x_est = navigation.measure(t, x_true,
    rng_nav) (held in between); a controller with ``observe_truth(t, x_true)`` (a safety monitor,
-   e.g. the cortex triggers of Table 1) is shown the truth before its step
+   e.g. the cortex triggers of Table 1) is shown the truth before its step; a filter's ``events``
+   list (if any) is drained into the run's events and its ``command(t, u, kind)`` hook (if any)
+   gets each controller command after the actuator's known saturations (``actuator.limited``, if
+   any; not its random execution errors)
 2. each periodic component on its ticks: events += component.update(t, x_est); then on
    controller ticks cmd = controller.step(t, x_est)   (Command: u, kind, status, ...)
 3. on actuator ticks (and every controller tick) u = actuator.apply(t, cmd.u, cmd.kind, rng_act)
@@ -157,12 +160,18 @@ def simulate(setup: Setup, seed: int = 0, progress: bool = False) -> SimResult:
     u = zero_u
     xe = x0
     k = 0
+    nav_command = getattr(nav, "command", None)  # optional hooks of a filter: the commanded control,
+    nav_events = getattr(nav, "events", None)  # and its events (e.g. rejected measurements), drained
+    act_limited = getattr(act, "limited", None)  # the filter gets the command after the known saturations
     try:  # the bar is cleared even when the run is interrupted (Ctrl-C)
         for k in range(n_steps + 1):
             t = k * h
             xr = plant.relative_state(state)
             if single_rate or k % k_nav == 0:
                 xe = nav.measure(t, xr, rng_nav)
+                if nav_events:
+                    events.extend((t, kind, msg) for kind, msg in nav_events)
+                    nav_events.clear()
             t_rec[k], x_true[k], x_est[k] = t, xr, xe
             plant_modes.append(plant_mode(state))
             check_constraints(t, xr)
@@ -193,6 +202,8 @@ def simulate(setup: Setup, seed: int = 0, progress: bool = False) -> SimResult:
                     modes.append(cmd.mode)
                     break
                 u = np.asarray(act.apply(t, cmd.u, cmd.kind, rng_act), dtype=float)
+                if nav_command is not None:
+                    nav_command(t, cmd.u if act_limited is None else act_limited(cmd.u), cmd.kind)
                 u_cmd[k], u_app[k], solve_t[k] = cmd.u, u, cmd.solve_time_s
                 status.append(st)
                 modes.append(cmd.mode)
@@ -249,6 +260,8 @@ def simulate(setup: Setup, seed: int = 0, progress: bool = False) -> SimResult:
         max_violation=max_violation,
         final_plant_state=np.asarray(state, dtype=float).tolist(),
     )
+    if nav_events is not None:
+        meta.update(navigation_filter=True)
     if not single_rate:
         meta.update(base_step_s=h, navigation_period_s=h * k_nav, actuator_period_s=h * k_act)
     if periodic:

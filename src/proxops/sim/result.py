@@ -106,7 +106,20 @@ class SimResult:
             "solver_failures": int(sum(Status.parse(s).flagged for s in self.status)),
             "solve_time_ms": solve_time_stats(solved),
             "events": counts,
+            **(self.navigation_summary() if self.meta.get("navigation_filter") else {}),
         }
+
+    def navigation_summary(self) -> dict:
+        """Estimation error of a filtered run: |r_est - r_true| (m) and |v_est - v_true| (m/s) over
+        every recorded sample (median, p95, max), and the measurements the filter rejected."""
+        (p0, p1), (v0, v1) = self.meta.get("position_slice", (0, 3)), self.meta.get("velocity_slice", (3, 6))
+        err = self.x_est - self.x_true
+        out = {}
+        for key, e in (("nav_position_error_m", err[:, p0:p1]), ("nav_velocity_error_mps", err[:, v0:v1])):
+            n = np.linalg.norm(e, axis=1)
+            out[key] = {"median": float(np.median(n)), "p95": float(np.percentile(n, 95)), "max": float(n.max())}
+        out["nav_rejected"] = len(self.events_of("nav-rejected"))
+        return out
 
     # --- persistence --------------------------------------------------------------
     def to_frame(self) -> pd.DataFrame:

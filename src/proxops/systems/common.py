@@ -64,10 +64,16 @@ def force_models(orbit: OrbitSection, truth: TruthSection):
     )
 
 
-def navigation_model(nav: NavigationSection, per_state_sigma=None):
-    """The navigation of a [navigation] section (the one place it is built): perfect when both
-    sigmas are 0, else Gaussian. ``per_state_sigma(position_sigma_m, velocity_sigma_mps)`` maps
-    the two sigmas onto a state layout other than [r; v] (e.g. the planar CubeSat's)."""
+def navigation_model(nav: NavigationSection, per_state_sigma=None, orbit: OrbitSection | None = None,
+                     control_dt_s: float | None = None, system: str = "this system"):
+    """The navigation of a [navigation] section (the one place it is built): ``model = "noise"``:
+    perfect when both sigmas are 0, else Gaussian; ``per_state_sigma(position_sigma_m,
+    velocity_sigma_mps)`` maps the two sigmas onto a state layout other than [r; v] (e.g. the
+    planar CubeSat's). ``model = "ekf"``: :class:`proxops.navigation.ekf.RelativeEKF` on the Hill
+    state, which needs the target ``orbit`` (mean motion) and the controller period
+    ``control_dt_s`` (systems whose controller sees another state pass neither: an error)."""
+    if nav.model == "ekf":
+        return ekf_navigation(nav, orbit, control_dt_s, system)
     if nav.position_sigma_m == 0.0 and nav.velocity_sigma_mps == 0.0:
         return PerfectNavigation()
     if per_state_sigma is not None:
@@ -81,3 +87,65 @@ def actuator_model(act: ActuatorSection):
     if act == ActuatorSection():
         return IdealActuator()
     return thruster_from_values(act.model_dump())
+
+
+def ekf_navigation(nav: NavigationSection, orbit: OrbitSection | None, control_dt_s: float | None,
+                   system: str = "this system"):
+    """:class:`proxops.navigation.ekf.RelativeEKF` of a ``model = "ekf"`` [navigation] section."""
+    import math
+
+    from proxops.core.cw import mean_motion
+    from proxops.errors import input_error
+    from proxops.navigation.ekf import RelativeEKF, SensorModel
+
+    if orbit is None or control_dt_s is None:
+        raise input_error("navigation.model", "ekf", f"{system} does not run on the Hill-state filter: allowed: noise")
+    period = nav.update_period_s
+    if period is not None:
+        ratio = control_dt_s / period
+        if period > control_dt_s * (1 + 1e-9) or abs(ratio - round(ratio)) > 1e-6:
+            raise input_error("navigation.update_period_s", period,
+                              f"must divide the control period {control_dt_s:g} s (control period / update period "
+                              f"an integer; got {ratio:.6g})", "s")
+    if nav.initial_covariance is not None:
+        p0 = np.asarray(nav.initial_covariance, dtype=float)
+        if p0.shape != (6, 6):
+            raise input_error("navigation.initial_covariance", f"{p0.shape}", "must be 6 rows of 6 numbers", "SI")
+    else:
+        p0 = np.diag([nav.initial_position_sigma_m ** 2] * 3 + [nav.initial_velocity_sigma_mps ** 2] * 3)
+    boresight = None
+    if nav.boresight_hill is not None:
+        b = np.asarray(nav.boresight_hill, dtype=float)
+        if not np.linalg.norm(b) > 0:
+            raise input_error("navigation.boresight_hill", nav.boresight_hill, "must be a non-zero vector")
+        boresight = b / np.linalg.norm(b)
+    illuminated = target_illumination(orbit) if nav.eclipse_dropout else None
+    sensor = SensorModel(kind=nav.sensor, range_sigma_m=nav.range_sigma_m,
+                         angle_sigma_rad=math.radians(nav.angle_sigma_deg),
+                         sigma_reference_range_m=nav.sigma_reference_range_m,
+                         sigma_floor_fraction=nav.sigma_floor_fraction, fov_rad=math.radians(nav.fov_deg),
+                         boresight=boresight, outage_probability=nav.outage_probability, illuminated=illuminated)
+    return RelativeEKF(mean_motion(orbit.sma_m), sensor, p0, q_m2_s3=nav.process_noise_m2_s3,
+                       gate_probability=nav.gate_probability, command_sigma_fraction=nav.command_sigma_fraction,
+                       period_s=period)
+
+
+class target_illumination:  # noqa: N801 (a picklable callable)
+    """``t -> bool``: the target (Keplerian orbit from [orbit]) is lit by the Sun (conical shadow)."""
+
+    def __init__(self, orbit: OrbitSection):
+        self.orbit = orbit
+        self._cache: dict[float, bool] = {}
+
+    def __call__(self, t: float) -> bool:
+        lit = self._cache.get(t)
+        if lit is None:
+            from proxops.environment.eclipse import illumination, kepler_positions
+            from proxops.environment.ephemeris import sun_position_eci
+            from proxops.environment.epochs import parse_epoch
+
+            ts = np.array([t])
+            r = kepler_positions(target_elements(self.orbit), ts)
+            sun = sun_position_eci(parse_epoch(self.orbit.epoch_utc), ts)
+            lit = self._cache[t] = bool(illumination(r, np.atleast_2d(sun))[0] > 0.5)
+        return lit

@@ -185,7 +185,7 @@ def build_setup(sc: LosScenario) -> Setup:
     ctrl = LosGuidanceController(model, sc.chaser.a_max_mps2, corridor, mpc_cfg, guidance)
     meta = {"system": "los", "r_sync_m": ctrl.r_sync, "frame": "target body (eqs. 7-8)"}
     return Setup(plant=plant, controller=ctrl, duration_s=sc.sim.duration_s,
-                 navigation=navigation_model(sc.navigation), actuator=actuator_model(sc.actuator),
+                 navigation=navigation_model(sc.navigation, system="los (target body frame)"), actuator=actuator_model(sc.actuator),
                  constraints=(corridor,), check_substeps=sc.sim.check_substeps, meta=meta)
 
 

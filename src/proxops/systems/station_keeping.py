@@ -54,7 +54,9 @@ class StationKeepingSystem(SystemBase):
             ctrl = PdStationKeeping(n, c.dt_s, c.hold_position_m, c.kp, c.kd)
         plant = translational_plant(sc.orbit, sc.truth, initial_hill_state(sc.initial))
         return Setup(plant=plant, controller=ctrl, duration_s=sc.sim.duration_s,
-                     navigation=navigation_model(sc.navigation), actuator=actuator_model(sc.actuator),
+                     navigation=navigation_model(sc.navigation, orbit=sc.orbit, control_dt_s=ctrl.dt,
+                                                 system="station-keeping"),
+                     actuator=actuator_model(sc.actuator),
                      check_substeps=sc.sim.check_substeps)
 
     def summarize(self, sc: StationKeepingScenario, result) -> dict:

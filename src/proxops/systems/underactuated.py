@@ -266,7 +266,7 @@ def build_setup(sc: UnderactuatedScenario, run: dict | None = None) -> Setup:
     )
     controller = UnderactuatedNMPC(params, limits, config, docking)
     plant = PlanarCubeSatPlant(params, sc.initial_state.vector())
-    navigation = navigation_model(sc.navigation, per_state_sigma=planar_sigma)
+    navigation = navigation_model(sc.navigation, per_state_sigma=planar_sigma, system="underactuated (planar state)")
 
     def docked(t: float, s: np.ndarray) -> str | None:
         return "docked" if docking.contains(s) else None

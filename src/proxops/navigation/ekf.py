@@ -1,0 +1,330 @@
+"""Relative-navigation EKF on the Hill state with simulated sensors.
+
+State ``x = [x, y, z, vx, vy, vz]`` (Hill/RTN, m, m/s): x radial out, y along-track, z normal.
+
+Process model: the exact Clohessy-Wiltshire transition ``Phi(dt)`` (:func:`proxops.core.cw.cw_stm`)
+with the controller's commanded acceleration through the exact ZOH input matrix, or its impulse
+added to the velocity at the start of the step. Process noise: white acceleration of power
+spectral density ``q`` (m^2/s^3) on each axis entering through B = [0; I]; its discrete
+covariance ``Q_d = int_0^dt Phi(s) B q B^T Phi(s)^T ds`` is computed exactly (Van Loan's
+matrix exponential), cached per step length.
+
+Sensors (the chaser sees the target along rho = -r, axes parallel to Hill):
+
+* ``range-bearing``: ``[|rho|, az, el]``, az = atan2(rho_y, rho_x), el = asin(rho_z / |rho|);
+* ``pose``: relative position ``r`` (3 components).
+
+Noise 1-sigma may grow with range: sigma(rho) = sigma * (f + (1 - f) rho / rho_ref) -- the
+form of cortex-convex-guidance.md §5.1.2 (there for 3-sigma with f = 0.02, rho_ref = r_AS);
+without ``rho_ref`` it is constant. Angles keep a constant sigma. Measurements are dropped
+outside the field of view (full cone angle about the boresight), with a random outage
+probability, or while the target is in the Earth's shadow (eclipse dropout). Each update
+tick draws the same numbers (one uniform, then one normal per measurement component) whatever
+happens, so a run's stream never shifts.
+
+Update: EKF with Joseph form; a measurement whose normalised innovation squared (NIS) exceeds
+the chi-square quantile at ``gate_probability`` is rejected and recorded as an engine event
+(``nav-rejected``).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from proxops.core.cw import cw_input_matrix_zoh, cw_stm
+from proxops.errors import input_error
+
+SENSORS = ("range-bearing", "pose")
+
+
+def cw_process_noise(n: float, dt: float, q: float) -> np.ndarray:
+    """Exact discrete process noise of white acceleration (PSD ``q`` m^2/s^3 per axis) over ``dt``
+    under CW dynamics: Van Loan, expm([[-A, q B B^T], [0, A^T]] dt) -> Q_d = F22^T F12."""
+    from scipy.linalg import expm
+
+    from proxops.core.cw import cw_matrices
+
+    a, b = cw_matrices(n)
+    m = np.zeros((12, 12))
+    m[:6, :6] = -a
+    m[:6, 6:] = q * (b @ b.T)
+    m[6:, 6:] = a.T
+    f = expm(m * dt)
+    qd = f[6:, 6:].T @ f[:6, 6:]
+    return 0.5 * (qd + qd.T)
+
+
+def range_bearing(rho: np.ndarray) -> np.ndarray:
+    """[range m, azimuth rad, elevation rad] of the line of sight ``rho`` (m)."""
+    r = math.sqrt(float(rho @ rho))
+    return np.array([r, math.atan2(rho[1], rho[0]), math.asin(max(-1.0, min(1.0, rho[2] / r)))])
+
+
+def range_bearing_jacobian(rho: np.ndarray) -> np.ndarray:
+    """d[range, az, el]/d rho (3x3)."""
+    x, y, z = rho
+    rh2 = x * x + y * y
+    rh = math.sqrt(rh2)
+    r2 = rh2 + z * z
+    r = math.sqrt(r2)
+    return np.array([
+        [x / r, y / r, z / r],
+        [-y / rh2, x / rh2, 0.0],
+        [-x * z / (r2 * rh), -y * z / (r2 * rh), rh / r2],
+    ])
+
+
+def _inv3(a: np.ndarray) -> np.ndarray:
+    """Inverse of a 3x3 matrix by its adjugate (no LAPACK call: the update's hot path)."""
+    (a00, a01, a02), (a10, a11, a12), (a20, a21, a22) = a.tolist()
+    c00, c01, c02 = a11 * a22 - a12 * a21, a12 * a20 - a10 * a22, a10 * a21 - a11 * a20
+    det = a00 * c00 + a01 * c01 + a02 * c02
+    return np.array([
+        [c00, a02 * a21 - a01 * a22, a01 * a12 - a02 * a11],
+        [c01, a00 * a22 - a02 * a20, a02 * a10 - a00 * a12],
+        [c02, a01 * a20 - a00 * a21, a00 * a11 - a01 * a10],
+    ]) / det
+
+
+@dataclass
+class SensorModel:
+    """Simulated relative sensor (see the module docstring). Angles in rad, lengths in m."""
+
+    kind: str = "range-bearing"
+    range_sigma_m: float = 0.1  # range (range-bearing) or per-axis position (pose) 1-sigma at rho_ref
+    angle_sigma_rad: float = 1e-3
+    sigma_reference_range_m: float | None = None  # None: constant sigma
+    sigma_floor_fraction: float = 0.02
+    fov_rad: float = math.pi  # full cone angle, (0, pi]
+    boresight: np.ndarray | None = None  # unit vector (Hill axes); None: the initial line of sight
+    outage_probability: float = 0.0
+    illuminated: object = None  # callable t -> bool (eclipse dropout), None: always lit
+
+    def __post_init__(self):
+        if self.kind not in SENSORS:
+            raise input_error("navigation.sensor", self.kind, f"must be one of {', '.join(SENSORS)}")
+        for name, v in (("range_sigma_m", self.range_sigma_m), ("angle_sigma_deg", self.angle_sigma_rad)):
+            if not (math.isfinite(v) and v >= 0.0):
+                raise input_error(f"navigation.{name}", v, "must be >= 0", name.rsplit("_", 1)[-1])
+        if not (0.0 < self.fov_rad <= math.pi + 1e-12):
+            raise input_error("navigation.fov_deg", math.degrees(self.fov_rad), "must be in (0, 180]", "deg")
+        if not (0.0 <= self.outage_probability <= 1.0):
+            raise input_error("navigation.outage_probability", self.outage_probability, "must be in [0, 1]")
+        self.m = 3
+
+    def sigma(self, rng_m: float) -> np.ndarray:
+        """1-sigma of each measurement component at range ``rng_m``."""
+        s = self.range_sigma_m
+        if self.sigma_reference_range_m:
+            f = self.sigma_floor_fraction
+            s = s * (f + (1.0 - f) * rng_m / self.sigma_reference_range_m)
+        if self.kind == "pose":
+            return np.array([s, s, s])
+        return np.array([s, self.angle_sigma_rad, self.angle_sigma_rad])
+
+    def h(self, x: np.ndarray) -> np.ndarray:
+        """Noise-free measurement of the Hill state ``x``."""
+        if self.kind == "pose":
+            return np.array(x[:3], dtype=float)
+        return range_bearing(-np.asarray(x[:3], dtype=float))
+
+    def jacobian(self, x: np.ndarray) -> np.ndarray:
+        """dh/dx (3x6)."""
+        H = np.zeros((3, 6))
+        if self.kind == "pose":
+            H[0, 0] = H[1, 1] = H[2, 2] = 1.0
+        else:
+            H[:, :3] = range_bearing_jacobian(-x[:3])
+            H[:, :3] *= -1.0
+        return H
+
+    def h_and_jacobian(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(h(x), dh/dx) in one pass (the update's hot path; same formulas as h and jacobian)."""
+        H = np.zeros((3, 6))
+        if self.kind == "pose":
+            H[0, 0] = H[1, 1] = H[2, 2] = 1.0
+            return x[:3].copy(), H
+        x0, x1, x2 = -float(x[0]), -float(x[1]), -float(x[2])  # rho = -r
+        rh2 = x0 * x0 + x1 * x1
+        rh = math.sqrt(rh2)
+        r2 = rh2 + x2 * x2
+        r = math.sqrt(r2)
+        H[0, :3] = (-x0 / r, -x1 / r, -x2 / r)
+        H[1, :3] = (x1 / rh2, -x0 / rh2, 0.0)
+        H[2, :3] = (x0 * x2 / (r2 * rh), x1 * x2 / (r2 * rh), -rh / r2)
+        return np.array([r, math.atan2(x1, x0), math.asin(max(-1.0, min(1.0, x2 / r)))]), H
+
+    def residual(self, z: np.ndarray, zhat: np.ndarray) -> np.ndarray:
+        """z - zhat with the azimuth wrapped to (-pi, pi]."""
+        d = z - zhat
+        if self.kind == "range-bearing":
+            d[1] = (d[1] + math.pi) % (2.0 * math.pi) - math.pi
+        return d
+
+    def visible(self, t: float, x_true: np.ndarray) -> bool:
+        """In the field of view and illuminated."""
+        rho = -np.asarray(x_true[:3], dtype=float)
+        r = math.sqrt(float(rho @ rho))
+        if r == 0.0:
+            return False
+        if self.fov_rad < math.pi and self.boresight is not None:
+            if float(rho @ self.boresight) / r < math.cos(0.5 * self.fov_rad):
+                return False
+        return self.illuminated is None or bool(self.illuminated(t))
+
+    def draw(self, t: float, x_true: np.ndarray, rng: np.random.Generator) -> np.ndarray | None:
+        """One measurement of the truth, or None (outage, out of view, eclipse). Always draws one
+        uniform then ``m`` normals."""
+        u = rng.random()
+        e = rng.standard_normal(self.m)
+        if self.boresight is None:  # first call: point the sensor along the initial line of sight
+            rho = -np.asarray(x_true[:3], dtype=float)
+            nr = np.linalg.norm(rho)
+            self.boresight = rho / nr if nr > 0 else np.array([1.0, 0.0, 0.0])
+        if u < self.outage_probability or not self.visible(t, x_true):
+            return None
+        z = self.h(x_true)
+        return z + self.sigma(float(np.linalg.norm(x_true[:3]))) * e
+
+
+@dataclass
+class RelativeEKF:
+    """EKF navigation (:class:`proxops.sim.protocols.Navigation`) on the Hill state.
+
+    ``n``: mean motion (rad/s); ``q_m2_s3``: white-acceleration PSD per axis; ``p0``: initial
+    covariance (6x6, SI, positive definite): the initial estimate is the truth plus one draw from
+    N(0, p0) with the navigation stream. ``gate_probability``: chi-square gate confidence.
+    ``command_sigma_fraction``: the commanded control is executed with an isotropic 1-sigma error
+    of this fraction of its norm per axis (impulse: added to the velocity covariance at the burn;
+    acceleration: through the ZOH input matrix), so thruster errors do not look like outliers.
+    The engine gives the commanded control through :meth:`command` and drains :attr:`events`.
+    """
+
+    n: float
+    sensor: SensorModel
+    p0: np.ndarray
+    q_m2_s3: float = 1e-10
+    gate_probability: float = 0.9999
+    command_sigma_fraction: float = 0.0  # 1-sigma execution error of a command, fraction of |u| per axis
+    period_s: float | None = field(default=None, kw_only=True)
+
+    def __post_init__(self):
+        from scipy.stats import chi2
+
+        self.p0 = np.asarray(self.p0, dtype=float)
+        if self.p0.shape != (6, 6) or not np.allclose(self.p0, self.p0.T, atol=0.0, rtol=1e-12):
+            raise input_error("navigation.initial_covariance", "given", "must be a symmetric 6x6 matrix", "SI")
+        try:
+            self._l0 = np.linalg.cholesky(self.p0)
+        except np.linalg.LinAlgError:
+            raise input_error("navigation.initial_covariance", f"eigenvalues {np.linalg.eigvalsh(self.p0).min():.3g}..",
+                              "must be positive definite (all eigenvalues > 0)", "SI") from None
+        if self.q_m2_s3 < 0:
+            raise input_error("navigation.process_noise_m2_s3", self.q_m2_s3, "must be >= 0", "m^2/s^3")
+        if not 0.0 < self.gate_probability < 1.0:
+            raise input_error("navigation.gate_probability", self.gate_probability, "must be in (0, 1)")
+        self.gate = float(chi2.ppf(self.gate_probability, self.sensor.m))
+        self._cache: dict[float, tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
+        self.events: list[tuple[str, str]] = []
+        self.x = np.zeros(6)
+        self.P = self.p0.copy()
+        self.t: float | None = None
+        self._u = np.zeros(3)
+        self._kind = "acceleration"
+        self._impulse_t: float | None = None
+        self.nis: list[float] = []
+        self.rejected = 0
+        self.updates = 0
+
+    def reset(self, t: float, x_est: np.ndarray, P: np.ndarray | None = None) -> None:
+        """Start from the estimate ``x_est`` with covariance ``P`` (default p0) at ``t``."""
+        self.x = np.array(x_est, dtype=float)
+        self.P = self.p0.copy() if P is None else np.array(P, dtype=float)
+        self.t = t
+        self._u, self._kind, self._impulse_t = np.zeros(3), "acceleration", None
+        self.nis, self.rejected, self.updates = [], 0, 0
+        self.events.clear()
+
+    def matrices(self, dt: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(Phi, B_zoh, Q_d) of a step of ``dt`` s (cached)."""
+        key = round(dt, 9)
+        out = self._cache.get(key)
+        if out is None:
+            out = (cw_stm(self.n, dt), cw_input_matrix_zoh(self.n, dt), cw_process_noise(self.n, dt, self.q_m2_s3))
+            self._cache[key] = out
+        return out
+
+    def command(self, t: float, u: np.ndarray, kind: str) -> None:
+        """The controller's command at ``t`` (held acceleration m/s^2, or impulse m/s at ``t``)."""
+        self._u = np.asarray(u, dtype=float)[:3]
+        self._kind = kind
+        self._impulse_t = t if kind == "impulse" else None
+
+    def propagate(self, t: float) -> None:
+        """Predict the estimate and covariance to ``t`` (exact CW, commanded control)."""
+        dt = t - self.t
+        if dt <= 0.0:
+            return
+        phi, bd, qd = self.matrices(dt)
+        x = self.x
+        if self._kind == "impulse":
+            if self._impulse_t is not None and abs(self._impulse_t - self.t) < 1e-9:
+                x = x.copy()
+                x[3:6] += self._u
+                if self.command_sigma_fraction > 0.0:  # execution error of the impulse (m/s)
+                    self.P = self.P.copy()
+                    self.P.flat[21::7] += (self.command_sigma_fraction * float(np.linalg.norm(self._u))) ** 2
+            self._impulse_t = None
+            self.x = phi @ x
+            self.P = phi @ self.P @ phi.T + qd
+            self.t = t
+            return
+        self.x = phi @ x + bd @ self._u
+        self.P = phi @ self.P @ phi.T + qd
+        if self.command_sigma_fraction > 0.0 and self._u.any():  # ZOH acceleration error through B_zoh
+            su2 = (self.command_sigma_fraction * float(np.linalg.norm(self._u))) ** 2
+            self.P = self.P + su2 * (bd @ bd.T)
+        self.t = t
+
+    def update(self, t: float, z: np.ndarray) -> bool:
+        """Measurement update with ``z``; False (and an event) when the chi-square gate rejects it.
+
+        Joseph form expanded, (I-KH)P(I-KH)^T + KRK^T = P - K HP - (K HP)^T + K S K^T, with the
+        3x3 innovation covariance S inverted in closed form (adjugate)."""
+        x, P, sensor = self.x, self.P, self.sensor
+        zhat, H = sensor.h_and_jacobian(x)
+        r = math.sqrt(x[0] * x[0] + x[1] * x[1] + x[2] * x[2])
+        HP = H @ P
+        S = HP @ H.T
+        S.flat[::4] += sensor.sigma(r) ** 2
+        Sinv = _inv3(S)
+        nu = sensor.residual(z, zhat)
+        Sinv_nu = Sinv @ nu
+        nis = float(nu @ Sinv_nu)
+        self.nis.append(nis)
+        if not nis <= self.gate:  # NaN is rejected too
+            self.rejected += 1
+            self.events.append(("nav-rejected", f"{sensor.kind} measurement rejected: NIS {nis:.3g} > "
+                                f"{self.gate:.3g} (chi-square {self.gate_probability:g}, {sensor.m} dof)"))
+            return False
+        K = HP.T @ Sinv
+        self.x = x + HP.T @ Sinv_nu
+        KHP = K @ HP
+        P = P - KHP - KHP.T + K @ S @ K.T
+        self.P = 0.5 * (P + P.T)
+        self.updates += 1
+        return True
+
+    def measure(self, t: float, x_true: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+        """Navigation tick: (first call: initialise from truth + N(0, p0)), propagate, sense, update."""
+        if self.t is None or t < self.t:
+            self.reset(t, np.asarray(x_true, dtype=float)[:6] + self._l0 @ rng.standard_normal(6))
+        else:
+            self.propagate(t)
+        z = self.sensor.draw(t, x_true, rng)
+        if z is not None:
+            self.update(t, z)
+        return self.x.copy()
