@@ -47,6 +47,7 @@ from proxops.errors import ProxopsError, input_error
 from proxops.frames.elements import OrbitalElements, check_perigee_above_surface, eci_to_elements, elements_to_eci
 from proxops.propagation import kernels, kernels_full as kf
 from proxops.propagation.reference import REFERENCE_ATOL
+from proxops.propagation.truth import RelativeTruth
 from proxops.dynamics.plant import PlantBase
 
 DENSITY_STEP_S = 30.0
@@ -313,14 +314,9 @@ class ComposedTruth(PlantBase):
                                 *self._arrays(), self._dens)  # fmt: skip
         return np.append(y, s[12])
 
-    @staticmethod
-    def target_state(state: np.ndarray) -> np.ndarray:
-        return np.asarray(state, dtype=float)[:6].copy()
-
-    @staticmethod
-    def chaser_state(state: np.ndarray) -> np.ndarray:
-        s = np.asarray(state, dtype=float)
-        return s[:6] + s[6:12]
+    # the first 12 entries are laid out as RelativeTruth's state: the same accessors
+    target_state = staticmethod(RelativeTruth.target_state)
+    chaser_state = staticmethod(RelativeTruth.chaser_state)
 
 
 # ---------------------------------------------------------------------- what each model changes
