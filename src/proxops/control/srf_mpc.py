@@ -77,6 +77,22 @@ Corrections / choices (also in the report):
   specific energy (two-body + J2 potential, both conserved on the free motion: the J2 potential is
   axisymmetric) divided by |v_t|: equal energies mean equal semi-major axes and no secular drift;
   for a circular CW target it reduces to ``vy + 2 n x``. k_l = R^T v_t / |v_t| at node l.
+* V-bar drift trim (``drift_trim_delay_nodes``, not in the paper): the row at the hop impulse acts on
+  what the controller knows then -- one navigation sample at the first hop (1 mm/s, 22 m/orbit at
+  1 sigma) -- and cannot remove the impulse's own execution error (0.5 deg pointing on 0.2-0.4 m/s
+  is 2-3 mm/s along y, 40-66 m/orbit at 1 sigma). So every hop start also gets a drift row at the
+  node ``drift_trim_delay_nodes`` later (the trim node), where c is the mean of the navigation
+  samples since the hop impulse (its least-squares estimate: c is constant on the free motion;
+  60 samples at the default node spacing: 0.13 mm/s, 2.8 m/orbit at 1 sigma): the MPC fires a small
+  trim (mm/s) that nulls it, with the same thrusters (its own pointing/magnitude errors are ~1 % of
+  a few mm/s). A trim below the minimum impulse bit (``min_impulse_mps``) would fire nothing: it is
+  raised to the bit by an out-of-plane component (:meth:`SrfMpc._lift_to_impulse_bit`). Option
+  ``drift_hold_after_trim`` (off by default): every later impulse of the hop up to its end keeps c as
+  trimmed (``|sum_{trim < l <= j} k_l . u_l| <= tol``, relaxed with the design rows), so the drift
+  stays null after any of them; measured on srf-vbar-mc (50 runs) it forces radial-only corrections
+  whose infeasibility relaxed 117 rows in 13 runs (vs 12 in 4 without) and raised the worst l1 dv
+  from 1.18 to 8.4 m/s, so it is not the default. The passive-abort drift of a hop
+  (systems.srf.passive_abort) starts after its trim.
 
 QP (solved by the persistent adapter of ``solver``, PIQP by default, Clarabel as fallback): condensed in the
 impulses, variables scaled to z = u / u_max in [0, 1] plus the terminal position error in km.
@@ -128,7 +144,7 @@ class SrfMpcConfig:
     drift_free_tol_mps: float | None = None  # V-bar: |vy+ + 2 n x| <= tol after every hop-start impulse (None = off)
     drift_model: "EnergyDrift | None" = None  # J2-aware invariant from an onboard target ephemeris (None: CW's)
     drift_trim_delay_nodes: int | None = None  # V-bar: trim row this many nodes after every hop start (None = off)
-    drift_hold_after_trim: bool = True  # with a trim: every later impulse of the hop leaves c unchanged (|k.u| <= tol)
+    drift_hold_after_trim: bool = False  # with a trim: later impulses of the hop keep c as trimmed (design row)
     drift_estimator_window_s: float | None = None  # average c over the samples of this window (None: since the last impulse)
     min_impulse_mps: float = 0.0  # the thrusters' minimum impulse bit (|u| below it fires nothing)
     cbf: bool = True
@@ -636,7 +652,7 @@ class SrfMpc:
                 lo.append(-c.drift_free_tol_mps - v); hi.append(c.drift_free_tol_mps - v)
                 continue
             if tag == "hold":
-                if j < i or relax >= 3:
+                if j < i or relax >= 1:  # a design row: relaxed first
                     lo.append(-OFF); hi.append(OFF)
                     continue
                 lo.append(-c.drift_free_tol_mps); hi.append(c.drift_free_tol_mps)

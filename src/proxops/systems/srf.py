@@ -26,9 +26,12 @@ that the next disturbance makes infeasible.
 Passive abort (§2: V-bar "returning to its initial position after each hop ... an indefinite hold"):
 V-bar adds a drift-free row after every hop-start impulse (``mpc.drift_free_tol_mps`` = 0.05 mm/s
 on the J2-aware invariant: chaser-minus-target specific energy over |v_t|, from an onboard target
-ephemeris; ``vy + 2 n x`` on CW truth; see :mod:`proxops.control.srf_mpc`), and :func:`passive_abort` propagates the unforced truth
-from every hop impulse over ``safety.abort_orbits`` (default 3) orbits, reporting the return miss
-after each whole orbit. Success requires the whole window for V-bar and one orbit for R-bar and
+ephemeris; ``vy + 2 n x`` on CW truth; see :mod:`proxops.control.srf_mpc`) and the same row at a trim
+node one MPC node (1/12 orbit) after every hop start (``mpc.drift_trim``: a mm/s trim impulse nulls
+the drift that the hop impulse's execution error and its single-sample estimate left; later impulses
+of the hop keep it), and :func:`passive_abort` propagates the unforced truth from every hop (after its
+trim) over ``safety.abort_orbits`` (default 3) orbits, reporting the return miss after each whole
+orbit and the untrimmed drift (an abort before the trim) beside it. Success requires the whole window for V-bar and one orbit for R-bar and
 glideslopes (which the paper says lack indefinite safety); all report ``safe_window_orbits``,
 the time to the first KOZ entry within the window.
 """
@@ -116,6 +119,10 @@ class SrfMpcSection(Section):
         True, description="V-bar (with drift_free): a drift-free row also at a trim node after every hop start, so "
         "the MPC nulls the drift left by the hop impulse's execution errors and its single-sample estimate with a "
         "small trim impulse (raised to actuator.min_impulse if below it); the passive-abort drift starts after it")
+    drift_hold_after_trim: bool = Field(
+        False, description="V-bar with drift_trim: every later impulse of the hop keeps the trimmed drift invariant "
+        "(within drift_free_tol_mps; relaxed with the design rows), so the free drift stays null after any of them "
+        "(off: in the Monte Carlo it forces costly radial-only corrections)")
     drift_trim_delay_nodes: Annotated[int, Field(ge=1, le=99)] = Field(
         1, description="MPC nodes from a hop start to its trim (1: the next node, 1/steps_per_hop of a hop later)")
     drift_estimator_window_s: Annotated[float, Field(gt=0.0)] | None = Field(
@@ -288,7 +295,8 @@ def build_controller(sc: SrfScenario, cbf: bool | None = None):
         drift_free_tol_mps=m.drift_free_tol_mps if (vbar and m.drift_free) else None,
         drift_model=onboard_drift_model(sc, dt, mission_s) if (vbar and m.drift_free and sc.truth.model != "cw") else None,
         drift_trim_delay_nodes=m.drift_trim_delay_nodes if (vbar and m.drift_free and m.drift_trim) else None,
-        drift_estimator_window_s=m.drift_estimator_window_s, min_impulse_mps=float(sc.actuator.min_impulse or 0.0),
+        drift_hold_after_trim=m.drift_hold_after_trim, drift_estimator_window_s=m.drift_estimator_window_s,
+        min_impulse_mps=float(sc.actuator.min_impulse or 0.0),
         cbf=use_cbf, cbf_alpha_per_s=ko.alpha_per_s, free_drift_s=ko.free_drift_orbits * plan.period_s,
         free_drift_nodes=max(4, int(round(ko.free_drift_nodes_per_orbit * ko.free_drift_orbits))), solver=m.solver)
     from proxops.constraints.keep_out import KeepOutSphere
