@@ -163,3 +163,23 @@ def test_trim_nulls_the_energy_invariant_on_j2_truth():
         assert item["return_miss_per_orbit_m"] <= 3 * (2 * TOL + ROW_SLACK) * T_ORB + 0.5
         assert item["safe"] and item["safe_window_orbits"] == 3.0
     assert max(hop_c) > 1e-3
+
+
+def test_drift_estimate_is_the_mean_of_the_samples_since_the_last_impulse_within_the_window():
+    """Between nodes the controller only records c = vy + 2 n x of each navigation sample (CW model);
+    the estimate is their mean (least squares of a constant), or the mean over the last
+    drift_estimator_window_s seconds."""
+    plan = plan_hops(0.0, 2, 0.5, 2000.0, 100.0, N_ORB)
+    sched = build_schedule(plan.durations_s, 6, DT)
+    a = lvlh_vector_to_hill([1.0, 0.0, 0.0])
+    b = lvlh_vector_to_hill([0.0, 0.0, 1.0])
+    cs = [1e-3, 2e-3, 4e-3]
+    for window, expected in ((None, np.mean(cs)), (1.0, cs[-1]), (DT + 1.0, np.mean(cs[1:]))):
+        ctrl = SrfMpc(N_ORB, sched, a, b, 100.0 * a, None,
+                      SrfMpcConfig(drift_free_tol_mps=TOL, drift_trim_delay_nodes=1, drift_estimator_window_s=window))
+        for k, c in enumerate(cs, start=1):  # engine steps 1..3: no MPC node, no impulse
+            x = np.array([10.0 * k, 2000.0, 0.0, 0.0, c - 2 * N_ORB * 10.0 * k, 0.0])
+            assert not ctrl.step(k * DT, x).u.any()
+        c_hat, n = ctrl.drift_estimate(3 * DT, np.zeros(6))
+        assert c_hat == pytest.approx(expected, abs=1e-12)
+        assert n == {None: 3, 1.0: 1}.get(window, 2)
