@@ -126,43 +126,50 @@ def test_trim_delay_must_fall_inside_the_hop():
     assert sorted(SrfMpc(N_ORB, sched, a, b, 100.0 * a, None, cfg).trim_nodes) == [5, 11]
 
 
-def test_trim_nulls_the_energy_invariant_on_j2_truth():
-    """J2 truth, perfect navigation, 0.5 deg pointing error (random, seeded) on every impulse: after
-    each trim the J2-aware invariant (energy difference / |v_t|, the same onboard ephemeris) of the
-    TRUE state is within the row tolerance + slack + the trim impulse's own execution error (1 % on
-    its along-track part, < 5e-5 m/s, and 0.5 deg pointing on the whole impulse), while the hop
-    impulse alone left more than 1 mm/s in at least one hop. The hop drift from the post-trim truth misses its start by
-    <= 3 (2 tol + slack) t_orb + 0.5 m per orbit (J2: the secular rate of an equal-energy relative
-    orbit is not exactly zero)."""
+@pytest.mark.parametrize("truth", ["two-body", "j2"])
+def test_trim_nulls_the_energy_invariant_on_nonlinear_truth(truth):
+    """Nonlinear truth (two-body, J2), perfect navigation, 1 deg pointing and 1 % magnitude error
+    (random, seeded) on every impulse: after each trim the invariant (energy difference / |v_t|, the
+    same onboard ephemeris) of the TRUE state is within the row tolerance + slack + the trim impulse's
+    own execution error (1 % on its along-track part, < 5e-5 m/s, and 1 deg pointing on the whole
+    impulse, which also carries MPC corrections), while the hop impulse alone left more than 0.5 mm/s
+    in at least one hop (measured: 0.76 mm/s on J2, 8.0 on two-body). The hop drift propagated on the truth from the post-trim state misses its start
+    per orbit by 3 c t_orb (two-body: the secular along-track drift, +10 %) plus, on J2, the phase slip
+    of the closed relative ellipse: the epicyclic frequency differs from the orbital rate by about
+    1.5 J2 (Re/a)^2, so the point moves along the ellipse (radial amplitude A = L / 4, eq. 8) by
+    2 A 2 pi 1.5 J2 (Re/a)^2 per orbit (2.0 m for a 633 m hop) without leaving it."""
+    from proxops.core.constants import J2_EARTH, R_EARTH
     from proxops.runner import execute
     from proxops.systems.srf import engine_dt, onboard_drift_model
 
-    over = ["approach.hops=2", "sim.duration_s=7400", "navigation.position_sigma_m=0",
-            "navigation.velocity_sigma_mps=0", "actuator.pointing_sigma_deg=0.5", "actuator.magnitude_sigma=0.01"]
+    over = ["approach.hops=2", "sim.duration_s=7400", "navigation.position_sigma_m=0", f"truth.model={truth}",
+            "navigation.velocity_sigma_mps=0", "actuator.pointing_sigma_deg=1.0", "actuator.magnitude_sigma=0.01"]
     loaded = load_scenario("srf-vbar", over)
     summary, results = execute(loaded)
     res = results["run"]
     sc = loaded.scenario
     model = onboard_drift_model(sc, engine_dt(sc), float(res.t[-1]) + 10.0)
     trims = res.meta["hop_trim_times_s"]
+    hops = res.meta["hop_plan"]["hops"]
     assert len(trims) == 2 and len(summary["abort"]) == 2
+    slip = 2 * math.pi * 1.5 * J2_EARTH * (R_EARTH / 8100e3) ** 2 if truth == "j2" else 0.0
     hop_c = []
-    for item, t_trim in zip(summary["abort"], trims):
+    for item, t_trim, hop in zip(summary["abort"], trims, hops):
         assert item["t_s"] == pytest.approx(t_trim)
         k = int(np.argmin(np.abs(res.t - t_trim)))
         x = res.x_true[k].copy()
         x[3:6] += res.u_applied[k]
-        # the trim node's impulse also carries MPC corrections (CW model vs J2 truth: ~10 mm/s radial)
-        # whose 0.5 deg pointing error (3.5 sigma of the rotation angle) moves c
-        execution = 3.5 * math.radians(0.5) * float(np.linalg.norm(res.u_applied[k]))
-        assert abs(model.invariant(float(res.t[k]), x)) <= 2 * TOL + ROW_SLACK + execution
+        execution = 3.5 * math.radians(1.0) * float(np.linalg.norm(res.u_applied[k]))
+        c_trim = abs(model.invariant(float(res.t[k]), x))
+        assert c_trim <= 2 * TOL + ROW_SLACK + execution
         kh = int(np.argmin(np.abs(res.t - item["hop_t_s"])))
         xh = res.x_true[kh].copy()
         xh[3:6] += res.u_applied[kh]
         hop_c.append(abs(model.invariant(float(res.t[kh]), xh)))
-        assert item["return_miss_per_orbit_m"] <= 3 * (2 * TOL + ROW_SLACK) * T_ORB + 0.5
+        amplitude = (hop["start_m"] - hop["end_m"]) / 4
+        assert item["return_miss_per_orbit_m"] <= 1.1 * 3 * c_trim * T_ORB + 2 * amplitude * slip + 0.5
         assert item["safe"] and item["safe_window_orbits"] == 3.0
-    assert max(hop_c) > 1e-3
+    assert max(hop_c) > 5e-4  # > 10x the row tolerance: the trim had something to remove
 
 
 def test_drift_estimate_is_the_mean_of_the_samples_since_the_last_impulse_within_the_window():
