@@ -52,7 +52,7 @@ Corrections / choices (also in the report):
 * Margin: the system passes a KOZ inflated by ``keep_out.margin_m`` (default 10 m) because
   the CW prediction from the estimated state differs from the J2 truth.
 * Relaxation ladder when the problem is infeasible (noise, J2, dispersions): (1) drop the
-  design rows -- the V-bar decrease (29o) and the guidance hop-distance bands -- (event
+  design rows -- the V-bar decrease (29o), the guidance hop-distance bands and the drift hold rows -- (event
   ``design_rows_relaxed``); (2) also drop the terminal position box (``terminal_set_relaxed``);
   (3) also drop the hop rows (29l)-(29n) (``hops_relaxed``). The CBF rows are never dropped.
 * V-bar: hop lengths cost the same fuel whatever the split ((w/2) sum L for radial hops), so
@@ -89,10 +89,10 @@ Corrections / choices (also in the report):
   raised to the bit by an out-of-plane component (:meth:`SrfMpc._lift_to_impulse_bit`). Option
   ``drift_hold_after_trim`` (off by default): every later impulse of the hop up to its end keeps c as
   trimmed (``|sum_{trim < l <= j} k_l . u_l| <= tol``, relaxed with the design rows), so the drift
-  stays null after any of them; measured on srf-vbar-mc (50 runs) it forces radial-only corrections
-  whose infeasibility relaxed 117 rows in 13 runs (vs 12 in 4 without) and raised the worst l1 dv
-  from 1.18 to 8.4 m/s, so it is not the default. The passive-abort drift of a hop
-  (systems.srf.passive_abort) starts after its trim.
+  stays null after any of them. Measured on srf-vbar-mc (50 runs) with these rows relaxed only with
+  the hop rows (level 3): radial-only corrections, 117 relaxations in 13 runs (12 in 4 without) and
+  a worst l1 dv of 8.4 m/s (1.18 without), so it is off by default and now a design row. The
+  passive-abort drift of a hop (systems.srf.passive_abort) starts after its trim.
 
 QP (solved by the persistent adapter of ``solver``, PIQP by default, Clarabel as fallback): condensed in the
 impulses, variables scaled to z = u / u_max in [0, 1] plus the terminal position error in km.
