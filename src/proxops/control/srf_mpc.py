@@ -89,10 +89,12 @@ Corrections / choices (also in the report):
   raised to the bit by an out-of-plane component (:meth:`SrfMpc._lift_to_impulse_bit`). Option
   ``drift_hold_after_trim`` (off by default): every later impulse of the hop up to its end keeps c as
   trimmed (``|sum_{trim < l <= j} k_l . u_l| <= tol``, relaxed with the design rows), so the drift
-  stays null after any of them. Measured on srf-vbar-mc (50 runs) with these rows relaxed only with
-  the hop rows (level 3): radial-only corrections, 117 relaxations in 13 runs (12 in 4 without) and
-  a worst l1 dv of 8.4 m/s (1.18 without), so it is off by default and now a design row. The
-  passive-abort drift of a hop (systems.srf.passive_abort) starts after its trim.
+  stays null after any of them. Measured on srf-vbar-mc (50 runs): the radial-only corrections it
+  forces make the problem infeasible far more often -- relaxed with the hop rows (level 3): 117
+  relaxations in 13 runs, worst l1 dv 8.4 m/s; as a design row (level 1, as now): 40 in 13 runs,
+  worst l1 dv 10.2 m/s and one hop drift missing by 1.2 km/orbit -- against 12 in 4 runs, worst
+  1.18 m/s and 11 m/orbit without it; so it is off by default. The passive-abort drift of a hop
+  (systems.srf.passive_abort) starts after its trim.
 
 QP (solved by the persistent adapter of ``solver``, PIQP by default, Clarabel as fallback): condensed in the
 impulses, variables scaled to z = u / u_max in [0, 1] plus the terminal position error in km.
