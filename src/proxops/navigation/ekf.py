@@ -53,6 +53,7 @@ from proxops.core.layout import StateLayout
 from proxops.errors import input_error
 
 SENSORS = ("range-bearing", "pose")
+NIS_CAP = 1e12  # NIS values above this count as this in the collapse window (inf/NaN included)
 
 
 def cw_process_noise(n: float, dt: float, q: float) -> np.ndarray:
@@ -283,6 +284,8 @@ class RelativeEKF:
         self.updates = 0
         self.reinits = 0
         self._window: deque[float] = deque(maxlen=max(1, k))
+        self._window_sum = 0.0
+        self._collapse_sum = self.collapse_bound * k if k else math.inf
         self._collapsed: str | None = None
 
     def reset(self, t: float, x_est: np.ndarray, P: np.ndarray | None = None) -> None:
@@ -293,6 +296,7 @@ class RelativeEKF:
         self._u, self._kind, self._impulse_t = np.zeros(3), "acceleration", None
         self.nis, self.rejected, self.updates, self.reinits = [], 0, 0, 0
         self._window.clear()
+        self._window_sum = 0.0
         self._collapsed = None
         self.events.clear()
 
@@ -373,14 +377,19 @@ class RelativeEKF:
         return True
 
     def _check_collapse(self, nis: float) -> None:
-        """Collapse test on the NIS window: mean of the last k NIS above chi2.ppf(p, m k) / k."""
+        """Collapse test on the NIS window: mean of the last k NIS above chi2.ppf(p, m k) / k (a running
+        sum; each NIS capped at 1e12, far above any bound, so that inf/NaN cannot poison the sum)."""
         w = self._window
-        w.append(nis if math.isfinite(nis) else math.inf)
-        if len(w) == w.maxlen:
-            mean = sum(w) / len(w)
-            if mean > self.collapse_bound:
-                self._collapsed = (f"mean NIS {mean:.3g} of the last {len(w)} measurements > {self.collapse_bound:.3g} "
-                                   f"(chi-square {self.gate_probability:g}, {self.sensor.m * len(w)} dof / {len(w)})")
+        v = nis if nis < NIS_CAP else NIS_CAP  # NaN -> cap
+        full = len(w) == w.maxlen
+        if full:
+            self._window_sum -= w[0]
+        w.append(v)
+        self._window_sum += v
+        if (full or len(w) == w.maxlen) and self._window_sum > self._collapse_sum:
+            k = len(w)
+            self._collapsed = (f"mean NIS {sum(w) / k:.3g} of the last {k} measurements > {self.collapse_bound:.3g} "
+                               f"(chi-square {self.gate_probability:g}, {self.sensor.m * k} dof / {k})")
 
     def reinitialise(self, t: float, z: np.ndarray) -> None:
         """Restart from the measurement ``z`` (position and its covariance from the inverse measurement
@@ -398,6 +407,7 @@ class RelativeEKF:
                             f"{self.reinit_velocity_sigma_mps:g} m/s"))
         self._collapsed = None
         self._window.clear()
+        self._window_sum = 0.0
 
     def measure(self, t: float, x_true: np.ndarray, rng: np.random.Generator) -> np.ndarray:
         """Navigation tick: (first call: initialise from truth + N(0, p0)), propagate, sense, update.
