@@ -151,3 +151,23 @@ def test_campaign_report_shows_estimation_error_beside_the_guidance(tmp_path):
                          overrides=sets)
     write_report(noise, figures=False)
     assert "Estimation error" not in (tmp_path / "noise" / "report" / "report.md").read_text()
+
+
+@pytest.mark.slow
+def test_reinit_keeps_the_closed_loop_estimate_bounded_under_missed_thrusts():
+    """Table 3 low level with missed thrusts (p = 0.05 per guidance interval: a 100 % execution error
+    the filter's covariance does not cover): 10 runs of the reduced loop (CW truth, no eclipse, same
+    seeds) on the filter without and with re-initialisation. Without it some filter collapses for
+    good (a run's p95 position error above 1 m, the gate rejecting what would correct it); with it
+    every run's p95 position error stays below 5 cm (sensor 1.9 cm per axis at r_AS) and the
+    collapses show up as nav-reinit events."""
+    from proxops.analysis.campaign import run_campaign
+
+    def campaign(k):
+        return run_campaign("cortex-low-mc-ekf", n_runs=10, workers=1, seed=1, progress=False,
+                            overrides=REDUCED + [f"navigation.reinit_after_rejections={k}"]).table
+
+    off, on = campaign(0), campaign(5)
+    assert off["metric.nav_position_error_m.p95"].max() > 1.0
+    assert on["metric.nav_position_error_m.p95"].max() < 0.05
+    assert on["metric.nav_reinits"].sum() >= 1 and off["metric.nav_reinits"].sum() == 0
