@@ -180,6 +180,16 @@ def retreat_timeline(res, n: float, t_start: float, x_safe, dt_g_s: float, inser
     return Timeline(n, segs)
 
 
+def extend_on_safe_orbit(tl: Timeline, n: float, dt_g_s: float) -> Timeline:
+    """The timeline plus one guidance interval that follows the thrust-free CW motion of its final
+    state (on the safe orbit: the orbit itself)."""
+    x_end = tl.final_state
+    t1 = tl.t_end
+    tt = np.array([0.0, dt_g_s])
+    xs = np.array([cw_stm(n, float(s)) @ x_end for s in tt])
+    return Timeline(n, tl.segments + [Segment("retreat", t1, t1 + dt_g_s, t=t1 + tt, x=xs, dv=np.zeros((2, 3)))])
+
+
 # --------------------------------------------------------------------------- Table 1
 @dataclass
 class CortexTriggers:
@@ -201,8 +211,22 @@ class CortexTriggers:
             if not (math.isfinite(v) and v > 0):
                 raise input_error(f"guidance.recompute_{phase}_m", v, "must be a finite number > 0 (eps_r of Table 1)", "m")
 
-    def check(self, phase: str, r, r_ref, dv) -> tuple[str, str] | None:
-        """First condition that holds: ("abort" | "recompute", reason), or None."""
+    def buffered_kos(self, phase: str, r) -> bool:
+        """Buffered-KOS recompute condition (holds and fly-around): range below rho_bar - buffer_tol."""
+        return phase in ("hold1", "flyaround", "hold2") and float(np.linalg.norm(r)) < self.rho_bar_m - self.buffer_tol_m
+
+    def off_axis_rad(self, r) -> float:
+        r = np.asarray(r, float)
+        rng = max(float(np.linalg.norm(r)), 1e-12)
+        return math.acos(max(-1.0, min(1.0, float(r @ self.cone_bar.axis) / rng)))
+
+    def buffered_cone(self, phase: str, r) -> bool:
+        """Buffered-cone recompute condition (approach): more than alpha_c_bar + cone_buffer_tol off the axis."""
+        return phase == "approach" and self.off_axis_rad(r) > self.cone_bar.half_angle_rad + self.cone_buffer_tol_rad
+
+    def check(self, phase: str, r, r_ref, dv, suspended=()) -> tuple[str, str] | None:
+        """First condition that holds: ("abort" | "recompute", reason), or None. ``suspended``: names of
+        buffered conditions ("C_KOS_bar", "C_cone_bar") not evaluated (see CortexSupervisor.suspended)."""
         r = np.asarray(r, float)
         rng = float(np.linalg.norm(r))
         thrusting = dv is not None and float(np.linalg.norm(dv)) > self.plume_min_dv_mps
@@ -218,13 +242,12 @@ class CortexTriggers:
         eps = self.eps_r_m.get(phase, math.inf)
         if err > eps:
             return "recompute", f"C_trk: tracking error {err:.3f} m > eps_r {eps:g} m ({phase})"
-        if phase in ("hold1", "flyaround", "hold2") and rng < self.rho_bar_m - self.buffer_tol_m:
+        if "C_KOS_bar" not in suspended and self.buffered_kos(phase, r):
             return "recompute", f"C_KOS_bar: range {rng:.3f} m < rho_bar {self.rho_bar_m:g} m"
         if phase == "approach":
-            off = math.acos(max(-1.0, min(1.0, float(r @ self.cone_bar.axis) / max(rng, 1e-12))))
-            if off > self.cone_bar.half_angle_rad + self.cone_buffer_tol_rad:
-                return "recompute", (f"C_cone_bar: {math.degrees(off):.2f} deg off the axis > alpha_c_bar "
-                                     f"{math.degrees(self.cone_bar.half_angle_rad):g} deg")
+            if "C_cone_bar" not in suspended and self.buffered_cone(phase, r):
+                return "recompute", (f"C_cone_bar: {math.degrees(self.off_axis_rad(r)):.2f} deg off the axis > "
+                                     f"alpha_c_bar {math.degrees(self.cone_bar.half_angle_rad):g} deg")
             if thrusting and self.plume_bar.violation(0.0, r, dv) > 0:
                 ang = math.degrees(float(self.plume_bar.angle_rad(r, dv)))
                 return "recompute", f"C_plume_bar: thrust {ang:.2f} deg from the target direction < alpha_p_bar"
@@ -266,7 +289,13 @@ class CortexReplanner:
         from proxops.guidance.cortex.phases import solve_final_approach
 
         c = self.cfg
-        cone = ApproachCone(self.axis, c.alpha_c_bar)
+        r0 = np.asarray(x0, float)[:3]
+        off = math.acos(max(-1.0, min(1.0, float(r0 @ self.axis) / max(float(np.linalg.norm(r0)), 1e-12))))
+        # planning cone: alpha_c_bar, widened to pass 0.5 deg outside a start that lies beyond it (a regeneration
+        # after C_cone_bar starts there; with (20f) at node 1 = 10 s later CP2 was infeasible: measured, every such
+        # regeneration failed and aborted); never wider than the true cone alpha_c
+        half = min(max(c.alpha_c_bar, off + math.radians(0.5)), c.cone_half_angle_rad)
+        cone = ApproachCone(self.axis, half)
         plume = PlumeConstraint(c.alpha_p_bar)
         return self._scan(lambda tau: solve_final_approach(
             c.mean_motion_rad_s, tau, c.dt_cp2_s, x0, x_f2, c.a_bar, cone, plume, scp_max_iter=c.scp_max_iter,
@@ -303,6 +332,9 @@ class SupervisorSettings:
     insertion_intervals: int = 2
     null_timeout_s: float = 120.0  # nulling longer than this (thrusters failed): recompute -> abort, abort -> retreat plan
     plume_weight: float = 1e4
+    passive_orbits: float = 1.0  # safe-orbit insertion: thrust-free prediction checked over this many orbits
+    passive_margin_m: float = 1.0  # ... and must stay this far outside r_KOS before the thrusters stop
+    insertion_max_intervals: int = 20  # most extra guidance intervals spent trimming onto the safe orbit
 
 
 class CortexSupervisor:
@@ -352,6 +384,11 @@ class CortexSupervisor:
         self.final_target = None
         self.relaxed = None
         self.null_since = None
+        self.insertion_extensions = 0
+        self.predicted_passive_min_m = None
+        self._drift_stms = None
+        self.suspended: set[str] = set()  # buffered conditions a regeneration started inside (re-armed on exit)
+        self.recompute_tag = None
 
     def observe_truth(self, t: float, x_true: np.ndarray) -> None:
         """Engine hook: the true relative state at this sample (triggers are evaluated on it)."""
@@ -391,7 +428,8 @@ class CortexSupervisor:
                 self.queue = list(dv)
             dv = self.queue[0]
             if self.mode != "retreat":
-                trig = self.triggers.check(self.mode, x_true[:3], self.timeline.state(t)[:3], dv)
+                self._rearm(x_true[:3])
+                trig = self.triggers.check(self.mode, x_true[:3], self.timeline.state(t)[:3], dv, self.suspended)
                 if trig is not None:
                     return self._trigger(t, x_est, trig, events, solve_time, status)
             self.queue.pop(0)
@@ -433,6 +471,14 @@ class CortexSupervisor:
                 return dv, total, res.status.value
         return None, total, res.status.value
 
+    def _rearm(self, r_true) -> None:
+        """Re-arm a suspended buffered condition once the true state no longer violates it."""
+        if "C_KOS_bar" in self.suspended and not self.triggers.buffered_kos(self.mode, r_true):
+            if self.mode in ("hold1", "flyaround", "hold2"):
+                self.suspended.discard("C_KOS_bar")
+        if "C_cone_bar" in self.suspended and self.mode == "approach" and not self.triggers.buffered_cone(self.mode, r_true):
+            self.suspended.discard("C_cone_bar")
+
     def _trigger(self, t, x_est, trig, events, solve_time=0.0, status="ok") -> Command:
         kind, reason = trig
         if kind == "recompute" and self.recomputes >= self.s.max_recomputes:
@@ -441,6 +487,7 @@ class CortexSupervisor:
             return self._start_abort(t, x_est, reason, events, solve_time, status)
         self.recomputes += 1
         events.append(("recompute", reason))
+        self.recompute_tag = reason.split(":")[0]
         self.null_phase = self.mode
         self.after_null = "recompute"
         self.mode = "null"
@@ -480,6 +527,11 @@ class CortexSupervisor:
             events.append(("replan", f"new reference from t = {t:.0f} s to {tl.t_end:.0f} s"))
             self.timeline = tl
             self.mode = tl.segment(t).phase
+            if self.recompute_tag in ("C_KOS_bar", "C_cone_bar"):
+                # the new reference starts where the buffered envelope is already violated: that condition
+                # would fire again at once (measured: recompute cap burnt at the replan instant, then abort);
+                # it is re-armed when the true state is back inside the buffered envelope (_rearm)
+                self.suspended.add(self.recompute_tag)
         else:
             x_s = safe_orbit_state(self.n, self.s.r_as_m)
             res = self.replanner.retreat(np.asarray(x_est, float), x_s)
@@ -513,10 +565,35 @@ class CortexSupervisor:
             return None
         return timeline_from_plan(plan, self.n, t, self.dt)
 
+    def predicted_min_range(self, x) -> float:
+        """Smallest range of the thrust-free CW motion from x over ``passive_orbits`` orbits (m), sampled
+        200 times per orbit (the STMs are built once)."""
+        if self._drift_stms is None:
+            period = 2.0 * math.pi / self.n
+            ts = np.linspace(0.0, self.s.passive_orbits * period, int(200 * self.s.passive_orbits) + 1)
+            self._drift_stms = np.array([cw_stm(self.n, float(tt))[:3] for tt in ts])  # (k, 3, 6)
+        return float(np.linalg.norm(self._drift_stms @ np.asarray(x, float), axis=1).min())
+
     def _finish(self, t, x_est, events) -> Command:
         if self.mode == "retreat":
+            # verified insertion (§3.4 asks for a passively safe orbit): the thrusters stop only when the
+            # thrust-free CW prediction from the current estimate stays outside r_KOS + passive_margin_m for
+            # passive_orbits orbits; otherwise one more guidance interval tracks the safe orbit's own CW
+            # motion (up to insertion_max_intervals). Open-loop insertion with 20 % magnitude errors left
+            # 1-7 mm/s of velocity error, and 1 mm/s drifts ~17 m along-track per orbit against a 3.75 m margin.
+            rmin = self.predicted_min_range(x_est)
+            safe = rmin >= self.triggers.r_kos_m + self.s.passive_margin_m
+            if not safe and self.insertion_extensions < self.s.insertion_max_intervals:
+                self.insertion_extensions += 1
+                self.timeline = extend_on_safe_orbit(self.timeline, self.n, self.s.dt_g_s)
+                self.queue = []
+                cmd = self.step(t, x_est)
+                return self._merge(cmd, events) if events else cmd
             self.final_target = self.timeline.final_state
-            events.append(("safe_orbit", "on the safe circumnavigation orbit: thrusters off"))
+            self.predicted_passive_min_m = rmin
+            events.append(("safe_orbit", f"on the safe circumnavigation orbit after {self.insertion_extensions} trim "
+                           f"interval(s): predicted thrust-free min range {rmin:.2f} m over {self.s.passive_orbits:g} "
+                           f"orbit(s){'' if safe else ' (NOT above r_KOS + margin: trim cap reached)'}; thrusters off"))
             return Command(u=np.zeros(3), kind="impulse", mode="aborted", events=events, stop=True)
         self.final_target = self.x_f2
         events.append(("docked", "end of the final approach"))

@@ -121,6 +121,8 @@ class GuidanceSection(Section):
     replan_candidates: Annotated[int, Field(ge=1)] = Field(30, description="regeneration: most phase durations tried from tau_lb (onboard time budget; none converged -> abort)")
     null_tol_mps: Annotated[float, Field(gt=0.0)] = Field(1e-3, description="velocity nulling before a re-plan / retreat ends below this speed")
     passive_orbits: Annotated[float, Field(gt=0.0)] = Field(2.0, description="after an abort: orbits of thrust-free truth propagation checked outside the KOS")
+    passive_margin_m: Annotated[float, Field(ge=0.0)] = Field(1.0, description="safe-orbit insertion: the thrusters stop only when the thrust-free CW prediction from the estimate stays this far outside r_KOS for passive_orbits orbits")
+    insertion_max_intervals: Annotated[int, Field(ge=0)] = Field(20, description="safe-orbit insertion: most extra guidance intervals spent trimming onto the safe orbit before the thrusters stop anyway")
 
 
 class ErrorsSection(Section):

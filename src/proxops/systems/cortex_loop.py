@@ -105,7 +105,8 @@ def build_setup(sc):
     settings = SupervisorSettings(dt_g_s=g.dt_g_s, substep_s=g.substep_s, terminal_penalty=g.terminal_penalty,
                                   max_recomputes=g.max_recomputes, null_tol_mps=g.null_tol_mps, abort_at_s=g.abort_at_s,
                                   r_as_m=cfg.r_as_m, plume_in_tracking=g.plume_in_tracking,
-                                  plume_weight=g.plume_weight)
+                                  plume_weight=g.plume_weight, passive_orbits=g.passive_orbits,
+                                  passive_margin_m=g.passive_margin_m, insertion_max_intervals=g.insertion_max_intervals)
     replanner = CortexReplanner(cfg, axis, eclipse=eclipse_profile(sc), t0_offset_s=sc.planner.start_delay_s,
                                 max_candidates=g.replan_candidates)
     ctrl = CortexSupervisor(n, cfg.a_max_mps2, timeline, triggers, replanner, settings,
@@ -192,7 +193,8 @@ def run_closed_loop(sc, seed: int = 0, progress: bool = False):
         rmin, safe = passive_safety(setup.plant, result.meta["final_plant_state"], cfg.mean_motion_rad_s,
                                     sc.guidance.passive_orbits, cfg.r_kos_m)
         summary.update(safe_orbit_error_m=dr, passive_orbits=sc.guidance.passive_orbits,
-                       passive_min_range_m=rmin, passive_safe=safe)
+                       passive_min_range_m=rmin, passive_safe=safe, insertion_trims=int(ctrl.insertion_extensions),
+                       predicted_passive_min_range_m=ctrl.predicted_passive_min_m)
     result.meta["cortex_summary"] = {k: v for k, v in summary.items() if not isinstance(v, dict)}
     clean = {k: (None if isinstance(v, float) and not math.isfinite(v) else v) for k, v in summary.items()}
     return clean, {"run": result}
