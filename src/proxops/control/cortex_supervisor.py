@@ -333,7 +333,7 @@ class SupervisorSettings:
     null_timeout_s: float = 120.0  # nulling longer than this (thrusters failed): recompute -> abort, abort -> retreat plan
     plume_weight: float = 1e4
     passive_orbits: float = 1.0  # safe-orbit insertion: thrust-free prediction checked over this many orbits
-    passive_margin_m: float = 1.0  # ... and must stay this far outside r_KOS before the thrusters stop
+    passive_margin_m: float = 2.0  # ... and must stay this far outside r_KOS before the thrusters stop
     insertion_max_intervals: int = 20  # most extra guidance intervals spent trimming onto the safe orbit
 
 
