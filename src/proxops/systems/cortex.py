@@ -123,6 +123,7 @@ class GuidanceSection(Section):
     null_tol_mps: Annotated[float, Field(gt=0.0)] = Field(1e-3, description="velocity nulling before a re-plan / retreat ends below this speed")
     passive_orbits: Annotated[float, Field(gt=0.0)] = Field(2.0, description="after an abort: orbits of thrust-free truth propagation checked outside the KOS")
     passive_margin_m: Annotated[float, Field(ge=0.0)] = Field(2.0, description="safe-orbit insertion: the thrusters stop only when the thrust-free CW prediction from the estimate stays this far outside r_KOS for passive_orbits orbits")
+    recompute_every: Literal["guidance", "impulse"] = Field("guidance", description="closed loop: evaluate the recompute conditions of Table 1 at every guidance step (Algorithm 2 lines 11-15, x_{k+1}) or at every impulse; the abort conditions are evaluated at every impulse either way")
     trace_step_s: Annotated[float, Field(ge=0.0)] = Field(10.0, description="closed loop: the run summary keeps the trajectory every this many seconds (campaign Figs. 13-14 without saved series; 0: none)")
     insertion_max_intervals: Annotated[int, Field(ge=0)] = Field(20, description="safe-orbit insertion: most extra guidance intervals spent trimming onto the safe orbit before the thrusters stop anyway")
 

@@ -51,6 +51,9 @@ def check_loop(sc) -> None:
     for phase, v in _eps_r(g).items():
         if not (math.isfinite(v) and v > 0):
             raise input_error(f"guidance.recompute_{phase}_m", v, "must be > 0 (recompute threshold eps_r of Table 1)", "m")
+    if sc.actuator.min_on_time_s > g.substep_s:
+        raise input_error("actuator.min_on_time_s", sc.actuator.min_on_time_s,
+                          f"must not exceed the PWM period guidance.substep_s = {g.substep_s:g} s", "s")
     if not g.terminal_penalty > 0:
         raise input_error("guidance.terminal_penalty", g.terminal_penalty, "must be > 0 (eps_P of eq. 27a)")
 
@@ -115,7 +118,8 @@ def build_setup(sc):
                                   max_recomputes=g.max_recomputes, null_tol_mps=g.null_tol_mps, abort_at_s=g.abort_at_s,
                                   r_as_m=cfg.r_as_m, plume_in_tracking=g.plume_in_tracking,
                                   plume_weight=g.plume_weight, passive_orbits=g.passive_orbits,
-                                  passive_margin_m=g.passive_margin_m, insertion_max_intervals=g.insertion_max_intervals)
+                                  passive_margin_m=g.passive_margin_m, insertion_max_intervals=g.insertion_max_intervals,
+                                  recompute_every=g.recompute_every)
     replanner = CortexReplanner(cfg, axis, eclipse=eclipse_profile(sc), t0_offset_s=sc.planner.start_delay_s,
                                 max_candidates=g.replan_candidates)
     ctrl = CortexSupervisor(n, cfg.a_max_mps2, timeline, triggers, replanner, settings,
