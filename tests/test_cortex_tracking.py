@@ -277,7 +277,8 @@ def test_high_error_abort_is_trimmed_onto_a_passively_safe_orbit():
     from proxops.scenarios.loader import load_scenario
     from proxops.systems.cortex_loop import run_closed_loop
 
-    sc = load_scenario("cortex-high-mc").scenario
+    # the scenario as the run was recorded (Table 2's tau_lb, the printed 27g cone only)
+    sc = load_scenario("cortex-high-mc", ["planner.tau_lb_s=300", "guidance.tracking_cone_margin_deg=0"]).scenario
     seed, _ = run_seeds(sc.sim.seed, 7)
     summary, _ = run_closed_loop(sc, seed=seed)
     assert summary["status"] == "aborted"
