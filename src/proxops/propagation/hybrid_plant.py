@@ -299,9 +299,9 @@ class HybridCapturePlant(PlantBase):
             step = min(h, dt - done)
             t_now = t + done
             # the scheduled snap inside this substep: flow to it, jump, continue
-            if self.snap_enabled and y[I_SNAPPED] < 0.5 and t_now <= t_snap < t_now + step:
-                y = self.flow(y, u, t_snap - t_now)
-                done += t_snap - t_now
+            if self.snap_enabled and y[I_SNAPPED] < 0.5 and t_now - 1e-12 < t_snap <= t_now + step + 1e-12:
+                y = self.flow(y, u, max(t_snap - t_now, 0.0))
+                done += max(t_snap - t_now, 0.0)
                 y[I_SNAPPED] = 1.0
                 if y[I_LATCHED] > 0.5:
                     y[:N_TRUTH] = latch_snap_jump(y[:N_TRUTH], self.params)
