@@ -280,6 +280,7 @@ def summarize_result(sc: HybridScenario, result) -> dict:
         "chief_rate_final_deg_s": float(np.degrees(wc[-1])),
         "solve_time_ms": solve_time_stats(solved),
     }
+    summary["sequence"] = sequence_text(contacts, changes, result.events)
     if sc.latch.snap:
         ok = docked and (not decoupled or bool(redock))
     else:
@@ -287,6 +288,18 @@ def summarize_result(sc: HybridScenario, result) -> dict:
     summary["status"] = ("redocked" if redock else "docked") if ok else ("failed: not docked" if not docked
                                                                           else "failed: decoupled, not re-docked")
     return summary
+
+
+def sequence_text(contacts: list, changes: list, events) -> str:
+    """One readable line of the run's sequence: contacts (count, first), mode changes, snap."""
+    parts = []
+    if contacts:
+        parts.append(f"{len(contacts)} contact(s) from {contacts[0]['t_s']:.1f} s")
+    snaps = [t for t, k, m in events if k == "snap" and not m.startswith("skipped")]
+    items = [(c["t_s"], f"{c['from']} -> {c['to']} {c['t_s']:.1f} s") for c in changes]
+    items += [(t, f"snap {t:.1f} s") for t in snaps]
+    parts += [text for _, text in sorted(items)]
+    return "; ".join(parts) or "no contact, no mode change"
 
 
 @register_system("hybrid")
