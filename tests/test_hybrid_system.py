@@ -318,3 +318,28 @@ def test_bad_scenario_keys_one_line_exit_2(setting, fragment):
     lines = [ln for ln in res.output.strip().splitlines() if ln]
     assert len(lines) == 1 and lines[0].startswith("error: ") and fragment in lines[0], res.output
     assert "Traceback" not in res.output
+
+
+def test_collision_count_groups_contacts_closer_than_the_gap():
+    """A deputy thrust into the chief's face bounces many times a second: every impulse is an
+    event, but the collision count (eq. 80's c) only counts contacts more than
+    collision_gap_s after the previous one."""
+    x0 = _docked_truth()
+    x0[SL_RD] *= 1.05  # ~6 cm apart, face to face, outside the latch envelope
+    env = CaptureEnvelope(1e-6, 1e-6, 1e-6, 1e-6)  # no latch: keep bouncing
+    from proxops.core.quaternion import quat_rotate_inverse
+
+    push = quat_rotate_inverse(x0[19:23], -(x0[SL_RD] - x0[SL_RC]) / np.linalg.norm(x0[SL_RD] - x0[SL_RC]))
+    counts = {}
+    for gap in (0.0, 1.0):
+        plant = HybridCapturePlant(PARAMS, x0, envelope=env, collision_gap_s=gap)
+        y, events = plant.initial_state(), []
+        for k in range(20):  # 1 N towards the chief for 20 s
+            y, ev = plant.propagate_events(float(k), y, np.concatenate([push, np.zeros(3)]), 1.0)
+            events += ev
+        times = [t for t, kind, _ in events if kind == "contact"]
+        assert len(times) > 3
+        expected = 1 + int(np.sum(np.diff(times) > gap))
+        counts[gap] = plant.relative_state(y)[M_CONTACTS]
+        assert counts[gap] == expected
+    assert counts[1.0] < counts[0.0]

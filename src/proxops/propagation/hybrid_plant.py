@@ -21,13 +21,17 @@ The latch re-arms only after a snap once the ports have been apart by more than
 ``rearm_distance_m`` (a latch that has just released cannot grab again on the spot); the
 capture envelope is then checked again (re-docking).
 
-Plant state (internal, 35): truth (26, :mod:`proxops.dynamics.two_rigid_bodies`), x_ref
-(6, natural CW motion, the paper's f_T), latched flag, contact count, snap done flag,
-re-armed flag.
+Plant state (internal, 37): truth (26, :mod:`proxops.dynamics.two_rigid_bodies`), x_ref
+(6, natural CW motion, the paper's f_T), latched flag, collision count, snap done flag,
+re-armed flag, time of the last contact.
 
 Measured state (``relative_state``, 34): the paper's relative state (32,
-:func:`relative_from_truth`, with x_ref) followed by the contact count (a contact sensor:
+:func:`relative_from_truth`, with x_ref) followed by the collision count (a contact sensor:
 the capture MPC's weights depend on it, eq. 80) and the latch sensor (1 locked, 0 open).
+The collision count c counts collisions, not impulses: a contact less than
+``collision_gap_s`` (default 1 s, one control period) after the previous one belongs to the
+same collision (a deputy pushed against the chief bounces many times per second; every
+impulse is still an event).
 
 Integration: fixed-step RK4 (numba) on substeps of at most ``max_substep_s`` (default
 0.05 s: ~2e-3 rad per step at the fastest rates of §VII, and the latch's fastest mode,
@@ -64,8 +68,9 @@ from proxops.errors import input_error
 
 # internal plant-state indices
 I_REF = slice(N_TRUTH, N_TRUTH + 6)
-I_LATCHED, I_CONTACTS, I_SNAPPED, I_ARMED = N_TRUTH + 6, N_TRUTH + 7, N_TRUTH + 8, N_TRUTH + 9
-N_PLANT = N_TRUTH + 10
+I_LATCHED, I_CONTACTS, I_SNAPPED, I_ARMED, I_LAST_CONTACT = (N_TRUTH + 6, N_TRUTH + 7, N_TRUTH + 8, N_TRUTH + 9,
+                                                              N_TRUTH + 10)
+N_PLANT = N_TRUTH + 11
 # measured-state indices beyond the paper's 32
 M_CONTACTS, M_LATCHED = N_REL, N_REL + 1
 N_MEASURED = N_REL + 2
@@ -229,7 +234,8 @@ class HybridCapturePlant(PlantBase):
 
     def __init__(self, params: HybridParams, x0_truth, envelope: CaptureEnvelope = CaptureEnvelope(),
                  x_ref0=None, snap_enabled: bool = True, rearm_distance_m: float | None = None,
-                 max_substep_s: float = 0.05, tol_s: float = 1e-7, start_latched: bool = False):
+                 max_substep_s: float = 0.05, tol_s: float = 1e-7, start_latched: bool = False,
+                 collision_gap_s: float = 1.0):
         self.params = params
         self.envelope = envelope
         self.snap_enabled = bool(snap_enabled)
@@ -237,11 +243,15 @@ class HybridCapturePlant(PlantBase):
         if not (math.isfinite(max_substep_s) and max_substep_s > 0.0):
             raise input_error("max_substep_s", max_substep_s, "must be a finite number > 0", "s")
         self.max_substep_s, self.tol_s = float(max_substep_s), float(tol_s)
+        if not (math.isfinite(collision_gap_s) and collision_gap_s >= 0.0):
+            raise input_error("contact.collision_gap_s", collision_gap_s, "must be a finite number >= 0", "s")
+        self.collision_gap_s = float(collision_gap_s)
         y0 = np.zeros(N_PLANT)
         y0[:N_TRUTH] = np.asarray(x0_truth, dtype=float)
         y0[I_REF] = np.zeros(6) if x_ref0 is None else np.asarray(x_ref0, dtype=float)
         y0[I_LATCHED] = 1.0 if start_latched else 0.0
         y0[I_ARMED] = 1.0
+        y0[I_LAST_CONTACT] = -math.inf
         self.y0 = y0
         p = params
         self._hc, self._hd = params.half_chief, params.half_deputy
@@ -337,7 +347,9 @@ class HybridCapturePlant(PlantBase):
         x_plus, gamma, r, n = contact_jump(y[:N_TRUTH], self.params)
         if gamma > 0.0:
             y[:N_TRUTH] = x_plus
-            y[I_CONTACTS] += 1.0
+            if t_event - y[I_LAST_CONTACT] > self.collision_gap_s:
+                y[I_CONTACTS] += 1.0  # a new collision; contacts closer than collision_gap_s belong to it
+            y[I_LAST_CONTACT] = t_event
             events.append((t_event, "contact", f"impulse {gamma:.6g} N s, normal [{n[0]:.3f}, {n[1]:.3f}, {n[2]:.3f}], "
                            f"e = {self.params.restitution:g}"))
         return None

@@ -74,6 +74,8 @@ class ContactSection(Section):
                                "none; 0.5: a partly plastic metal contact)")
     max_substep_s: Positive = Field(0.05, description="plant integration substep; the contact guard is checked at "
                                     "each substep end and located by bisection")
+    collision_gap_s: NonNegative = Field(1.0, description="contacts closer in time than this to the previous one "
+                                         "belong to the same collision (collision count c of eq. 80)")
 
 
 class LatchSection(Section):
@@ -222,7 +224,8 @@ def build_setup(sc: HybridScenario):
 
     params, _, x0, envelope = model_objects(sc)
     plant = HybridCapturePlant(params, x0, envelope, x_ref0=list(sc.reference.position_m) + list(sc.reference.velocity_mps),
-                               snap_enabled=sc.latch.snap, max_substep_s=sc.contact.max_substep_s)
+                               snap_enabled=sc.latch.snap, max_substep_s=sc.contact.max_substep_s,
+                               collision_gap_s=sc.contact.collision_gap_s)
     capture = CaptureMPC(params, _mpc_config(CaptureMPCConfig, horizon_s=sc.control.horizon_capture_s))
     post = PostCaptureMPC(params, _mpc_config(PostCaptureMPCConfig))
     rule = HybridModeRule(envelope, sc.docking.release_distance_m, sc.docking.min_dwell_s)
@@ -321,6 +324,11 @@ class HybridSystem(SystemBase):
         return outcome_table(table)
 
 
+def is_true_column(values) -> np.ndarray:
+    """True where a campaign column holds True (None / NaN of a run that raised count as False)."""
+    return np.array([v is True or (isinstance(v, np.bool_) and bool(v)) for v in values], dtype=bool)
+
+
 def outcome_table(table) -> str:
     """Markdown outcome table from campaign rows (``metric.*`` columns of the run summaries)."""
     n = len(table)
@@ -331,9 +339,9 @@ def outcome_table(table) -> str:
         c = f"metric.{name}"
         return table[c] if c in table.columns else np.full(n, default)
 
-    docked = np.asarray(col("docked", False), dtype=bool)
-    redocked = np.asarray(col("redocked", False), dtype=bool)
-    decoupled = np.asarray(col("decoupled", False), dtype=bool)
+    docked = is_true_column(col("docked", False))
+    redocked = is_true_column(col("redocked", False))
+    decoupled = is_true_column(col("decoupled", False))
     errors = np.asarray(table["outcome"] == "error") if "outcome" in table.columns else np.zeros(n, bool)
     failed = ~np.asarray(table["success"], dtype=bool) if "success" in table.columns else ~docked
     before = np.asarray(col("contacts_before_dock", 0), dtype=float)
