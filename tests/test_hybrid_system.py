@@ -290,6 +290,12 @@ def test_engine_sequence_with_scripted_controllers():
     assert seq[i_snap][0] == pytest.approx(40.0)
     # tau expires at 20, 30, 40 s: the snap (end of the step to 40 s) is seen by the 40 s test
     assert seq[i_back][0] == pytest.approx(40.0)
+    # the latch re-arms 10 s after the snap; the pair, drifting apart at 0.56 mm/s, is still in the
+    # envelope: it latches again at 50 s and the supervisor (dwell T_1 met) re-enters post-capture
+    relatch = [t for t, k, m in seq[i_back:] if (k, m) == ("latch", "free -> latched")]
+    redock = [t for t, k, m in seq[i_back:] if (k, m) == ("mode", "capture -> post-capture")]
+    assert relatch and relatch[0] == pytest.approx(50.0, abs=0.051)
+    assert redock and redock[0] == pytest.approx(50.0)
     assert res.plant_mode[0] == "free" and "latched" in res.plant_mode
 
 

@@ -17,13 +17,14 @@ h = 1 flow). Events returned by :meth:`HybridCapturePlant.propagate_events`:
   (latched -> free). Applied at the scheduled instant inside the step. A snap time met while
   free is recorded (``snap`` event "skipped: not latched") and does nothing.
 
-The latch re-arms only after a snap once the ports have been apart by more than
-``rearm_distance_m`` (a latch that has just released cannot grab again on the spot); the
-capture envelope is then checked again (re-docking).
+After a snap the latch re-arms ``rearm_delay_s`` later (default 10 s; a latch that has just
+released cannot grab again on the spot: without the delay the snapped pair, still inside the
+envelope at 0.56 mm/s, would re-latch within one substep); from then on the capture envelope
+is checked again (re-docking).
 
 Plant state (internal, 37): truth (26, :mod:`proxops.dynamics.two_rigid_bodies`), x_ref
 (6, natural CW motion, the paper's f_T), latched flag, collision count, snap done flag,
-re-armed flag, time of the last contact.
+time from which the latch is armed, time of the last contact.
 
 Measured state (``relative_state``, 34): the paper's relative state (32,
 :func:`relative_from_truth`, with x_ref) followed by the collision count (a contact sensor:
@@ -68,7 +69,7 @@ from proxops.errors import input_error
 
 # internal plant-state indices
 I_REF = slice(N_TRUTH, N_TRUTH + 6)
-I_LATCHED, I_CONTACTS, I_SNAPPED, I_ARMED, I_LAST_CONTACT = (N_TRUTH + 6, N_TRUTH + 7, N_TRUTH + 8, N_TRUTH + 9,
+I_LATCHED, I_CONTACTS, I_SNAPPED, I_ARMED_FROM, I_LAST_CONTACT = (N_TRUTH + 6, N_TRUTH + 7, N_TRUTH + 8, N_TRUTH + 9,
                                                               N_TRUTH + 10)
 N_PLANT = N_TRUTH + 11
 # measured-state indices beyond the paper's 32
@@ -233,13 +234,15 @@ class HybridCapturePlant(PlantBase):
     has_events = True
 
     def __init__(self, params: HybridParams, x0_truth, envelope: CaptureEnvelope = CaptureEnvelope(),
-                 x_ref0=None, snap_enabled: bool = True, rearm_distance_m: float | None = None,
+                 x_ref0=None, snap_enabled: bool = True, rearm_delay_s: float = 10.0,
                  max_substep_s: float = 0.05, tol_s: float = 1e-7, start_latched: bool = False,
                  collision_gap_s: float = 1.0):
         self.params = params
         self.envelope = envelope
         self.snap_enabled = bool(snap_enabled)
-        self.rearm_distance_m = 2.0 * envelope.position_m if rearm_distance_m is None else float(rearm_distance_m)
+        if not (math.isfinite(rearm_delay_s) and rearm_delay_s >= 0.0):
+            raise input_error("latch.rearm_delay_s", rearm_delay_s, "must be a finite number >= 0", "s")
+        self.rearm_delay_s = float(rearm_delay_s)
         if not (math.isfinite(max_substep_s) and max_substep_s > 0.0):
             raise input_error("max_substep_s", max_substep_s, "must be a finite number > 0", "s")
         self.max_substep_s, self.tol_s = float(max_substep_s), float(tol_s)
@@ -250,7 +253,7 @@ class HybridCapturePlant(PlantBase):
         y0[:N_TRUTH] = np.asarray(x0_truth, dtype=float)
         y0[I_REF] = np.zeros(6) if x_ref0 is None else np.asarray(x_ref0, dtype=float)
         y0[I_LATCHED] = 1.0 if start_latched else 0.0
-        y0[I_ARMED] = 1.0
+        y0[I_ARMED_FROM] = 0.0
         y0[I_LAST_CONTACT] = -math.inf
         self.y0 = y0
         p = params
@@ -315,7 +318,7 @@ class HybridCapturePlant(PlantBase):
                 y[I_SNAPPED] = 1.0
                 if y[I_LATCHED] > 0.5:
                     y[:N_TRUTH] = latch_snap_jump(y[:N_TRUTH], self.params)
-                    y[I_LATCHED], y[I_ARMED] = 0.0, 0.0
+                    y[I_LATCHED], y[I_ARMED_FROM] = 0.0, t_snap + self.rearm_delay_s
                     events.append((t_snap, "snap", f"latch snap {self.params.snap_impulse_Ns:g} N s along rho_0, "
                                    "latch released"))
                     events.append((t_snap, "latch", "latched -> free"))
@@ -355,13 +358,10 @@ class HybridCapturePlant(PlantBase):
         return None
 
     def _latch_check(self, y: np.ndarray, t_event: float, events: list) -> None:
+        if t_event < y[I_ARMED_FROM]:
+            return
         rho, rhod, om, angle = envelope_kernel(y[:N_TRUTH], self.params.P_c, self.params.P_d,
                                                self.params.mean_motion_rad_s)
-        if y[I_ARMED] < 0.5:
-            if rho > self.rearm_distance_m:
-                y[I_ARMED] = 1.0
-                events.append((t_event, "latch", "re-armed"))
-            return
         env = self.envelope
         if rho <= env.position_m and rhod <= env.velocity_mps and om <= env.rate_rad_s and angle <= env.angle_rad:
             y[I_LATCHED] = 1.0

@@ -88,6 +88,8 @@ class LatchSection(Section):
     snap: bool = Field(True, description="apply the latch-snap impulse at snap_time_s (if latched then)")
     snap_time_s: NonNegative = Field(593.0, description="time of the latch snap (§VII: about 593 s)")
     snap_impulse_Ns: NonNegative = Field(0.05, description="snap impulse along rho_0 (§VII: 0.05 N s)")
+    rearm_delay_s: NonNegative = Field(10.0, description="after a snap the latch can engage again only this much "
+                                       "later (re-docking)")
 
 
 class DockingSection(Section):
@@ -225,7 +227,7 @@ def build_setup(sc: HybridScenario):
     params, _, x0, envelope = model_objects(sc)
     plant = HybridCapturePlant(params, x0, envelope, x_ref0=list(sc.reference.position_m) + list(sc.reference.velocity_mps),
                                snap_enabled=sc.latch.snap, max_substep_s=sc.contact.max_substep_s,
-                               collision_gap_s=sc.contact.collision_gap_s)
+                               collision_gap_s=sc.contact.collision_gap_s, rearm_delay_s=sc.latch.rearm_delay_s)
     capture = CaptureMPC(params, _mpc_config(CaptureMPCConfig, horizon_s=sc.control.horizon_capture_s))
     post = PostCaptureMPC(params, _mpc_config(PostCaptureMPCConfig))
     rule = HybridModeRule(envelope, sc.docking.release_distance_m, sc.docking.min_dwell_s)
