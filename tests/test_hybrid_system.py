@@ -340,7 +340,7 @@ def test_collision_count_groups_contacts_closer_than_the_gap():
     for gap in (0.0, 1.0):
         plant = HybridCapturePlant(PARAMS, x0, envelope=env, collision_gap_s=gap)
         y, events = plant.initial_state(), []
-        for k in range(20):  # 1 N towards the chief for 20 s
+        for k in range(10):  # 1 N towards the chief for 10 s
             y, ev = plant.propagate_events(float(k), y, np.concatenate([push, np.zeros(3)]), 1.0)
             events += ev
         times = [t for t, kind, _ in events if kind == "contact"]
@@ -349,3 +349,51 @@ def test_collision_count_groups_contacts_closer_than_the_gap():
         counts[gap] = plant.relative_state(y)[M_CONTACTS]
         assert counts[gap] == expected
     assert counts[1.0] < counts[0.0]
+
+
+# ------------------------------------------------------------------ end to end with the MPCs
+SHORT = ["sim.duration_s=40", "initial.rho0_m=[-0.94,0,0]", "initial.rho0_dot_mps=[0,-0.002256,-0.002256]",
+         "latch.snap=true", "latch.snap_time_s=20", "docking.min_dwell_s=5", "latch.rearm_delay_s=5"]
+
+
+def test_short_sequence_end_to_end_with_the_mpcs():
+    """hybrid-capture-gentle started 1.5 cm from the chief's port (aligned, co-moving): latch,
+    post-capture MPC, the latch snap at 20 s, decoupling, capture MPC, re-latch, post-capture
+    again; the events come in that order and the summary says so. (The contact part of §VII is
+    covered by the contact tests above and the slow full run.)"""
+    from proxops.analysis.runs import execute
+    from proxops.scenarios.loader import load_scenario
+
+    s, results = execute(load_scenario("hybrid-capture-gentle", SHORT))
+    res = results["run"]
+    kinds = [(k, m) for _, k, m in res.events if k in ("latch", "mode", "snap")]
+    order = [("latch", "free -> latched"), ("mode", "capture -> post-capture"), ("snap", None),
+             ("mode", "post-capture -> capture"), ("latch", "free -> latched"), ("mode", "capture -> post-capture")]
+    i = 0
+    for k, m in kinds:
+        if i < len(order) and k == order[i][0] and (order[i][1] is None or m == order[i][1]):
+            i += 1
+    assert i == len(order), kinds
+    assert s["docked"] and s["decoupled"] and s["redocked"] and s["status"] == "redocked"
+    assert s["dock_time_s"] == pytest.approx(5.0) and s["decouple_time_s"] >= 20.0
+    assert [c["to"] for c in s["mode_changes"]] == ["post-capture", "capture", "post-capture"]
+    assert s["contacts"] == [] and s["solve_time_ms"]["median"] > 0.0
+    # the latched pair holds: |rho| stays within the capture envelope's 2 cm while latched
+    latched = np.array(res.plant_mode) == "latched"
+    assert np.linalg.norm(res.x_true[latched, 0:3], axis=1).max() < 0.02
+
+
+@pytest.mark.slow
+@pytest.mark.xfail(strict=True, reason="capture MPC (branch hyb-mpc, first version) does not dock from eq. 78: "
+                   "the deputy starts behind the chief's docking face and the straight-line plan grinds into it")
+def test_full_section_vii_sequence():
+    """§VII: contact(s) before docking, docking, tumble damped, mm-level tracking, decoupling
+    after the snap, re-docking, tracking resumed (hybrid-capture, 800 s)."""
+    from proxops.analysis.runs import execute
+    from proxops.scenarios.loader import load_scenario
+
+    s, _ = execute(load_scenario("hybrid-capture"))
+    assert s["contacts_before_dock"] >= 1 and s["docked"]
+    assert s["decoupled"] and s["decouple_time_s"] >= 593.0 and s["redocked"]
+    assert s["chief_rate_final_deg_s"] < 0.1 * s["chief_rate_initial_deg_s"]
+    assert s["tracking_error_last_100s_max_m"] < 5e-3

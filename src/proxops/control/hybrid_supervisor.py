@@ -58,7 +58,9 @@ class RelativeStateController:
         x = np.asarray(x_est, dtype=float)
         if self._set_c is not None and x.size > M_CONTACTS:
             self._set_c(int(round(x[M_CONTACTS])))
-        return self.controller.step(t, x[:N_REL])
+        cmd = self.controller.step(t, x[:N_REL])
+        cmd.mode = self.name  # the supervisor's mode names the step (h of eq. 17), whatever the MPC calls itself
+        return cmd
 
 
 @dataclass
