@@ -328,6 +328,25 @@ def post_capture_steady_inputs(x_ref, params: HybridParams):
     return k1, k2
 
 
+def face_pointing_penalty(rho, v, weight: float) -> np.ndarray:
+    """Eq. 66 (corrected frame, module doc): ``weight (|rho| - v' rho)^2`` for rho (..., 3) in C
+    and the unit docking-face normal v in C; zero iff rho lies on the ray of v."""
+    rho = np.asarray(rho, float)
+    return weight * (np.linalg.norm(rho, axis=-1) - rho @ np.asarray(v, float)) ** 2
+
+
+def face_pointing_linearized(rho_bar, v) -> np.ndarray:
+    """Coefficient a of the QP form of eq. 66: ``|rho| - v' rho ~ a' rho`` with a = rho_bar/|rho_bar| - v
+    (the tangent of the positively homogeneous |rho| at rho_bar; exact on the ray of rho_bar).
+    Zero for |rho_bar| = 0."""
+    rho_bar = np.atleast_2d(np.asarray(rho_bar, float))
+    norms = np.linalg.norm(rho_bar, axis=1)
+    a = np.zeros_like(rho_bar)
+    ok = norms > 1e-9
+    a[ok] = rho_bar[ok] / norms[ok, None] - np.asarray(v, float)
+    return a
+
+
 # --------------------------------------------------------------------------------------
 # condensed prediction (shared)
 # --------------------------------------------------------------------------------------
@@ -452,12 +471,8 @@ class CaptureMPC:
         # stage weights plus the rank-one face terms (stages k = 1..N-1)
         WG = W[:, None] * G
         rows_rho = (np.arange(N)[:, None] * N_DX + np.arange(3)[None, :])  # (N, 3) rho rows of X
-        face_a = np.zeros((N, 3))
         if cfg.face_weight > 0.0:
-            rho_bar = self._face_directions(dx0[0:3])
-            norms = np.linalg.norm(rho_bar, axis=1)
-            ok = norms > 1e-9
-            face_a[ok] = rho_bar[ok] / norms[ok, None] - self.v
+            face_a = face_pointing_linearized(self._face_directions(dx0[0:3]), self.v)
             face_a[N - 1] = 0.0  # terminal state: Q_f only
         H = G.T @ WG
         f = WG.T @ free
@@ -486,7 +501,7 @@ class CaptureMPC:
         X = free + G @ U
         self._plan_rho = X.reshape(N, N_DX)[:, 0:3].copy()
         rho_pred = self._plan_rho
-        face = float(np.sum(dt * cfg.face_weight * (np.linalg.norm(rho_pred[:-1], axis=1) - rho_pred[:-1] @ self.v) ** 2))
+        face = float(dt * face_pointing_penalty(rho_pred[:-1], self.v, cfg.face_weight).sum())
         out.update(u=kappa + U[0:6], du=U.reshape(N, 6), dx=X.reshape(N, N_DX), face_penalty=face)
         self.last_plan = out
         return out
@@ -517,7 +532,6 @@ class CaptureMPC:
         ubz = np.concatenate([ub, np.full(ns, np.inf)])
         prob = build_conic_problem(q, _dense_pattern_upper(P), lb=lbz, ub=ubz,
                                    soc=[(_dense_pattern(F), g, c, d) for F, g, c, d in soc])
-        prob.A = _keep_pattern(prob.A, self._socp_pattern_A())
         if self._solver is None or not isinstance(self._solver, ClarabelSOCP):
             self._solver = ClarabelSOCP()
             self._solver.setup(prob)
@@ -531,13 +545,12 @@ class CaptureMPC:
         U = np.clip(res.x[:nU], lb, ub)
         X = free + G @ U
         rho_pred = X.reshape(N, N_DX)[:, 0:3]
-        face = float(np.sum(dt * cfg.face_weight * (np.linalg.norm(rho_pred[:-1], axis=1) - rho_pred[:-1] @ self.v) ** 2))
+        self._plan_rho = rho_pred.copy()
+        face = float(dt * face_pointing_penalty(rho_pred[:-1], self.v, cfg.face_weight).sum())
         out.update(u=kappa + U[0:6], du=U.reshape(N, 6), dx=X.reshape(N, N_DX), face_penalty=face)
         self.last_plan = out
         return out
 
-    def _socp_pattern_A(self):
-        return None
 
 
 def _dense_pattern(M: np.ndarray) -> sp.csc_matrix:
@@ -551,10 +564,6 @@ def _dense_pattern_upper(M: np.ndarray) -> sp.csc_matrix:
     M = np.asarray(M, float)
     r, c = np.triu_indices(M.shape[0])
     return sp.csc_matrix((M[r, c], (r, c)), shape=M.shape)
-
-
-def _keep_pattern(A, _pattern):
-    return A
 
 
 # --------------------------------------------------------------------------------------
@@ -658,6 +667,8 @@ __all__ = [
     "PostCaptureMPC",
     "PostCaptureMPCConfig",
     "capture_weights",
+    "face_pointing_linearized",
+    "face_pointing_penalty",
     "post_capture_linearization",
     "post_capture_steady_inputs",
     "reduced_capture_state",
