@@ -397,3 +397,20 @@ def test_full_section_vii_sequence():
     assert s["decoupled"] and s["decouple_time_s"] >= 593.0 and s["redocked"]
     assert s["chief_rate_final_deg_s"] < 0.1 * s["chief_rate_initial_deg_s"]
     assert s["tracking_error_last_100s_max_m"] < 5e-3
+
+
+def test_run_figures_are_written(tmp_path):
+    """Figs. 5-9 from a short scripted run (no MPC): five non-empty PNGs."""
+    from proxops.plotting.hybrid import run_figures
+
+    p = HybridParams(snap_time_s=20.0)
+    x0 = _docked_truth(p)
+    plant = HybridCapturePlant(p, x0)
+    sup = HybridSupervisor(_Zero(), _Zero(), HybridModeRule(CaptureEnvelope(), 0.5, 5.0))
+    res = simulate(Setup(plant=plant, controller=sup, duration_s=40.0))
+
+    class _Sc:
+        name = "scripted"
+
+    paths = run_figures(_Sc(), {"run": res}, tmp_path)
+    assert len(paths) == 5 and all(p.exists() and p.stat().st_size > 10_000 for p in paths)
