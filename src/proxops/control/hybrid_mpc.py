@@ -62,10 +62,12 @@ of :func:`post_capture_rhs`):
     omega_c' = -2 K omega_t^x p_eta - (omega_t^x + K) omega_c + J^-1 (M_d + (m_c/m) d^x F_d)
     e_n''   = G1 e_n + G2 e_n' - (2/m) kappa_1^1 x p_eta + C_{T<-D} F_d / m
 
-with K = J^-1 (omega_t^x J - (J omega_t)^x). The translational input block uses the measured
-attitude C_{T<-D} = R^T Q^T (eq. 48) instead of the identity of the docked linearisation
-point: after docking the chief is still tumbling (|p_eta| up to 1), and the identity would
-aim the thrust along the wrong axes (our choice, not the paper's). x_ref follows
+with K = J^-1 (omega_t^x J - (J omega_t)^x). Two blocks are taken at the measured attitude
+instead of at p = q_I (our choices, not the paper's; both switchable in the config): the
+translational input block C_{T<-D} = R^T Q^T (eq. 48; the identity would aim the thrust
+along the wrong axes while the chief is still far from q_I, e.g. the 120 deg p of eq. 78),
+and the kinematics p_eta' = (p_eta^x + p_mu I) omega_c / 2 (eq. 29; the docked 1/2 I
+overstates the attitude rate by 1/p_mu = 2 at 120 deg). x_ref follows
 :func:`reference_rhs` (natural CW), so the reference error has the same linear model.
 Box (64): ±5 N / ±5 N m around kappa^1. Horizon T^1 and period: not in the paper; defaults
 10 s and 1 s. Solved by DAQP (condensed; A, Q, R constant, B's translational block follows
@@ -172,6 +174,7 @@ class PostCaptureMPCConfig:
     Q_terminal_attitude: float = 1e8  # eq. 82: Q_f^1 = blkdiag(10^8 I6, 10^6 I6)
     Q_terminal_orbit: float = 1e6  # eq. 82
     thrust_at_current_attitude: bool = True  # force block of B at the measured R^T Q^T (module doc)
+    kinematics_at_current_attitude: bool = True  # p_eta' = E(p) omega_c at the measured p (module doc)
     max_iter: int = 2000
 
     def check(self) -> None:
@@ -604,6 +607,10 @@ class PostCaptureMPC:
         k1, k2 = post_capture_steady_inputs(x[S_REF], self.params)
         A, B = post_capture_linearization(self.params, k1 if np.any(k1) else None)
         kappa = np.concatenate([k1, k2])
+        if self.config.kinematics_at_current_attitude:
+            p = x[S_P] if x[S_P.stop - 1] >= 0.0 else -x[S_P]
+            A = A.copy()
+            A[0:3, 3:6] = 0.5 * (skew(p[0:3]) + p[3] * np.eye(3))  # eq. 29 at the measured p
         if self.config.thrust_at_current_attitude:
             C_TD = quat_to_dcm(x[S_P]) @ quat_to_dcm(x[S_Q])  # R^T Q^T = C_{T<-C} C_{C<-D}
             B = B.copy()
