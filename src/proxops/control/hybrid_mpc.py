@@ -312,23 +312,29 @@ def reduced_post_capture_state(x_rel) -> np.ndarray:
     return np.concatenate([sign * p[0:3], x[S_OMC], x[S_RN] - ref[0:3], x[S_RND] - ref[3:6]])
 
 
-def post_capture_steady_inputs(x_ref, params: HybridParams):
-    """kappa^1(x_ref) of eq. 65: (m (r_des'' - G1 r_des - G2 r_des'), omega_t x J omega_t - (m_c/m) d x kappa_1^1)
-    with the composite inertia J about the pair CoM and d = P_c - P_d (corrected eq. 51)."""
-    x_ref = np.asarray(x_ref, float)
+def _post_capture_kappa_pieces(params: HybridParams):
+    """(G1, G2, J composite at the docked configuration, omega_t x J omega_t, (m_c/m) d)."""
     n = params.mean_motion_rad_s
     G1 = np.diag([3.0 * n * n, 0.0, -n * n])
-    G2 = -np.array([[0.0, -2.0 * n, 0.0], [2.0 * n, 0.0, 0.0], [0.0, 0.0, 0.0]])
-    m = params.mass_total_kg
-    acc = reference_rhs(x_ref, params)[3:6]
-    k1 = m * (acc - G1 @ x_ref[0:3] - G2 @ x_ref[3:6])
+    G2 = -np.array([[0.0, -2.0 * n, 0.0], [2.0 * n, 0.0, 0.0], [0.0, 0.0, 0.0]])  # corrected eq. 21 sign
     x_dock = np.zeros(32)
     x_dock[S_Q.stop - 1] = 1.0
     x_dock[S_P.stop - 1] = 1.0
     J = composite_inertia(x_dock, params)
     wt = params.omega_t
-    k2 = np.cross(wt, J @ wt) - params.mass_chief_kg / m * np.cross(params.P_c - params.P_d, k1)
-    return k1, k2
+    arm = params.mass_chief_kg / params.mass_total_kg * (params.P_c - params.P_d)
+    return G1, G2, J, np.cross(wt, J @ wt), arm
+
+
+def post_capture_steady_inputs(x_ref, params: HybridParams, pieces=None):
+    """kappa^1(x_ref) of eq. 65: (m (r_des'' - G1 r_des - G2 r_des'), omega_t x J omega_t - (m_c/m) d x kappa_1^1)
+    with the composite inertia J about the pair CoM and d = P_c - P_d (corrected eq. 51).
+    ``pieces``: :func:`_post_capture_kappa_pieces` (cached by the controller)."""
+    G1, G2, _, gyro, arm = pieces if pieces is not None else _post_capture_kappa_pieces(params)
+    x_ref = np.asarray(x_ref, float)
+    acc = reference_rhs(x_ref, params)[3:6]
+    k1 = params.mass_total_kg * (acc - G1 @ x_ref[0:3] - G2 @ x_ref[3:6])
+    return k1, gyro - np.cross(arm, k1)
 
 
 def face_pointing_penalty(rho, v, weight: float) -> np.ndarray:
@@ -489,13 +495,15 @@ class CaptureMPC:
         H[np.diag_indices_from(H)] += r_blk
         H = (2.0 * scale) * 0.5 * (H + H.T)
         f = (2.0 * scale) * f
+        t_solver = time.perf_counter()
         if self._solver is None or not isinstance(self._solver, DaqpQP):
             self._solver = DaqpQP(max_iter=cfg.max_iter)
             self._solver.setup_native(H, f, None, lb=lb, ub=ub)
         else:
             self._solver.update(H=H, f=f, lb=lb, ub=ub)
         res = self._solver.solve()
-        out = {"status": res.status, "kappa": kappa, "iterations": res.iterations, "solver_time_s": res.solve_time_s,
+        out = {"status": res.status, "kappa": kappa, "iterations": res.iterations,
+               "solver_time_s": time.perf_counter() - t_solver,
                "detail": str(res.info.get("raw_status", ""))}
         if res.x is None or not res.ok:
             self._plan_rho = None
@@ -535,13 +543,15 @@ class CaptureMPC:
         ubz = np.concatenate([ub, np.full(ns, np.inf)])
         prob = build_conic_problem(q, _dense_pattern_upper(P), lb=lbz, ub=ubz,
                                    soc=[(_dense_pattern(F), g, c, d) for F, g, c, d in soc])
+        t_solver = time.perf_counter()
         if self._solver is None or not isinstance(self._solver, ClarabelSOCP):
             self._solver = ClarabelSOCP()
             self._solver.setup(prob)
         else:
             self._solver.update_native(P=prob.P, q=prob.q, A=prob.A, b=prob.b)
         res = self._solver.solve()
-        out = {"status": res.status, "kappa": kappa, "iterations": res.iterations, "solver_time_s": res.solve_time_s,
+        out = {"status": res.status, "kappa": kappa, "iterations": res.iterations,
+               "solver_time_s": time.perf_counter() - t_solver,
                "detail": str(res.info.get("raw_status", ""))}
         if res.x is None or not res.ok:
             return out
@@ -587,6 +597,7 @@ class PostCaptureMPC:
         self.u_max = np.array([params.force_max_post_N] * 3 + [params.torque_max_post_Nm] * 3)
         self._cond = _Condensed(N, N_DX, N_U)
         self.A, self.B = post_capture_linearization(params)
+        self._kappa_pieces = _post_capture_kappa_pieces(params)
         Qd = np.repeat([config.Q_attitude, config.Q_orbit], 6)
         W = np.tile(self.dt * Qd, N)
         W[-N_DX:] = np.repeat([config.Q_terminal_attitude, config.Q_terminal_orbit], 6)
@@ -604,16 +615,16 @@ class PostCaptureMPC:
         """(Ad, Bd, kappa^1 (D components), A, B) for the current state: A about A_1 (constant
         with the CW reference), the force block of B at the measured attitude (module doc)."""
         x = np.asarray(x_rel, float)
-        k1, k2 = post_capture_steady_inputs(x[S_REF], self.params)
-        A, B = post_capture_linearization(self.params, k1 if np.any(k1) else None)
+        k1, k2 = post_capture_steady_inputs(x[S_REF], self.params, self._kappa_pieces)
+        A, B = self.A.copy(), self.B.copy()
+        if np.any(k1):  # R^T F = F + 2 p_eta x F + ... (zero for the natural CW reference)
+            A[9:12, 0:3] = -2.0 * skew(k1) / self.params.mass_total_kg
         kappa = np.concatenate([k1, k2])
         if self.config.kinematics_at_current_attitude:
             p = x[S_P] if x[S_P.stop - 1] >= 0.0 else -x[S_P]
-            A = A.copy()
             A[0:3, 3:6] = 0.5 * (skew(p[0:3]) + p[3] * np.eye(3))  # eq. 29 at the measured p
         if self.config.thrust_at_current_attitude:
             C_TD = quat_to_dcm(x[S_P]) @ quat_to_dcm(x[S_Q])  # R^T Q^T = C_{T<-C} C_{C<-D}
-            B = B.copy()
             B[9:12, 0:3] = C_TD / self.params.mass_total_kg
             kappa[0:3] = C_TD.T @ k1
         Ad, Bd = zoh_discretize(A, B, self.dt)
@@ -650,13 +661,15 @@ class PostCaptureMPC:
         f = (2.0 * self._scale) * (WG.T @ free)
         lb = np.tile(-self.u_max - kappa, N)
         ub = np.tile(self.u_max - kappa, N)
+        t_solver = time.perf_counter()
         if self._solver is None:
             self._solver = DaqpQP(max_iter=self.config.max_iter)
             self._solver.setup_native(H, f, None, lb=lb, ub=ub)
         else:
             self._solver.update(H=H, f=f, lb=lb, ub=ub)
         res = self._solver.solve()
-        out = {"status": res.status, "kappa": kappa, "iterations": res.iterations, "solver_time_s": res.solve_time_s,
+        out = {"status": res.status, "kappa": kappa, "iterations": res.iterations,
+               "solver_time_s": time.perf_counter() - t_solver,
                "detail": str(res.info.get("raw_status", ""))}
         if res.x is None or not res.ok:
             return out
