@@ -37,6 +37,19 @@ q), input ``du0 = u - kappa^0(p, omega_c)`` (eqs. 41, 43, 63).
   benchmarks/bench_hybrid_mpc.py measures both; the QP is the default because it is faster
   and its first input agrees with the SOCP's (tests/test_hybrid_mpc.py bounds the exact-cost
   excess of the QP plan).
+* Thrust map (our choice, ``thrust_at_current_attitude``): the force block of B is eq. 22's
+  ``Q^T F_d / m_d`` at the measured q instead of at q = q_I (and kappa_1^0, a force in C, is
+  applied in D as ``Q kappa_1^0``). The deputy of eq. 78 starts 180 deg from q_I; the docked
+  identity would aim every thrust along the wrong axes until the attitude has converged.
+* Approach guidance (not in the paper, ``approach_guidance``): the position target is rho = 0
+  only once the deputy port is inside a cone of half-angle 20 deg about the port axis v
+  (seen from the chief CoM); before that, it is a waypoint 30 deg further round on a sphere
+  about the chief CoM whose radius keeps the deputy clear of the chief in any attitude. The
+  eq. 78 deputy starts 1.9 m *behind* the docking face (rho = (-0.23, -2.46, -0.23) m in C):
+  the printed problem (a quadratic pull to rho = 0 plus eq. 66, whose descent direction from
+  behind the face is also straight at the chief) pushes it into the chief's back face and
+  grinds there. Only the target of the rho cost changes; the model and constraints are
+  Problem 2's. ``approach_guidance=False`` is Problem 2 as printed.
 * Jumps: contacts (eqs. 33-39) happen at instants no QP can predict (the paper sets J^0 = 0
   for that reason); the prediction is flow-only and the MPC re-solves from the post-jump
   state at its next sample; the supervisor raises the collision count, which switches the
@@ -148,7 +161,12 @@ class CaptureMPCConfig:
     collision_weights: bool = True  # eq. 80 for collision count c >= 1
     face_weight: float = 1e2  # lambda_f of eq. 66: not given by the paper; our choice
     face_form: str = "qp"  # "qp" (linearised |rho|, DAQP) | "socp" (exact cone, Clarabel)
-    thrust_at_current_attitude: bool = False  # True: force block of B at the measured q (not q_I)
+    thrust_at_current_attitude: bool = True  # force block of B at the measured q (not q_I; module doc)
+    # approach guidance (not in the paper, module doc): go round the chief to the port axis
+    approach_guidance: bool = True
+    corridor_half_angle_deg: float = 20.0  # final approach inside this cone about v (from the chief CoM)
+    waypoint_step_deg: float = 30.0  # how far round the chief each waypoint leads
+    safe_margin_m: float = 0.3  # waypoint radius = chief half-diagonal + deputy port's reach + this
     max_iter: int = 2000  # DAQP active-set iteration cap
 
     def check(self) -> None:
@@ -159,6 +177,12 @@ class CaptureMPCConfig:
             raise input_error("capture_mpc.face_weight", self.face_weight, "must be a finite number >= 0")
         if self.face_form not in ("qp", "socp"):
             raise input_error("capture_mpc.face_form", self.face_form, "allowed: qp, socp")
+        for name in ("corridor_half_angle_deg", "waypoint_step_deg"):
+            value = getattr(self, name)
+            if not (isinstance(value, (int, float)) and 0.0 < value < 180.0):
+                raise input_error(f"capture_mpc.{name}", value, "must lie in (0, 180)", "deg")
+        if not (math.isfinite(self.safe_margin_m) and self.safe_margin_m >= 0.0):
+            raise input_error("capture_mpc.safe_margin_m", self.safe_margin_m, "must be a finite number >= 0", "m")
         _steps("capture_mpc", self.horizon_s, self.period_s)
 
 
@@ -405,6 +429,13 @@ class CaptureMPC:
         self.u_max = np.array([params.force_max_capture_N] * 3 + [params.torque_max_capture_Nm] * 3)
         self.linearization = CaptureLinearization(params)
         self.v = params.P_c / np.linalg.norm(params.P_c)  # docking-face normal in C (eq. 66, corrected)
+        # keep the deputy (any attitude) clear of the chief on the way round: chief half-diagonal
+        # + the farthest deputy corner from its port + margin
+        corners = np.array([[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)])
+        self.waypoint_radius_m = float(np.linalg.norm(params.half_chief)
+                                       + np.linalg.norm(corners * params.half_deputy - params.P_d, axis=1).max()
+                                       + config.safe_margin_m)
+        self.target_rho = np.zeros(3)
         self._cond = _Condensed(self.N, N_DX, N_U)
         self.collisions = 0
         self._solver = None
@@ -435,7 +466,8 @@ class CaptureMPC:
             u = np.clip(plan["kappa"], -self.u_max, self.u_max)
             events = [("fallback", f"capture MPC {plan['status']}: applied the steady input kappa^0 (clipped)")]
         info = {"collisions": float(self.collisions), "iterations": float(plan["iterations"]),
-                "face_penalty": plan.get("face_penalty", math.nan)}
+                "face_penalty": plan.get("face_penalty", math.nan),
+                "approach_target_m": float(np.linalg.norm(self.target_rho))}
         return _command(u, plan["status"], t_start, plan["solver_time_s"], self.mode, events, info,
                         plan.get("detail", ""))
 
@@ -451,6 +483,31 @@ class CaptureMPC:
             kappa[0:3] = Q @ kappa[0:3]
         Ad, Bd = zoh_discretize(A, B, self.dt)
         return Ad, Bd, kappa, A, B
+
+    # ---------------------------------------------------------------- approach guidance
+    def approach_target(self, rho) -> np.ndarray:
+        """Position target of the deputy port (C components, m): 0 (the docking configuration,
+        Problem 2 as printed) once the port is inside the approach corridor, a cone of half-angle
+        ``corridor_half_angle_deg`` about v from the chief CoM; otherwise a waypoint on the sphere
+        of radius ``waypoint_radius_m`` about the chief CoM, ``waypoint_step_deg`` further round
+        towards the port axis (not in the paper; module doc)."""
+        cfg = self.config
+        s = np.asarray(rho, float) + self.params.P_c  # deputy port from the chief CoM (C)
+        r = float(np.linalg.norm(s))
+        if r < 1e-9:
+            return np.zeros(3)
+        cos_t = float(np.clip(s @ self.v / r, -1.0, 1.0))
+        theta = math.acos(cos_t)
+        if theta <= math.radians(cfg.corridor_half_angle_deg):
+            return np.zeros(3)
+        axis = np.cross(s, self.v)
+        if np.linalg.norm(axis) < 1e-6 * r:  # exactly behind the port: go round any side (C x axis)
+            axis = np.cross(self.v, [1.0, 0.0, 0.0]) if abs(self.v[0]) < 0.9 else np.cross(self.v, [0.0, 0.0, 1.0])
+        axis /= np.linalg.norm(axis)
+        step = min(theta, math.radians(cfg.waypoint_step_deg))
+        e = s / r
+        e_next = e * math.cos(step) + np.cross(axis, e) * math.sin(step)  # Rodrigues (axis is normal to e)
+        return max(r, self.waypoint_radius_m) * e_next - self.params.P_c
 
     # ---------------------------------------------------------------- problem
     def _face_directions(self, rho0: np.ndarray) -> np.ndarray:
@@ -471,12 +528,16 @@ class CaptureMPC:
         W = np.tile(dt * Qd, N)
         W[-N_DX:] = Qf
         free = Phi @ dx0
+        self.target_rho = self.approach_target(x[S_RHO]) if cfg.approach_guidance else np.zeros(3)
+        ref = np.zeros((N, N_DX))
+        ref[:, 0:3] = self.target_rho
+        ref = ref.ravel()
         lb = np.tile(-self.u_max - kappa, N)
         ub = np.tile(self.u_max - kappa, N)
         r_blk = np.tile(dt * Rd, N)
         scale = 1.0 / r_blk.max()
         if cfg.face_form == "socp":
-            return self._solve_socp(x, dx0, kappa, Phi, G, W, r_blk, free, lb, ub, scale)
+            return self._solve_socp(x, dx0, kappa, Phi, G, W, r_blk, free, ref, lb, ub, scale)
         # stage weights plus the rank-one face terms (stages k = 1..N-1)
         WG = W[:, None] * G
         rows_rho = (np.arange(N)[:, None] * N_DX + np.arange(3)[None, :])  # (N, 3) rho rows of X
@@ -484,7 +545,7 @@ class CaptureMPC:
             face_a = face_pointing_linearized(self._face_directions(dx0[0:3]), self.v)
             face_a[N - 1] = 0.0  # terminal state: Q_f only
         H = G.T @ WG
-        f = WG.T @ free
+        f = WG.T @ (free - ref)
         if cfg.face_weight > 0.0:
             Grho = G[rows_rho.ravel()].reshape(N, 3, -1)
             aG = np.einsum("ki,kij->kj", face_a, Grho)  # (N, nU): (e_k - v)' Gamma_rho_k
@@ -517,7 +578,7 @@ class CaptureMPC:
         self.last_plan = out
         return out
 
-    def _solve_socp(self, x, dx0, kappa, Phi, G, W, r_blk, free, lb, ub, scale) -> dict:
+    def _solve_socp(self, x, dx0, kappa, Phi, G, W, r_blk, free, ref, lb, ub, scale) -> dict:
         """Problem 2 with the exact (66) through slacks: ||rho_k|| <= s_k + v' rho_k, cost lambda_f dt s_k^2 (Clarabel)."""
         cfg, N, dt = self.config, self.N, self.dt
         nU = N * N_U
@@ -529,7 +590,7 @@ class CaptureMPC:
         P[:nU, :nU] = (2.0 * scale) * 0.5 * (H + H.T)
         P[nU:, nU:] = np.eye(ns) * (2.0 * scale * dt * max(cfg.face_weight, 1e-12))
         q = np.zeros(n)
-        q[:nU] = (2.0 * scale) * (G.T @ (W * free))
+        q[:nU] = (2.0 * scale) * (G.T @ (W * (free - ref)))
         soc = []
         for k in range(ns):
             rows = k * N_DX + np.arange(3)
