@@ -320,8 +320,8 @@ def test_approach_target_inside_corridor_is_the_docking_configuration():
 
 
 def test_approach_waypoints_lead_round_the_chief_and_clear_it():
-    """Outside the corridor the target is one step (30 deg) further round towards the port axis,
-    on a sphere about the chief CoM wide enough that the deputy, in any attitude, with its port
+    """Outside the corridor the target is on a sphere about the chief CoM, straight out from close
+    in, else one step (30 deg) further round towards the port axis; the sphere is wide enough that the deputy, in any attitude, with its port
     there does not overlap the chief (exact separating-axis test of the two cuboids); repeated,
     the waypoints reach the corridor."""
     from proxops.dynamics.two_rigid_bodies import boxes_overlap
@@ -339,8 +339,11 @@ def test_approach_waypoints_lead_round_the_chief_and_clear_it():
         if not np.any(target):
             break
         s_next = target + PARAMS.P_c
-        assert ang(s) - ang(s_next) == pytest.approx(min(30.0, ang(s)), abs=1e-9)
-        assert np.linalg.norm(s_next) == pytest.approx(max(np.linalg.norm(s), R_wp), rel=1e-12)
+        assert np.linalg.norm(s_next) == pytest.approx(R_wp, rel=1e-12)  # on the sphere
+        if np.linalg.norm(s) < mpc.config.retreat_fraction * R_wp:  # close in: straight out first
+            assert ang(s_next) == pytest.approx(ang(s), abs=1e-9)
+        else:  # one step round towards the port axis
+            assert ang(s) - ang(s_next) == pytest.approx(min(30.0, ang(s)), abs=1e-9)
         for _ in range(20):  # deputy attitude in C: its port (P_d in D) sits at s_next
             qd = rng.normal(size=4)
             qd /= np.linalg.norm(qd)

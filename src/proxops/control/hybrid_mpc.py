@@ -41,10 +41,18 @@ q), input ``du0 = u - kappa^0(p, omega_c)`` (eqs. 41, 43, 63).
   ``Q^T F_d / m_d`` at the measured q instead of at q = q_I (and kappa_1^0, a force in C, is
   applied in D as ``Q kappa_1^0``). The deputy of eq. 78 starts 180 deg from q_I; the docked
   identity would aim every thrust along the wrong axes until the attitude has converged.
+* Attitude kinematics (our choice, ``kinematics_at_current_attitude``): the q_eta rows of A are
+  eq. 27's ``(q_eta^x + q_mu I) / 2`` at the measured q instead of the docked ``I / 2``; the
+  latter overstates the attitude rate by 1/q_mu (contacts flip the deputy far from q_I, and
+  with the (80) weights the mismatch drove the deputy's relative rate up to 4 rad/s in a
+  dispersed §VII run). At q_mu = 0 exactly (eq. 78) |q_eta| has no first-order change
+  under any rate: the plan rotates the deputy only through the omega cost for the first step.
 * Approach guidance (not in the paper, ``approach_guidance``): the position target is rho = 0
   only once the deputy port is inside a cone of half-angle 20 deg about the port axis v
   (seen from the chief CoM); before that, it is a waypoint 30 deg further round on a sphere
-  about the chief CoM whose radius keeps the deputy clear of the chief in any attitude. The
+  about the chief CoM whose radius keeps the deputy clear of the chief in any attitude (from
+  inside 0.9 of that radius, first straight out to the sphere: going round from close in
+  scrapes the chief, and every contact spins it up, see the report). The
   eq. 78 deputy starts 1.9 m *behind* the docking face (rho = (-0.23, -2.46, -0.23) m in C):
   the printed problem (a quadratic pull to rho = 0 plus eq. 66, whose descent direction from
   behind the face is also straight at the chief) pushes it into the chief's back face and
@@ -71,7 +79,7 @@ eqs. 48, 51: composite inertia about the pair CoM, moment arm (m_c/m) d of F_d);
 Jacobian is analytic (:func:`post_capture_linearization`, tested against finite differences
 of :func:`post_capture_rhs`):
 
-    p_eta'  = omega_c / 2
+    p_eta'  = omega_c / 2                      (at p = q_I; see below)
     omega_c' = -2 K omega_t^x p_eta - (omega_t^x + K) omega_c + J^-1 (M_d + (m_c/m) d^x F_d)
     e_n''   = G1 e_n + G2 e_n' - (2/m) kappa_1^1 x p_eta + C_{T<-D} F_d / m
 
@@ -87,7 +95,8 @@ Box (64): ±5 N / ±5 N m around kappa^1. Horizon T^1 and period: not in the pap
 the attitude).
 
 Solve time: ``Command.solve_time_s`` is the wall time of the whole step (linearisation,
-discretisation, condensing and the solver call); ``info["solver_time_s"]`` the solver call.
+discretisation, condensing and the solver); ``info["solver_time_s"]`` the solver alone (its
+data update, where DAQP factorises the new Hessian, plus the solve call).
 
 Failures: a solve without a usable solution returns its :class:`proxops.status.Status` with
 the fallback command ``clip(kappa, box)`` (the steady input: holds the docking configuration
@@ -162,11 +171,13 @@ class CaptureMPCConfig:
     face_weight: float = 1e2  # lambda_f of eq. 66: not given by the paper; our choice
     face_form: str = "qp"  # "qp" (linearised |rho|, DAQP) | "socp" (exact cone, Clarabel)
     thrust_at_current_attitude: bool = True  # force block of B at the measured q (not q_I; module doc)
+    kinematics_at_current_attitude: bool = True  # q_eta' = (q_eta^x + q_mu I) omega / 2 at the measured q
     # approach guidance (not in the paper, module doc): go round the chief to the port axis
     approach_guidance: bool = True
     corridor_half_angle_deg: float = 20.0  # final approach inside this cone about v (from the chief CoM)
     waypoint_step_deg: float = 30.0  # how far round the chief each waypoint leads
     safe_margin_m: float = 0.3  # waypoint radius = chief half-diagonal + deputy port's reach + this
+    retreat_fraction: float = 0.9  # closer than this fraction of the waypoint radius: back off radially first
     max_iter: int = 2000  # DAQP active-set iteration cap
 
     def check(self) -> None:
@@ -181,6 +192,8 @@ class CaptureMPCConfig:
             value = getattr(self, name)
             if not (isinstance(value, (int, float)) and 0.0 < value < 180.0):
                 raise input_error(f"capture_mpc.{name}", value, "must lie in (0, 180)", "deg")
+        if not (isinstance(self.retreat_fraction, (int, float)) and 0.0 <= self.retreat_fraction <= 1.0):
+            raise input_error("capture_mpc.retreat_fraction", self.retreat_fraction, "must lie in [0, 1]")
         if not (math.isfinite(self.safe_margin_m) and self.safe_margin_m >= 0.0):
             raise input_error("capture_mpc.safe_margin_m", self.safe_margin_m, "must be a finite number >= 0", "m")
         _steps("capture_mpc", self.horizon_s, self.period_s)
@@ -481,6 +494,10 @@ class CaptureMPC:
             B[3:6, 0:3] = Q.T / self.params.mass_deputy_kg  # eq. 22's Q^T F_d / m_d at the measured q
             kappa = kappa.copy()
             kappa[0:3] = Q @ kappa[0:3]
+        if self.config.kinematics_at_current_attitude and q is not None:
+            qq = np.asarray(q, float) if q[3] >= 0.0 else -np.asarray(q, float)
+            A = A.copy()
+            A[9:12, 6:9] = 0.5 * (skew(qq[0:3]) + qq[3] * np.eye(3))  # eq. 27 at the measured q
         Ad, Bd = zoh_discretize(A, B, self.dt)
         return Ad, Bd, kappa, A, B
 
@@ -490,7 +507,8 @@ class CaptureMPC:
         Problem 2 as printed) once the port is inside the approach corridor, a cone of half-angle
         ``corridor_half_angle_deg`` about v from the chief CoM; otherwise a waypoint on the sphere
         of radius ``waypoint_radius_m`` about the chief CoM, ``waypoint_step_deg`` further round
-        towards the port axis (not in the paper; module doc)."""
+        towards the port axis, or, closer than ``retreat_fraction`` of that radius, the point of
+        the sphere straight out from the chief CoM (not in the paper; module doc)."""
         cfg = self.config
         s = np.asarray(rho, float) + self.params.P_c  # deputy port from the chief CoM (C)
         r = float(np.linalg.norm(s))
@@ -500,6 +518,8 @@ class CaptureMPC:
         theta = math.acos(cos_t)
         if theta <= math.radians(cfg.corridor_half_angle_deg):
             return np.zeros(3)
+        if r < cfg.retreat_fraction * self.waypoint_radius_m:  # too close to go round: back off radially first
+            return self.waypoint_radius_m * s / r - self.params.P_c
         axis = np.cross(s, self.v)
         if np.linalg.norm(axis) < 1e-6 * r:  # exactly behind the port: go round any side (C x axis)
             axis = np.cross(self.v, [1.0, 0.0, 0.0]) if abs(self.v[0]) < 0.9 else np.cross(self.v, [0.0, 0.0, 1.0])
@@ -507,7 +527,7 @@ class CaptureMPC:
         step = min(theta, math.radians(cfg.waypoint_step_deg))
         e = s / r
         e_next = e * math.cos(step) + np.cross(axis, e) * math.sin(step)  # Rodrigues (axis is normal to e)
-        return max(r, self.waypoint_radius_m) * e_next - self.params.P_c
+        return self.waypoint_radius_m * e_next - self.params.P_c  # on the sphere: far off, the waypoint pulls in
 
     # ---------------------------------------------------------------- problem
     def _face_directions(self, rho0: np.ndarray) -> np.ndarray:
