@@ -29,7 +29,7 @@ from proxops.control.hybrid_mpc import (
     reduced_capture_state,
     zoh_discretize,
 )
-from proxops.core.quaternion import quat_from_axis_angle
+from proxops.core.quaternion import quat_from_axis_angle, quat_rotate, quat_to_dcm
 from proxops.dynamics.hybrid_relative import (
     S_OM,
     S_OMC,
@@ -168,8 +168,6 @@ def test_face_pointing_penalty_zero_when_aligned_positive_otherwise():
     for theta in (0.05, 0.7, np.pi / 2, np.pi):
         axis = np.cross(v, [1.0, 0.0, 0.0])
         R = quat_from_axis_angle(axis / np.linalg.norm(axis), theta)
-        from proxops.core.quaternion import quat_rotate
-
         rho = 0.4 * quat_rotate(R, v)
         closed_form = 100.0 * (0.4 * (1.0 - np.cos(theta))) ** 2  # lambda_f (|rho| - |rho| cos theta)^2
         assert face_pointing_penalty(rho, v, 100.0) == pytest.approx(closed_form, rel=1e-12)
@@ -295,8 +293,9 @@ def test_qp_form_of_face_penalty_is_near_the_exact_socp(collisions):
     linearised at the previous plan), evaluated with the exact cost, is within 1 % of it after
     a few receding-horizon steps from a misaligned approach, and its first input is close."""
     x = _capture_state(rho=(0.3, -0.2, 0.25), rhod=(0.004, 0.002, -0.003))
-    qp = CaptureMPC(PARAMS, CaptureMPCConfig(face_form="qp", face_weight=1e3))
-    socp = CaptureMPC(PARAMS, CaptureMPCConfig(face_form="socp", face_weight=1e3))
+    # Problem 2 as printed (target rho = 0): no approach guidance
+    qp = CaptureMPC(PARAMS, CaptureMPCConfig(face_form="qp", face_weight=1e3, approach_guidance=False))
+    socp = CaptureMPC(PARAMS, CaptureMPCConfig(face_form="socp", face_weight=1e3, approach_guidance=False))
     for m in (qp, socp):
         m.set_collision_count(collisions)
     for _ in range(3):  # the QP re-linearises at its previous plan
@@ -309,6 +308,54 @@ def test_qp_form_of_face_penalty_is_near_the_exact_socp(collisions):
     assert np.linalg.norm(plan_qp["u"] - plan_socp["u"]) <= 0.05 * max(np.linalg.norm(plan_socp["u"]), 1e-3)
 
 
+# ------------------------------------------------------------------------------ approach guidance
+def test_approach_target_inside_corridor_is_the_docking_configuration():
+    mpc = CaptureMPC(PARAMS)
+    v = mpc.v
+    half = np.radians(mpc.config.corridor_half_angle_deg)
+    lateral = np.array([1.0, 0.0, 0.0])
+    for r, ang in ((0.5, 0.0), (2.5, 0.9 * half), (0.05, 0.99 * half)):
+        s = r * (np.cos(ang) * v + np.sin(ang) * lateral)  # port from the chief CoM
+        np.testing.assert_array_equal(mpc.approach_target(s - PARAMS.P_c), 0.0)
+
+
+def test_approach_waypoints_lead_round_the_chief_and_clear_it():
+    """Outside the corridor the target is on a sphere about the chief CoM, straight out from close
+    in, else one step (30 deg) further round towards the port axis; the sphere is wide enough that the deputy, in any attitude, with its port
+    there does not overlap the chief (exact separating-axis test of the two cuboids); repeated,
+    the waypoints reach the corridor."""
+    from proxops.dynamics.two_rigid_bodies import boxes_overlap
+
+    mpc = CaptureMPC(PARAMS)
+    v, R_wp = mpc.v, mpc.waypoint_radius_m
+    rng = np.random.default_rng(7)
+    s = np.array([-0.23, -1.88, -0.23])  # the eq. 78 start: port 1.9 m behind the chief's docking face
+
+    def ang(a):
+        return np.degrees(np.arccos(np.clip(a @ v / np.linalg.norm(a), -1, 1)))
+
+    for _ in range(10):
+        target = mpc.approach_target(s - PARAMS.P_c)
+        if not np.any(target):
+            break
+        s_next = target + PARAMS.P_c
+        assert np.linalg.norm(s_next) == pytest.approx(R_wp, rel=1e-12)  # on the sphere
+        if np.linalg.norm(s) < mpc.config.retreat_fraction * R_wp:  # close in: straight out first
+            assert ang(s_next) == pytest.approx(ang(s), abs=1e-9)
+        else:  # one step round towards the port axis
+            assert ang(s) - ang(s_next) == pytest.approx(min(30.0, ang(s)), abs=1e-9)
+        for _ in range(20):  # deputy attitude in C: its port (P_d in D) sits at s_next
+            qd = rng.normal(size=4)
+            qd /= np.linalg.norm(qd)
+            C_CD = quat_to_dcm(qd)
+            centre = s_next - C_CD @ PARAMS.P_d
+            assert not boxes_overlap(np.zeros(3), np.eye(3), PARAMS.half_chief, centre, C_CD, PARAMS.half_deputy)
+        s = s_next
+    else:
+        pytest.fail("waypoints never reached the approach corridor")
+    assert ang(s) <= mpc.config.corridor_half_angle_deg
+
+
 # ------------------------------------------------------------------------------ failures / interface
 def test_failed_solve_is_a_status_with_the_steady_input_fallback():
     mpc = CaptureMPC(PARAMS, CaptureMPCConfig(max_iter=1))
@@ -317,7 +364,8 @@ def test_failed_solve_is_a_status_with_the_steady_input_fallback():
     cmd = mpc.step(0.0, x)
     assert cmd.status is Status.MAX_ITER
     u1, u2 = steady_inputs(x[S_P], x[S_OMC], PARAMS)
-    np.testing.assert_allclose(cmd.u, np.clip(np.concatenate([u1, u2]), -1.0, 1.0))
+    C_DC = quat_to_dcm(x[S_Q]).T  # kappa_1^0 is a force in C (eq. 41); the deputy applies it in D
+    np.testing.assert_allclose(cmd.u, np.clip(np.concatenate([C_DC @ u1, u2]), -1.0, 1.0), atol=1e-15)
     assert any(kind == "fallback" for kind, _ in cmd.events)
     bad = x.copy()
     bad[3] = np.nan

@@ -37,6 +37,27 @@ q), input ``du0 = u - kappa^0(p, omega_c)`` (eqs. 41, 43, 63).
   benchmarks/bench_hybrid_mpc.py measures both; the QP is the default because it is faster
   and its first input agrees with the SOCP's (tests/test_hybrid_mpc.py bounds the exact-cost
   excess of the QP plan).
+* Thrust map (our choice, ``thrust_at_current_attitude``): the force block of B is eq. 22's
+  ``Q^T F_d / m_d`` at the measured q instead of at q = q_I (and kappa_1^0, a force in C, is
+  applied in D as ``Q kappa_1^0``). The deputy of eq. 78 starts 180 deg from q_I; the docked
+  identity would aim every thrust along the wrong axes until the attitude has converged.
+* Attitude kinematics (our choice, ``kinematics_at_current_attitude``): the q_eta rows of A are
+  eq. 27's ``(q_eta^x + q_mu I) / 2`` at the measured q instead of the docked ``I / 2``; the
+  latter overstates the attitude rate by 1/q_mu (contacts flip the deputy far from q_I, and
+  with the (80) weights the mismatch drove the deputy's relative rate up to 4 rad/s in a
+  dispersed §VII run). At q_mu = 0 exactly (eq. 78) |q_eta| has no first-order change
+  under any rate: the plan rotates the deputy only through the omega cost for the first step.
+* Approach guidance (not in the paper, ``approach_guidance``): the position target is rho = 0
+  only once the deputy port is inside a cone of half-angle 20 deg about the port axis v
+  (seen from the chief CoM); before that, it is a waypoint 30 deg further round on a sphere
+  about the chief CoM whose radius keeps the deputy clear of the chief in any attitude (from
+  inside 0.9 of that radius, first straight out to the sphere: going round from close in
+  scrapes the chief, and every contact spins it up, see the report). The
+  eq. 78 deputy starts 1.9 m *behind* the docking face (rho = (-0.23, -2.46, -0.23) m in C):
+  the printed problem (a quadratic pull to rho = 0 plus eq. 66, whose descent direction from
+  behind the face is also straight at the chief) pushes it into the chief's back face and
+  grinds there. Only the target of the rho cost changes; the model and constraints are
+  Problem 2's. ``approach_guidance=False`` is Problem 2 as printed.
 * Jumps: contacts (eqs. 33-39) happen at instants no QP can predict (the paper sets J^0 = 0
   for that reason); the prediction is flow-only and the MPC re-solves from the post-jump
   state at its next sample; the supervisor raises the collision count, which switches the
@@ -58,7 +79,7 @@ eqs. 48, 51: composite inertia about the pair CoM, moment arm (m_c/m) d of F_d);
 Jacobian is analytic (:func:`post_capture_linearization`, tested against finite differences
 of :func:`post_capture_rhs`):
 
-    p_eta'  = omega_c / 2
+    p_eta'  = omega_c / 2                      (at p = q_I; see below)
     omega_c' = -2 K omega_t^x p_eta - (omega_t^x + K) omega_c + J^-1 (M_d + (m_c/m) d^x F_d)
     e_n''   = G1 e_n + G2 e_n' - (2/m) kappa_1^1 x p_eta + C_{T<-D} F_d / m
 
@@ -74,7 +95,8 @@ Box (64): ±5 N / ±5 N m around kappa^1. Horizon T^1 and period: not in the pap
 the attitude).
 
 Solve time: ``Command.solve_time_s`` is the wall time of the whole step (linearisation,
-discretisation, condensing and the solver call); ``info["solver_time_s"]`` the solver call.
+discretisation, condensing and the solver); ``info["solver_time_s"]`` the solver alone (its
+data update, where DAQP factorises the new Hessian, plus the solve call).
 
 Failures: a solve without a usable solution returns its :class:`proxops.status.Status` with
 the fallback command ``clip(kappa, box)`` (the steady input: holds the docking configuration
@@ -148,7 +170,14 @@ class CaptureMPCConfig:
     collision_weights: bool = True  # eq. 80 for collision count c >= 1
     face_weight: float = 1e2  # lambda_f of eq. 66: not given by the paper; our choice
     face_form: str = "qp"  # "qp" (linearised |rho|, DAQP) | "socp" (exact cone, Clarabel)
-    thrust_at_current_attitude: bool = False  # True: force block of B at the measured q (not q_I)
+    thrust_at_current_attitude: bool = True  # force block of B at the measured q (not q_I; module doc)
+    kinematics_at_current_attitude: bool = True  # q_eta' = (q_eta^x + q_mu I) omega / 2 at the measured q
+    # approach guidance (not in the paper, module doc): go round the chief to the port axis
+    approach_guidance: bool = True
+    corridor_half_angle_deg: float = 20.0  # final approach inside this cone about v (from the chief CoM)
+    waypoint_step_deg: float = 30.0  # how far round the chief each waypoint leads
+    safe_margin_m: float = 0.3  # waypoint radius = chief half-diagonal + deputy port's reach + this
+    retreat_fraction: float = 0.9  # closer than this fraction of the waypoint radius: back off radially first
     max_iter: int = 2000  # DAQP active-set iteration cap
 
     def check(self) -> None:
@@ -159,6 +188,14 @@ class CaptureMPCConfig:
             raise input_error("capture_mpc.face_weight", self.face_weight, "must be a finite number >= 0")
         if self.face_form not in ("qp", "socp"):
             raise input_error("capture_mpc.face_form", self.face_form, "allowed: qp, socp")
+        for name in ("corridor_half_angle_deg", "waypoint_step_deg"):
+            value = getattr(self, name)
+            if not (isinstance(value, (int, float)) and 0.0 < value < 180.0):
+                raise input_error(f"capture_mpc.{name}", value, "must lie in (0, 180)", "deg")
+        if not (isinstance(self.retreat_fraction, (int, float)) and 0.0 <= self.retreat_fraction <= 1.0):
+            raise input_error("capture_mpc.retreat_fraction", self.retreat_fraction, "must lie in [0, 1]")
+        if not (math.isfinite(self.safe_margin_m) and self.safe_margin_m >= 0.0):
+            raise input_error("capture_mpc.safe_margin_m", self.safe_margin_m, "must be a finite number >= 0", "m")
         _steps("capture_mpc", self.horizon_s, self.period_s)
 
 
@@ -312,23 +349,29 @@ def reduced_post_capture_state(x_rel) -> np.ndarray:
     return np.concatenate([sign * p[0:3], x[S_OMC], x[S_RN] - ref[0:3], x[S_RND] - ref[3:6]])
 
 
-def post_capture_steady_inputs(x_ref, params: HybridParams):
-    """kappa^1(x_ref) of eq. 65: (m (r_des'' - G1 r_des - G2 r_des'), omega_t x J omega_t - (m_c/m) d x kappa_1^1)
-    with the composite inertia J about the pair CoM and d = P_c - P_d (corrected eq. 51)."""
-    x_ref = np.asarray(x_ref, float)
+def _post_capture_kappa_pieces(params: HybridParams):
+    """(G1, G2, J composite at the docked configuration, omega_t x J omega_t, (m_c/m) d)."""
     n = params.mean_motion_rad_s
     G1 = np.diag([3.0 * n * n, 0.0, -n * n])
-    G2 = -np.array([[0.0, -2.0 * n, 0.0], [2.0 * n, 0.0, 0.0], [0.0, 0.0, 0.0]])
-    m = params.mass_total_kg
-    acc = reference_rhs(x_ref, params)[3:6]
-    k1 = m * (acc - G1 @ x_ref[0:3] - G2 @ x_ref[3:6])
+    G2 = -np.array([[0.0, -2.0 * n, 0.0], [2.0 * n, 0.0, 0.0], [0.0, 0.0, 0.0]])  # corrected eq. 21 sign
     x_dock = np.zeros(32)
     x_dock[S_Q.stop - 1] = 1.0
     x_dock[S_P.stop - 1] = 1.0
     J = composite_inertia(x_dock, params)
     wt = params.omega_t
-    k2 = np.cross(wt, J @ wt) - params.mass_chief_kg / m * np.cross(params.P_c - params.P_d, k1)
-    return k1, k2
+    arm = params.mass_chief_kg / params.mass_total_kg * (params.P_c - params.P_d)
+    return G1, G2, J, np.cross(wt, J @ wt), arm
+
+
+def post_capture_steady_inputs(x_ref, params: HybridParams, pieces=None):
+    """kappa^1(x_ref) of eq. 65: (m (r_des'' - G1 r_des - G2 r_des'), omega_t x J omega_t - (m_c/m) d x kappa_1^1)
+    with the composite inertia J about the pair CoM and d = P_c - P_d (corrected eq. 51).
+    ``pieces``: :func:`_post_capture_kappa_pieces` (cached by the controller)."""
+    G1, G2, _, gyro, arm = pieces if pieces is not None else _post_capture_kappa_pieces(params)
+    x_ref = np.asarray(x_ref, float)
+    acc = reference_rhs(x_ref, params)[3:6]
+    k1 = params.mass_total_kg * (acc - G1 @ x_ref[0:3] - G2 @ x_ref[3:6])
+    return k1, gyro - np.cross(arm, k1)
 
 
 def face_pointing_penalty(rho, v, weight: float) -> np.ndarray:
@@ -399,6 +442,13 @@ class CaptureMPC:
         self.u_max = np.array([params.force_max_capture_N] * 3 + [params.torque_max_capture_Nm] * 3)
         self.linearization = CaptureLinearization(params)
         self.v = params.P_c / np.linalg.norm(params.P_c)  # docking-face normal in C (eq. 66, corrected)
+        # keep the deputy (any attitude) clear of the chief on the way round: chief half-diagonal
+        # + the farthest deputy corner from its port + margin
+        corners = np.array([[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)])
+        self.waypoint_radius_m = float(np.linalg.norm(params.half_chief)
+                                       + np.linalg.norm(corners * params.half_deputy - params.P_d, axis=1).max()
+                                       + config.safe_margin_m)
+        self.target_rho = np.zeros(3)
         self._cond = _Condensed(self.N, N_DX, N_U)
         self.collisions = 0
         self._solver = None
@@ -429,7 +479,8 @@ class CaptureMPC:
             u = np.clip(plan["kappa"], -self.u_max, self.u_max)
             events = [("fallback", f"capture MPC {plan['status']}: applied the steady input kappa^0 (clipped)")]
         info = {"collisions": float(self.collisions), "iterations": float(plan["iterations"]),
-                "face_penalty": plan.get("face_penalty", math.nan)}
+                "face_penalty": plan.get("face_penalty", math.nan),
+                "approach_target_m": float(np.linalg.norm(self.target_rho))}
         return _command(u, plan["status"], t_start, plan["solver_time_s"], self.mode, events, info,
                         plan.get("detail", ""))
 
@@ -443,8 +494,40 @@ class CaptureMPC:
             B[3:6, 0:3] = Q.T / self.params.mass_deputy_kg  # eq. 22's Q^T F_d / m_d at the measured q
             kappa = kappa.copy()
             kappa[0:3] = Q @ kappa[0:3]
+        if self.config.kinematics_at_current_attitude and q is not None:
+            qq = np.asarray(q, float) if q[3] >= 0.0 else -np.asarray(q, float)
+            A = A.copy()
+            A[9:12, 6:9] = 0.5 * (skew(qq[0:3]) + qq[3] * np.eye(3))  # eq. 27 at the measured q
         Ad, Bd = zoh_discretize(A, B, self.dt)
         return Ad, Bd, kappa, A, B
+
+    # ---------------------------------------------------------------- approach guidance
+    def approach_target(self, rho) -> np.ndarray:
+        """Position target of the deputy port (C components, m): 0 (the docking configuration,
+        Problem 2 as printed) once the port is inside the approach corridor, a cone of half-angle
+        ``corridor_half_angle_deg`` about v from the chief CoM; otherwise a waypoint on the sphere
+        of radius ``waypoint_radius_m`` about the chief CoM, ``waypoint_step_deg`` further round
+        towards the port axis, or, closer than ``retreat_fraction`` of that radius, the point of
+        the sphere straight out from the chief CoM (not in the paper; module doc)."""
+        cfg = self.config
+        s = np.asarray(rho, float) + self.params.P_c  # deputy port from the chief CoM (C)
+        r = float(np.linalg.norm(s))
+        if r < 1e-9:
+            return np.zeros(3)
+        cos_t = float(np.clip(s @ self.v / r, -1.0, 1.0))
+        theta = math.acos(cos_t)
+        if theta <= math.radians(cfg.corridor_half_angle_deg):
+            return np.zeros(3)
+        if r < cfg.retreat_fraction * self.waypoint_radius_m:  # too close to go round: back off radially first
+            return self.waypoint_radius_m * s / r - self.params.P_c
+        axis = np.cross(s, self.v)
+        if np.linalg.norm(axis) < 1e-6 * r:  # exactly behind the port: go round any side (C x axis)
+            axis = np.cross(self.v, [1.0, 0.0, 0.0]) if abs(self.v[0]) < 0.9 else np.cross(self.v, [0.0, 0.0, 1.0])
+        axis /= np.linalg.norm(axis)
+        step = min(theta, math.radians(cfg.waypoint_step_deg))
+        e = s / r
+        e_next = e * math.cos(step) + np.cross(axis, e) * math.sin(step)  # Rodrigues (axis is normal to e)
+        return self.waypoint_radius_m * e_next - self.params.P_c  # on the sphere: far off, the waypoint pulls in
 
     # ---------------------------------------------------------------- problem
     def _face_directions(self, rho0: np.ndarray) -> np.ndarray:
@@ -465,12 +548,16 @@ class CaptureMPC:
         W = np.tile(dt * Qd, N)
         W[-N_DX:] = Qf
         free = Phi @ dx0
+        self.target_rho = self.approach_target(x[S_RHO]) if cfg.approach_guidance else np.zeros(3)
+        ref = np.zeros((N, N_DX))
+        ref[:, 0:3] = self.target_rho
+        ref = ref.ravel()
         lb = np.tile(-self.u_max - kappa, N)
         ub = np.tile(self.u_max - kappa, N)
         r_blk = np.tile(dt * Rd, N)
         scale = 1.0 / r_blk.max()
         if cfg.face_form == "socp":
-            return self._solve_socp(x, dx0, kappa, Phi, G, W, r_blk, free, lb, ub, scale)
+            return self._solve_socp(x, dx0, kappa, Phi, G, W, r_blk, free, ref, lb, ub, scale)
         # stage weights plus the rank-one face terms (stages k = 1..N-1)
         WG = W[:, None] * G
         rows_rho = (np.arange(N)[:, None] * N_DX + np.arange(3)[None, :])  # (N, 3) rho rows of X
@@ -478,7 +565,7 @@ class CaptureMPC:
             face_a = face_pointing_linearized(self._face_directions(dx0[0:3]), self.v)
             face_a[N - 1] = 0.0  # terminal state: Q_f only
         H = G.T @ WG
-        f = WG.T @ free
+        f = WG.T @ (free - ref)
         if cfg.face_weight > 0.0:
             Grho = G[rows_rho.ravel()].reshape(N, 3, -1)
             aG = np.einsum("ki,kij->kj", face_a, Grho)  # (N, nU): (e_k - v)' Gamma_rho_k
@@ -489,13 +576,15 @@ class CaptureMPC:
         H[np.diag_indices_from(H)] += r_blk
         H = (2.0 * scale) * 0.5 * (H + H.T)
         f = (2.0 * scale) * f
+        t_solver = time.perf_counter()
         if self._solver is None or not isinstance(self._solver, DaqpQP):
             self._solver = DaqpQP(max_iter=cfg.max_iter)
             self._solver.setup_native(H, f, None, lb=lb, ub=ub)
         else:
             self._solver.update(H=H, f=f, lb=lb, ub=ub)
         res = self._solver.solve()
-        out = {"status": res.status, "kappa": kappa, "iterations": res.iterations, "solver_time_s": res.solve_time_s,
+        out = {"status": res.status, "kappa": kappa, "iterations": res.iterations,
+               "solver_time_s": time.perf_counter() - t_solver,
                "detail": str(res.info.get("raw_status", ""))}
         if res.x is None or not res.ok:
             self._plan_rho = None
@@ -509,7 +598,7 @@ class CaptureMPC:
         self.last_plan = out
         return out
 
-    def _solve_socp(self, x, dx0, kappa, Phi, G, W, r_blk, free, lb, ub, scale) -> dict:
+    def _solve_socp(self, x, dx0, kappa, Phi, G, W, r_blk, free, ref, lb, ub, scale) -> dict:
         """Problem 2 with the exact (66) through slacks: ||rho_k|| <= s_k + v' rho_k, cost lambda_f dt s_k^2 (Clarabel)."""
         cfg, N, dt = self.config, self.N, self.dt
         nU = N * N_U
@@ -521,7 +610,7 @@ class CaptureMPC:
         P[:nU, :nU] = (2.0 * scale) * 0.5 * (H + H.T)
         P[nU:, nU:] = np.eye(ns) * (2.0 * scale * dt * max(cfg.face_weight, 1e-12))
         q = np.zeros(n)
-        q[:nU] = (2.0 * scale) * (G.T @ (W * free))
+        q[:nU] = (2.0 * scale) * (G.T @ (W * (free - ref)))
         soc = []
         for k in range(ns):
             rows = k * N_DX + np.arange(3)
@@ -535,13 +624,15 @@ class CaptureMPC:
         ubz = np.concatenate([ub, np.full(ns, np.inf)])
         prob = build_conic_problem(q, _dense_pattern_upper(P), lb=lbz, ub=ubz,
                                    soc=[(_dense_pattern(F), g, c, d) for F, g, c, d in soc])
+        t_solver = time.perf_counter()
         if self._solver is None or not isinstance(self._solver, ClarabelSOCP):
             self._solver = ClarabelSOCP()
             self._solver.setup(prob)
         else:
             self._solver.update_native(P=prob.P, q=prob.q, A=prob.A, b=prob.b)
         res = self._solver.solve()
-        out = {"status": res.status, "kappa": kappa, "iterations": res.iterations, "solver_time_s": res.solve_time_s,
+        out = {"status": res.status, "kappa": kappa, "iterations": res.iterations,
+               "solver_time_s": time.perf_counter() - t_solver,
                "detail": str(res.info.get("raw_status", ""))}
         if res.x is None or not res.ok:
             return out
@@ -587,6 +678,7 @@ class PostCaptureMPC:
         self.u_max = np.array([params.force_max_post_N] * 3 + [params.torque_max_post_Nm] * 3)
         self._cond = _Condensed(N, N_DX, N_U)
         self.A, self.B = post_capture_linearization(params)
+        self._kappa_pieces = _post_capture_kappa_pieces(params)
         Qd = np.repeat([config.Q_attitude, config.Q_orbit], 6)
         W = np.tile(self.dt * Qd, N)
         W[-N_DX:] = np.repeat([config.Q_terminal_attitude, config.Q_terminal_orbit], 6)
@@ -604,16 +696,16 @@ class PostCaptureMPC:
         """(Ad, Bd, kappa^1 (D components), A, B) for the current state: A about A_1 (constant
         with the CW reference), the force block of B at the measured attitude (module doc)."""
         x = np.asarray(x_rel, float)
-        k1, k2 = post_capture_steady_inputs(x[S_REF], self.params)
-        A, B = post_capture_linearization(self.params, k1 if np.any(k1) else None)
+        k1, k2 = post_capture_steady_inputs(x[S_REF], self.params, self._kappa_pieces)
+        A, B = self.A.copy(), self.B.copy()
+        if np.any(k1):  # R^T F = F + 2 p_eta x F + ... (zero for the natural CW reference)
+            A[9:12, 0:3] = -2.0 * skew(k1) / self.params.mass_total_kg
         kappa = np.concatenate([k1, k2])
         if self.config.kinematics_at_current_attitude:
             p = x[S_P] if x[S_P.stop - 1] >= 0.0 else -x[S_P]
-            A = A.copy()
             A[0:3, 3:6] = 0.5 * (skew(p[0:3]) + p[3] * np.eye(3))  # eq. 29 at the measured p
         if self.config.thrust_at_current_attitude:
             C_TD = quat_to_dcm(x[S_P]) @ quat_to_dcm(x[S_Q])  # R^T Q^T = C_{T<-C} C_{C<-D}
-            B = B.copy()
             B[9:12, 0:3] = C_TD / self.params.mass_total_kg
             kappa[0:3] = C_TD.T @ k1
         Ad, Bd = zoh_discretize(A, B, self.dt)
@@ -650,13 +742,15 @@ class PostCaptureMPC:
         f = (2.0 * self._scale) * (WG.T @ free)
         lb = np.tile(-self.u_max - kappa, N)
         ub = np.tile(self.u_max - kappa, N)
+        t_solver = time.perf_counter()
         if self._solver is None:
             self._solver = DaqpQP(max_iter=self.config.max_iter)
             self._solver.setup_native(H, f, None, lb=lb, ub=ub)
         else:
             self._solver.update(H=H, f=f, lb=lb, ub=ub)
         res = self._solver.solve()
-        out = {"status": res.status, "kappa": kappa, "iterations": res.iterations, "solver_time_s": res.solve_time_s,
+        out = {"status": res.status, "kappa": kappa, "iterations": res.iterations,
+               "solver_time_s": time.perf_counter() - t_solver,
                "detail": str(res.info.get("raw_status", ""))}
         if res.x is None or not res.ok:
             return out
