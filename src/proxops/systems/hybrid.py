@@ -115,6 +115,17 @@ class ControlSection(Section):
     horizon_capture_s: Positive = Field(10.0, description="capture MPC horizon T^0 (§VII: 10 s)")
 
 
+class CaptureMPCSection(Section):
+    """Capture MPC (Problem 2) settings the scenario may change; the rest are the paper's
+    (proxops.control.hybrid_mpc.CaptureMPCConfig). Weights are diagonal entries in SI."""
+
+    period_s: Positive = Field(1.0, description="control period (not in the paper); must divide the horizon")
+    R_force: Positive = Field(1e4, description="input weight on F_d while no collision (eq. 79: 1e4, per N^2)")
+    R_torque: Positive = Field(1e4, description="input weight on M_d while no collision (eq. 79: 1e4, per (N m)^2)")
+    approach_guidance: bool = Field(True, description="waypoints round the chief to the port axis (not in the "
+                                    "paper: the eq. 78 deputy starts behind the docking face)")
+
+
 class ReferenceSection(Section):
     """Desired orbit x_ref of the pair's CoM (natural CW motion from this state, in T)."""
 
@@ -135,6 +146,7 @@ class HybridScenario(ScenarioBase):
     docking: DockingSection = Field(DockingSection(), description="supervisor transition sets")
     control: ControlSection = Field(ControlSection(), description="bounds and horizon")
     reference: ReferenceSection = Field(ReferenceSection(), description="desired orbit of the pair's CoM")
+    capture_mpc: CaptureMPCSection = Field(CaptureMPCSection(), description="capture MPC settings")
 
     @model_validator(mode="after")
     def _physical(self):
@@ -228,8 +240,11 @@ def build_setup(sc: HybridScenario):
     plant = HybridCapturePlant(params, x0, envelope, x_ref0=list(sc.reference.position_m) + list(sc.reference.velocity_mps),
                                snap_enabled=sc.latch.snap, max_substep_s=sc.contact.max_substep_s,
                                collision_gap_s=sc.contact.collision_gap_s, rearm_delay_s=sc.latch.rearm_delay_s)
-    capture = CaptureMPC(params, _mpc_config(CaptureMPCConfig, horizon_s=sc.control.horizon_capture_s))
-    post = PostCaptureMPC(params, _mpc_config(PostCaptureMPCConfig))
+    cm = sc.capture_mpc
+    capture = CaptureMPC(params, _mpc_config(CaptureMPCConfig, horizon_s=sc.control.horizon_capture_s,
+                                             period_s=cm.period_s, R_force=cm.R_force, R_torque=cm.R_torque,
+                                             approach_guidance=cm.approach_guidance))
+    post = PostCaptureMPC(params, _mpc_config(PostCaptureMPCConfig, period_s=cm.period_s))
     rule = HybridModeRule(envelope, sc.docking.release_distance_m, sc.docking.min_dwell_s)
     supervisor = HybridSupervisor(capture, post, rule)
     navigation = navigation_model(sc.navigation, per_state_sigma=measured_sigma, system="hybrid")
