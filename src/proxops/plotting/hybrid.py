@@ -150,6 +150,7 @@ def plot_tracking(result, path: Path, title: str = "") -> Path:
     for ax in axes:
         _decorate(ax, result)
         ax.legend(loc="upper right", fontsize=7, ncol=4)
+        ax.set_xlim(t0, t[-1])
     axes[0].set_title(f"{title}: post-capture orbit tracking of the pair's CoM (Fig. 8)"
                       + ("" if ivals else " - never docked"))
     return save(fig, path)
