@@ -143,8 +143,8 @@ def main() -> None:
                        cap_states, 1, 1)
         _row(f"SOCP T0 = {T:4.0f} s", s, v, ref)
     # correctness of the QP form: exact cost of its plan vs the SOCP optimum on the same states
-    qp = CaptureMPC(PARAMS)
-    socp = CaptureMPC(PARAMS, CaptureMPCConfig(face_form="socp"))
+    qp = CaptureMPC(PARAMS, CaptureMPCConfig(approach_guidance=False))  # Problem 2 as printed (target rho = 0)
+    socp = CaptureMPC(PARAMS, CaptureMPCConfig(face_form="socp", approach_guidance=False))
     excess, du_gap = [], []
     for ctrl in (qp, socp):
         ctrl.set_collision_count(1)

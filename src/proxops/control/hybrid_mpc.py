@@ -460,6 +460,8 @@ class CaptureMPC:
         self.collisions = int(c)
 
     def reset(self, t0: float, x_rel0) -> None:
+        """Forget the last plan (the face-penalty linearisation points). The collision count is
+        kept: it counts the contacts of the run, which a re-entry into capture does not undo."""
         self._plan_rho = None  # (N, 3) predicted rho_1..rho_N of the last plan
         self.last_plan = None
 
