@@ -157,13 +157,24 @@ def srf_claims(ctx: Context) -> list[Claim]:
     v5 = _run("srf-vbar", ["approach.hops=5", "sim.duration_s=18400"])
     period = v["period_s"]
     frac = np.array(v["hop_intervals_s"]) / period
+    # the along-track dv the paper does not have: the drift-free rows and trims (issue 11), measured by switching them off
+    share = v["dv_share_along_track"]
+    share_paper = _run("srf-vbar", ["mpc.drift_free=false"])["dv_share_along_track"]
+    share_no_trim = _run("srf-vbar", ["mpc.drift_trim=false"])["dv_share_along_track"]
+    halves = bool(np.all(np.abs(frac - 0.5) < 0.01))
     rows.append(Claim(
         "srf", "V-bar hops last half an orbit with radial impulses only",
         "0.5 t_orb, all impulses radial (§2 eq. 8, §5.1)",
-        f"hop intervals {np.round(frac, 4).tolist()} t_orb; along-track share of l1 dv {100 * v['dv_share_along_track']:.2f} %",
-        REPRODUCED if np.all(np.abs(frac - 0.5) < 0.01) and v["dv_share_along_track"] < 0.02 else UNEXPLAINED,
-        "srf-vbar, J2 truth, navigation noise; the along-track share is the drift-free trim (<= 0.05 mm/s rows) "
-        "and noise corrections", data={"hop_fraction": frac.tolist(), "along_share": v["dv_share_along_track"]}))
+        f"hop intervals {np.round(frac, 4).tolist()} t_orb; along-track share of l1 dv {100 * share:.2f} % "
+        f"({100 * share_paper:.2f} % with the paper's rows only, {100 * share_no_trim:.2f} % with drift-free rows "
+        "but no trim)",
+        REPRODUCED if halves and share < 0.02 else (EXPLAINED if halves and share_paper < 0.02 else UNEXPLAINED),
+        "srf-vbar, J2 truth, navigation noise. With the paper's rows only the along-track part is the noise and "
+        "CW-vs-J2 corrections; the drift-free rows (<= 0.05 mm/s on the energy invariant at every hop impulse) and the "
+        "trims one node later (mpc.drift_trim) add the along-track impulses that remove the secular drift, which the "
+        "paper's indefinite hold needs but its rows do not contain",
+        data={"hop_fraction": frac.tolist(), "along_share": share, "along_share_paper_rows": share_paper,
+              "along_share_no_trim": share_no_trim}))
     rfrac = np.array(r["hop_intervals_s"]) / period
     rows.append(Claim(
         "srf", "R-bar hops are shorter than 0.21 t_orb", "< 0.21 t_orb (§2, §5.2, Fig. 8a)",
@@ -185,35 +196,42 @@ def srf_claims(ctx: Context) -> list[Claim]:
     items = _abort_items(mc_v.table)
     safe_runs = int(sum(all(i["safe"] for i in it) for it in items))
     miss_all = [i["return_miss_per_orbit_m"] for it in items for i in it]
-    miss_later = [i["return_miss_per_orbit_m"] for it in items for i in it if i["t_s"] > 0]
+    miss_first = [it[0]["return_miss_per_orbit_m"] for it in items if it]
+    untrimmed = [i["untrimmed_safe_window_orbits"] for it in items for i in it if "untrimmed_safe_window_orbits" in i]
     nom_miss = [i["return_miss_per_orbit_m"] for i in v["abort"]]
     window = v["abort_window_orbits"]
     exact = ""
-    if not ctx.quick:  # the same campaign with perfect thruster pointing: how much of the miss is pointing error
-        mc_np = _campaign("srf-vbar-mc", ctx, n_mc, ["actuator.pointing_sigma_deg=0"], tag="-no-pointing-error")
-        np_items = _abort_items(mc_np.table)
-        np_later = [i["return_miss_per_orbit_m"] for it in np_items for i in it if i["t_s"] > 0]
-        np_all = [i["return_miss_per_orbit_m"] for it in np_items for i in it]
-        exact = (f"; same campaign without pointing error: {sum(all(i['safe'] for i in it) for it in np_items)}/"
-                 f"{len(np_items)} safe, miss per orbit median {np.median(np_all):.1f} m, max {np.max(np_all):.1f} m, "
-                 f"hops after the first max {np.max(np_later):.1f} m")
+    if not ctx.quick:  # the same campaign without the trim: what the trim buys, and its propellant
+        mc_nt = _campaign("srf-vbar-mc", ctx, n_mc, ["mpc.drift_trim=false"], tag="-no-trim")
+        nt_items = _abort_items(mc_nt.table)
+        nt_all = [i["return_miss_per_orbit_m"] for it in nt_items for i in it]
+        extra = mc_v.table["metric.dv_l1_mps"].mean() - mc_nt.table["metric.dv_l1_mps"].mean()
+        exact = (f"; without the trim (mpc.drift_trim=false): {sum(all(i['safe'] for i in it) for it in nt_items)}/"
+                 f"{len(nt_items)} safe, miss per orbit median {np.median(nt_all):.1f} m, max {np.max(nt_all):.1f} m; "
+                 f"the trim costs {1e3 * extra:+.1f} mm/s of mean l1 dv")
+    ok = safe_runs == len(items) and max(nom_miss) < 10.0 and np.max(miss_all) < 50.0
     rows.append(Claim(
         "srf", "V-bar passive abort: the chaser returns to its hop start after each orbit (indefinite hold)",
         "indefinite hold (§2, §5.1, conclusion)",
-        f"abort-safe over {window:g} orbits from every hop impulse: nominal yes, return miss per orbit "
+        f"abort-safe over {window:g} orbits from every hop (after its trim): nominal yes, return miss per orbit "
         f"{', '.join(_f(m, 1) for m in nom_miss)} m; Monte Carlo {safe_runs}/{len(items)} runs safe, miss per orbit "
-        f"median {np.median(miss_all):.1f} m, max {np.max(miss_all):.1f} m (hops after the first: max {np.max(miss_later):.1f} m)"
-        + exact,
-        EXPLAINED,
-        f"checked over {window:g} orbits of free J2 truth (safety.abort_orbits), not indefinitely. The MPC removes the "
-        "secular drift (drift-free rows on the chaser-target energy difference, tol 0.05 mm/s = 1.1 m/orbit); what is "
-        "left is what navigation and thrusters deliver: the first hop starts from ONE white navigation sample "
-        "(sigma 0.5 m / 0.5 mm/s -> 1.0 mm/s on vy + 2 n x, 22 m/orbit 1-sigma; later hops average ~60 samples), "
-        "and the Monte Carlo's 0.5 deg pointing error on a 0.2-0.35 m/s hop impulse leaves 2-3 mm/s (40-66 m/orbit "
-        "1-sigma) that no constraint can remove", red,
+        f"median {np.median(miss_all):.1f} m, max {np.max(miss_all):.1f} m (first hops: max {np.max(miss_first):.1f} m); "
+        f"an abort between hop impulse and trim (1/12 orbit) is safe for "
+        f"{min(untrimmed) if untrimmed else float('nan'):.2f}+ orbits" + exact,
+        EXPLAINED if ok else UNEXPLAINED,
+        f"checked over {window:g} orbits of free J2 truth (safety.abort_orbits), not indefinitely; goals: < 10 m nominal, "
+        "< 50 m worst. The MPC removes the secular drift: drift-free rows on the chaser-target energy difference "
+        "(tol 0.05 mm/s = 1.1 m/orbit) at every hop impulse AND at a trim one MPC node (605 s) later, whose estimate of "
+        "the invariant averages the ~60 navigation samples since the hop impulse (0.5 m / 0.5 mm/s white noise: "
+        "1.0 mm/s per sample, 0.13 mm/s averaged = 2.8 m/orbit 1-sigma); the trim removes the hop impulse's "
+        "execution error (0.5 deg pointing on 0.2-0.4 m/s: 2-3 mm/s, 40-66 m/orbit 1-sigma), its own error on a "
+        "few mm/s is ~0.03 mm/s; later impulses of the hop keep the trimmed invariant (hold rows). The drift is "
+        "checked from the post-trim state; the untrimmed drift (an abort in the 605 s before the trim) is reported "
+        "beside it", red,
         data={"nominal_miss_per_orbit_m": nom_miss, "mc_safe_runs": safe_runs, "mc_runs": len(items),
               "mc_miss_per_orbit_m": {"median": float(np.median(miss_all)), "max": float(np.max(miss_all)),
-                                      "max_after_first_hop": float(np.max(miss_later))}}))
+                                      "max_first_hop": float(np.max(miss_first))},
+              "mc_untrimmed_safe_window_orbits_min": float(min(untrimmed)) if untrimmed else None}))
     # R-bar and glideslope: no hold
     mc_r = _campaign("srf-rbar-mc", ctx, n_mc)
     mc_g = _campaign("srf-glideslope-40-mc", ctx, n_mc)
