@@ -19,6 +19,12 @@ class ActuatorBase:
 
     period_s: float | None = field(default=None, kw_only=True)
 
+    @property
+    def zero_passthrough(self) -> bool:
+        """True when ``apply`` of a zero command returns zero without drawing random numbers (the
+        engine may then skip idle ticks, :mod:`proxops.sim.engine`). Default False (unknown)."""
+        return False
+
     def apply(self, t: float, u: np.ndarray, kind: str, rng: np.random.Generator) -> np.ndarray:
         raise NotImplementedError
 
@@ -26,6 +32,8 @@ class ActuatorBase:
 @dataclass
 class IdealActuator(ActuatorBase):
     """Applies the command unchanged."""
+
+    zero_passthrough = True
 
     def apply(self, t: float, u: np.ndarray, kind: str, rng: np.random.Generator) -> np.ndarray:
         return np.array(u, dtype=float)
@@ -77,6 +85,12 @@ class ThrusterModel(ActuatorBase):
             raise input_error("missed_window_s", self.missed_window_s, "must be a finite number > 0", "s")
         self._window = None
         self._window_missed = False
+
+    @property
+    def zero_passthrough(self) -> bool:
+        """A zero command fires nothing and draws nothing unless missed thrusts are drawn per
+        window (one draw per window, whatever the command)."""
+        return not (self.missed_window_s is not None and self.missed_probability > 0.0)
 
     def limited(self, u: np.ndarray) -> np.ndarray:
         """The deterministic part of :meth:`apply` (saturations, minimum impulse bit): what the

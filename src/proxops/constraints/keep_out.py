@@ -60,6 +60,12 @@ class KeepOutSphere:
         """Engine hook: r - |p - c| (m), > 0 inside the KOZ."""
         return float(-self.distance_to_surface(np.asarray(x, dtype=float)[:3]))
 
+    def violations(self, t, states) -> np.ndarray:
+        """Vectorised :meth:`violation` over samples: ``r - |p - c|`` (m) for states (n, >= 3) at
+        times ``t`` (n,) (the engine screens a coast with it; equal to :meth:`violation` up to
+        rounding)."""
+        return -self.distance_to_surface(np.asarray(states, dtype=float)[:, :3])
+
     # ------------------------------------------------------------------ CBF (eqs. 26-28)
     def h(self, states) -> np.ndarray:
         """Eq. (26) for states (..., >= 3) (m^2)."""

@@ -152,27 +152,30 @@ class EnergyDrift:
     re: float
 
     def target(self, t: float) -> np.ndarray:
-        k = int(round(t / self.dt))
-        if not 0 <= k < len(self.states) or abs(k * self.dt - t) > 1e-6 * max(1.0, t):
-            raise input_error("t", t, f"is not on the ephemeris grid (dt = {self.dt:g} s, {len(self.states)} points)", "s")
-        return self.states[k]
+        return self.states[self._index(t)]
 
     def _accel(self, r: np.ndarray) -> np.ndarray:
         from proxops.core.twobody import accel_gravity_vec
 
         return accel_gravity_vec(r, self.mu, self.j2, self.re)
 
-    def invariant(self, t: float, x) -> float:
-        from proxops.core.twobody import potential
-        from proxops.frames.hill import hill_to_eci_offset
+    def _index(self, t: float) -> int:
+        k = int(round(t / self.dt))
+        if not 0 <= k < len(self.states) or abs(k * self.dt - t) > 1e-6 * max(1.0, t):
+            raise input_error("t", t, f"is not on the ephemeris grid (dt = {self.dt:g} s, {len(self.states)} points)", "s")
+        return k
 
-        tgt = self.target(t)
-        off = hill_to_eci_offset(tgt, np.asarray(x, dtype=float), self._accel(tgt[:3]))
-        r_c = tgt[:3] + off[:3]
-        v_t = tgt[3:]
-        d_kin = float(v_t @ off[3:] + 0.5 * off[3:] @ off[3:])
-        d_pot = potential(*r_c, self.mu, self.j2, self.re) - potential(*tgt[:3], self.mu, self.j2, self.re)
-        return (d_kin + d_pot) / float(np.linalg.norm(v_t))
+    def invariant(self, t: float, x) -> float:
+        return float(self.invariants(np.array([t]), np.asarray(x, dtype=float)[None, :6])[0])
+
+    def invariants(self, t: np.ndarray, xs: np.ndarray) -> np.ndarray:
+        """:meth:`invariant` of Hill states (n, 6) at times (n,) on the ephemeris grid, one jitted
+        call (:func:`proxops.propagation.kernels.energy_invariants`; the same numbers row by row)."""
+        from proxops.propagation.kernels import energy_invariants
+
+        idx = [self._index(float(ti)) for ti in t]
+        p = np.array([self.mu, self.j2, self.re])
+        return energy_invariants(np.ascontiguousarray(self.states[idx]), np.ascontiguousarray(xs[:, :6], dtype=float), p)
 
     def gain(self, t: float, x=None) -> np.ndarray:
         """Change of the invariant per unit impulse at chaser Hill state ``x`` (Hill components):
@@ -407,7 +410,30 @@ class SrfMpc:
         info = {"solved": 1.0, "node": float(node), "relax": float(res.relax), "qp_iterations": float(res.iterations),
                 "cbf_min": res.cbf_min, "drift_min_range_m": res.drift_min_range_m}
         self.solve_log.append({"t": t, "node": node, "status": res.status, "u": u.copy(), **info})
-        return Command(u, "impulse", res.status, res.solve_time_s, mode, events, info)
+        if node == N:
+            return Command(u, "impulse", res.status, res.solve_time_s, mode, events, info)
+        # between nodes every step returns this idle command (no impulse) and only samples the drift
+        # invariant: the engine may skip those steps and hand the samples to observe_coast
+        idle = Command(np.zeros(3), "impulse", Status.OK, mode=mode, info={"solved": 0.0})
+        return Command(u, "impulse", res.status, res.solve_time_s, mode, events, info,
+                       next_decision_s=float(self.sched.times[node + 1]), idle=idle)
+
+    def observe_coast(self, t, x_est) -> None:
+        """The estimates of the steps the engine skipped between nodes (engine hook): sampled into
+        the drift invariant's average exactly as :meth:`step` samples them (same order)."""
+        if self.cfg.drift_free_tol_mps is None:
+            return
+        xs = np.asarray(x_est, dtype=float)
+        if xs.shape[1] != 6:
+            return
+        ok = np.all(np.isfinite(xs), axis=1)
+        if self.drift_model is not None:
+            values = self.drift_model.invariants(np.asarray(t)[ok], xs[ok]).tolist()
+        else:
+            values = [float(x[4] + 2.0 * self.n_orb * x[0]) for x in xs[ok]]
+        for v in values:  # sequential sum: the same rounding as one step at a time
+            self._c_sum += v
+        self._c_count += len(values)
 
     def _node_before(self, k: int) -> int:
         return int(np.searchsorted(self.sched.steps, k, side="right")) - 1

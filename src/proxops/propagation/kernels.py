@@ -24,7 +24,7 @@ import math
 import numpy as np
 from numba import njit
 
-from proxops.core.twobody import accel_differential, accel_gravity
+from proxops.core.twobody import accel_differential, accel_gravity, potential
 
 # ---------------------------------------------------------------- DOP853 tableau
 N_STAGES = 12
@@ -256,6 +256,26 @@ def y_from_hill(target: np.ndarray, hill: np.ndarray, p: np.ndarray) -> np.ndarr
 
 
 @njit(cache=True)
+def energy_invariants(targets: np.ndarray, hill: np.ndarray, p: np.ndarray) -> np.ndarray:
+    """Chaser-minus-target specific orbital energy over |v_t| (m/s) for target ECI states (n, 6) and
+    chaser Hill states (n, 6): ``(v_t . dv + |dv|^2 / 2 + V(r_t + dr) - V(r_t)) / |v_t|`` with the
+    exact offset (dr, dv) of :func:`y_from_hill` and V the two-body + J2 potential (J2 = p[1]).
+    Conserved on the free motion of both (axisymmetric J2); zero difference means equal semi-major
+    axes, i.e. no secular along-track drift (the srf MPC's drift invariant)."""
+    n = targets.shape[0]
+    out = np.empty(n)
+    mu, j2, re = p[0], p[1], p[2]
+    for k in range(n):
+        y = y_from_hill(targets[k], hill[k], p)
+        rtx, rty, rtz, vtx, vty, vtz = y[0], y[1], y[2], y[3], y[4], y[5]
+        dx, dy, dz, dvx, dvy, dvz = y[6], y[7], y[8], y[9], y[10], y[11]
+        d_kin = vtx * dvx + vty * dvy + vtz * dvz + 0.5 * (dvx * dvx + dvy * dvy + dvz * dvz)
+        d_pot = potential(rtx + dx, rty + dy, rtz + dz, mu, j2, re) - potential(rtx, rty, rtz, mu, j2, re)
+        out[k] = (d_kin + d_pot) / math.sqrt(vtx * vtx + vty * vty + vtz * vtz)
+    return out
+
+
+@njit(cache=True)
 def apply_hill_impulse(y: np.ndarray, dv: np.ndarray) -> np.ndarray:
     """Copy of y with a Hill-axes velocity change ``dv`` (m/s) added to the chaser."""
     out = y.copy()
@@ -401,6 +421,33 @@ def propagate_dop853(y0, dt, u, p, rtol, atol) -> tuple:
     for i in range(y0.size):
         y[i] = out[1, i]
     return y, status, n_steps
+
+
+@njit(cache=True)
+def coast_dop853(y0, n, dt, u, p, rtol, atol) -> tuple:
+    """``n`` consecutive :func:`propagate_dop853` calls of ``dt`` s each (the same numbers, one
+    call): full states (n + 1, 12), their Hill states (n + 1, 6), the status and the index of the
+    piece that failed (-1 if none)."""
+    ys = np.empty((n + 1, y0.size))
+    rel = np.empty((n + 1, 6))
+    times = np.empty(2)
+    times[0] = 0.0
+    times[1] = dt
+    out = np.empty((2, y0.size))
+    for i in range(y0.size):
+        ys[0, i] = y0[i]
+    for k in range(n + 1):
+        h = hill_from_y(ys[k], p)
+        for i in range(6):
+            rel[k, i] = h[i]
+        if k == n:
+            break
+        status, _, _ = integrate_grid(ys[k], times, u, p, rtol, atol, out)
+        if status != STATUS_OK:
+            return ys, rel, status, k
+        for i in range(y0.size):
+            ys[k + 1, i] = out[1, i]
+    return ys, rel, STATUS_OK, -1
 
 
 @njit(cache=True)

@@ -43,11 +43,18 @@ class Command:
     info: dict = field(default_factory=dict)  # scalars recorded per step (e.g. value function)
     stop: bool = False  # controller declares the run finished (e.g. docked)
     status_detail: str = ""  # the solver's own words for a failed status (message of the "solver" event)
+    next_decision_s: float | None = None  # the controller's next decision is due at this time (s); None: next tick
+    idle: "Command | None" = None  # what every tick before next_decision_s would return (zero u)
 
 
 @runtime_checkable
 class Controller(Protocol):
     """Every controller: ``reset`` once, then ``step(t, x_est) -> Command`` each sample.
+
+    Optional hooks: ``observe_truth(t, x_true)`` (shown the truth before each step: safety
+    monitors), ``observe_coast(t (n,), x_est (n, n_x))`` (the estimates of the ticks the engine
+    skipped after a command with ``next_decision_s``, in time order, before the next step: what
+    those ``step`` calls would have seen).
 
     ``dt`` is also the controller's period in the multi-rate schedule. Before ``reset`` the
     engine sets ``rng`` (numpy Generator): the controller's own random stream (e.g. for a
