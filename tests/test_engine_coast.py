@@ -156,5 +156,5 @@ def test_srf_coast_equals_step_by_step(name):
     assert_same_result(a, b)
     assert np.any(a.x_est != a.x_true)  # noisy navigation: the stream is drawn identically
     solved = np.nan_to_num(a.info["solved"])
-    assert 0 < solved.sum() < 0.05 * len(a.t)  # decisions are rare: most steps were coasted
+    assert 0 < solved.sum() < 0.1 * len(a.t)  # decisions are rare: most steps were coasted
     assert _timeless(system.summarize(sc, a)) == _timeless(system.summarize(sc, b))
