@@ -11,20 +11,27 @@ import numpy as np
 from proxops.constraints.keep_out import KeepOutSphere
 
 
-def hermite_min_range(t, x, center) -> float:
-    """Minimum |p - c| along cubic Hermite interpolants between samples (positions + velocities)."""
+def _segment_min_ranges(t, x, center) -> np.ndarray:
+    """Per segment k (between samples k and k+1): minimum |p - c| over both samples and 19
+    interior points of the cubic Hermite interpolant (positions + velocities), shape (n - 1,)."""
     t = np.asarray(t, dtype=float)
     p = x[:, :3] - center
     v = x[:, 3:6]
-    best = float(np.min(np.linalg.norm(p, axis=1)))
-    if len(t) < 2:
-        return best
+    ends = np.linalg.norm(p, axis=1)
     s = np.linspace(0.0, 1.0, 21)[1:-1, None, None]
     h00, h10 = 2 * s**3 - 3 * s**2 + 1, s**3 - 2 * s**2 + s
     h01, h11 = -2 * s**3 + 3 * s**2, s**3 - s**2
     dt = np.diff(t)[None, :, None]
     seg = h00 * p[:-1] + h10 * dt * v[:-1] + h01 * p[1:] + h11 * dt * v[1:]
-    return min(best, float(np.min(np.linalg.norm(seg, axis=2))))
+    return np.minimum(np.minimum(ends[:-1], ends[1:]), np.min(np.linalg.norm(seg, axis=2), axis=0))
+
+
+def hermite_min_range(t, x, center) -> float:
+    """Minimum |p - c| along cubic Hermite interpolants between samples (positions + velocities)."""
+    x = np.asarray(x, dtype=float)
+    if len(x) < 2:
+        return float(np.min(np.linalg.norm(x[:, :3] - center, axis=1)))
+    return float(np.min(_segment_min_ranges(t, x, center)))
 
 
 def drift_safety(times, drift, koz: KeepOutSphere) -> dict:
@@ -38,13 +45,15 @@ def drift_safety(times, drift, koz: KeepOutSphere) -> dict:
 
 def first_entry_time(t, x, center, radius) -> float:
     """First sample time (s) of the segment where the drift enters the sphere (its Hermite
-    interpolant dips inside; also a sample inside); inf if it never does."""
+    interpolant dips inside; also a sample inside); inf if it never does. Segments up to the
+    first sample inside are checked, all at once."""
+    x = np.asarray(x, dtype=float)
     p = np.linalg.norm(x[:, :3] - center, axis=1)
     inside = np.nonzero(p < radius)[0]
     k_in = int(inside[0]) if inside.size else None
-    for k in range(1, len(t)):  # the first segment whose interpolant dips inside
-        if k_in is not None and k > k_in:
-            break
-        if hermite_min_range(t[k - 1:k + 1], x[k - 1:k + 1], center) < radius:
-            return float(t[k - 1])
+    last = len(t) - 1 if k_in is None else k_in  # segments ending at samples 1..last
+    if last >= 1:
+        hit = np.nonzero(_segment_min_ranges(np.asarray(t)[:last + 1], x[:last + 1], center) < radius)[0]
+        if hit.size:
+            return float(t[hit[0]])
     return float(t[k_in]) if k_in is not None else np.inf

@@ -173,22 +173,32 @@ class EnergyDrift:
         call (:func:`proxops.propagation.kernels.energy_invariants`; the same numbers row by row)."""
         from proxops.propagation.kernels import energy_invariants
 
-        idx = [self._index(float(ti)) for ti in t]
-        p = np.array([self.mu, self.j2, self.re])
-        return energy_invariants(np.ascontiguousarray(self.states[idx]), np.ascontiguousarray(xs[:, :6], dtype=float), p)
+        return energy_invariants(self._targets(t), np.ascontiguousarray(xs[:, :6], dtype=float), self._params())
+
+    def _params(self) -> np.ndarray:
+        return np.array([self.mu, self.j2, self.re])
+
+    def _targets(self, t) -> np.ndarray:
+        t = np.asarray(t, dtype=float)
+        k = np.rint(t / self.dt).astype(int)
+        bad = (k < 0) | (k >= len(self.states)) | (np.abs(k * self.dt - t) > 1e-6 * np.maximum(1.0, t))
+        if bad.any():
+            self._index(float(t[np.argmax(bad)]))  # raises the one-line error
+        return np.ascontiguousarray(self.states[k])
+
+    def gains(self, t, xs) -> np.ndarray:
+        """:meth:`gain` of Hill states (n, 6) at times (n,), one jitted call
+        (:func:`proxops.propagation.kernels.energy_gains`)."""
+        from proxops.propagation.kernels import energy_gains
+
+        return energy_gains(self._targets(t), np.ascontiguousarray(xs[:, :6], dtype=float), self._params())
 
     def gain(self, t: float, x=None) -> np.ndarray:
         """Change of the invariant per unit impulse at chaser Hill state ``x`` (Hill components):
         ``C v_c / |v_t|`` with the chaser's inertial velocity ``C v_c = C v_t + rho' + w x rho``
         (first order in the impulse; the rotating-frame term is 1.7 m/s at 2 km along-track)."""
-        from proxops.frames.hill import eci_vector_to_hill, hill_frame_rate
-
-        tgt = self.target(t)
-        v = eci_vector_to_hill(tgt, tgt[3:])
-        if x is not None:
-            x = np.asarray(x, dtype=float)
-            v = v + x[3:6] + np.cross(hill_frame_rate(tgt, self._accel(tgt[:3])), x[:3])
-        return v / float(np.linalg.norm(tgt[3:]))
+        x = np.zeros(6) if x is None else np.asarray(x, dtype=float)
+        return self.gains(np.array([t]), x[None, :6])[0]
 
 
 @dataclass
@@ -371,10 +381,14 @@ class SrfMpc:
         plan = self.plan.copy()
         plan[:i] = 0.0
         flat = plan.ravel()
-        last = int(self.drift_nodes.max())
-        for l in range(i, min(last, N) + 1):
-            xl = x if l == i else self._phi[l, i] @ x + self._S[l] @ flat
-            k[l] = self.drift_model.gain(float(self.sched.times[l]), xl)
+        last = min(int(self.drift_nodes.max()), N)
+        if last < i:
+            return k
+        xs = np.empty((last - i + 1, 6))
+        xs[0] = x
+        if last > i:  # predicted states at nodes i+1..last
+            xs[1:] = np.einsum("lij,j->li", self._phi[i + 1:last + 1, i], x) + self._S[i + 1:last + 1] @ flat
+        k[i:last + 1] = self.drift_model.gains(self.sched.times[i:last + 1], xs)
         return k
 
     def step(self, t: float, x_est) -> Command:

@@ -276,6 +276,34 @@ def energy_invariants(targets: np.ndarray, hill: np.ndarray, p: np.ndarray) -> n
 
 
 @njit(cache=True)
+def energy_gains(targets: np.ndarray, hill: np.ndarray, p: np.ndarray) -> np.ndarray:
+    """Gradient of :func:`energy_invariants` with respect to an impulse in Hill axes (n, 3) (1/1,
+    m/s per m/s): the chaser's inertial velocity in Hill components over |v_t|,
+    ``(C v_t + rho' + w x rho) / |v_t|`` (w: Hill frame rate incl. the J2 x part)."""
+    n = targets.shape[0]
+    out = np.empty((n, 3))
+    y = np.zeros(12)
+    for k in range(n):
+        for i in range(6):
+            y[i] = targets[k, i]
+        xx, xy, xz, yx, yy, yz, zx, zy, zz = hill_axes(y)
+        rn2 = y[0] * y[0] + y[1] * y[1] + y[2] * y[2]
+        hx = y[1] * y[5] - y[2] * y[4]
+        hy = y[2] * y[3] - y[0] * y[5]
+        hz = y[0] * y[4] - y[1] * y[3]
+        wz = math.sqrt(hx * hx + hy * hy + hz * hz) / rn2
+        wx = _frame_rate_x(y, p)
+        vx, vy, vz = y[3], y[4], y[5]
+        px, py, pz = hill[k, 0], hill[k, 1], hill[k, 2]
+        vn = math.sqrt(vx * vx + vy * vy + vz * vz)
+        # w x rho with w = (wx, 0, wz): (-wz py, wz px - wx pz, wx py)
+        out[k, 0] = (xx * vx + xy * vy + xz * vz + hill[k, 3] - wz * py) / vn
+        out[k, 1] = (yx * vx + yy * vy + yz * vz + hill[k, 4] + wz * px - wx * pz) / vn
+        out[k, 2] = (zx * vx + zy * vy + zz * vz + hill[k, 5] + wx * py) / vn
+    return out
+
+
+@njit(cache=True)
 def apply_hill_impulse(y: np.ndarray, dv: np.ndarray) -> np.ndarray:
     """Copy of y with a Hill-axes velocity change ``dv`` (m/s) added to the chaser."""
     out = y.copy()
