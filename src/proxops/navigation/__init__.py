@@ -98,11 +98,12 @@ class GaussianNavigation(NavigationBase):
 
     def measure(self, t: float, x_true: np.ndarray, rng: np.random.Generator) -> np.ndarray:
         x = np.array(x_true, dtype=float)
-        if self._sigma_cache is None or self._sigma_cache[0] != x.size:
-            self._sigma_cache = (x.size, self.additive_sigma(x.size))
-        sigma = self._sigma_cache[1]
-        if sigma.any():
-            x = x + self.scale(x) * sigma * rng.standard_normal(x.size)
+        cache = self._sigma_cache
+        if cache is None or cache[0] != x.size:
+            sigma = self.additive_sigma(x.size)
+            cache = self._sigma_cache = (x.size, sigma, bool(sigma.any()))
+        if cache[2]:
+            x = x + self.scale(x) * cache[1] * rng.standard_normal(x.size)
         if self.attitude_sigma_rad > 0.0 and self.layout is not None:
             for b in self.layout.blocks:
                 if b.kind == "quaternion":
@@ -121,7 +122,8 @@ class GaussianNavigation(NavigationBase):
         if x.shape[0] == 0:
             return x
         if self._sigma_cache is None or self._sigma_cache[0] != x.shape[1]:
-            self._sigma_cache = (x.shape[1], self.additive_sigma(x.shape[1]))
+            sigma = self.additive_sigma(x.shape[1])
+            self._sigma_cache = (x.shape[1], sigma, bool(sigma.any()))
         sigma = self._sigma_cache[1]
         if not sigma.any():
             return x

@@ -158,8 +158,15 @@ def simulate(setup: Setup, seed: int = 0, progress: bool = False, coast: bool = 
     in_violation: dict[str, bool] = {}
     zero_u = np.zeros(n_u)
 
+    constraints = tuple(setup.constraints)
+    stop_condition = setup.stop_condition
+    n_sub = int(setup.check_substeps)
+    sub_dt = h / n_sub
+    propagate, relative_state, measure, step_ctrl, apply_act = (plant.propagate, plant.relative_state, nav.measure,
+                                                                 ctrl.step, act.apply)
+
     def check_constraints(t: float, xr: np.ndarray) -> None:
-        for con in setup.constraints:
+        for con in constraints:
             v = float(con.violation(t, xr))
             name = con.name
             if v > max_violation.get(name, 0.0):
@@ -169,6 +176,9 @@ def simulate(setup: Setup, seed: int = 0, progress: bool = False, coast: bool = 
             in_violation[name] = v > 0.0
 
     bar = _progress_bar(n_steps, progress)
+    bar_close = bar.close
+    if isinstance(bar, _NoBar):
+        bar = None
     wall0 = time.perf_counter()
     x0 = plant.relative_state(state)
     ctrl.reset(0.0, x0)
@@ -193,8 +203,6 @@ def simulate(setup: Setup, seed: int = 0, progress: bool = False, coast: bool = 
         """Samples j0..j1-1 of idle controller ticks (state: the plant state at j0). Returns
         (plant state at the next sample, index of the stop sample or None, stop reason)."""
         nonlocal last_mode
-        n_sub = setup.check_substeps
-        sub_dt = h / n_sub
         m = j1 - j0
         sample_t = np.arange(j0, j1) * h
         piece_t = (sample_t[:, None] + np.arange(n_sub) * sub_dt).ravel()  # start of every propagated piece
@@ -203,9 +211,9 @@ def simulate(setup: Setup, seed: int = 0, progress: bool = False, coast: bool = 
         xs = rel[0:m * n_sub:n_sub]
         # stop condition on the samples (after navigation and constraints, as in the step path)
         stop_i, reason = None, None
-        if setup.stop_condition is not None:
+        if stop_condition is not None:
             for i in range(m):
-                reason = setup.stop_condition(float(sample_t[i]), xs[i])
+                reason = stop_condition(float(sample_t[i]), xs[i])
                 if reason:
                     stop_i = i
                     break
@@ -227,14 +235,12 @@ def simulate(setup: Setup, seed: int = 0, progress: bool = False, coast: bool = 
                     nav_command(ti, idle.u if act_limited is None else act_limited(idle.u), idle.kind)
         sl = slice(j0, j0 + n_rec)
         t_rec[sl], x_true[sl], x_est[sl] = sample_t[:n_rec], xs[:n_rec], xe_rows
-        if plain_mode:
-            plant_modes.extend([""] * n_rec)
-        else:
+        if not plain_mode:
             plant_modes.extend(plant_mode(states[i * n_sub]) for i in range(n_rec))
         # constraints at every check point up to the stop sample (vectorised screen, exact near zero)
         n_chk = m * n_sub if stop_i is None else stop_i * n_sub + 1
         chk_t, chk_x = piece_t[:n_chk], rel[:n_chk]
-        for con in setup.constraints:
+        for con in constraints:
             batch = getattr(con, "violations", None)
             if batch is not None:
                 v = np.array(batch(chk_t, chk_x), dtype=float)
@@ -276,7 +282,8 @@ def simulate(setup: Setup, seed: int = 0, progress: bool = False, coast: bool = 
                     dv_cum[j + 1] = dv_cum[j] + dv0
             if observe_coast is not None:
                 observe_coast(sample_t[:n_idle], xe_rows[:n_idle])
-            bar.update(n_idle)
+            if bar is not None:
+                bar.update(n_idle)
         if stop_i is not None:
             status.append(Status.NONE)
             modes.append(last_mode or "")
@@ -289,16 +296,18 @@ def simulate(setup: Setup, seed: int = 0, progress: bool = False, coast: bool = 
         k = 0
         while k <= n_steps:
             t = k * h
-            xr = plant.relative_state(state)
+            xr = relative_state(state)
             if single_rate or k % k_nav == 0:
-                xe = nav.measure(t, xr, rng_nav)
+                xe = measure(t, xr, rng_nav)
                 if nav_events:
                     events.extend((t, kind, msg) for kind, msg in nav_events)
                     nav_events.clear()
             t_rec[k], x_true[k], x_est[k] = t, xr, xe
-            plant_modes.append(plant_mode(state))
-            check_constraints(t, xr)
-            reason = setup.stop_condition(t, xr) if setup.stop_condition else None
+            if not plain_mode:
+                plant_modes.append(plant_mode(state))
+            if constraints:
+                check_constraints(t, xr)
+            reason = stop_condition(t, xr) if stop_condition is not None else None
             if reason:
                 outcome, stop_reason = reason, StopReason.STOP_CONDITION
                 events.append((t, "stop", reason))
@@ -316,7 +325,7 @@ def simulate(setup: Setup, seed: int = 0, progress: bool = False, coast: bool = 
             if ctrl_tick:
                 if observe is not None:
                     observe(t, xr)
-                cmd = ctrl.step(t, xe)
+                cmd = step_ctrl(t, xe)
                 st = Status.parse(cmd.status)
                 if cmd.stop:
                     outcome, stop_reason = cmd.mode or "stopped", StopReason.CONTROLLER
@@ -324,7 +333,7 @@ def simulate(setup: Setup, seed: int = 0, progress: bool = False, coast: bool = 
                     status.append(st)
                     modes.append(cmd.mode)
                     break
-                u = np.asarray(act.apply(t, cmd.u, cmd.kind, rng_act), dtype=float)
+                u = np.asarray(apply_act(t, cmd.u, cmd.kind, rng_act), dtype=float)
                 if nav_command is not None:
                     nav_command(t, cmd.u if act_limited is None else act_limited(cmd.u), cmd.kind)
                 u_cmd[k], u_app[k], solve_t[k] = cmd.u, u, cmd.solve_time_s
@@ -335,15 +344,15 @@ def simulate(setup: Setup, seed: int = 0, progress: bool = False, coast: bool = 
                 if cmd.mode != last_mode and last_mode is not None:
                     events.append((t, "mode", f"{last_mode} -> {cmd.mode}"))
                 last_mode = cmd.mode
-                for kind, msg in cmd.events:
-                    events.append((t, kind, msg))
+                if cmd.events:
+                    events.extend((t, kind, msg) for kind, msg in cmd.events)
                 for key, val in cmd.info.items():
                     series = info.get(key)
                     if series is None:
                         series = info[key] = np.full(n_steps + 1, np.nan)
                     series[k] = val
                 idle = cmd.idle
-                if can_coast and cmd.next_decision_s is not None and idle is not None:
+                if idle is not None and can_coast and cmd.next_decision_s is not None:
                     k_next = int(math.ceil(cmd.next_decision_s / h - 1e-9))
                     if (k_next > k + 1 and not idle.events and not idle.stop and Status.parse(idle.status) in NOT_FLAGGED
                             and not np.any(idle.u)):
@@ -357,23 +366,27 @@ def simulate(setup: Setup, seed: int = 0, progress: bool = False, coast: bool = 
                 elif k % k_act == 0:
                     u = np.asarray(act.apply(t, cmd.u, cmd.kind, rng_act), dtype=float)
                 u_cmd[k], u_app[k] = (zero_u if cmd.kind == "impulse" else cmd.u), u
-            dv_cum[k + 1] = dv_cum[k] + delta_v(u, cmd.kind, h)
-            if cmd.kind == "impulse":
+            kind = cmd.kind
+            dv_cum[k + 1] = dv_cum[k] + delta_v(u, kind, h)
+            if kind == "impulse":
                 if ctrl_tick and u.any():
                     state = plant.apply_impulse(t, state, u)
                 u_hold = zero_u
             else:
                 u_hold = u
-            sub_dt = h / setup.check_substeps
-            for j in range(setup.check_substeps):
-                if has_events:
-                    state, plant_events = plant.propagate_events(t + j * sub_dt, state, u_hold, sub_dt)
-                    events.extend(plant_events)
-                else:
-                    state = plant.propagate(t + j * sub_dt, state, u_hold, sub_dt)
-                if j < setup.check_substeps - 1:
-                    check_constraints(t + (j + 1) * sub_dt, plant.relative_state(state))
-            bar.update(1)
+            if n_sub == 1 and not has_events:
+                state = propagate(t, state, u_hold, sub_dt)  # = the loop below with one piece (t + 0 * sub_dt)
+            else:
+                for j in range(n_sub):
+                    if has_events:
+                        state, plant_events = plant.propagate_events(t + j * sub_dt, state, u_hold, sub_dt)
+                        events.extend(plant_events)
+                    else:
+                        state = propagate(t + j * sub_dt, state, u_hold, sub_dt)
+                    if j < n_sub - 1:
+                        check_constraints(t + (j + 1) * sub_dt, relative_state(state))
+            if bar is not None:
+                bar.update(1)
             k += 1
             if coast_to > k:
                 state, stop_i, reason = run_coast(k, coast_to, state, cmd.idle)
@@ -384,7 +397,7 @@ def simulate(setup: Setup, seed: int = 0, progress: bool = False, coast: bool = 
                 k = coast_to
             coast_to = 0
     finally:
-        bar.close()
+        bar_close()
     n = k + 1
     meta = dict(setup.meta)
     meta.update(
@@ -418,7 +431,7 @@ def simulate(setup: Setup, seed: int = 0, progress: bool = False, coast: bool = 
         info={key: arr[:n] for key, arr in info.items()},
         events=events,
         meta=meta,
-        plant_mode=plant_modes[:n],
+        plant_mode=[""] * n if plain_mode else plant_modes[:n],
     )
 
 
