@@ -63,13 +63,18 @@ def _measure_runs(repeats: int) -> dict:
         best = None
         for _ in range(repeats):
             loaded = load_scenario(name)
-            t0 = time.perf_counter()
+            t0, c0 = time.perf_counter(), time.process_time()
             _, results = execute(loaded)
-            wall = time.perf_counter() - t0
+            wall, cpu = time.perf_counter() - t0, time.process_time() - c0
             sim = sum(float(r.meta.get("wall_time_s", 0.0)) for r in results.values())
-            solve = sum(float(np.sum(r.solve_time_s)) for r in results.values())
+            # solver = QP data update + solve: srf and cortex time both in solve_time_s; los reports
+            # its update (condensing offset + DAQP update) as info mpc_build_ms
+            solve = sum(float(np.sum(r.solve_time_s)) + float(np.nansum(r.info.get("mpc_build_ms", 0.0))) * 1e-3
+                        for r in results.values())
             steps = sum(len(r.t) - 1 for r in results.values())
-            row = {"run_s": wall, "sim_s": sim, "solve_s": solve, "steps": steps}
+            decisions = sum(int(np.count_nonzero(r.solve_time_s > 0)) for r in results.values())
+            row = {"run_s": wall, "run_cpu_s": cpu, "sim_s": sim, "solve_s": solve, "steps": steps,
+                   "decisions": decisions}
             if best is None or wall < best["run_s"]:
                 best = row
         out[name] = best
@@ -87,6 +92,33 @@ def _measure_campaigns() -> dict:
         out[name] = {"wall_s": wall, "cold_pool": i == 0, "successes": int(res.table["success"].sum())
                      if "success" in res.table else None}
     shutdown_pools()
+    return out
+
+
+def _measure_qp(repeats: int) -> dict:
+    """The real QPs inside closed loops, per decision: QP data update + solve (the headline) and
+    the solve alone. los: the eq.-(11) QP of los-tumble (N = 40, DAQP); srf: problem (29) of
+    srf-vbar (PIQP, update and solve both timed in solve_time_s)."""
+    import numpy as np
+
+    from proxops.analysis.runs import execute
+    from proxops.scenarios.loader import load_scenario
+
+    out = {}
+    execute(load_scenario("los-tumble"))
+    best = None
+    for _ in range(repeats):
+        res = next(iter(execute(load_scenario("los-tumble"))[1].values()))
+        solve = res.solve_time_s[1:][res.solve_time_s[1:] > 0] * 1e3  # the first solve is the cold start
+        upd = res.info["mpc_build_ms"][1:][res.solve_time_s[1:] > 0]
+        row = {"update_plus_solve_ms": float(np.median(solve + upd)), "solve_ms": float(np.median(solve)),
+               "update_ms": float(np.median(upd))}
+        if best is None or row["update_plus_solve_ms"] < best["update_plus_solve_ms"]:
+            best = row
+    out["los"] = best
+    res = next(iter(execute(load_scenario("srf-vbar"))[1].values()))
+    st = res.solve_time_s[res.solve_time_s > 0] * 1e3
+    out["srf"] = {"update_plus_solve_ms": float(np.median(st))}
     return out
 
 
@@ -117,6 +149,8 @@ def worker(args: list[str]) -> None:
         out["runs"] = _measure_runs(repeats)
     if "reach_table" in parts:
         out["reach_table"] = _measure_reach_table(repeats)
+    if "qp" in parts:
+        out["qp"] = _measure_qp(repeats)
     if "campaigns" in parts:
         out["campaigns"] = _measure_campaigns()
     if "reach_mc" in parts:
@@ -169,6 +203,29 @@ def cli_times(src: Path, repeats: int) -> dict:
     return out
 
 
+def cold_compile(src: Path) -> dict:
+    """First ``station-keeping`` and ``srf-vbar`` runs in a fresh interpreter with an EMPTY numba
+    cache (every kernel compiled) against a fresh interpreter with the cache filled: the one-off
+    compile time, printed apart from every other figure."""
+    import tempfile
+
+    code = ("import time; t0 = time.perf_counter(); from proxops.analysis.runs import execute; "
+            "from proxops.scenarios.loader import load_scenario; t1 = time.perf_counter(); "
+            "[execute(load_scenario(n)) for n in ('station-keeping', 'srf-vbar')]; "
+            "print('RESULT', t1 - t0, time.perf_counter() - t1)")
+    out = {}
+    with tempfile.TemporaryDirectory() as cache:
+        env = dict(ENV, PYTHONPATH=str(src), NUMBA_CACHE_DIR=cache)
+        for label in ("cold", "cached"):
+            proc = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True)
+            line = next((ln for ln in proc.stdout.splitlines() if ln.startswith("RESULT")), None)
+            if line is None:
+                raise RuntimeError(proc.stderr[-2000:])
+            imports, runs = map(float, line.split()[1:])
+            out[label] = {"imports_s": imports, "first_runs_s": runs}
+    return out
+
+
 def _ratio(old, new) -> str:
     return f"{old / new:5.2f}x" if old and new else "   - "
 
@@ -176,17 +233,34 @@ def _ratio(old, new) -> str:
 def report(new: dict, old: dict, old_label: str) -> None:
     print(f"baseline: {old_label}")
     print(f"\nclosed loop per system (best of repeats; solver share = solve / sim; glue = (sim - solve) / steps)")
-    print(f"{'scenario':<20} {'steps':>6} {'run s':>7} {'(base)':>7} {'speed-up':>8} {'sim s':>7} "
-          f"{'solver %':>8} {'(base)':>6} {'glue us/step':>12} {'(base)':>7}")
+    print(f"{'scenario':<20} {'steps':>6} {'decide':>6} {'run s':>7} {'(base)':>7} {'speed-up':>8} {'cpu x':>6} "
+          f"{'sim s':>7} {'solver %':>8} {'(base)':>6} {'glue us/step':>12} {'(base)':>7}")
     for name, n in new["runs"].items():
         o = old.get("runs", {}).get(name, {})
         share = 100 * n["solve_s"] / n["sim_s"] if n["sim_s"] else 0.0
         glue = (n["sim_s"] - n["solve_s"]) / max(n["steps"], 1) * 1e6
         o_share = 100 * o["solve_s"] / o["sim_s"] if o.get("sim_s") else float("nan")
         o_glue = (o["sim_s"] - o["solve_s"]) / max(o["steps"], 1) * 1e6 if o else float("nan")
-        print(f"{name:<20} {n['steps']:>6d} {n['run_s']:7.3f} {o.get('run_s', float('nan')):7.3f} "
-              f"{_ratio(o.get('run_s'), n['run_s']):>8} {n['sim_s']:7.3f} {share:8.1f} {o_share:6.1f} "
+        print(f"{name:<20} {n['steps']:>6d} {n.get('decisions', 0):>6d} {n['run_s']:7.3f} "
+              f"{o.get('run_s', float('nan')):7.3f} {_ratio(o.get('run_s'), n['run_s']):>8} "
+              f"{_ratio(o.get('run_cpu_s'), n.get('run_cpu_s')):>6} {n['sim_s']:7.3f} {share:8.1f} {o_share:6.1f} "
               f"{glue:12.1f} {o_glue:7.1f}")
+    print("(decide: steps where the controller solved; cpu x: ratio of the run's CPU time, less sensitive "
+          "to the machine's load than the wall time)")
+    if "qp" in new:
+        q, oq = new["qp"], old.get("qp", {})
+        lo, olo = q["los"], oq.get("los", {})
+        print(f"\nheadline, the real QPs in closed loops (median per decision): los eq. (11), N = 40, DAQP: "
+              f"update + solve {lo['update_plus_solve_ms']:.3f} ms (update {lo['update_ms']:.3f}, solve "
+              f"{lo['solve_ms']:.3f}; base {olo.get('update_plus_solve_ms', float('nan')):.3f} ms); "
+              f"srf-vbar problem (29), PIQP: update + solve {q['srf']['update_plus_solve_ms']:.3f} ms "
+              f"(base {oq.get('srf', {}).get('update_plus_solve_ms', float('nan')):.3f} ms)")
+    if "cold" in new:
+        c = new["cold"]
+        print(f"cold start with an empty numba cache (compiles every kernel): imports {c['cold']['imports_s']:.2f} s, "
+              f"first station-keeping + srf-vbar runs {c['cold']['first_runs_s']:.2f} s; with the cache: imports "
+              f"{c['cached']['imports_s']:.2f} s, runs {c['cached']['first_runs_s']:.2f} s "
+              f"(compile time ~ {c['cold']['first_runs_s'] - c['cached']['first_runs_s']:.2f} s, once per machine)")
     if "campaigns" in new:
         print("\n50-run srf campaigns, 2 workers (the first includes the pool's cold start)")
         for name, n in new["campaigns"].items():
@@ -215,7 +289,7 @@ def main(argv: list[str] | None = None) -> None:
     for a in argv:
         if a.startswith("--repeats="):
             repeats = int(a.split("=", 1)[1])
-    parts = ["runs", "reach_table"] + (["campaigns"] if "--quick" not in argv else [])
+    parts = ["runs", "qp", "reach_table"] + (["campaigns"] if "--quick" not in argv else [])
     if "--reach-mc" in argv:
         parts.append("reach_mc")
     print(f"load average {os.getloadavg()[0]:.2f} on {len(os.sched_getaffinity(0))} usable cpus")
@@ -241,6 +315,8 @@ def main(argv: list[str] | None = None) -> None:
                      f"{old.get('load_before', float('nan')):.2f}) from {BASELINE_JSON.name}" if old else "none")
     new = measure_tree(ROOT / "src", repeats, parts)
     new["cli"] = cli_times(ROOT / "src", repeats)
+    if "--quick" not in argv:
+        new["cold"] = cold_compile(ROOT / "src")
     report(new, old, old_label)
 
 
