@@ -77,9 +77,10 @@ class Pulser:
             self._see(ti, xi)
 
 
-def _toy_setup(check_substeps=1, stop_at_s=None, noise=True, every=7):
+def _toy_setup(check_substeps=1, stop_at_s=None, noise=True, every=7, range_scale_m=None):
     x0 = np.array([1.0, 60.0, 0.0, 0.0, -0.2, 0.0])  # passes through both spheres, entering between decisions
-    nav = GaussianNavigation(position_sigma_m=0.3, velocity_sigma_mps=1e-3) if noise else GaussianNavigation()
+    nav = (GaussianNavigation(position_sigma_m=0.3, velocity_sigma_mps=1e-3, range_scale_m=range_scale_m,
+                              range_floor=0.02) if noise else GaussianNavigation())
     stop = (lambda t, x: "timeout" if t >= stop_at_s else None) if stop_at_s is not None else None
     return Setup(plant=CWPlant(N_ORB, x0), controller=Pulser(5.0, every), duration_s=900.0, navigation=nav,
                  constraints=(KeepOutSphere(20.0, name="koz"), KeepOutSphere(6.0, (-55.0, -21.0, 0.0), name="koz2")),
@@ -103,6 +104,15 @@ def test_toy_coast_equals_step_by_step_with_violations_noise_and_substeps(subste
     assert a_setup.controller.seen == b_setup.controller.seen
     assert a_setup.controller.sum == b_setup.controller.sum
     assert len(b_setup.controller.seen) == len(a.t) - 1
+
+
+def test_toy_range_scaled_noise_and_no_noise():
+    """Range-dependent sigmas (cortex's navigation model): the per-row factor of the vectorised
+    draw is the scalar one; and a noiseless model draws nothing on either path."""
+    for kw in ({"range_scale_m": 80.0}, {"noise": False}):
+        a = simulate(_toy_setup(**kw), seed=5, coast=False)
+        b = simulate(_toy_setup(**kw), seed=5, coast=True)
+        assert_same_result(a, b)
 
 
 def test_toy_stop_inside_a_coast():
@@ -143,10 +153,12 @@ def test_no_coast_without_announcement_or_with_a_drawing_actuator():
     assert len(a.t) == len(b.t)
 
 
-@pytest.mark.parametrize("name", ["srf-vbar", "srf-rbar"])
+@pytest.mark.parametrize("name", ["srf-vbar", "srf-rbar", "srf-vbar-ekf"])
 def test_srf_coast_equals_step_by_step(name):
     """srf on J2 truth with navigation noise: V-bar samples its J2-aware drift invariant on every
-    step (observe_coast gets the skipped ones), R-bar has no drift rows. Full runs."""
+    step (observe_coast gets the skipped ones), R-bar has no drift rows, srf-vbar-ekf runs the
+    relative-navigation filter (measured and told the idle command on every skipped tick, its
+    events drained in order). Full runs."""
     from proxops.scenarios.loader import load_scenario
 
     loaded = load_scenario(name)
