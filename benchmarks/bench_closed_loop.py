@@ -7,6 +7,7 @@ share of it and the glue per step, the 50-run srf campaigns, the analytic certif
     python benchmarks/bench_closed_loop.py --no-baseline   # this tree, vs the stored baseline.json
     python benchmarks/bench_closed_loop.py --reach-mc      # also the 3 900-run ``reach mc`` (minutes)
     python benchmarks/bench_closed_loop.py --store         # measure the baseline tree, write baseline.json
+    python benchmarks/bench_closed_loop.py --parts=campaigns --no-baseline   # one part, vs the stored numbers
 
 The baseline tree is ``git archive BASELINE_COMMIT`` unpacked once into a cache folder (needs the
 git history); without it the numbers stored in benchmarks/baseline.json (same commit, measured
@@ -235,7 +236,7 @@ def report(new: dict, old: dict, old_label: str) -> None:
     print(f"\nclosed loop per system (best of repeats; solver share = solve / sim; glue = (sim - solve) / steps)")
     print(f"{'scenario':<20} {'steps':>6} {'decide':>6} {'run s':>7} {'(base)':>7} {'speed-up':>8} {'cpu x':>6} "
           f"{'sim s':>7} {'solver %':>8} {'(base)':>6} {'glue us/step':>12} {'(base)':>7}")
-    for name, n in new["runs"].items():
+    for name, n in new.get("runs", {}).items():
         o = old.get("runs", {}).get(name, {})
         share = 100 * n["solve_s"] / n["sim_s"] if n["sim_s"] else 0.0
         glue = (n["sim_s"] - n["solve_s"]) / max(n["steps"], 1) * 1e6
@@ -292,6 +293,9 @@ def main(argv: list[str] | None = None) -> None:
     parts = ["runs", "qp", "reach_table"] + (["campaigns"] if "--quick" not in argv else [])
     if "--reach-mc" in argv:
         parts.append("reach_mc")
+    for a in argv:
+        if a.startswith("--parts="):  # e.g. --parts=campaigns,reach_mc
+            parts = a.split("=", 1)[1].split(",")
     print(f"load average {os.getloadavg()[0]:.2f} on {len(os.sched_getaffinity(0))} usable cpus")
     base_src = None if "--no-baseline" in argv else baseline_tree()
     if "--store" in argv:
@@ -307,15 +311,17 @@ def main(argv: list[str] | None = None) -> None:
         return
     if base_src is not None:  # interleave: baseline, this tree (the machine's load drifts)
         old = measure_tree(base_src / "src", repeats, parts)
-        old["cli"] = cli_times(base_src / "src", repeats)
+        if "runs" in parts:
+            old["cli"] = cli_times(base_src / "src", repeats)
         old_label = f"commit {BASELINE_COMMIT} measured now, back to back ({base_src})"
     else:
         old = json.loads(BASELINE_JSON.read_text()) if BASELINE_JSON.exists() else {}
         old_label = (f"STORED numbers of commit {old.get('commit')} ({old.get('measured')}, load "
                      f"{old.get('load_before', float('nan')):.2f}) from {BASELINE_JSON.name}" if old else "none")
     new = measure_tree(ROOT / "src", repeats, parts)
-    new["cli"] = cli_times(ROOT / "src", repeats)
-    if "--quick" not in argv:
+    if "runs" in parts:
+        new["cli"] = cli_times(ROOT / "src", repeats)
+    if "--quick" not in argv and "runs" in parts:
         new["cold"] = cold_compile(ROOT / "src")
     report(new, old, old_label)
 
