@@ -317,7 +317,8 @@ def main(argv: list[str] | None = None) -> None:
     else:
         old = json.loads(BASELINE_JSON.read_text()) if BASELINE_JSON.exists() else {}
         old_label = (f"STORED numbers of commit {old.get('commit')} ({old.get('measured')}, load "
-                     f"{old.get('load_before', float('nan')):.2f}) from {BASELINE_JSON.name}" if old else "none")
+                     f"{old.get('load_before', float('nan')):.2f} -> {old.get('load_after', float('nan')):.2f}) from "
+                     f"{BASELINE_JSON.name}; {old.get('note', '')}" if old else "none")
     new = measure_tree(ROOT / "src", repeats, parts)
     if "runs" in parts:
         new["cli"] = cli_times(ROOT / "src", repeats)
