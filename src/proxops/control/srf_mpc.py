@@ -52,7 +52,7 @@ Corrections / choices (also in the report):
 * Margin: the system passes a KOZ inflated by ``keep_out.margin_m`` (default 10 m) because
   the CW prediction from the estimated state differs from the J2 truth.
 * Relaxation ladder when the problem is infeasible (noise, J2, dispersions): (1) drop the
-  design rows -- the V-bar decrease (29o) and the guidance hop-distance bands -- (event
+  design rows -- the V-bar decrease (29o), the guidance hop-distance bands and the drift hold rows -- (event
   ``design_rows_relaxed``); (2) also drop the terminal position box (``terminal_set_relaxed``);
   (3) also drop the hop rows (29l)-(29n) (``hops_relaxed``). The CBF rows are never dropped.
 * V-bar: hop lengths cost the same fuel whatever the split ((w/2) sum L for radial hops), so
@@ -77,6 +77,24 @@ Corrections / choices (also in the report):
   specific energy (two-body + J2 potential, both conserved on the free motion: the J2 potential is
   axisymmetric) divided by |v_t|: equal energies mean equal semi-major axes and no secular drift;
   for a circular CW target it reduces to ``vy + 2 n x``. k_l = R^T v_t / |v_t| at node l.
+* V-bar drift trim (``drift_trim_delay_nodes``, not in the paper): the row at the hop impulse acts on
+  what the controller knows then -- one navigation sample at the first hop (1 mm/s, 22 m/orbit at
+  1 sigma) -- and cannot remove the impulse's own execution error (0.5 deg pointing on 0.2-0.4 m/s
+  is 2-3 mm/s along y, 40-66 m/orbit at 1 sigma). So every hop start also gets a drift row at the
+  node ``drift_trim_delay_nodes`` later (the trim node), where c is the mean of the navigation
+  samples since the hop impulse (its least-squares estimate: c is constant on the free motion;
+  60 samples at the default node spacing: 0.13 mm/s, 2.8 m/orbit at 1 sigma): the MPC fires a small
+  trim (mm/s) that nulls it, with the same thrusters (its own pointing/magnitude errors are ~1 % of
+  a few mm/s). A trim below the minimum impulse bit (``min_impulse_mps``) would fire nothing: it is
+  raised to the bit by an out-of-plane component (:meth:`SrfMpc._lift_to_impulse_bit`). Option
+  ``drift_hold_after_trim`` (off by default): every later impulse of the hop up to its end keeps c as
+  trimmed (``|sum_{trim < l <= j} k_l . u_l| <= tol``, relaxed with the design rows), so the drift
+  stays null after any of them. Measured on srf-vbar-mc (50 runs): the radial-only corrections it
+  forces make the problem infeasible far more often -- relaxed with the hop rows (level 3): 117
+  relaxations in 13 runs, worst l1 dv 8.4 m/s; as a design row (level 1, as now): 40 in 13 runs,
+  worst l1 dv 10.2 m/s and one hop drift missing by 1.2 km/orbit -- against 12 in 4 runs, worst
+  1.18 m/s and 11 m/orbit without it; so it is off by default. The passive-abort drift of a hop
+  (systems.srf.passive_abort) starts after its trim.
 
 QP (solved by the persistent adapter of ``solver``, PIQP by default, Clarabel as fallback): condensed in the
 impulses, variables scaled to z = u / u_max in [0, 1] plus the terminal position error in km.
@@ -127,6 +145,10 @@ class SrfMpcConfig:
     hop_distance_weight_per_m2: float = 0.0  # 1/2 w (a.p(J_m) - d_m)^2 towards Algorithm 1's distances (0 = paper)
     drift_free_tol_mps: float | None = None  # V-bar: |vy+ + 2 n x| <= tol after every hop-start impulse (None = off)
     drift_model: "EnergyDrift | None" = None  # J2-aware invariant from an onboard target ephemeris (None: CW's)
+    drift_trim_delay_nodes: int | None = None  # V-bar: trim row this many nodes after every hop start (None = off)
+    drift_hold_after_trim: bool = False  # with a trim: later impulses of the hop keep c as trimmed (design row)
+    drift_estimator_window_s: float | None = None  # average c over the samples of this window (None: since the last impulse)
+    min_impulse_mps: float = 0.0  # the thrusters' minimum impulse bit (|u| below it fires nothing)
     cbf: bool = True
     cbf_alpha_per_s: float = 0.01
     free_drift_s: float | None = None  # None: one orbital period
@@ -337,8 +359,28 @@ class SrfMpc:
                 raise input_error("hop_distances_m", hop_distances_m, "give the n_hops + 1 guidance distances "
                                   "when hop_distance_tol_m is set", "m")
             self.hop_targets_m = np.asarray(hop_distances_m, dtype=float)
-        # hop-start nodes (node 0 and every hop end but the terminal node): drift-free rows
-        self.drift_nodes = np.array([0] + schedule.hop_nodes[:-1].tolist(), dtype=int)
+        # hop-start nodes (node 0 and every hop end but the last): drift-free rows; with a drift trim also
+        # the trim node of every hop start (delay nodes later, before that hop's end)
+        hop_starts = [0] + schedule.hop_nodes[:-1].tolist()
+        self.trim_nodes: dict[int, int] = {}  # trim node -> its hop-start node
+        if c.drift_trim_delay_nodes is not None and c.drift_free_tol_mps is not None:
+            d = int(c.drift_trim_delay_nodes)
+            for h, end in zip(hop_starts, schedule.hop_nodes.tolist()):
+                if not 1 <= d < end - h:
+                    raise input_error("mpc.drift_trim_delay_nodes", d,
+                                      f"the trim must come 1 to {end - h - 1} MPC nodes after its hop start (the hop "
+                                      f"from node {h} ends at node {end}): lower it or raise mpc.steps_per_hop")
+                self.trim_nodes[h + d] = h
+        if c.drift_estimator_window_s is not None and not c.drift_estimator_window_s > 0:
+            raise input_error("mpc.drift_estimator_window_s", c.drift_estimator_window_s, "must be > 0", "s")
+        self.drift_nodes = np.array(sorted(hop_starts + list(self.trim_nodes)), dtype=int)
+        # nodes after a trim and before the next hop start (or the terminal node): impulses keep c
+        self.hold_nodes = []
+        if self.trim_nodes and c.drift_hold_after_trim:
+            for t_node, h in self.trim_nodes.items():
+                end = int(schedule.hop_nodes[np.searchsorted(schedule.hop_nodes, h, side="right")])
+                self.hold_nodes += [(j, t_node) for j in range(t_node + 1, end)]
+        self.hold_nodes = sorted(self.hold_nodes)  # (node j, its trim node)
         self._layout()
         pdiag = np.zeros(self._nz)
         pdiag[self._ie:self._ie + 3] = c.q_terminal_per_m2 * KM**2
@@ -362,7 +404,21 @@ class SrfMpc:
         self.finished = False
         self.last_drift = None  # (tau, states) of the last accepted free drift
         self.solve_log: list[dict] = []
-        self._c_sum, self._c_count = 0.0, 0  # drift invariant samples since the last impulse
+        self._c_samples: list[tuple[float, float]] = []  # (t, c) navigation samples since the last impulse
+        self.trim_log: list[dict] = []  # per trim node: t, samples used, estimate of c, trim impulse
+
+    def drift_estimate(self, t: float, x) -> tuple[float, int]:
+        """Least-squares estimate of the drift invariant c (m/s) and the number of samples behind it.
+
+        c is a constant of the free motion, so the least-squares fit of the navigation samples taken
+        since the last impulse (within ``drift_estimator_window_s`` of ``t`` if set) is their mean;
+        its error is the single-sample error / sqrt(samples) for white navigation noise (0.5 m /
+        0.5 mm/s per axis: 1.0 mm/s per sample). Without samples: the invariant of ``x``."""
+        w = self.cfg.drift_estimator_window_s
+        vals = [c for (tc, c) in self._c_samples if w is None or tc >= t - w - 1e-9]
+        if not vals:
+            return self.drift_invariant(t, x), 1
+        return float(np.mean(vals)), len(vals)
 
     def drift_invariant(self, t: float, x) -> float:
         """c (m/s): constant on the free motion, zero for a drift-free one (CW: vy + 2 n x)."""
@@ -381,12 +437,12 @@ class SrfMpc:
         plan = self.plan.copy()
         plan[:i] = 0.0
         flat = plan.ravel()
-        last = min(int(self.drift_nodes.max()), N)
+        last = min(int(max([self.drift_nodes.max()] + [j for j, _ in self.hold_nodes])), N)
         if last < i:
             return k
         xs = np.empty((last - i + 1, 6))
         xs[0] = x
-        if last > i:  # predicted states at nodes i+1..last
+        if last > i:  # predicted states at nodes i+1..last, then their gains in one jitted call
             xs[1:] = np.einsum("lij,j->li", self._phi[i + 1:last + 1, i], x) + self._S[i + 1:last + 1] @ flat
         k[i:last + 1] = self.drift_model.gains(self.sched.times[i:last + 1], xs)
         return k
@@ -394,8 +450,7 @@ class SrfMpc:
     def step(self, t: float, x_est) -> Command:
         x = np.asarray(x_est, dtype=float)
         if self.cfg.drift_free_tol_mps is not None and x.size == 6 and np.all(np.isfinite(x)):
-            self._c_sum += self.drift_invariant(t, x)
-            self._c_count += 1
+            self._c_samples.append((float(t), self.drift_invariant(t, x)))
         k = int(round(t / self.dt))
         N = self.sched.n
         if k > self.sched.steps[-1] or self.finished:
@@ -416,9 +471,16 @@ class SrfMpc:
             u = res.u[0]
             self.plan[node:] = res.u
         u = np.where(np.abs(u) < 1e-7, 0.0, u)
+        if node in self.trim_nodes:
+            c_hat, n_samples = self.drift_estimate(t, x)
+            if res.u is not None and res.relax < 3:
+                u = self._lift_to_impulse_bit(node, x, u)
+                self.plan[node] = u
+            self.trim_log.append({"t": float(t), "node": int(node), "hop_start_node": self.trim_nodes[node],
+                                  "samples": n_samples, "c_estimate_mps": c_hat, "u": u.copy()})
         self.used_l1 += float(np.abs(u).sum())
-        if np.any(u):
-            self._c_sum, self._c_count = 0.0, 0
+        if np.any(u) and float(np.linalg.norm(u)) >= self.cfg.min_impulse_mps:  # below the bit nothing fires
+            self._c_samples = []
         if node == N:
             self.finished = True
         info = {"solved": 1.0, "node": float(node), "relax": float(res.relax), "qp_iterations": float(res.iterations),
@@ -434,20 +496,50 @@ class SrfMpc:
 
     def observe_coast(self, t, x_est) -> None:
         """The estimates of the steps the engine skipped between nodes (engine hook): sampled into
-        the drift invariant's average exactly as :meth:`step` samples them (same order)."""
+        the drift invariant's samples exactly as :meth:`step` samples them (same values, same order)."""
         if self.cfg.drift_free_tol_mps is None:
             return
         xs = np.asarray(x_est, dtype=float)
         if xs.shape[1] != 6:
             return
         ok = np.all(np.isfinite(xs), axis=1)
+        times = np.asarray(t, dtype=float)[ok]
         if self.drift_model is not None:
-            values = self.drift_model.invariants(np.asarray(t)[ok], xs[ok]).tolist()
+            values = self.drift_model.invariants(times, xs[ok]).tolist()
         else:
             values = [float(x[4] + 2.0 * self.n_orb * x[0]) for x in xs[ok]]
-        for v in values:  # sequential sum: the same rounding as one step at a time
-            self._c_sum += v
-        self._c_count += len(values)
+        self._c_samples.extend(zip(times.tolist(), values))
+
+    def _lift_to_impulse_bit(self, node: int, x: np.ndarray, u: np.ndarray) -> np.ndarray:
+        """A trim below the thrusters' minimum impulse bit would fire nothing and leave its drift (up
+        to 3 bit t_orb of along-track drift per orbit, 22 m for 1 mm/s at a = 8100 km). Raise it to the
+        bit by adding a component perpendicular to the invariant's gain k and to u (out of plane for
+        a V-bar trim along y): c changes by k . u as planned; the extra component costs at most the
+        bit and leaves a cross-track oscillation of amplitude <= bit / n (CW: z decouples; 1.2 m for
+        1 mm/s). Not raised when the trim changes c by less than the row's tolerance (the drift left is
+        then below 2 tol: a bit of propellant would buy less than the tolerance); kept only if the
+        raised impulse's free drift passes the true KOZ/CBF check."""
+        bit = self.cfg.min_impulse_mps
+        norm = float(np.linalg.norm(u))
+        if bit <= 0.0 or norm == 0.0 or norm >= bit:
+            return u
+        k = self._drift_gains(node, x)[node]
+        if abs(float(k @ u)) <= self.cfg.drift_free_tol_mps:
+            return u
+        basis = []
+        for v in (k, u):
+            v = v - sum((v @ e) * e for e in basis)
+            if np.linalg.norm(v) > 1e-12:
+                basis.append(v / np.linalg.norm(v))
+        d = np.array([0.0, 0.0, 1.0])
+        d = d - sum((d @ e) * e for e in basis)
+        if np.linalg.norm(d) < 1e-6:
+            return u
+        d /= np.linalg.norm(d)
+        lifted = u + d * math.sqrt((bit * (1.0 + 1e-6)) ** 2 - norm**2)
+        if self.koz is not None and not self.check_drift(x, lifted)[0]:
+            return u
+        return lifted
 
     def _node_before(self, k: int) -> int:
         return int(np.searchsorted(self.sched.steps, k, side="right")) - 1
@@ -507,6 +599,10 @@ class SrfMpc:
                 row = np.zeros(3 * (N + 1))
                 row[:3 * (int(j) + 1)] = 1.0
                 rows.append(zcoef(row)[None]); kinds.append(("drift", int(j)))
+            for j, t_node in self.hold_nodes:  # |sum_{t_node < l <= j} k_l . u_l| <= tol: c stays as trimmed
+                row = np.zeros(3 * (N + 1))
+                row[3 * (t_node + 1):3 * (j + 1)] = 1.0
+                rows.append(zcoef(row)[None]); kinds.append(("hold", int(j)))
         if c.vbar_rows or c.hop_distance_tol_m is not None:
             nodes = [0] + self.sched.hop_nodes.tolist()
             rx = [self.a @ self._S[j][:3] for j in nodes]
@@ -536,7 +632,7 @@ class SrfMpc:
         r, col = np.nonzero(g_static)
         self._g_coo = (r, col, g_static[r, col])
         # entries of the drift rows: value = sign * u_max * k_l[comp] for column (sign, l, comp)
-        drift_rows = [m + 3 for m, kd in enumerate(kinds[3:]) if isinstance(kd, tuple) and kd[0] == "drift"]
+        drift_rows = [m + 3 for m, kd in enumerate(kinds[3:]) if isinstance(kd, tuple) and kd[0] in ("drift", "hold")]
         sel = np.nonzero(np.isin(r, drift_rows))[0]
         ucol = np.where(col[sel] < nu, col[sel], col[sel] - nu)
         self._drift_coo = (sel, ucol // 3, ucol % 3, np.where(col[sel] < nu, um, -um))
@@ -593,8 +689,14 @@ class SrfMpc:
                 if j < i or relax >= 3:
                     lo.append(-OFF); hi.append(OFF)
                     continue
-                v = self.drift_invariant(float(self.sched.times[i]), x) if self._c_count == 0 else self._c_sum / self._c_count
+                v = self.drift_estimate(float(self.sched.times[i]), x)[0]
                 lo.append(-c.drift_free_tol_mps - v); hi.append(c.drift_free_tol_mps - v)
+                continue
+            if tag == "hold":
+                if j < i or relax >= 1:  # a design row: relaxed first
+                    lo.append(-OFF); hi.append(OFF)
+                    continue
+                lo.append(-c.drift_free_tol_mps); hi.append(c.drift_free_tol_mps)
                 continue
             nodes = [0] + self.sched.hop_nodes.tolist()
             if tag == "dist":
