@@ -172,7 +172,7 @@ class ComposedTruth(PlantBase):
             n = m.degree
         else:
             self._C = self._S = np.zeros((1, 1))
-            self._K = np.zeros((5, 3, 3))
+            self._K = np.zeros((8, 3, 3))
             n = 0
         self._V = np.zeros((n + 3, n + 3))
         self._W = np.zeros((n + 3, n + 3))
