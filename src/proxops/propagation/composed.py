@@ -38,7 +38,7 @@ import numpy as np
 from scipy.integrate import solve_ivp
 
 from proxops.core.constants import J2_EARTH, MU_EARTH, R_EARTH
-from proxops.environment.earth import earth_rotation, geodetic_many
+from proxops.environment.earth import earth_rotation, geodetic_many, geodetic_to_ecef
 from proxops.environment.ephemeris import AU, GM_MOON, GM_SUN, R_SUN
 from proxops.environment.epochs import Epoch, check_time_range, parse_epoch
 from proxops.environment.forces import Atmosphere, Spacecraft, SpaceWeather
@@ -51,6 +51,8 @@ from proxops.propagation.truth import RelativeTruth
 from proxops.dynamics.plant import PlantBase
 
 DENSITY_STEP_S = 30.0
+DENSITY_DH_M = 5000.0  # height step of the density table's derivatives (m)
+DENSITY_DC_M = 20000.0  # cross-track step of its horizontal derivative (m)
 # Default relative tolerance of the composed truth: 1e-11, one decade below RelativeTruth's.
 # Measured (benchmarks/bench_truth.py): with a 100x100 field the relative position after one
 # orbit at 20 km separation is off by 0.95 mm at rtol 1e-10, 0.05 mm at 1e-11.
@@ -145,7 +147,7 @@ class ComposedTruth(PlantBase):
         self.rotation = earth_rotation(self.epoch)
         self.atmosphere = Atmosphere(self.epoch, self.rotation, models.weather) if models.drag else None
         self._build_arrays()
-        self._dens = np.zeros((2, 3))
+        self._dens = np.zeros((2, 5))
         self._dens_end = -1.0
         if models.drag:
             self._ensure_table(float(horizon_s))
@@ -212,14 +214,29 @@ class ComposedTruth(PlantBase):
         if status != kernels.STATUS_OK:
             raise ProxopsError("target path prediction for the density table failed")
         r = out[:, :3]
-        dh = 1000.0
+        # +-5 km: the second difference of ln rho resolves the curvature (~4e-11 /m^2 at 500 km)
+        # above pymsis' float32 noise (1e-5 / dh^2 = 4e-13 /m^2)
+        dh = DENSITY_DH_M
         ecef = self.rotation.to_ecef(times, r)
         geo = geodetic_many(ecef)
         up = np.stack([np.cos(geo[:, 0]) * np.cos(geo[:, 1]), np.cos(geo[:, 0]) * np.sin(geo[:, 1]), np.sin(geo[:, 0])], -1)
         up_eci = self._ecef_to_eci(times, up)
-        rho = self.atmosphere.density(np.concatenate([times] * 3), np.vstack([r, r + dh * up_eci, r - dh * up_eci]))
-        rho0, rho_up, rho_dn = np.split(rho, 3)
-        table = np.stack([np.log(rho0), geo[:, 2], (np.log(rho_up) - np.log(rho_dn)) / (2 * dh)], axis=-1)
+        # cross-track gradient at constant geodetic height (the chaser's along-track offset
+        # is taken by its lead time, its height by the two height derivatives): points
+        # +-dc along the orbit normal, moved to the target's geodetic height
+        normal = np.cross(r, out[:, 3:6])
+        normal /= np.linalg.norm(normal, axis=1)[:, None]
+        dc = DENSITY_DC_M
+        side = []
+        for sign in (1.0, -1.0):
+            g = geodetic_many(self.rotation.to_ecef(times, r + sign * dc * normal))
+            e = np.array([geodetic_to_ecef(la, lo, h) for la, lo, h in zip(g[:, 0], g[:, 1], geo[:, 2])])
+            side.append(self._ecef_to_eci(times, e))
+        rho = self.atmosphere.density(np.concatenate([times] * 5),
+                                      np.vstack([r, r + dh * up_eci, r - dh * up_eci, *side]))  # fmt: skip
+        l0, lu, ld, lp, lm = np.split(np.log(rho), 5)
+        table = np.stack([l0, geo[:, 2], (lu - ld) / (2 * dh), (lu - 2.0 * l0 + ld) / dh**2, (lp - lm) / (2 * dc)],
+                         axis=-1)  # fmt: skip
         self._dens = np.ascontiguousarray(table)
         self.p[kf.I_DENS_T0] = times[0]
         self._dens_end = times[-1] - 2 * DENSITY_STEP_S
