@@ -16,12 +16,15 @@ both spacecraft on every evaluation). The J2-only and two-body truths stay in
 RelativeTruth (the fastest path, unchanged).
 
 Measured (tests/test_propagation_composed.py, benchmarks/bench_truth.py; 500 km, 51.6 deg,
-2022-05-01, one orbit): fast path vs scipy DOP853 on both absolute states <= 0.002 mm at
-100 m, <= 0.12 mm at 2 km, <= 0.44 mm at 20 km (100x100 + Sun/Moon + SRP); fast (density
-table) vs reference (direct NRLMSISE-00) with drag: 0.004 mm at 2 km, 0.35 mm at 20 km
-ahead + 500 m radial. pymsis computes in single precision (float32, ~1e-6..1e-5 relative
-noise in density), which bounds the latter comparison. Against Orekit (tests marked
-``orekit``): see tests/test_orekit_validation.py.
+2022-05-01, one orbit, default rtol 3e-11): fast path vs scipy DOP853 on both absolute
+states 0.008 mm at 100 m, 0.13 mm at 2 km, 0.52 mm at 20 km (100x100 + Sun/Moon + SRP;
+the absolute integration's own error is part of it); fast (density table) vs reference
+(direct NRLMSISE-00) with drag + Sun/Moon + SRP and different A/m: 0.05 mm at 2 km,
+0.13 mm at 20 km ahead + 4 km radial + 2 km cross-track. pymsis computes in single
+precision (float32, ~1e-6..1e-5 relative noise in density), which bounds the latter
+comparison. Against Orekit 13 with matching models, two orbits (tests/orekit_reference.py):
+<= 0.21 mm at 2 km, <= 3.2 mm at 20 km for every model set, the rest being Earth
+orientation (README, "Validation against Orekit").
 
 Note: ``gravity="j2"`` is RelativeTruth's zonal J2 about the ECI (J2000) z axis; the
 pole of date is 0.12 deg away in 2022, which changes the relative motion by ~18 mm over
