@@ -46,11 +46,11 @@ MODEL_SETS = dict(orekit_reference.model_sets())
 # motion and the truncated nutation tilt the field by ~1e-6 rad); the tolerances are ~1.5x the
 # measured values at 20 km and keep the < 1 mm at 2 km acceptance goal.
 CASES = [
-    ("two-body", "ITRF", 0.001, 0.0),
+    ("two-body", "ITRF", 0.005, 0.0),
     ("J2 (2x0)", "GTOD", 0.005, 1e-8),
     ("J2 (2x0)", "ITRF", 0.02, 1.5e-7),
     ("20x20", "ITRF", 0.02, 1.5e-7),
-    ("100x100", "GTOD", 0.01, 1e-8),
+    ("100x100", "GTOD", 0.02, 2e-8),
     ("100x100", "ITRF", 0.03, 1.5e-7),
     ("100x100 + drag", "ITRF", 0.05, 2.5e-7),
     ("100x100 + drag + Sun/Moon", "ITRF", 0.05, 2.5e-7),

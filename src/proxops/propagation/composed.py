@@ -23,8 +23,7 @@ the absolute integration's own error is part of it); fast (density table) vs ref
 0.13 mm at 20 km ahead + 4 km radial + 2 km cross-track. pymsis computes in single
 precision (float32, ~1e-6..1e-5 relative noise in density), which bounds the latter
 comparison. Against Orekit 13 with matching models, two orbits (tests/orekit_reference.py):
-<= 0.21 mm at 2 km, <= 3.2 mm at 20 km for every model set, the rest being Earth
-orientation (README, "Validation against Orekit").
+<= 0.29 mm at 2 km, <= 3.1 mm at 20 km for every model set, mostly Earth orientation (README, "Validation against Orekit").
 
 Note: ``gravity="j2"`` is RelativeTruth's zonal J2 about the ECI (J2000) z axis; the
 pole of date is 0.12 deg away in 2022, which changes the relative motion by ~18 mm over
