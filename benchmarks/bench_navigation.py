@@ -1,7 +1,9 @@
 """Relative-navigation EKF cost (issue 17): time per propagation step (exact CW STM from the
 per-step cache, covariance prediction) and per measurement update (range-bearing and pose;
 Jacobian, gate, Joseph update), goal < 20 us each; and the wall-time slowdown of a small
-station-keeping campaign and of one srf-vbar run on the filter against noise on the truth.
+station-keeping campaign, of one srf-vbar run and of one cortex run (cortex-nominal against
+cortex-nominal-ekf, CW truth: the engine loop, not the truth integrator, is compared) on the filter
+against noise on the truth; the update with the collapse test on (re-initialisation armed).
 
     python benchmarks/bench_navigation.py [N_CALLS] [N_RUNS]
 
@@ -58,6 +60,16 @@ def filter_costs(n_calls: int) -> dict[str, float]:
             ekf.update(0.0, z)
 
         out[f"update_{kind}_us"] = _per_call_us(upd, n_calls)
+    armed = RelativeEKF(n, SensorModel(kind="pose", range_sigma_m=0.5), np.diag([1.0] * 3 + [1e-4] * 3), q_m2_s3=1e-9,
+                        reinit_after_rejections=5)
+    armed.reset(0.0, np.array([30.0, -400.0, 10.0, 0.0, 0.0, 0.0]))
+    z, p_keep = armed.sensor.h(armed.x), armed.P.copy()
+
+    def upd_armed(i):
+        armed.P = p_keep
+        armed.update(0.0, z)
+
+    out["update_pose_reinit_armed_us"] = _per_call_us(upd_armed, n_calls)
     return out
 
 
@@ -94,6 +106,26 @@ def srf_run_slowdown(repeats: int = 3) -> tuple[float, float]:
     return out[0], out[1]
 
 
+def cortex_run_slowdown(repeats: int = 3) -> tuple[float, float, int]:
+    """Best-of wall time of one cortex closed loop (CW truth, no eclipse) on noise-free navigation
+    (cortex-nominal) and on the filter (cortex-nominal-ekf); and the steps of the ekf run."""
+    from proxops.scenarios.loader import load_scenario
+    from proxops.sim.engine import simulate
+
+    out, steps = [], 0
+    for name in ("cortex-nominal", "cortex-nominal-ekf"):
+        ld = load_scenario(name, ["truth.model=cw", "eclipse.model=none"])
+        best = float("inf")
+        for _ in range(repeats):
+            setup = ld.system.build(ld.scenario)
+            t0 = time.perf_counter()
+            res = simulate(setup, seed=1)
+            best = min(best, time.perf_counter() - t0)
+            steps = len(res.t) - 1
+        out.append(best)
+    return out[0], out[1], steps
+
+
 def main(n_calls: int = 20000, n_runs: int = 8) -> None:
     print(f"load average {os.getloadavg()[0]:.2f}")
     for key, us in filter_costs(n_calls).items():
@@ -104,6 +136,9 @@ def main(n_calls: int = 20000, n_runs: int = 8) -> None:
     t_noise, t_ekf = srf_run_slowdown()
     print(f"one srf run (1082 steps): srf-vbar {t_noise:.3f} s, srf-vbar-ekf {t_ekf:.3f} s, slowdown x{t_ekf / t_noise:.2f}"
           f" ({(t_ekf - t_noise) / 1082 * 1e6:.0f} us per navigation tick, sensor draw included)")
+    t_noise, t_ekf, steps = cortex_run_slowdown()
+    print(f"one cortex run ({steps} steps, CW truth): cortex-nominal {t_noise:.3f} s, cortex-nominal-ekf {t_ekf:.3f} s, "
+          f"slowdown x{t_ekf / t_noise:.2f} (the two runs fly different trajectories: CP_g solves differ)")
 
 
 if __name__ == "__main__":

@@ -151,3 +151,35 @@ def _formatter(unit: str):
         return "nan" if not math.isfinite(x) else format_number(float(x), unit)
 
     return f
+
+
+NAV_KEYS = ("nav_position_error_m", "nav_velocity_error_mps")
+GUIDANCE_KEYS = ("total_dv_mps", "terminal_position_error_m", "terminal_velocity_error_mps", "arrival_error_m")  # srf: arrival
+
+
+def navigation_table(table: pd.DataFrame) -> str:
+    """Markdown: the estimation error of a campaign on the navigation filter beside its guidance
+    statistics (issue 17), or '' when no run used the filter. Each row is one per-run quantity
+    (Δv, terminal or arrival errors; the run's median / p95 / max estimation error |r_est - r_true| and
+    |v_est - v_true|; rejected measurements; re-initialisations); the columns are its median, p95
+    and max over the runs that did not raise (terminal errors: over the runs that report one)."""
+    if METRIC_PREFIX + NAV_KEYS[0] + ".median" not in table:
+        return ""
+    rows = table[table["outcome"] != "error"] if "outcome" in table else table
+    names = [k for k in GUIDANCE_KEYS if METRIC_PREFIX + k in rows]
+    names += [f"{k}.{s}" for k in NAV_KEYS for s in ("median", "p95", "max")]
+    names += [k for k in ("nav_rejected", "nav_reinits") if METRIC_PREFIX + k in rows]
+    n_ok = int(rows["success"].astype(bool).sum()) if "success" in rows else None
+    lines = ([f"Runs: {len(rows)} completed, {n_ok} succeeded." if n_ok is not None else f"Runs: {len(rows)}.", ""]
+             + ["| per-run quantity | unit | runs | median | p95 | max |", "| --- | --- | --- | --- | --- | --- |"])
+    for name in names:
+        v = rows[METRIC_PREFIX + name].astype(float).to_numpy()
+        v = v[np.isfinite(v)]
+        unit = unit_of_metric(name)
+        f = _formatter(unit)
+        if v.size:
+            med, p95 = np.percentile(v, [50, 95])
+            lines.append(f"| {name} | {unit or '-'} | {v.size} | {f(med)} | {f(p95)} | {f(v.max())} |")
+        else:
+            lines.append(f"| {name} | {unit or '-'} | 0 | - | - | - |")
+    return "\n".join(lines)

@@ -25,19 +25,35 @@ happens, so a run's stream never shifts.
 Update: EKF with Joseph form; a measurement whose normalised innovation squared (NIS) exceeds
 the chi-square quantile at ``gate_probability`` is rejected and recorded as an engine event
 (``nav-rejected``).
+
+Re-initialisation after filter collapse (``reinit_after_rejections = k > 0``): a filter whose
+covariance no longer covers its error rejects every measurement and never recovers on its own
+(the gate protects the wrong estimate). The filter is declared collapsed when the mean NIS of
+its last k measurements (accepted or rejected) exceeds the chi-square bound of that mean,
+chi2.ppf(gate_probability, m k) / k -- k consecutive rejections always trip it, and so does an
+NIS persistently above its expected value m without single rejections. The next measurement
+then re-initialises it: position from the inverse measurement model (pose: z; range-bearing:
+r = -|rho| [cos el cos az, cos el sin az, sin el]) with that measurement's covariance J R J^T,
+the velocity estimate kept with a 1-sigma of ``reinit_velocity_sigma_mps`` per axis (inflated:
+the position-only measurements that follow observe it), no cross-covariance; an engine event
+``nav-reinit``. State layout: the filter estimates the position and velocity blocks of the
+plant's :class:`proxops.core.layout.StateLayout` (``layout``; default the 6-state Hill layout).
 """
 
 from __future__ import annotations
 
 import math
+from collections import deque
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from proxops.core.cw import cw_input_matrix_zoh, cw_stm
+from proxops.core.layout import StateLayout
 from proxops.errors import input_error
 
 SENSORS = ("range-bearing", "pose")
+NIS_CAP = 1e12  # NIS values above this count as this in the collapse window (inf/NaN included)
 
 
 def cw_process_noise(n: float, dt: float, q: float) -> np.ndarray:
@@ -164,6 +180,21 @@ class SensorModel:
             d[1] = (d[1] + math.pi) % (2.0 * math.pi) - math.pi
         return d
 
+    def position_from(self, z: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Inverse measurement model: (relative position r of the chaser (m), its 3x3 covariance) of one
+        measurement ``z``: pose, r = z and R; range-bearing, r = -rho(z) and J R J^T with J = dr/dz
+        (first order), the sigmas taken at the measured range."""
+        if self.kind == "pose":
+            r = np.array(z, dtype=float)
+            return r, np.diag(self.sigma(float(np.linalg.norm(r))) ** 2)
+        rng, az, el = (float(v) for v in z)
+        ca, sa, ce, se = math.cos(az), math.sin(az), math.cos(el), math.sin(el)
+        rho = rng * np.array([ce * ca, ce * sa, se])
+        j = -np.array([[ce * ca, -rng * ce * sa, -rng * se * ca],
+                       [ce * sa, rng * ce * ca, -rng * se * sa],
+                       [se, 0.0, rng * ce]])
+        return -rho, j @ np.diag(self.sigma(abs(rng)) ** 2) @ j.T
+
     def visible(self, t: float, x_true: np.ndarray) -> bool:
         """In the field of view and illuminated."""
         rho = -np.asarray(x_true[:3], dtype=float)
@@ -201,6 +232,9 @@ class RelativeEKF:
     of this fraction of its norm per axis (impulse: added to the velocity covariance at the burn;
     acceleration: through the ZOH input matrix), so thruster errors do not look like outliers.
     The engine gives the commanded control through :meth:`command` and drains :attr:`events`.
+    ``reinit_after_rejections`` (k, 0 = off) and ``reinit_velocity_sigma_mps``: re-initialisation
+    after a collapse (module docstring). ``layout``: the plant's state layout; the filter estimates
+    its position and velocity blocks (other blocks, if any, are passed through from the truth).
     """
 
     n: float
@@ -209,6 +243,9 @@ class RelativeEKF:
     q_m2_s3: float = 1e-10
     gate_probability: float = 0.9999
     command_sigma_fraction: float = 0.0  # 1-sigma execution error of a command, fraction of |u| per axis
+    reinit_after_rejections: int = 0  # k: collapse when the mean NIS of the last k measurements is out of bound
+    reinit_velocity_sigma_mps: float = 0.1  # 1-sigma velocity per axis after a re-initialisation
+    layout: StateLayout | None = None
     period_s: float | None = field(default=None, kw_only=True)
 
     def __post_init__(self):
@@ -227,6 +264,13 @@ class RelativeEKF:
         if not 0.0 < self.gate_probability < 1.0:
             raise input_error("navigation.gate_probability", self.gate_probability, "must be in (0, 1)")
         self.gate = float(chi2.ppf(self.gate_probability, self.sensor.m))
+        k = self.reinit_after_rejections
+        if not (isinstance(k, (int, np.integer)) and k >= 0):
+            raise input_error("navigation.reinit_after_rejections", k, "must be an integer >= 0 (0: no re-initialisation)")
+        if not (math.isfinite(self.reinit_velocity_sigma_mps) and self.reinit_velocity_sigma_mps > 0):
+            raise input_error("navigation.reinit_velocity_sigma_mps", self.reinit_velocity_sigma_mps, "must be > 0", "m/s")
+        self.collapse_bound = float(chi2.ppf(self.gate_probability, self.sensor.m * k)) / k if k else math.inf
+        self._slices = _hill_slices(self.layout)
         self._cache: dict[float, tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
         self.events: list[tuple[str, str]] = []
         self.x = np.zeros(6)
@@ -238,6 +282,11 @@ class RelativeEKF:
         self.nis: list[float] = []
         self.rejected = 0
         self.updates = 0
+        self.reinits = 0
+        self._window: deque[float] = deque(maxlen=max(1, k))
+        self._window_sum = 0.0
+        self._collapse_sum = self.collapse_bound * k if k else math.inf
+        self._collapsed: str | None = None
 
     def reset(self, t: float, x_est: np.ndarray, P: np.ndarray | None = None) -> None:
         """Start from the estimate ``x_est`` with covariance ``P`` (default p0) at ``t``."""
@@ -245,7 +294,10 @@ class RelativeEKF:
         self.P = self.p0.copy() if P is None else np.array(P, dtype=float)
         self.t = t
         self._u, self._kind, self._impulse_t = np.zeros(3), "acceleration", None
-        self.nis, self.rejected, self.updates = [], 0, 0
+        self.nis, self.rejected, self.updates, self.reinits = [], 0, 0, 0
+        self._window.clear()
+        self._window_sum = 0.0
+        self._collapsed = None
         self.events.clear()
 
     def matrices(self, dt: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -293,7 +345,11 @@ class RelativeEKF:
         """Measurement update with ``z``; False (and an event) when the chi-square gate rejects it.
 
         Joseph form expanded, (I-KH)P(I-KH)^T + KRK^T = P - K HP - (K HP)^T + K S K^T, with the
-        3x3 innovation covariance S inverted in closed form (adjugate)."""
+        3x3 innovation covariance S inverted in closed form (adjugate). A collapsed filter (module
+        docstring) is re-initialised from ``z`` instead (True, event ``nav-reinit``)."""
+        if self._collapsed is not None:
+            self.reinitialise(t, z)
+            return True
         x, P, sensor = self.x, self.P, self.sensor
         zhat, H = sensor.h_and_jacobian(x)
         r = math.sqrt(x[0] * x[0] + x[1] * x[1] + x[2] * x[2])
@@ -305,6 +361,8 @@ class RelativeEKF:
         Sinv_nu = Sinv @ nu
         nis = float(nu @ Sinv_nu)
         self.nis.append(nis)
+        if self.reinit_after_rejections:
+            self._check_collapse(nis)
         if not nis <= self.gate:  # NaN is rejected too
             self.rejected += 1
             self.events.append(("nav-rejected", f"{sensor.kind} measurement rejected: NIS {nis:.3g} > "
@@ -318,13 +376,67 @@ class RelativeEKF:
         self.updates += 1
         return True
 
+    def _check_collapse(self, nis: float) -> None:
+        """Collapse test on the NIS window: mean of the last k NIS above chi2.ppf(p, m k) / k (a running
+        sum; each NIS capped at 1e12, far above any bound, so that inf/NaN cannot poison the sum)."""
+        w = self._window
+        v = nis if nis < NIS_CAP else NIS_CAP  # NaN -> cap
+        full = len(w) == w.maxlen
+        if full:
+            self._window_sum -= w[0]
+        w.append(v)
+        self._window_sum += v
+        if (full or len(w) == w.maxlen) and self._window_sum > self._collapse_sum:
+            k = len(w)
+            self._collapsed = (f"mean NIS {sum(w) / k:.3g} of the last {k} measurements > {self.collapse_bound:.3g} "
+                               f"(chi-square {self.gate_probability:g}, {self.sensor.m * k} dof / {k})")
+
+    def reinitialise(self, t: float, z: np.ndarray) -> None:
+        """Restart from the measurement ``z`` (position and its covariance from the inverse measurement
+        model), keeping the velocity estimate with the inflated sigma ``reinit_velocity_sigma_mps``."""
+        r, p_rr = self.sensor.position_from(z)
+        x = self.x.copy()
+        x[:3] = r
+        P = np.zeros((6, 6))
+        P[:3, :3] = p_rr
+        P[3:, 3:] = np.eye(3) * self.reinit_velocity_sigma_mps ** 2
+        self.x, self.P, self.t = x, P, t
+        self.reinits += 1
+        self.events.append(("nav-reinit", f"filter collapse ({self._collapsed}): re-initialised from the "
+                            f"{self.sensor.kind} measurement at t = {t:.6g} s, velocity sigma "
+                            f"{self.reinit_velocity_sigma_mps:g} m/s"))
+        self._collapsed = None
+        self._window.clear()
+        self._window_sum = 0.0
+
     def measure(self, t: float, x_true: np.ndarray, rng: np.random.Generator) -> np.ndarray:
-        """Navigation tick: (first call: initialise from truth + N(0, p0)), propagate, sense, update."""
+        """Navigation tick: (first call: initialise from truth + N(0, p0)), propagate, sense, update.
+        Reads and returns the plant's state (its layout); the Hill blocks are the filter's estimate."""
+        x_full = np.asarray(x_true, dtype=float)
+        x_hill = x_full if self._slices is None else np.concatenate([x_full[self._slices[0]], x_full[self._slices[1]]])
         if self.t is None or t < self.t:
-            self.reset(t, np.asarray(x_true, dtype=float)[:6] + self._l0 @ rng.standard_normal(6))
+            self.reset(t, x_hill[:6] + self._l0 @ rng.standard_normal(6))
         else:
             self.propagate(t)
-        z = self.sensor.draw(t, x_true, rng)
+        z = self.sensor.draw(t, x_hill, rng)
         if z is not None:
             self.update(t, z)
-        return self.x.copy()
+        if self._slices is None:
+            return self.x.copy()
+        out = x_full.copy()
+        out[self._slices[0]], out[self._slices[1]] = self.x[:3], self.x[3:]
+        return out
+
+
+def _hill_slices(layout: StateLayout | None) -> tuple[slice, slice] | None:
+    """(position, velocity) slices of the plant state the filter estimates; None for the plain
+    6-state Hill layout [r; v] (the fast path)."""
+    if layout is None:
+        return None
+    pos, vel = layout.first("position"), layout.first("velocity")
+    if pos is None or vel is None or pos.size != 3 or vel.size != 3:
+        raise input_error("navigation.model", "ekf", "needs a plant state with a 3-component position and a "
+                          "3-component velocity block (the Hill relative state); allowed here: noise")
+    if layout.n_x == 6 and (pos.start, vel.start) == (0, 3):
+        return None
+    return pos.slice, vel.slice

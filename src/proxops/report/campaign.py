@@ -19,7 +19,7 @@ def write_report(campaign, report_dir: str | Path | None = None, figures: bool =
     (default ``<out>/report``): statistics.csv (Table 4 layout), summary.json, report.md and
     PNG figures. Returns ``{"summary": ..., "files": [...]}``."""
     from proxops.analysis.formatting import format_percent, format_quantity
-    from proxops.analysis.statistics import format_table4
+    from proxops.analysis.statistics import format_table4, navigation_table
 
     result = campaign if isinstance(campaign, CampaignResult) else load_campaign(campaign)
     if result.out is None and report_dir is None:
@@ -49,6 +49,9 @@ def write_report(campaign, report_dir: str | Path | None = None, figures: bool =
         format_table4(stats) if len(stats) else "(no completed runs)",
         "",
     ]
+    nav = navigation_table(table) if len(table) else ""
+    if nav:
+        lines += ["## Estimation error (navigation filter) beside the guidance statistics", "", nav, ""]
     if counts["succeeded"] and counts["succeeded"] < counts["runs"]:
         lines += ["## Statistics over successful runs", "", format_table4(result.statistics(subset="success")), ""]
     grid_cols = [c for axis in m.get("grid_axes", []) for c in axis if c in table]

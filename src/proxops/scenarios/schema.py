@@ -131,6 +131,13 @@ class NavigationSection(Section):
         "fraction of its norm (covers thruster magnitude and pointing errors)")
     gate_probability: Annotated[float, Field(gt=0.0, lt=1.0)] = Field(
         0.9999, description="ekf: chi-square gate confidence; a measurement beyond it is rejected (an event)")
+    reinit_after_rejections: Annotated[int, Field(ge=0, le=1000)] = Field(
+        0, description="ekf: re-initialise after a filter collapse: when the mean NIS of the last k measurements "
+        "exceeds its chi-square bound at gate_probability (k consecutive rejections always do), the next measurement "
+        "restarts the filter (an event nav-reinit); 0: never")
+    reinit_velocity_sigma_mps: Positive = Field(
+        0.1, description="ekf: 1-sigma velocity per axis after a re-initialisation (the position comes from the "
+        "measurement)")
 
 
 def _actuator_fields() -> dict:

@@ -111,7 +111,8 @@ class SimResult:
 
     def navigation_summary(self) -> dict:
         """Estimation error of a filtered run: |r_est - r_true| (m) and |v_est - v_true| (m/s) over
-        every recorded sample (median, p95, max), and the measurements the filter rejected."""
+        every recorded sample (median, p95, max), the measurements the filter rejected and its
+        re-initialisations after a collapse."""
         (p0, p1), (v0, v1) = self.meta.get("position_slice", (0, 3)), self.meta.get("velocity_slice", (3, 6))
         err = self.x_est - self.x_true
         out = {}
@@ -119,6 +120,7 @@ class SimResult:
             n = np.linalg.norm(e, axis=1)
             out[key] = {"median": float(np.median(n)), "p95": float(np.percentile(n, 95)), "max": float(n.max())}
         out["nav_rejected"] = len(self.events_of("nav-rejected"))
+        out["nav_reinits"] = len(self.events_of("nav-reinit"))
         return out
 
     # --- persistence --------------------------------------------------------------

@@ -90,8 +90,10 @@ def actuator_model(act: ActuatorSection):
 
 
 def ekf_navigation(nav: NavigationSection, orbit: OrbitSection | None, control_dt_s: float | None,
-                   system: str = "this system"):
-    """:class:`proxops.navigation.ekf.RelativeEKF` of a ``model = "ekf"`` [navigation] section."""
+                   system: str = "this system", layout=None):
+    """:class:`proxops.navigation.ekf.RelativeEKF` of a ``model = "ekf"`` [navigation] section;
+    ``layout``: the plant's state layout (the filter estimates its position and velocity blocks;
+    None: the 6-state Hill layout)."""
     import math
 
     from proxops.core.cw import mean_motion
@@ -127,7 +129,8 @@ def ekf_navigation(nav: NavigationSection, orbit: OrbitSection | None, control_d
                          boresight=boresight, outage_probability=nav.outage_probability, illuminated=illuminated)
     return RelativeEKF(mean_motion(orbit.sma_m), sensor, p0, q_m2_s3=nav.process_noise_m2_s3,
                        gate_probability=nav.gate_probability, command_sigma_fraction=nav.command_sigma_fraction,
-                       period_s=period)
+                       reinit_after_rejections=nav.reinit_after_rejections,
+                       reinit_velocity_sigma_mps=nav.reinit_velocity_sigma_mps, layout=layout, period_s=period)
 
 
 class target_illumination:  # noqa: N801 (a picklable callable)

@@ -11,7 +11,9 @@ mid fly-around)::
 The engine runs at delta_t_g (one impulse per step, :class:`proxops.control.cortex_supervisor.
 CortexSupervisor`); thrust errors go through the engine's actuator slot
 (:class:`proxops.actuators.ThrusterModel`), injection errors through its navigation slot
-(:class:`proxops.navigation.GaussianNavigation` with the §5.1.2 range law).
+(:class:`proxops.navigation.GaussianNavigation` with the §5.1.2 range law) or, with
+``[navigation] model = "ekf"`` (``cortex-nominal-ekf``, ``cortex-low-mc-ekf``), the relative-
+navigation filter's estimate (:class:`proxops.navigation.ekf.RelativeEKF`) in that same slot.
 """
 
 from __future__ import annotations
@@ -48,6 +50,7 @@ def check_loop(sc) -> None:
 
     g = sc.guidance
     substeps(g.dt_g_s, g.substep_s)
+    navigation_of(sc)
     for phase, v in _eps_r(g).items():
         if not (math.isfinite(v) and v > 0):
             raise input_error(f"guidance.recompute_{phase}_m", v, "must be > 0 (recompute threshold eps_r of Table 1)", "m")
@@ -55,10 +58,28 @@ def check_loop(sc) -> None:
         raise input_error("guidance.terminal_penalty", g.terminal_penalty, "must be > 0 (eps_P of eq. 27a)")
 
 
-def navigation_of(sc):
+def navigation_of(sc, layout=None):
+    """The navigation slot of the closed loop. ``[navigation] model = "noise"`` (default): the
+    injection errors of Algorithm 3 (``[errors] delta_r_m``, §5.1.2 range law, white on the truth;
+    the [navigation] noise sigmas are not used by cortex and must stay 0). ``model = "ekf"``: the
+    relative-navigation filter (:func:`proxops.systems.common.ekf_navigation`) at the impulse
+    period delta_t_g on the plant's Hill blocks (``layout``); ``errors.delta_r_m`` must then be 0
+    (the sensor sets the measurement errors)."""
+    from proxops.errors import input_error
     from proxops.navigation import GaussianNavigation, PerfectNavigation
 
-    e = sc.errors
+    e, nav = sc.errors, sc.navigation
+    if nav.model == "ekf":
+        if e.delta_r_m != 0.0:
+            raise input_error("errors.delta_r_m", e.delta_r_m, "must be 0 with navigation.model = ekf (the injection "
+                              "errors of Algorithm 3 are the noise option; the filter's sensor sets the errors)", "m")
+        from proxops.systems.common import ekf_navigation
+
+        return ekf_navigation(nav, sc.orbit, sc.guidance.substep_s, system="cortex", layout=layout)
+    for key in ("position_sigma_m", "velocity_sigma_mps"):
+        if getattr(nav, key) != 0.0:
+            raise input_error(f"navigation.{key}", getattr(nav, key), "is not used by cortex: give the injection "
+                              "errors as errors.delta_r_m (Algorithm 3), or navigation.model = ekf")
     if e.delta_r_m == 0.0:
         return PerfectNavigation()
     sigma_axis = e.delta_r_m / 3.0 / math.sqrt(3.0)
@@ -112,7 +133,7 @@ def build_setup(sc):
                             ApproachCone(axis, cfg.cone_half_angle_rad), plume_bar=PlumeConstraint(cfg.alpha_p_bar))
     x0 = np.asarray(cfg.start_state, float)
     plant = translational_plant(sc.orbit, sc.truth, x0)
-    setup = Setup(plant=plant, controller=ctrl, duration_s=sc.sim.duration_s, navigation=navigation_of(sc),
+    setup = Setup(plant=plant, controller=ctrl, duration_s=sc.sim.duration_s, navigation=navigation_of(sc, plant.layout),
                   actuator=actuator_of(sc), meta={"system": "cortex", "control": "impulse", "frame": "Hill/RTN"})
     return setup, ctrl, plan
 
