@@ -5,7 +5,8 @@
    by a full rebuild, next to the paper's 38.43 +- 12.8 ms (goal: median < 1 ms).
 2. Wall time of one nominal run with the high-fidelity truth (``proxops run cortex-nominal``, in this
    process after a warm-up run that pays numba compilation; goal < 10 s).
-3. Wall time of the 100-run high-error campaign on 2 workers (``proxops mc cortex-high-mc --runs 100
+3. The thruster chain on the nominal run: delta-v and propellant against the impulsive actuator.
+4. Wall time of the 100-run high-error campaign on 2 workers (``proxops mc cortex-high-mc --runs 100
    --workers 2``, process start included; goal < 5 min). ``--no-campaign`` skips it.
 
 Run: ``.venv/bin/python benchmarks/bench_cortex_tracking.py [--runs 100] [--no-campaign]``.
@@ -79,6 +80,23 @@ def nominal_run():
           f"CP_g median {summary['solve_time_ms']['median']:.3f} ms")
 
 
+def thruster_chain():
+    """cortex-nominal with the thruster chain ([actuator] model = thrusters) against the impulsive slot."""
+    out = {}
+    for model in ("impulsive", "thrusters"):
+        sc = load_scenario("cortex-nominal", [f"actuator.model={model}"]).scenario
+        t0 = time.perf_counter()
+        out[model], _ = run_closed_loop(sc)
+        out[model]["wall"] = time.perf_counter() - t0
+    i, t = out["impulsive"], out["thrusters"]
+    print(f"thruster chain (eq. 32 + Algorithm 4 LP + eq. 33 PWM, six 1.2 N axis thrusters, Isp 220 s): {t['status']}, "
+          f"dv {t['total_dv_mps']:.4f} m/s vs impulsive {i['total_dv_mps']:.4f} m/s; propellant {t['propellant_kg'] * 1e3:.1f} g "
+          f"vs rocket equation on the impulsive dv {i['propellant_kg'] * 1e3:.1f} g ({t['propellant_kg'] / i['propellant_kg']:.2f}x, "
+          f"axis thrusters burn the L1 norm); terminal {t['terminal_position_error_m'] * 1e3:.3f} mm; "
+          f"wall {t['wall']:.2f} s vs {i['wall']:.2f} s; LP {t['allocation_lp_ms_mean']:.2f} ms per allocation "
+          f"({t['allocations']} allocations)")
+
+
 def campaign(runs: int):
     with tempfile.TemporaryDirectory() as d:
         t0 = time.perf_counter()
@@ -96,6 +114,7 @@ def main():
     args = ap.parse_args()
     cpg_times()
     nominal_run()
+    thruster_chain()
     if not args.no_campaign:
         campaign(args.runs)
 

@@ -94,6 +94,10 @@ CASES = [
     ("srf-epsilon-infeasible", ["validate", "srf-vbar", "--set", "mpc.epsilon_m=2000"], "epsilon_m"),
     ("srf-koz-larger-than-start", ["validate", "srf-vbar", "--set", "keep_out.radius_m=5000"], "keep-out"),
     ("srf-unknown-solver", ["validate", "srf-vbar", "--set", "mpc.solver=foo"], "solver"),
+    ("srf-trim-after-hop-end", ["validate", "srf-vbar", "--set", "mpc.drift_trim_delay_nodes=6"],
+     "drift_trim_delay_nodes"),
+    ("srf-trim-window-zero", ["validate", "srf-vbar", "--set", "mpc.drift_estimator_window_s=0"],
+     "drift_estimator_window_s"),
     ("los-rate-nan", ["validate", "los-tumble", "--set", "target.tumble_rate_deg_s=nan"], "tumble_rate_deg_s"),
     # seeds
     ("run-seed-negative", ["run", "station-keeping", "--seed", "-1", *SK], "--seed"),

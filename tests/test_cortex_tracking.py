@@ -182,11 +182,23 @@ class _DeadThrusters:
         return np.zeros(3) if t >= self.t_fail else np.array(u, float)
 
 
-@pytest.mark.parametrize("t_fail", [60.0, 420.0])
-def test_no_true_violation_without_an_abort_at_that_step(t_fail):
-    """Thrusters die in the fly-around (60 s) or the approach (420 s). Every sample at which the TRUE
-    state breaks the KOS (holds, fly-around) or the cone (approach) while tracking must carry an abort
-    event at that time; after it the mode is no longer a tracking phase."""
+def _first_unaborted_violation(res):
+    """(time of the first sample whose TRUE state breaks the KOS (before the approach) or the cone (in the
+    approach), abort times): the sample must carry the first abort event."""
+    cone = ApproachCone(AXIS, math.radians(10))
+    r = res.x_true[:, :3]
+    abort_times = sorted(e[0] for e in res.events if e[1] == "abort")
+    approach_started = False
+    for k, mode in enumerate(res.mode):
+        approach_started |= mode == "approach"
+        kos = not approach_started and np.linalg.norm(r[k]) < 15.0
+        out = approach_started and mode in ("approach", "null") and cone.margin(r[k]) < 0
+        if kos or out:
+            return res.t[k], abort_times
+    return None, abort_times
+
+
+def _faulted_run(t_fail, disable_aborts=False):
     from proxops.scenarios.loader import load_scenario
     from proxops.sim.engine import simulate
     from proxops.systems.cortex_loop import build_setup
@@ -194,19 +206,18 @@ def test_no_true_violation_without_an_abort_at_that_step(t_fail):
     sc = load_scenario("cortex-nominal", ["truth.model=cw", "eclipse.model=none", "sim.duration_s=1500"]).scenario
     setup, ctrl, plan = build_setup(sc)
     setup.actuator = _DeadThrusters(t_fail)
-    res = simulate(setup)
-    cone = ApproachCone(AXIS, math.radians(10))
-    r = res.x_true[:, :3]
-    abort_times = sorted(e[0] for e in res.events if e[1] == "abort")
-    approach_started = False
-    first_bad = None
-    for k, mode in enumerate(res.mode):
-        approach_started |= mode == "approach"
-        kos = not approach_started and np.linalg.norm(r[k]) < 15.0
-        out = approach_started and mode in ("approach", "null") and cone.margin(r[k]) < 0
-        if kos or out:
-            first_bad = res.t[k]
-            break
+    if disable_aborts:  # mutation: Table 1 never fires
+        ctrl.triggers.check = lambda *a, **k: None
+    return simulate(setup)
+
+
+@pytest.mark.parametrize("t_fail", [60.0, 420.0])
+def test_no_true_violation_without_an_abort_at_that_step(t_fail):
+    """Thrusters die in the fly-around (60 s) or the approach (420 s). Every sample at which the TRUE
+    state breaks the KOS (holds, fly-around) or the cone (approach) while tracking must carry an abort
+    event at that time; after it the mode is no longer a tracking phase."""
+    res = _faulted_run(t_fail)
+    first_bad, abort_times = _first_unaborted_violation(res)
     if first_bad is not None:  # the first true violation carries the abort event of that sample
         assert abort_times and abort_times[0] == pytest.approx(first_bad)
     else:
@@ -217,11 +228,70 @@ def test_no_true_violation_without_an_abort_at_that_step(t_fail):
         assert not set(later) & {"hold1", "flyaround", "hold2", "approach"}
 
 
+def test_the_violation_check_can_fail():
+    """The check above is not vacuous: with the Table 1 triggers switched off, the same fault (thrusters
+    dead from 60 s) drives the true state into the KOS with no abort event."""
+    res = _faulted_run(60.0, disable_aborts=True)
+    first_bad, abort_times = _first_unaborted_violation(res)
+    assert first_bad is not None and not abort_times
+
+
+def test_regeneration_inside_a_buffered_envelope_does_not_refire_it():
+    """A buffered condition named in ``suspended`` is skipped (the supervisor suspends the one a
+    regeneration starts inside and re-arms it on exit); the true-constraint aborts are never suspended."""
+    trig = CortexTriggers(r_kos_m=15.0, rho_bar_m=18.0, cone=ApproachCone(AXIS, math.radians(10)),
+                          cone_bar=ApproachCone(AXIS, math.radians(5)), plume=PlumeConstraint(math.radians(20)),
+                          plume_bar=PlumeConstraint(math.radians(24)),
+                          eps_r_m={"hold1": 30.0, "flyaround": 30.0, "hold2": 15.0, "approach": 5.0})
+    r = np.array([0.0, 17.0, 0.0])
+    assert trig.check("flyaround", r, r, None)[1].startswith("C_KOS_bar")
+    assert trig.check("flyaround", r, r, None, suspended={"C_KOS_bar"}) is None
+    inside = np.array([0.0, 14.0, 0.0])
+    assert trig.check("flyaround", inside, inside, None, suspended={"C_KOS_bar"})[0] == "abort"
+    side = np.array([math.cos(math.radians(45 + 7)), math.sin(math.radians(45 + 7)), 0.0]) * -5.0  # 7 deg off
+    assert trig.check("approach", side, side, None)[1].startswith("C_cone_bar")
+    assert trig.check("approach", side, side, None, suspended={"C_cone_bar"}) is None
+
+
+def test_predicted_passive_range_of_the_safe_orbit():
+    """The thrust-free prediction the insertion check uses: on the safe orbit of §3.4 the smallest range is
+    the radial semi-axis r_AS / 4 (closed form of the 2:1 CW ellipse)."""
+    from proxops.scenarios.loader import load_scenario
+    from proxops.systems.cortex_loop import build_setup
+
+    sc = load_scenario("cortex-nominal", ["truth.model=cw", "eclipse.model=none"]).scenario
+    _, ctrl, _ = build_setup(sc)
+    x_s = safe_orbit_state(ctrl.n, 75.0)
+    assert ctrl.predicted_min_range(x_s) == pytest.approx(75.0 / 4, rel=1e-4)
+    x_bad = x_s.copy()
+    x_bad[4] += 2e-3  # 2 mm/s along-track: drifts ~34 m per orbit
+    assert ctrl.predicted_min_range(x_bad) < 15.0
+
+
+def test_high_error_abort_is_trimmed_onto_a_passively_safe_orbit():
+    """Run 7 of the cortex-high-mc campaign (seed 2, full truth) aborts in the approach; its open-loop
+    insertion used to leave 7 mm/s and drift to 1.4 m from the target within one orbit. The verified
+    insertion trims until the CW prediction clears r_KOS + 2 m: the thrust-free TRUTH then stays outside
+    the KOS for the orbit."""
+    from proxops.analysis.campaign import run_seeds
+    from proxops.scenarios.loader import load_scenario
+    from proxops.systems.cortex_loop import run_closed_loop
+
+    sc = load_scenario("cortex-high-mc").scenario
+    seed, _ = run_seeds(sc.sim.seed, 7)
+    summary, _ = run_closed_loop(sc, seed=seed)
+    assert summary["status"] == "aborted"
+    assert summary["passive_safe"] and summary["passive_min_range_m"] > 15.0
+    assert summary["predicted_passive_min_range_m"] >= 17.0
+
+
 @pytest.mark.parametrize("setting, field", [
     ("errors.p_misthrust=1.5", "p_misthrust"),
     ("guidance.substep_s=7", "substep_s"),
     ("guidance.recompute_approach_m=0", "recompute_approach_m"),
     ("guidance.recompute_hold2_m=-1", "recompute_hold2_m"),
+    ("actuator.model=rockets", "model"),
+    ("actuator.min_on_time_s=5", "min_on_time_s"),
 ])
 def test_cli_bad_input_is_one_line_exit_2(setting, field):
     import subprocess

@@ -104,27 +104,37 @@ def test_rbar_closed_loop_against_j2_truth():
 
 def test_vbar_passive_abort_over_three_orbits_against_j2_truth():
     """Issue 11 / §2 "indefinite hold": the nominal V-bar run is abort-safe over the default 3-orbit
-    window from every hop impulse against J2 truth, and the return miss per orbit is reported.
-    Bounds: the first hop's drift row sees one white sample of c = vy + 2 n x (sigma 0.5 m, 0.5 mm/s
-    -> 1.0 mm/s), which times 3 t_orb is 22 m per orbit at 1 sigma: asserted at 3 sigma (65 m). Later
-    hops average c over the ~360 samples of the previous hop (1 sigma ~1.2 m per orbit) plus the J2
-    model residual: asserted below 10 m. Measured with seeds 0-3: first hop 2.4-57.8 m, later hops
-    1.4-5.8 m per orbit. Before the drift rows the last hop missed by 88 m per orbit and entered the
-    KOZ in the second orbit."""
+    window from every hop (its drift starting after the hop's trim) against J2 truth, and the return
+    miss per orbit is reported. Bound: the trim nulls the drift invariant c estimated as the mean of
+    the navigation samples since the hop impulse (one per engine step, 60 until the next MPC node);
+    one white sample of c = vy + 2 n x has sigma hypot(2 n 0.5 m, 0.5 mm/s) = 1.0 mm/s, the mean
+    0.13 mm/s; the row leaves up to its tolerance 0.05 mm/s (+ 1e-5 QP slack), and the hold rows after
+    the trim nothing more in the hop's drift. Asserted: miss per orbit < 3 t_orb (3 sigma + tol +
+    slack) = 9.7 m for every hop (the issue's goal: < 10 m). Measured (seed 1): 4.7, 4.1, 4.4 m; before
+    the trim the first hop missed by 57.8 m per orbit (one navigation sample), reported as the
+    untrimmed drift."""
     from proxops.core.cw import mean_motion
     from proxops.runner import execute
 
     loaded = load_scenario("srf-vbar")
     assert loaded.scenario.safety.abort_orbits == 3.0
-    summary, _ = execute(loaded)
+    summary, results = execute(loaded)
     assert summary["abort_window_orbits"] == 3.0 and summary["abort_required_orbits"] == 3.0
     assert summary["abort_safe_all"] and summary["abort_safe_window_orbits"] == 3.0
     n = mean_motion(8100e3)
-    floor = 3 * (2 * math.pi / n) * math.hypot(2 * n * 0.5, 0.0005)  # 1 sigma, one sample of c
-    for j, item in enumerate(summary["abort"]):
-        assert item["min_koz_distance_m"] > 0.0
+    t_orb = 2 * math.pi / n
+    samples = 720 // 12  # engine steps per orbit / MPC nodes per orbit (6 per half-orbit hop)
+    sigma = math.hypot(2 * n * 0.5, 0.0005) / math.sqrt(samples)
+    bound = 3 * t_orb * (3 * sigma + 5e-5 + 1e-5)
+    assert 9.0 < bound < 10.0
+    trims = results["run"].meta["hop_trim_times_s"]
+    assert len(summary["abort"]) == 3 == len(trims)
+    for item, t_trim in zip(summary["abort"], trims):
+        assert item["t_s"] == pytest.approx(t_trim) and t_trim - item["hop_t_s"] == pytest.approx(t_orb / 12)
+        assert item["min_koz_distance_m"] > 0.0 and item["safe_window_orbits"] == 3.0
         assert len(item["return_miss_m"]) == 3
-        assert item["return_miss_per_orbit_m"] < (3 * floor if j == 0 else 10.0)
+        assert item["return_miss_per_orbit_m"] < bound
+        assert "untrimmed_safe_window_orbits" in item
 
 
 def test_rbar_and_glideslope_require_one_orbit_of_abort_safety():

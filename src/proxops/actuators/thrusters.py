@@ -95,30 +95,44 @@ class Allocation:
     status: str
 
 
+class Allocator:
+    """Algorithm 4 for one layout, set up once: each :meth:`solve` changes only the row bounds (the
+    command c) and hot-starts HiGHS from the previous basis (measured: a fresh set-up per command
+    costs ~30 ms, an update well under 1 ms)."""
+
+    def __init__(self, layout: ThrusterLayout, solver=None):
+        self.layout = layout
+        n = layout.n
+        self.M = layout.actuation_matrix() * layout.f_max_n[None, :]  # (6, n)
+        # variables [d (n), e (6)]: rows M d - e <= c and M d + e >= c
+        self.A = np.block([[self.M, -np.eye(6)], [self.M, np.eye(6)]])
+        cost = np.concatenate([np.zeros(n), np.ones(6)])
+        lb = np.zeros(n + 6)
+        ub = np.concatenate([np.ones(n), np.full(6, np.inf)])
+        self.lp = solver or HighsLP(settings={"primal_feasibility_tolerance": 1e-10, "dual_feasibility_tolerance": 1e-10})
+        zero = np.zeros(6)
+        self.lp.setup(cost, self.A, np.concatenate([np.full(6, -np.inf), zero]), np.concatenate([zero, np.full(6, np.inf)]),
+                      lb, ub)
+
+    def solve(self, command) -> Allocation:
+        c = np.asarray(command, float)
+        if c.shape != (6,) or not np.all(np.isfinite(c)):
+            raise input_error("force/torque command", np.ravel(c).tolist(), "must be 6 finite numbers [F (N), tau (N m)]")
+        n = self.layout.n
+        self.lp.update(rl=np.concatenate([np.full(6, -np.inf), c]), ru=np.concatenate([c, np.full(6, np.inf)]))
+        res = self.lp.solve()
+        if res.x is None:
+            return Allocation(np.zeros(n), np.abs(c), np.zeros(6), res.status.value)
+        d = np.clip(res.x[:n], 0.0, 1.0)
+        achieved = self.M @ d
+        return Allocation(d, np.abs(achieved - c), achieved, res.status.value)
+
+
 def allocate(layout: ThrusterLayout, command, solver=None) -> Allocation:
     """Algorithm 4: duty cycles d in [0, 1] minimising sum_j |(A F d - c)_j| for the body
     force/torque command c = [F (N); tau (N m)] (6,). Infeasibility cannot occur (d = 0 is
-    feasible with e = |c|); a solver failure is a status."""
-    c = np.asarray(command, float)
-    if c.shape != (6,) or not np.all(np.isfinite(c)):
-        raise input_error("force/torque command", np.ravel(c).tolist(), "must be 6 finite numbers [F (N), tau (N m)]")
-    n = layout.n
-    M = layout.actuation_matrix() * layout.f_max_n[None, :]  # (6, n)
-    # variables [d (n), e (6)]: rows M d - e <= c and M d + e >= c
-    A = np.block([[M, -np.eye(6)], [M, np.eye(6)]])
-    rl = np.concatenate([np.full(6, -np.inf), c])
-    ru = np.concatenate([c, np.full(6, np.inf)])
-    cost = np.concatenate([np.zeros(n), np.ones(6)])
-    lb = np.zeros(n + 6)
-    ub = np.concatenate([np.ones(n), np.full(6, np.inf)])
-    lp = solver or HighsLP(settings={"primal_feasibility_tolerance": 1e-10, "dual_feasibility_tolerance": 1e-10})
-    lp.setup(cost, A, rl, ru, lb, ub)
-    res = lp.solve()
-    if res.x is None:
-        return Allocation(np.zeros(n), np.abs(c), np.zeros(6), res.status.value)
-    d = np.clip(res.x[:n], 0.0, 1.0)
-    achieved = M @ d
-    return Allocation(d, np.abs(achieved - c), achieved, res.status.value)
+    feasible with e = |c|); a solver failure is a status. One-off form of :class:`Allocator`."""
+    return Allocator(layout, solver).solve(command)
 
 
 def pwm_on(t_s: float, duty: np.ndarray, t_control_s: float) -> np.ndarray:
@@ -154,3 +168,108 @@ def burn_sequence(dvs_mps, mass_kg: float, thrust_n: float, isp_s: float) -> tup
     for i, dv in enumerate(dvs):
         t_on[i], masses[i + 1] = main_engine_on_time(float(dv), float(masses[i]), thrust_n, isp_s)
     return t_on, masses
+
+
+def pwm_impulse(layout: ThrusterLayout, duty, t_control_s: float, mass_kg: float, isp_s: float,
+                attitude=None) -> tuple[np.ndarray, float, float]:
+    """Velocity change (m/s, frame of ``attitude`` @ body; body frame without it) of one PWM window
+    of eq. (33) -- thruster i on for (t mod t_control) < d_i t_control -- with the mass depleted
+    while the thrusters fire (rocket equation piece by piece: between on/off switches the force F
+    and the mass flow mdot = sum F_i / (Isp g0) are constant, dv = F / mdot ln(m / (m - mdot dt))).
+    Returns (dv (3,), propellant kg, summed thruster on-time s)."""
+    d = np.clip(np.asarray(duty, float), 0.0, 1.0)
+    ve = isp_s * G0
+    edges = np.unique(np.concatenate([[0.0, t_control_s], d * t_control_s]))
+    m = float(mass_kg)
+    dv = np.zeros(3)
+    on_time = 0.0
+    for a, b in zip(edges[:-1], edges[1:]):
+        if b - a <= 0.0:
+            continue
+        on = pwm_on(0.5 * (a + b), d, t_control_s)  # eq. (33) on this piece of the window
+        if not on.any():
+            continue
+        force = (layout.directions * (layout.f_max_n * on)[:, None]).sum(axis=0)  # N, body
+        mdot = float((layout.f_max_n * on).sum()) / ve
+        dm = mdot * (b - a)
+        dv += force / mdot * math.log(m / (m - dm))
+        m -= dm
+        on_time += float(on.sum()) * (b - a)
+    if attitude is not None:
+        dv = np.asarray(attitude, float) @ dv
+    return dv, float(mass_kg) - m, on_time
+
+
+class ThrusterChainActuator:
+    """The engine's actuator slot through the thruster chain of §4.1.3-4.1.4 (scenario key
+    ``[actuator] model = "thrusters"`` of the cortex system).
+
+    Each commanded impulse dv (m/s, Hill) of a window of ``t_control_s`` (the impulse spacing
+    delta t_g) goes, in order, through: ``errors`` (the Algorithm 3 execution errors of
+    :class:`proxops.actuators.ThrusterModel`, on the command, if given); eq. (32) -- the force that
+    delivers |dv| over the window by the rocket equation at the current mass,
+    F = (m0 - m_f) Isp g0 / t_control with m_f = m0 exp(-|dv| / (Isp g0)) (eq. 32 solved for F at
+    t_on = t_control); Algorithm 4 -- duty cycles of the ``layout`` thrusters for the body
+    force/torque [F; 0] (HiGHS LP); eq. (33) -- the PWM on/off law; and :func:`pwm_impulse`, the
+    velocity change those on-times deliver with the mass depleted during the burn. The body axes
+    are held on the Hill axes (fixed attitude, as the paper's plume simplification; attitude
+    control is not modelled). Duty cycles below ``min_on_time_s / t_control`` fire nothing (minimum
+    on-time). The delivered velocity change is applied as one impulse at the window start (the
+    engine's impulse model, the same discretisation as CP_g). Bookkeeping: ``mass_kg``,
+    ``propellant_kg``, ``on_time_s``, ``max_allocation_error_n`` (largest force the LP could not
+    produce: saturation)."""
+
+    def __init__(self, layout: ThrusterLayout, mass_kg: float, isp_s: float, t_control_s: float, errors=None,
+                 min_on_time_s: float = 0.0, period_s: float | None = None):
+        for name, v, unit in (("servicer.mass_kg", mass_kg, "kg"), ("actuator.isp_s", isp_s, "s"),
+                              ("guidance.substep_s", t_control_s, "s")):
+            if not (math.isfinite(v) and v > 0):
+                raise input_error(name, v, "must be a finite number > 0", unit)
+        if not (math.isfinite(min_on_time_s) and 0.0 <= min_on_time_s <= t_control_s):
+            raise input_error("actuator.min_on_time_s", min_on_time_s, f"must be in [0, {t_control_s:g}] (the PWM period)", "s")
+        self.layout, self.isp_s, self.t_control_s = layout, float(isp_s), float(t_control_s)
+        self.errors, self.min_on_time_s, self.period_s = errors, float(min_on_time_s), period_s
+        self.mass0_kg = self.mass_kg = float(mass_kg)
+        self.propellant_kg = 0.0
+        self.on_time_s = 0.0
+        self.max_allocation_error_n = 0.0
+        self.allocations = 0
+        self.lp_time_s = 0.0
+        self._allocator = None
+
+    def command_force(self, dv) -> np.ndarray:
+        """Eq. (32) solved for the force that delivers ``dv`` over one window at the current mass (N, Hill = body)."""
+        dv = np.asarray(dv, float)
+        mag = float(np.linalg.norm(dv))
+        if mag == 0.0:
+            return np.zeros(3)
+        ve = self.isp_s * G0
+        m_f = self.mass_kg * math.exp(-mag / ve)
+        return dv / mag * (self.mass_kg - m_f) * ve / self.t_control_s
+
+    def apply(self, t: float, u, kind: str, rng) -> np.ndarray:
+        import time
+
+        if kind != "impulse":
+            raise input_error("actuator.model", "thrusters", "takes impulse commands (the cortex loop); "
+                              f"got a command of kind {kind!r}")
+        u = np.asarray(u, float)
+        if self.errors is not None:
+            u = np.asarray(self.errors.apply(t, u, kind, rng), float)
+        if not u.any():
+            return np.zeros(3)
+        force = self.command_force(u)
+        t0 = time.perf_counter()
+        if self._allocator is None:
+            self._allocator = Allocator(self.layout)
+        alloc = self._allocator.solve(np.concatenate([force, np.zeros(3)]))
+        self.lp_time_s += time.perf_counter() - t0
+        self.allocations += 1
+        self.max_allocation_error_n = max(self.max_allocation_error_n, float(alloc.error[:3].max()))
+        duty = alloc.duty.copy()
+        duty[duty * self.t_control_s < self.min_on_time_s] = 0.0
+        dv, dm, on = pwm_impulse(self.layout, duty, self.t_control_s, self.mass_kg, self.isp_s)
+        self.mass_kg -= dm
+        self.propellant_kg += dm
+        self.on_time_s += on
+        return dv

@@ -52,7 +52,7 @@ Corrections / choices (also in the report):
 * Margin: the system passes a KOZ inflated by ``keep_out.margin_m`` (default 10 m) because
   the CW prediction from the estimated state differs from the J2 truth.
 * Relaxation ladder when the problem is infeasible (noise, J2, dispersions): (1) drop the
-  design rows -- the V-bar decrease (29o) and the guidance hop-distance bands -- (event
+  design rows -- the V-bar decrease (29o), the guidance hop-distance bands and the drift hold rows -- (event
   ``design_rows_relaxed``); (2) also drop the terminal position box (``terminal_set_relaxed``);
   (3) also drop the hop rows (29l)-(29n) (``hops_relaxed``). The CBF rows are never dropped.
 * V-bar: hop lengths cost the same fuel whatever the split ((w/2) sum L for radial hops), so
@@ -77,6 +77,24 @@ Corrections / choices (also in the report):
   specific energy (two-body + J2 potential, both conserved on the free motion: the J2 potential is
   axisymmetric) divided by |v_t|: equal energies mean equal semi-major axes and no secular drift;
   for a circular CW target it reduces to ``vy + 2 n x``. k_l = R^T v_t / |v_t| at node l.
+* V-bar drift trim (``drift_trim_delay_nodes``, not in the paper): the row at the hop impulse acts on
+  what the controller knows then -- one navigation sample at the first hop (1 mm/s, 22 m/orbit at
+  1 sigma) -- and cannot remove the impulse's own execution error (0.5 deg pointing on 0.2-0.4 m/s
+  is 2-3 mm/s along y, 40-66 m/orbit at 1 sigma). So every hop start also gets a drift row at the
+  node ``drift_trim_delay_nodes`` later (the trim node), where c is the mean of the navigation
+  samples since the hop impulse (its least-squares estimate: c is constant on the free motion;
+  60 samples at the default node spacing: 0.13 mm/s, 2.8 m/orbit at 1 sigma): the MPC fires a small
+  trim (mm/s) that nulls it, with the same thrusters (its own pointing/magnitude errors are ~1 % of
+  a few mm/s). A trim below the minimum impulse bit (``min_impulse_mps``) would fire nothing: it is
+  raised to the bit by an out-of-plane component (:meth:`SrfMpc._lift_to_impulse_bit`). Option
+  ``drift_hold_after_trim`` (off by default): every later impulse of the hop up to its end keeps c as
+  trimmed (``|sum_{trim < l <= j} k_l . u_l| <= tol``, relaxed with the design rows), so the drift
+  stays null after any of them. Measured on srf-vbar-mc (50 runs): the radial-only corrections it
+  forces make the problem infeasible far more often -- relaxed with the hop rows (level 3): 117
+  relaxations in 13 runs, worst l1 dv 8.4 m/s; as a design row (level 1, as now): 40 in 13 runs,
+  worst l1 dv 10.2 m/s and one hop drift missing by 1.2 km/orbit -- against 12 in 4 runs, worst
+  1.18 m/s and 11 m/orbit without it; so it is off by default. The passive-abort drift of a hop
+  (systems.srf.passive_abort) starts after its trim.
 
 QP (solved by the persistent adapter of ``solver``, PIQP by default, Clarabel as fallback): condensed in the
 impulses, variables scaled to z = u / u_max in [0, 1] plus the terminal position error in km.
@@ -127,6 +145,10 @@ class SrfMpcConfig:
     hop_distance_weight_per_m2: float = 0.0  # 1/2 w (a.p(J_m) - d_m)^2 towards Algorithm 1's distances (0 = paper)
     drift_free_tol_mps: float | None = None  # V-bar: |vy+ + 2 n x| <= tol after every hop-start impulse (None = off)
     drift_model: "EnergyDrift | None" = None  # J2-aware invariant from an onboard target ephemeris (None: CW's)
+    drift_trim_delay_nodes: int | None = None  # V-bar: trim row this many nodes after every hop start (None = off)
+    drift_hold_after_trim: bool = False  # with a trim: later impulses of the hop keep c as trimmed (design row)
+    drift_estimator_window_s: float | None = None  # average c over the samples of this window (None: since the last impulse)
+    min_impulse_mps: float = 0.0  # the thrusters' minimum impulse bit (|u| below it fires nothing)
     cbf: bool = True
     cbf_alpha_per_s: float = 0.01
     free_drift_s: float | None = None  # None: one orbital period
@@ -152,40 +174,53 @@ class EnergyDrift:
     re: float
 
     def target(self, t: float) -> np.ndarray:
-        k = int(round(t / self.dt))
-        if not 0 <= k < len(self.states) or abs(k * self.dt - t) > 1e-6 * max(1.0, t):
-            raise input_error("t", t, f"is not on the ephemeris grid (dt = {self.dt:g} s, {len(self.states)} points)", "s")
-        return self.states[k]
+        return self.states[self._index(t)]
 
     def _accel(self, r: np.ndarray) -> np.ndarray:
         from proxops.core.twobody import accel_gravity_vec
 
         return accel_gravity_vec(r, self.mu, self.j2, self.re)
 
-    def invariant(self, t: float, x) -> float:
-        from proxops.core.twobody import potential
-        from proxops.frames.hill import hill_to_eci_offset
+    def _index(self, t: float) -> int:
+        k = int(round(t / self.dt))
+        if not 0 <= k < len(self.states) or abs(k * self.dt - t) > 1e-6 * max(1.0, t):
+            raise input_error("t", t, f"is not on the ephemeris grid (dt = {self.dt:g} s, {len(self.states)} points)", "s")
+        return k
 
-        tgt = self.target(t)
-        off = hill_to_eci_offset(tgt, np.asarray(x, dtype=float), self._accel(tgt[:3]))
-        r_c = tgt[:3] + off[:3]
-        v_t = tgt[3:]
-        d_kin = float(v_t @ off[3:] + 0.5 * off[3:] @ off[3:])
-        d_pot = potential(*r_c, self.mu, self.j2, self.re) - potential(*tgt[:3], self.mu, self.j2, self.re)
-        return (d_kin + d_pot) / float(np.linalg.norm(v_t))
+    def invariant(self, t: float, x) -> float:
+        return float(self.invariants(np.array([t]), np.asarray(x, dtype=float)[None, :6])[0])
+
+    def invariants(self, t: np.ndarray, xs: np.ndarray) -> np.ndarray:
+        """:meth:`invariant` of Hill states (n, 6) at times (n,) on the ephemeris grid, one jitted
+        call (:func:`proxops.propagation.kernels.energy_invariants`; the same numbers row by row)."""
+        from proxops.propagation.kernels import energy_invariants
+
+        return energy_invariants(self._targets(t), np.ascontiguousarray(xs[:, :6], dtype=float), self._params())
+
+    def _params(self) -> np.ndarray:
+        return np.array([self.mu, self.j2, self.re])
+
+    def _targets(self, t) -> np.ndarray:
+        t = np.asarray(t, dtype=float)
+        k = np.rint(t / self.dt).astype(int)
+        bad = (k < 0) | (k >= len(self.states)) | (np.abs(k * self.dt - t) > 1e-6 * np.maximum(1.0, t))
+        if bad.any():
+            self._index(float(t[np.argmax(bad)]))  # raises the one-line error
+        return np.ascontiguousarray(self.states[k])
+
+    def gains(self, t, xs) -> np.ndarray:
+        """:meth:`gain` of Hill states (n, 6) at times (n,), one jitted call
+        (:func:`proxops.propagation.kernels.energy_gains`)."""
+        from proxops.propagation.kernels import energy_gains
+
+        return energy_gains(self._targets(t), np.ascontiguousarray(xs[:, :6], dtype=float), self._params())
 
     def gain(self, t: float, x=None) -> np.ndarray:
         """Change of the invariant per unit impulse at chaser Hill state ``x`` (Hill components):
         ``C v_c / |v_t|`` with the chaser's inertial velocity ``C v_c = C v_t + rho' + w x rho``
         (first order in the impulse; the rotating-frame term is 1.7 m/s at 2 km along-track)."""
-        from proxops.frames.hill import eci_vector_to_hill, hill_frame_rate
-
-        tgt = self.target(t)
-        v = eci_vector_to_hill(tgt, tgt[3:])
-        if x is not None:
-            x = np.asarray(x, dtype=float)
-            v = v + x[3:6] + np.cross(hill_frame_rate(tgt, self._accel(tgt[:3])), x[:3])
-        return v / float(np.linalg.norm(tgt[3:]))
+        x = np.zeros(6) if x is None else np.asarray(x, dtype=float)
+        return self.gains(np.array([t]), x[None, :6])[0]
 
 
 @dataclass
@@ -324,8 +359,28 @@ class SrfMpc:
                 raise input_error("hop_distances_m", hop_distances_m, "give the n_hops + 1 guidance distances "
                                   "when hop_distance_tol_m is set", "m")
             self.hop_targets_m = np.asarray(hop_distances_m, dtype=float)
-        # hop-start nodes (node 0 and every hop end but the terminal node): drift-free rows
-        self.drift_nodes = np.array([0] + schedule.hop_nodes[:-1].tolist(), dtype=int)
+        # hop-start nodes (node 0 and every hop end but the last): drift-free rows; with a drift trim also
+        # the trim node of every hop start (delay nodes later, before that hop's end)
+        hop_starts = [0] + schedule.hop_nodes[:-1].tolist()
+        self.trim_nodes: dict[int, int] = {}  # trim node -> its hop-start node
+        if c.drift_trim_delay_nodes is not None and c.drift_free_tol_mps is not None:
+            d = int(c.drift_trim_delay_nodes)
+            for h, end in zip(hop_starts, schedule.hop_nodes.tolist()):
+                if not 1 <= d < end - h:
+                    raise input_error("mpc.drift_trim_delay_nodes", d,
+                                      f"the trim must come 1 to {end - h - 1} MPC nodes after its hop start (the hop "
+                                      f"from node {h} ends at node {end}): lower it or raise mpc.steps_per_hop")
+                self.trim_nodes[h + d] = h
+        if c.drift_estimator_window_s is not None and not c.drift_estimator_window_s > 0:
+            raise input_error("mpc.drift_estimator_window_s", c.drift_estimator_window_s, "must be > 0", "s")
+        self.drift_nodes = np.array(sorted(hop_starts + list(self.trim_nodes)), dtype=int)
+        # nodes after a trim and before the next hop start (or the terminal node): impulses keep c
+        self.hold_nodes = []
+        if self.trim_nodes and c.drift_hold_after_trim:
+            for t_node, h in self.trim_nodes.items():
+                end = int(schedule.hop_nodes[np.searchsorted(schedule.hop_nodes, h, side="right")])
+                self.hold_nodes += [(j, t_node) for j in range(t_node + 1, end)]
+        self.hold_nodes = sorted(self.hold_nodes)  # (node j, its trim node)
         self._layout()
         pdiag = np.zeros(self._nz)
         pdiag[self._ie:self._ie + 3] = c.q_terminal_per_m2 * KM**2
@@ -349,7 +404,21 @@ class SrfMpc:
         self.finished = False
         self.last_drift = None  # (tau, states) of the last accepted free drift
         self.solve_log: list[dict] = []
-        self._c_sum, self._c_count = 0.0, 0  # drift invariant samples since the last impulse
+        self._c_samples: list[tuple[float, float]] = []  # (t, c) navigation samples since the last impulse
+        self.trim_log: list[dict] = []  # per trim node: t, samples used, estimate of c, trim impulse
+
+    def drift_estimate(self, t: float, x) -> tuple[float, int]:
+        """Least-squares estimate of the drift invariant c (m/s) and the number of samples behind it.
+
+        c is a constant of the free motion, so the least-squares fit of the navigation samples taken
+        since the last impulse (within ``drift_estimator_window_s`` of ``t`` if set) is their mean;
+        its error is the single-sample error / sqrt(samples) for white navigation noise (0.5 m /
+        0.5 mm/s per axis: 1.0 mm/s per sample). Without samples: the invariant of ``x``."""
+        w = self.cfg.drift_estimator_window_s
+        vals = [c for (tc, c) in self._c_samples if w is None or tc >= t - w - 1e-9]
+        if not vals:
+            return self.drift_invariant(t, x), 1
+        return float(np.mean(vals)), len(vals)
 
     def drift_invariant(self, t: float, x) -> float:
         """c (m/s): constant on the free motion, zero for a drift-free one (CW: vy + 2 n x)."""
@@ -368,17 +437,20 @@ class SrfMpc:
         plan = self.plan.copy()
         plan[:i] = 0.0
         flat = plan.ravel()
-        last = int(self.drift_nodes.max())
-        for l in range(i, min(last, N) + 1):
-            xl = x if l == i else self._phi[l, i] @ x + self._S[l] @ flat
-            k[l] = self.drift_model.gain(float(self.sched.times[l]), xl)
+        last = min(int(max([self.drift_nodes.max()] + [j for j, _ in self.hold_nodes])), N)
+        if last < i:
+            return k
+        xs = np.empty((last - i + 1, 6))
+        xs[0] = x
+        if last > i:  # predicted states at nodes i+1..last, then their gains in one jitted call
+            xs[1:] = np.einsum("lij,j->li", self._phi[i + 1:last + 1, i], x) + self._S[i + 1:last + 1] @ flat
+        k[i:last + 1] = self.drift_model.gains(self.sched.times[i:last + 1], xs)
         return k
 
     def step(self, t: float, x_est) -> Command:
         x = np.asarray(x_est, dtype=float)
         if self.cfg.drift_free_tol_mps is not None and x.size == 6 and np.all(np.isfinite(x)):
-            self._c_sum += self.drift_invariant(t, x)
-            self._c_count += 1
+            self._c_samples.append((float(t), self.drift_invariant(t, x)))
         k = int(round(t / self.dt))
         N = self.sched.n
         if k > self.sched.steps[-1] or self.finished:
@@ -399,15 +471,75 @@ class SrfMpc:
             u = res.u[0]
             self.plan[node:] = res.u
         u = np.where(np.abs(u) < 1e-7, 0.0, u)
+        if node in self.trim_nodes:
+            c_hat, n_samples = self.drift_estimate(t, x)
+            if res.u is not None and res.relax < 3:
+                u = self._lift_to_impulse_bit(node, x, u)
+                self.plan[node] = u
+            self.trim_log.append({"t": float(t), "node": int(node), "hop_start_node": self.trim_nodes[node],
+                                  "samples": n_samples, "c_estimate_mps": c_hat, "u": u.copy()})
         self.used_l1 += float(np.abs(u).sum())
-        if np.any(u):
-            self._c_sum, self._c_count = 0.0, 0
+        if np.any(u) and float(np.linalg.norm(u)) >= self.cfg.min_impulse_mps:  # below the bit nothing fires
+            self._c_samples = []
         if node == N:
             self.finished = True
         info = {"solved": 1.0, "node": float(node), "relax": float(res.relax), "qp_iterations": float(res.iterations),
                 "cbf_min": res.cbf_min, "drift_min_range_m": res.drift_min_range_m}
         self.solve_log.append({"t": t, "node": node, "status": res.status, "u": u.copy(), **info})
-        return Command(u, "impulse", res.status, res.solve_time_s, mode, events, info)
+        if node == N:
+            return Command(u, "impulse", res.status, res.solve_time_s, mode, events, info)
+        # between nodes every step returns this idle command (no impulse) and only samples the drift
+        # invariant: the engine may skip those steps and hand the samples to observe_coast
+        idle = Command(np.zeros(3), "impulse", Status.OK, mode=mode, info={"solved": 0.0})
+        return Command(u, "impulse", res.status, res.solve_time_s, mode, events, info,
+                       next_decision_s=float(self.sched.times[node + 1]), idle=idle)
+
+    def observe_coast(self, t, x_est) -> None:
+        """The estimates of the steps the engine skipped between nodes (engine hook): sampled into
+        the drift invariant's samples exactly as :meth:`step` samples them (same values, same order)."""
+        if self.cfg.drift_free_tol_mps is None:
+            return
+        xs = np.asarray(x_est, dtype=float)
+        if xs.shape[1] != 6:
+            return
+        ok = np.all(np.isfinite(xs), axis=1)
+        times = np.asarray(t, dtype=float)[ok]
+        if self.drift_model is not None:
+            values = self.drift_model.invariants(times, xs[ok]).tolist()
+        else:
+            values = [float(x[4] + 2.0 * self.n_orb * x[0]) for x in xs[ok]]
+        self._c_samples.extend(zip(times.tolist(), values))
+
+    def _lift_to_impulse_bit(self, node: int, x: np.ndarray, u: np.ndarray) -> np.ndarray:
+        """A trim below the thrusters' minimum impulse bit would fire nothing and leave its drift (up
+        to 3 bit t_orb of along-track drift per orbit, 22 m for 1 mm/s at a = 8100 km). Raise it to the
+        bit by adding a component perpendicular to the invariant's gain k and to u (out of plane for
+        a V-bar trim along y): c changes by k . u as planned; the extra component costs at most the
+        bit and leaves a cross-track oscillation of amplitude <= bit / n (CW: z decouples; 1.2 m for
+        1 mm/s). Not raised when the trim changes c by less than the row's tolerance (the drift left is
+        then below 2 tol: a bit of propellant would buy less than the tolerance); kept only if the
+        raised impulse's free drift passes the true KOZ/CBF check."""
+        bit = self.cfg.min_impulse_mps
+        norm = float(np.linalg.norm(u))
+        if bit <= 0.0 or norm == 0.0 or norm >= bit:
+            return u
+        k = self._drift_gains(node, x)[node]
+        if abs(float(k @ u)) <= self.cfg.drift_free_tol_mps:
+            return u
+        basis = []
+        for v in (k, u):
+            v = v - sum((v @ e) * e for e in basis)
+            if np.linalg.norm(v) > 1e-12:
+                basis.append(v / np.linalg.norm(v))
+        d = np.array([0.0, 0.0, 1.0])
+        d = d - sum((d @ e) * e for e in basis)
+        if np.linalg.norm(d) < 1e-6:
+            return u
+        d /= np.linalg.norm(d)
+        lifted = u + d * math.sqrt((bit * (1.0 + 1e-6)) ** 2 - norm**2)
+        if self.koz is not None and not self.check_drift(x, lifted)[0]:
+            return u
+        return lifted
 
     def _node_before(self, k: int) -> int:
         return int(np.searchsorted(self.sched.steps, k, side="right")) - 1
@@ -467,6 +599,10 @@ class SrfMpc:
                 row = np.zeros(3 * (N + 1))
                 row[:3 * (int(j) + 1)] = 1.0
                 rows.append(zcoef(row)[None]); kinds.append(("drift", int(j)))
+            for j, t_node in self.hold_nodes:  # |sum_{t_node < l <= j} k_l . u_l| <= tol: c stays as trimmed
+                row = np.zeros(3 * (N + 1))
+                row[3 * (t_node + 1):3 * (j + 1)] = 1.0
+                rows.append(zcoef(row)[None]); kinds.append(("hold", int(j)))
         if c.vbar_rows or c.hop_distance_tol_m is not None:
             nodes = [0] + self.sched.hop_nodes.tolist()
             rx = [self.a @ self._S[j][:3] for j in nodes]
@@ -496,7 +632,7 @@ class SrfMpc:
         r, col = np.nonzero(g_static)
         self._g_coo = (r, col, g_static[r, col])
         # entries of the drift rows: value = sign * u_max * k_l[comp] for column (sign, l, comp)
-        drift_rows = [m + 3 for m, kd in enumerate(kinds[3:]) if isinstance(kd, tuple) and kd[0] == "drift"]
+        drift_rows = [m + 3 for m, kd in enumerate(kinds[3:]) if isinstance(kd, tuple) and kd[0] in ("drift", "hold")]
         sel = np.nonzero(np.isin(r, drift_rows))[0]
         ucol = np.where(col[sel] < nu, col[sel], col[sel] - nu)
         self._drift_coo = (sel, ucol // 3, ucol % 3, np.where(col[sel] < nu, um, -um))
@@ -553,8 +689,14 @@ class SrfMpc:
                 if j < i or relax >= 3:
                     lo.append(-OFF); hi.append(OFF)
                     continue
-                v = self.drift_invariant(float(self.sched.times[i]), x) if self._c_count == 0 else self._c_sum / self._c_count
+                v = self.drift_estimate(float(self.sched.times[i]), x)[0]
                 lo.append(-c.drift_free_tol_mps - v); hi.append(c.drift_free_tol_mps - v)
+                continue
+            if tag == "hold":
+                if j < i or relax >= 1:  # a design row: relaxed first
+                    lo.append(-OFF); hi.append(OFF)
+                    continue
+                lo.append(-c.drift_free_tol_mps); hi.append(c.drift_free_tol_mps)
                 continue
             nodes = [0] + self.sched.hop_nodes.tolist()
             if tag == "dist":

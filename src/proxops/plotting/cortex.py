@@ -151,3 +151,12 @@ def mc_figures(sc, results, out_dir: Path) -> list[Path]:
 
         return campaign_figures(sc, results, Path(out_dir))
     return [fig11_trajectories(sc, results, Path(out_dir) / "fig11_trajectories.png")]
+
+
+def mc_table_figures(sc, table, out_dir: Path) -> list[Path]:
+    """Closed loop: Figs. 13/14 and 15 from the campaign table (no saved series needed)."""
+    if sc.guidance.closed_loop:
+        from proxops.plotting.cortex_loop import table_figures
+
+        return table_figures(sc, table, out_dir)
+    return []

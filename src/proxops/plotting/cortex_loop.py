@@ -88,3 +88,95 @@ def campaign_figures(sc, results, out_dir: Path) -> list[Path]:
     fig.tight_layout()
     p2 = save(fig, out_dir / f"fig15_distributions_{level}.png")
     return [p1, p2]
+
+
+def _trace_column(table, name):
+    import json
+
+    col = f"metric.trace.{name}"
+    if col not in table:
+        return None
+    out = []
+    for v in table[col]:
+        try:
+            out.append(np.array([np.nan if e is None else e for e in json.loads(v)], float))
+        except (TypeError, ValueError):
+            out.append(np.zeros(0))
+    return out
+
+
+# phase indices of proxops.control.cortex_supervisor.PHASE_INDEX
+_PHASE_BG = {0: "#eeeeee", 1: "#d8f0d8", 2: "#eeeeee", 3: "#d8e4f8"}
+_RED_PHASES = (4, 5, 6)  # null (recompute), retreat, abort_null
+
+
+def table_figures(sc, table, out_dir: Path) -> list[Path]:
+    """Figs. 13/14 and 15 from the campaign table alone (the per-run ``trace`` the summary keeps
+    every ``guidance.trace_step_s``): no saved series needed. Fig. 13 (low) / 14 (high): in-plane
+    trajectories (blue docked, red aborted, grey other) and the tracking error over time, red while
+    nulling / retreating (recompute and abort extensions), background green fly-around / blue final
+    approach of the nominal reference; Fig. 15: TOF, delta-v and terminal errors, docked vs aborted."""
+    out_dir = Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    done = table[table["outcome"] != "error"] if "outcome" in table else table
+    level = "high" if sc.errors.delta_r_m >= 0.5 else "low"
+    paths = []
+    ts, xs, ys, errs, phases = (_trace_column(done, k) for k in ("t", "x", "y", "err", "phase"))
+    status = done["status"].astype(str).tolist() if "status" in done else ["?"] * len(done)
+    if ts is not None and len(ts):
+        fig, (a1, a2) = plt.subplots(1, 2, figsize=(13, 4.8))
+        # background: phases of the first run that neither recomputed nor aborted (the nominal timeline)
+        ref = int(np.argmin([np.isin(p, _RED_PHASES).sum() + (0 if s == "docked" else len(p))
+                             for p, s in zip(phases, status)]))
+        t0, p0 = ts[ref], phases[ref]
+        k0 = 0
+        for k in range(1, len(t0) + 1):
+            if k == len(t0) or p0[k] != p0[k0]:
+                c = _PHASE_BG.get(int(p0[k0])) if np.isfinite(p0[k0]) else None
+                if c:
+                    a2.axvspan(t0[k0], t0[min(k, len(t0) - 1)], color=c, lw=0, zorder=0)
+                k0 = k
+        for t, x, y, e, ph, st in zip(ts, xs, ys, errs, phases, status):
+            color = {"docked": "C0", "aborted": "C3"}.get(st, "C7")
+            a1.plot(y, x, lw=0.5, color=color, alpha=0.6)
+            if e.size:
+                red = np.isin(ph, _RED_PHASES)
+                a2.semilogy(t, np.where(~red & (e > 0), e, np.nan), lw=0.5, color="C0", alpha=0.5)
+                a2.semilogy(t, np.where(red & (e > 0), e, np.nan), lw=0.6, color="C3", alpha=0.7)
+        th = np.linspace(0, 2 * np.pi, 200)
+        for rad, ls in ((sc.geometry.r_kos_m, "-"), (sc.geometry.r_kos_m * sc.margins.kos, "--")):
+            a1.plot(rad * np.cos(th), rad * np.sin(th), "k" + ls, lw=0.8)
+        a1.set_aspect("equal")
+        a1.set_xlabel("y along-track (m)")
+        a1.set_ylabel("x radial (m)")
+        n_d = sum(s == "docked" for s in status)
+        n_a = sum(s == "aborted" for s in status)
+        a1.set_title(f"{level} error: {len(status)} runs ({n_d} docked blue, {n_a} aborted red)")
+        a2.set_xlabel("t (s)")
+        a2.set_ylabel("|r - r_ref| (m)")
+        a2.set_ylim(bottom=1e-4)
+        a2.set_title("tracking error (green fly-around, blue approach; red: null/retreat)")
+        fig.tight_layout()
+        paths.append(save(fig, out_dir / f"fig{13 if level == 'low' else 14}_tracking.png"))
+    keys = [("metric.tof_s", "total TOF (s)", 1.0), ("metric.total_dv_mps", "total Δv (m/s)", 1.0),
+            ("metric.terminal_position_error_m", "Δr_rel(t_f) (mm), docked", 1e3),
+            ("metric.terminal_velocity_error_mps", "Δv_rel(t_f) (mm/s), docked", 1e3)]
+    fig, axes = plt.subplots(1, 4, figsize=(15, 3.6))
+    st = np.array(status)
+    for ax, (col, label, scale) in zip(axes, keys):
+        if col not in done:
+            continue
+        v = done[col].astype(float).to_numpy() * scale
+        groups = [(v[(st == "docked") & np.isfinite(v)], "docked", "C0"),
+                  (v[(st != "docked") & np.isfinite(v)], "aborted/failed", "C3")]
+        groups = [g for g in groups if g[0].size]
+        if groups:
+            ax.hist([g[0] for g in groups], bins=20, stacked=True, color=[g[2] for g in groups],
+                    label=[g[1] for g in groups])
+            ax.legend(fontsize=7)
+        ax.set_xlabel(label)
+    axes[0].set_ylabel("runs")
+    fig.suptitle(f"Fig. 15 ({level} error level, Table 3): {len(done)} runs")
+    fig.tight_layout()
+    paths.append(save(fig, out_dir / f"fig15_distributions_{level}.png"))
+    return paths

@@ -3,7 +3,9 @@
 A module ``proxops.plotting.<system>`` may define
 
 - ``run_figures(sc, results: dict[label, SimResult], out_dir) -> list[Path]`` (``proxops run --out``)
-- ``mc_figures(sc, results: list[SimResult], out_dir) -> list[Path]`` (campaign reports)
+- ``mc_figures(sc, results: list[SimResult], out_dir) -> list[Path]`` (campaign reports, saved series)
+- ``mc_table_figures(sc, table: DataFrame, out_dir) -> list[Path]`` (campaign reports from the table
+  alone, drawn with or without saved series)
 
 A system object may still carry ``figures`` / ``campaign_figures`` hooks (systems outside
 proxops); they take precedence. Without either, a run gets :func:`plot_run`.
@@ -46,3 +48,8 @@ def run_figures(system_name: str, system, sc, results: dict, out_dir: Path) -> l
 def mc_figures(system_name: str, system, sc, results: list, out_dir: Path) -> list[Path]:
     """System-specific figures of a campaign from saved series ([] when the system has none)."""
     return _draw(system_name, system, "campaign_figures", "mc_figures", sc, results, out_dir) or []
+
+
+def mc_table_figures(system_name: str, system, sc, table, out_dir: Path) -> list[Path]:
+    """System-specific figures of a campaign from its table alone ([] when the system has none)."""
+    return _draw(system_name, system, "campaign_table_figures", "mc_table_figures", sc, table, out_dir) or []

@@ -37,7 +37,6 @@ import math
 from dataclasses import dataclass, field, replace
 
 import numpy as np
-from scipy.integrate import solve_ivp
 
 from proxops.core.constants import J2_EARTH, MU_EARTH, R_EARTH
 from proxops.environment.earth import earth_rotation, geodetic_many, geodetic_to_ecef
@@ -323,6 +322,8 @@ class ComposedTruth(PlantBase):
 
         if grid[-1] == grid[0]:
             return np.tile(y0, (grid.size, 1))
+        from scipy.integrate import solve_ivp  # heavy (0.5 s): only on the reference path
+
         sol = solve_ivp(fun, (grid[0], grid[-1]), y0, method="DOP853", t_eval=grid, rtol=self.rtol, atol=self.atol)
         if not sol.success:
             raise ProxopsError(f"reference propagation failed: {sol.message}")

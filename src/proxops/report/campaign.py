@@ -11,7 +11,7 @@ import pandas as pd
 from proxops.analysis.campaign import CampaignResult, _campaign_system, load_campaign, series_dir
 from proxops.analysis.statistics import metric_statistics
 from proxops.errors import ProxopsInputError
-from proxops.plotting.systems import mc_figures
+from proxops.plotting.systems import mc_figures, mc_table_figures
 
 
 def write_report(campaign, report_dir: str | Path | None = None, figures: bool = True, max_overlay: int = 100) -> dict:
@@ -101,7 +101,8 @@ def write_report(campaign, report_dir: str | Path | None = None, figures: bool =
             figs.append(cplot.plot_trajectory_overlay(picked, rdir / "trajectories.png", title=f"{m.get('scenario')}: "
                                                       f"{len(picked)} trajectories"))
             figs += _system_campaign_figures(m, [res for res, _ in picked], rdir)
-        figs = [f for f in figs if f is not None]
+        figs += _system_table_figures(m, table, rdir)
+        figs = list(dict.fromkeys(f for f in figs if f is not None))  # table figures may redraw a series figure
         files += figs
         lines += ["## Figures", ""] + [f"![{f.stem}]({f.name})" for f in figs] + [""]
     (rdir / "report.md").write_text("\n".join(lines))
@@ -116,6 +117,13 @@ def _system_campaign_figures(manifest: dict, results: list, rdir: Path) -> list[
         return []
     loaded = _campaign_system(manifest)
     return mc_figures(loaded.scenario.system, loaded.system, loaded.scenario, results, rdir)
+
+
+def _system_table_figures(manifest: dict, table: pd.DataFrame, rdir: Path) -> list[Path]:
+    """Figures the scenario's own system draws from the campaign table alone
+    (:func:`proxops.plotting.systems.mc_table_figures`, e.g. cortex Figs. 13-15 from per-run traces)."""
+    loaded = _campaign_system(manifest)
+    return mc_table_figures(loaded.scenario.system, loaded.system, loaded.scenario, table, rdir)
 
 
 def _system_campaign_table(manifest: dict, table: pd.DataFrame) -> str:

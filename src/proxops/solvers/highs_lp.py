@@ -54,6 +54,31 @@ STATUS_MAP = {
 }
 
 
+def _quiet_highs(highspy):
+    """``highspy.Highs()`` with its start-up banner kept off stdout: HiGHS 1.16 prints "Running HiGHS ..."
+    from C++ on the first construction, before ``output_flag`` can be set, which broke ``--json`` output
+    (exactly one JSON object on stdout). The process-level stdout (fd 1) is pointed at /dev/null for the
+    construction only."""
+    import os
+    import sys
+
+    try:
+        sys.stdout.flush()
+        saved = os.dup(1)
+    except (OSError, ValueError, AttributeError):  # no real fd 1 (e.g. captured stdout)
+        return highspy.Highs()
+    try:
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        try:
+            os.dup2(devnull, 1)
+            return highspy.Highs()
+        finally:
+            os.dup2(saved, 1)
+            os.close(devnull)
+    finally:
+        os.close(saved)
+
+
 class HighsLP:
     """Persistent HiGHS LP solver for ``min c'x s.t. rl <= Ax <= ru, lb <= x <= ub``.
 
@@ -141,7 +166,7 @@ class HighsLP:
         self._check_crossed()
         self._cols = np.arange(n, dtype=np.int32)
         self._rows = np.arange(m, dtype=np.int32)
-        self._h = self._highspy.Highs()
+        self._h = _quiet_highs(self._highspy) if not self._native.get("output_flag", False) else self._highspy.Highs()
         self._solver_error = None
         for key, value in self._native.items():
             try:

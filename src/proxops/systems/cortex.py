@@ -25,7 +25,8 @@ import numpy as np
 from pydantic import Field, model_validator
 
 from proxops.scenarios.registry import register_system
-from proxops.scenarios.schema import OrbitSection, Probability, ScenarioBase, Section, TruthSection, Vector3
+from proxops.scenarios.schema import (ActuatorSection, OrbitSection, Probability, ScenarioBase, Section, TruthSection,
+                                      Vector3)
 from proxops.status import Status
 from proxops.systems.base import SystemBase
 
@@ -121,6 +122,10 @@ class GuidanceSection(Section):
     replan_candidates: Annotated[int, Field(ge=1)] = Field(30, description="regeneration: most phase durations tried from tau_lb (onboard time budget; none converged -> abort)")
     null_tol_mps: Annotated[float, Field(gt=0.0)] = Field(1e-3, description="velocity nulling before a re-plan / retreat ends below this speed")
     passive_orbits: Annotated[float, Field(gt=0.0)] = Field(2.0, description="after an abort: orbits of thrust-free truth propagation checked outside the KOS")
+    passive_margin_m: Annotated[float, Field(ge=0.0)] = Field(2.0, description="safe-orbit insertion: the thrusters stop only when the thrust-free CW prediction from the estimate stays this far outside r_KOS for passive_orbits orbits")
+    recompute_every: Literal["guidance", "impulse"] = Field("guidance", description="closed loop: evaluate the recompute conditions of Table 1 at every guidance step (Algorithm 2 lines 11-15, x_{k+1}) or at every impulse; the abort conditions are evaluated at every impulse either way")
+    trace_step_s: Annotated[float, Field(ge=0.0)] = Field(10.0, description="closed loop: the run summary keeps the trajectory every this many seconds (campaign Figs. 13-14 without saved series; 0: none)")
+    insertion_max_intervals: Annotated[int, Field(ge=0)] = Field(20, description="safe-orbit insertion: most extra guidance intervals spent trimming onto the safe orbit before the thrusters stop anyway")
 
 
 class ErrorsSection(Section):
@@ -135,6 +140,20 @@ class ErrorsSection(Section):
     sigma_alpha_deg: Annotated[float, Field(ge=0.0)] = Field(0.0, description="1-sigma in-plane direction error alpha (Table 3: 0.5 / 1.0 deg)")
     p_misthrust: Probability = Field(0.0, description="probability that all impulses of a guidance interval are missed (Table 3: 0.05 / 0.10)")
     velocity_ratio_per_s: Annotated[float, Field(ge=0.0)] = Field(0.001, description="sigma_v / sigma_r (§5.1.2: 0.001 1/s)")
+
+
+class CortexActuatorSection(ActuatorSection):
+    """The closed loop's actuator slot (cortex 2/2, §4.1.3-4.1.4). ``impulsive``: the CP_g impulses are
+    applied as commanded (after the [errors] of Algorithm 3). ``thrusters``: each impulse goes through
+    the thruster chain (proxops.actuators.thrusters.ThrusterChainActuator): rocket-equation force
+    (eq. 32, mass depletion), Algorithm 4 allocation over six thrusters (HiGHS LP) and the PWM law
+    (eq. 33) over the impulse spacing delta t_g. The generic limit/error keys above are not used by
+    the cortex loop (its errors are [errors])."""
+
+    model: Literal["impulsive", "thrusters"] = Field("impulsive", description="cortex loop: impulsive (commanded impulses applied) or thrusters (eq. 32 + Algorithm 4 + eq. 33 chain)")
+    thruster_force_n: Annotated[float, Field(gt=0.0)] = Field(1.2, description="thrusters: maximum thrust of each of the six thrusters (+-x, +-y, +-z through the centre of mass); 1.2 N = m a_max, so every command |a| <= a_max is producible in any direction (documented choice)")
+    isp_s: Annotated[float, Field(gt=0.0)] = Field(220.0, description="thrusters: specific impulse (not in the paper; 220 s, a hydrazine monopropellant RCS: documented choice)")
+    min_on_time_s: Annotated[float, Field(ge=0.0)] = Field(0.0, description="thrusters: duty cycles shorter than this on-time fire nothing (minimum on-time; must not exceed guidance.substep_s)")
 
 
 class AxisSection(Section):
@@ -173,6 +192,7 @@ class CortexScenario(ScenarioBase):
     eclipse: EclipseSection = Field(EclipseSection(), description="sunlight profile for the holds (eqs. 13-15)")
     truth: TruthSection = Field(TruthSection(), description="truth dynamics of the closed loop (guidance.closed_loop)")
     errors: ErrorsSection = Field(ErrorsSection(), description="Algorithm 3 execution errors (Table 3)")
+    actuator: CortexActuatorSection = Field(CortexActuatorSection(), description="closed loop: impulsive or the thruster chain of §4.1.3-4.1.4")
 
 
 def config_from_scenario(sc: CortexScenario):

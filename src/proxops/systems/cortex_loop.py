@@ -54,6 +54,9 @@ def check_loop(sc) -> None:
     for phase, v in _eps_r(g).items():
         if not (math.isfinite(v) and v > 0):
             raise input_error(f"guidance.recompute_{phase}_m", v, "must be > 0 (recompute threshold eps_r of Table 1)", "m")
+    if sc.actuator.min_on_time_s > g.substep_s:
+        raise input_error("actuator.min_on_time_s", sc.actuator.min_on_time_s,
+                          f"must not exceed the PWM period guidance.substep_s = {g.substep_s:g} s", "s")
     if not g.terminal_penalty > 0:
         raise input_error("guidance.terminal_penalty", g.terminal_penalty, "must be > 0 (eps_P of eq. 27a)")
 
@@ -88,14 +91,23 @@ def navigation_of(sc, layout=None):
 
 
 def actuator_of(sc):
+    """The engine's actuator slot: the Algorithm 3 execution errors ([errors], through
+    :class:`ThrusterModel`), then -- with ``actuator.model = "thrusters"`` -- the thruster chain."""
     from proxops.actuators import IdealActuator, ThrusterModel
 
     e = sc.errors
-    if e.sigma_dv == 0 and e.sigma_beta_deg == 0 and e.sigma_alpha_deg == 0 and e.p_misthrust == 0:
-        return IdealActuator()
-    return ThrusterModel(magnitude_sigma=e.sigma_dv, elevation_sigma_rad=math.radians(e.sigma_beta_deg),
-                         azimuth_sigma_rad=math.radians(e.sigma_alpha_deg), missed_probability=e.p_misthrust,
-                         missed_window_s=sc.guidance.dt_g_s)
+    errors = None
+    if not (e.sigma_dv == 0 and e.sigma_beta_deg == 0 and e.sigma_alpha_deg == 0 and e.p_misthrust == 0):
+        errors = ThrusterModel(magnitude_sigma=e.sigma_dv, elevation_sigma_rad=math.radians(e.sigma_beta_deg),
+                               azimuth_sigma_rad=math.radians(e.sigma_alpha_deg), missed_probability=e.p_misthrust,
+                               missed_window_s=sc.guidance.dt_g_s)
+    a = sc.actuator
+    if a.model == "thrusters":
+        from proxops.actuators.thrusters import ThrusterChainActuator, six_thruster_layout
+
+        return ThrusterChainActuator(six_thruster_layout(a.thruster_force_n), sc.servicer.mass_kg, a.isp_s,
+                                     sc.guidance.substep_s, errors=errors, min_on_time_s=a.min_on_time_s)
+    return errors if errors is not None else IdealActuator()
 
 
 def build_setup(sc):
@@ -126,7 +138,9 @@ def build_setup(sc):
     settings = SupervisorSettings(dt_g_s=g.dt_g_s, substep_s=g.substep_s, terminal_penalty=g.terminal_penalty,
                                   max_recomputes=g.max_recomputes, null_tol_mps=g.null_tol_mps, abort_at_s=g.abort_at_s,
                                   r_as_m=cfg.r_as_m, plume_in_tracking=g.plume_in_tracking,
-                                  plume_weight=g.plume_weight)
+                                  plume_weight=g.plume_weight, passive_orbits=g.passive_orbits,
+                                  passive_margin_m=g.passive_margin_m, insertion_max_intervals=g.insertion_max_intervals,
+                                  recompute_every=g.recompute_every)
     replanner = CortexReplanner(cfg, axis, eclipse=eclipse_profile(sc), t0_offset_s=sc.planner.start_delay_s,
                                 max_candidates=g.replan_candidates)
     ctrl = CortexSupervisor(n, cfg.a_max_mps2, timeline, triggers, replanner, settings,
@@ -145,6 +159,27 @@ def passive_safety(plant, final_state, n_rad_s: float, orbits: float, r_kos_m: f
     drift = plant.free_drift(np.asarray(final_state, float), times)
     rmin = float(np.linalg.norm(drift[:, :3], axis=1).min())
     return rmin, bool(rmin > r_kos_m)
+
+
+def run_trace(result, step_s: float) -> dict:
+    """The run downsampled for the campaign figures (Figs. 13-14 drawn from the campaign table, no
+    saved series): every ``step_s`` seconds and the last sample -- t (s), Hill position x, y, z (m, mm
+    rounding), tracking error (m; NaN while no reference is tracked) and the phase index
+    (:data:`proxops.control.cortex_supervisor.PHASE_INDEX`). About 5 kB per run at 10 s."""
+    t = result.t
+    if t.size == 0 or step_s <= 0:
+        return {}
+    dt = float(t[1] - t[0]) if t.size > 1 else step_s
+    k = np.arange(0, t.size, max(1, int(round(step_s / dt))))
+    if k[-1] != t.size - 1:
+        k = np.append(k, t.size - 1)
+    err = result.info.get("track_err_m", np.full(t.size, np.nan))
+    phase = result.info.get("phase", np.full(t.size, np.nan))
+    r = result.x_true[k, :3]
+    return {"t": np.round(t[k], 3).tolist(), "x": np.round(r[:, 0], 3).tolist(), "y": np.round(r[:, 1], 3).tolist(),
+            "z": np.round(r[:, 2], 3).tolist(),
+            "err": [None if not np.isfinite(v) else float(f"{v:.4g}") for v in err[k]],
+            "phase": [None if not np.isfinite(v) else int(v) for v in phase[k]]}
 
 
 def violation_counts(result, cfg, axis, plume_min_dv_mps: float) -> dict:
@@ -209,11 +244,24 @@ def run_closed_loop(sc, seed: int = 0, progress: bool = False):
         "plan_tof_s": float(plan.tof_s), "plan_total_time_s": float(plan.total_time_s),
         "plan_dv_mps": float(plan.dv_total_mps),
     }
+    from proxops.actuators import propellant_mass_kg
+
+    act = setup.actuator
+    if hasattr(act, "propellant_kg"):  # thruster chain: propellant of the PWM on-times (eq. 32 mass depletion)
+        summary.update(actuator_model="thrusters", propellant_kg=float(act.propellant_kg),
+                       thruster_on_time_s=float(act.on_time_s), allocations=int(act.allocations),
+                       allocation_max_error_n=float(act.max_allocation_error_n),
+                       allocation_lp_ms_mean=float(act.lp_time_s / max(act.allocations, 1) * 1e3))
+    else:  # impulsive: the rocket equation on the total delta-v at the chain's Isp
+        summary.update(actuator_model="impulsive",
+                       propellant_kg=float(propellant_mass_kg(summary["total_dv_mps"], sc.servicer.mass_kg, sc.actuator.isp_s)))
     if status == "aborted":
         rmin, safe = passive_safety(setup.plant, result.meta["final_plant_state"], cfg.mean_motion_rad_s,
                                     sc.guidance.passive_orbits, cfg.r_kos_m)
         summary.update(safe_orbit_error_m=dr, passive_orbits=sc.guidance.passive_orbits,
-                       passive_min_range_m=rmin, passive_safe=safe)
+                       passive_min_range_m=rmin, passive_safe=safe, insertion_trims=int(ctrl.insertion_extensions),
+                       predicted_passive_min_range_m=ctrl.predicted_passive_min_m)
+    summary["trace"] = run_trace(result, sc.guidance.trace_step_s)
     result.meta["cortex_summary"] = {k: v for k, v in summary.items() if not isinstance(v, dict)}
     clean = {k: (None if isinstance(v, float) and not math.isfinite(v) else v) for k, v in summary.items()}
     return clean, {"run": result}

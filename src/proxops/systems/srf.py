@@ -26,9 +26,12 @@ that the next disturbance makes infeasible.
 Passive abort (§2: V-bar "returning to its initial position after each hop ... an indefinite hold"):
 V-bar adds a drift-free row after every hop-start impulse (``mpc.drift_free_tol_mps`` = 0.05 mm/s
 on the J2-aware invariant: chaser-minus-target specific energy over |v_t|, from an onboard target
-ephemeris; ``vy + 2 n x`` on CW truth; see :mod:`proxops.control.srf_mpc`), and :func:`passive_abort` propagates the unforced truth
-from every hop impulse over ``safety.abort_orbits`` (default 3) orbits, reporting the return miss
-after each whole orbit. Success requires the whole window for V-bar and one orbit for R-bar and
+ephemeris; ``vy + 2 n x`` on CW truth; see :mod:`proxops.control.srf_mpc`) and the same row at a trim
+node one MPC node (1/12 orbit) after every hop start (``mpc.drift_trim``: a mm/s trim impulse nulls
+the drift that the hop impulse's execution error and its single-sample estimate left; later impulses
+of the hop keep it), and :func:`passive_abort` propagates the unforced truth from every hop (after its
+trim) over ``safety.abort_orbits`` (default 3) orbits, reporting the return miss after each whole
+orbit and the untrimmed drift (an abort before the trim) beside it. Success requires the whole window for V-bar and one orbit for R-bar and
 glideslopes (which the paper says lack indefinite safety); all report ``safe_window_orbits``,
 the time to the first KOZ entry within the window.
 """
@@ -112,6 +115,19 @@ class SrfMpcSection(Section):
         "hop-start impulse, so the free drift returns to the hop start (not in the paper; its indefinite hold)")
     drift_free_tol_mps: Annotated[float, Field(gt=0.0)] = Field(
         5e-5, description="V-bar drift-free row tolerance (5e-5 m/s: 1.1 m of drift per orbit at a = 8100 km)")
+    drift_trim: bool = Field(
+        True, description="V-bar (with drift_free): a drift-free row also at a trim node after every hop start, so "
+        "the MPC nulls the drift left by the hop impulse's execution errors and its single-sample estimate with a "
+        "small trim impulse (raised to actuator.min_impulse if below it); the passive-abort drift starts after it")
+    drift_hold_after_trim: bool = Field(
+        False, description="V-bar with drift_trim: every later impulse of the hop keeps the trimmed drift invariant "
+        "(within drift_free_tol_mps; relaxed with the design rows), so the free drift stays null after any of them "
+        "(off: in the Monte Carlo it forces costly radial-only corrections)")
+    drift_trim_delay_nodes: Annotated[int, Field(ge=1, le=99)] = Field(
+        1, description="MPC nodes from a hop start to its trim (1: the next node, 1/steps_per_hop of a hop later)")
+    drift_estimator_window_s: Annotated[float, Field(gt=0.0)] | None = Field(
+        None, description="the drift invariant is averaged over the navigation samples of this window before a "
+        "node (none: every sample since the last impulse)")
     solver: Literal["piqp", "clarabel", "daqp"] = Field("piqp", description="QP solver of problem (29)")
 
 
@@ -211,13 +227,9 @@ def onboard_drift_model(sc: SrfScenario, dt: float, span_s: float):
     j2 = sc.truth.model == "j2"
     plant = RelativeTruth(target_elements(sc.orbit), np.zeros(6), j2=j2, integrator=sc.truth.integrator)
     n = int(math.ceil(span_s / dt)) + 3
-    states = np.empty((n, 6))
-    y = plant.initial_state()
-    zero = np.zeros(3)
-    for k in range(n):
-        states[k] = plant.target_state(y)
-        if k + 1 < n:
-            y = plant.propagate(k * dt, y, zero, dt)
+    # n - 1 propagate() calls of dt in one (jitted) coast: the same numbers
+    full, _ = plant.coast(np.arange(n - 1) * dt, plant.initial_state(), np.zeros(3), dt)
+    states = np.array([plant.target_state(y) for y in full])
     return EnergyDrift(dt, states, MU_EARTH, J2_EARTH if j2 else 0.0, R_EARTH)
 
 
@@ -278,6 +290,9 @@ def build_controller(sc: SrfScenario, cbf: bool | None = None):
                                     else (1e-7 if vbar else 0.0)),
         drift_free_tol_mps=m.drift_free_tol_mps if (vbar and m.drift_free) else None,
         drift_model=onboard_drift_model(sc, dt, mission_s) if (vbar and m.drift_free and sc.truth.model != "cw") else None,
+        drift_trim_delay_nodes=m.drift_trim_delay_nodes if (vbar and m.drift_free and m.drift_trim) else None,
+        drift_hold_after_trim=m.drift_hold_after_trim, drift_estimator_window_s=m.drift_estimator_window_s,
+        min_impulse_mps=float(sc.actuator.min_impulse or 0.0),
         cbf=use_cbf, cbf_alpha_per_s=ko.alpha_per_s, free_drift_s=ko.free_drift_orbits * plan.period_s,
         free_drift_nodes=max(4, int(round(ko.free_drift_nodes_per_orbit * ko.free_drift_orbits))), solver=m.solver)
     from proxops.constraints.keep_out import KeepOutSphere
@@ -300,6 +315,7 @@ def build_setup(sc: SrfScenario, cbf: bool | None = None) -> Setup:
     meta = {"system": "srf", "approach_deg": sc.approach.angle_deg, "period_s": plan.period_s,
             "hop_plan": plan.as_dict(), "node_times_s": sched.times.tolist(),
             "hop_node_times_s": sched.times[sched.hop_nodes].tolist(), "cbf": bool(ctrl.cfg.cbf),
+            "hop_trim_times_s": [float(sched.times[j]) for j in sorted(ctrl.trim_nodes)],
             "vbar": _is_vbar(theta), "mpc_steps_per_hop": int(len(sched.steps) - 1) // sc.approach.hops}
     # The run ends one sample after the braking impulse (its coast simulated), with outcome
     # "handover": duration and stop condition say so, so the engine's step count (progress bar)
@@ -332,51 +348,70 @@ def required_abort_orbits(sc: SrfScenario) -> float:
 
 
 def passive_abort(sc: SrfScenario, result) -> list[dict]:
-    """From each hop impulse: propagate the unforced TRUTH for ``safety.abort_orbits`` orbits.
+    """From each hop's last hop-start impulse: propagate the unforced TRUTH for ``safety.abort_orbits`` orbits.
 
-    Returns per hop ``{t_s, dv_mps, min_range_m, min_koz_distance_m, safe, safe_window_orbits,
-    safe_required}``: ``safe`` over the whole window, ``safe_window_orbits`` the time to the first
-    KOZ entry (the window if none), ``safe_required`` over :func:`required_abort_orbits`, and
-    ``return_miss_m`` (distance to the hop start after 1, 2, ... whole orbits of the window) and
-    ``return_miss_per_orbit_m`` (the last of those divided by its number of orbits)."""
+    The hop's drift starts after its trim impulse when the MPC trims (``mpc.drift_trim``, V-bar: the
+    trim nulls the drift the hop impulse left), else after the hop impulse. Returns per hop ``{t_s,
+    dv_mps, min_range_m, min_koz_distance_m, safe, safe_window_orbits, safe_required}``: ``safe`` over
+    the whole window, ``safe_window_orbits`` the time to the first KOZ entry (the window if none),
+    ``safe_required`` over :func:`required_abort_orbits`, and ``return_miss_m`` (distance to the
+    drift's start after 1, 2, ... whole orbits of the window) and ``return_miss_per_orbit_m`` (the last
+    of those divided by its number of orbits); ``hop_t_s``; with a trim also ``trim_dv_mps`` and the
+    drift from the hop impulse alone (an abort between hop impulse and trim): ``untrimmed_safe_window_orbits``,
+    ``untrimmed_min_koz_distance_m``, ``untrimmed_return_miss_per_orbit_m``."""
     from proxops.propagation.truth import CWPlant, RelativeTruth
     from proxops.systems.common import translational_plant
 
     period = float(result.meta.get("period_s") or 2 * math.pi / mean_motion(sc.orbit.sma_m))
     hop_starts = [0.0] + list(result.meta.get("hop_node_times_s", []))[:-1]
+    trims = list(result.meta.get("hop_trim_times_s", []))
     koz = keep_out_hill(sc)
     plant = translational_plant(sc.orbit, sc.truth, initial_state_hill(sc))
-    full = plant.initial_state()
-    t_now = 0.0
-    out = []
+    state = {"full": plant.initial_state(), "t": 0.0}
     window = sc.safety.abort_orbits
     required = required_abort_orbits(sc)
     times = np.linspace(0.0, window * period, int(round(window * sc.safety.abort_samples_per_orbit)) + 1)
     zero = np.zeros(3)
-    for t_hop in hop_starts:
-        k = int(np.argmin(np.abs(result.t - t_hop)))
-        if abs(result.t[k] - t_hop) > 1e-6 * max(1.0, t_hop) + 1e-9:
-            continue  # run ended before this hop
-        if not isinstance(plant, CWPlant):
-            full = plant.propagate(t_now, full, zero, result.t[k] - t_now)
-            t_now = result.t[k]
+    whole = range(1, int(math.floor(window + 1e-9)) + 1)
+
+    def sample(t_at: float) -> int | None:
+        k = int(np.argmin(np.abs(result.t - t_at)))
+        return k if abs(result.t[k] - t_at) <= 1e-6 * max(1.0, t_at) + 1e-9 else None
+
+    def drift_from(k: int) -> dict:
+        if not isinstance(plant, CWPlant):  # move the target (and reference state) to t_k
+            state["full"] = plant.propagate(state["t"], state["full"], zero, result.t[k] - state["t"])
+            state["t"] = result.t[k]
         x_post = result.x_true[k].copy()
         x_post[3:6] += result.u_applied[k]
         if isinstance(plant, RelativeTruth):
-            drift = plant.free_drift(plant.with_relative_state(full, x_post), times)
+            drift = plant.free_drift(plant.with_relative_state(state["full"], x_post), times)
         else:
             drift = plant.free_drift(x_post, times)
         entry = first_entry_time(times, drift, koz.center_m, koz.radius_m)
-        item = {"t_s": float(result.t[k]), "dv_mps": float(np.linalg.norm(result.u_applied[k])),
-                **drift_safety(times, drift, koz),
-                "safe_window_orbits": float(min(entry / period, window)),
-                "safe_required": bool(entry > required * period * (1 - 1e-9))}
-        # every approach: V-bar should come back (a hold), R-bar and glideslopes drift away
-        whole = range(1, int(math.floor(window + 1e-9)) + 1)
         misses = [float(np.linalg.norm(drift[int(np.argmin(np.abs(times - m * period))), :3] - x_post[:3]))
                   for m in whole]
-        item["return_miss_m"] = misses
-        item["return_miss_per_orbit_m"] = misses[-1] / len(misses) if misses else math.nan
+        return {**drift_safety(times, drift, koz), "safe_window_orbits": float(min(entry / period, window)),
+                "safe_required": bool(entry > required * period * (1 - 1e-9)), "return_miss_m": misses,
+                "return_miss_per_orbit_m": misses[-1] / len(misses) if misses else math.nan}
+
+    out = []
+    for m, t_hop in enumerate(hop_starts):
+        k_hop = sample(t_hop)
+        if k_hop is None:
+            continue  # run ended before this hop
+        k_trim = sample(trims[m]) if m < len(trims) else None
+        hop = drift_from(k_hop)
+        if k_trim is None:  # no trim (or the run ended before it): the hop impulse's drift
+            item = {"t_s": float(result.t[k_hop]), "hop_t_s": float(result.t[k_hop]),
+                    "dv_mps": float(np.linalg.norm(result.u_applied[k_hop])), **hop}
+        else:
+            item = {"t_s": float(result.t[k_trim]), "hop_t_s": float(result.t[k_hop]),
+                    "dv_mps": float(np.linalg.norm(result.u_applied[k_hop])),
+                    "trim_dv_mps": float(np.linalg.norm(result.u_applied[k_trim])), **drift_from(k_trim),
+                    "untrimmed_safe_window_orbits": hop["safe_window_orbits"],
+                    "untrimmed_min_koz_distance_m": hop["min_koz_distance_m"],
+                    "untrimmed_return_miss_per_orbit_m": hop["return_miss_per_orbit_m"]}
         out.append(item)
     return out
 
