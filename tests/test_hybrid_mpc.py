@@ -161,6 +161,20 @@ def test_weights_follow_eq79_then_eq80():
     np.testing.assert_array_equal(Qf, [1e8] * 12)
 
 
+def test_eq80_weights_stop_growing_at_the_cap():
+    """eq. 80's 10^(c+6) overflows a float at c = 303 (seen in a campaign before contacts were
+    grouped); the weights are capped at c = collision_weight_cap (10 by default)."""
+    cfg = CaptureMPCConfig()
+    capped = capture_weights(cfg, 10)
+    for c in (11, 303, 10_000):
+        for a, b in zip(capture_weights(cfg, c), capped):
+            np.testing.assert_array_equal(a, b)
+    np.testing.assert_array_equal(capped[2], [1e16] * 12)  # 10^(10+6): still eq. 80 at the cap
+    assert capture_weights(cfg, 9)[2][0] == 1e15  # below the cap eq. 80 unchanged
+    with pytest.raises(Exception, match="collision_weight_cap"):
+        CaptureMPCConfig(collision_weight_cap=11).check()
+
+
 def test_face_pointing_penalty_zero_when_aligned_positive_otherwise():
     v = PARAMS.P_c / np.linalg.norm(PARAMS.P_c)
     assert face_pointing_penalty(0.3 * v, v, 100.0) == pytest.approx(0.0, abs=1e-15)

@@ -168,6 +168,10 @@ class CaptureMPCConfig:
     R_torque: float = 1e4  # eq. 79
     Q_terminal: float = 1e2  # eq. 79: Q_f^0 = 10^2 I (printed I_3; read as I_12)
     collision_weights: bool = True  # eq. 80 for collision count c >= 1
+    # eq. 80's weights grow as 10^c without bound; beyond c = 10 the condensed Hessian's
+    # Q_f/R ratio (10^(c+5)) passes 1e15, the end of double precision (and 10.0**(c+6)
+    # overflows at c = 303), so the weights stop growing there. Our choice, not the paper's.
+    collision_weight_cap: int = 10
     face_weight: float = 1e2  # lambda_f of eq. 66: not given by the paper; our choice
     face_form: str = "qp"  # "qp" (linearised |rho|, DAQP) | "socp" (exact cone, Clarabel)
     thrust_at_current_attitude: bool = True  # force block of B at the measured q (not q_I; module doc)
@@ -188,6 +192,9 @@ class CaptureMPCConfig:
             raise input_error("capture_mpc.face_weight", self.face_weight, "must be a finite number >= 0")
         if self.face_form not in ("qp", "socp"):
             raise input_error("capture_mpc.face_form", self.face_form, "allowed: qp, socp")
+        if not 1 <= int(self.collision_weight_cap) <= 10:
+            raise input_error("capture_mpc.collision_weight_cap", self.collision_weight_cap,
+                              "must lie in [1, 10] (10^(c+5) Q_f/R beyond 10 exceeds double precision)")
         for name in ("corridor_half_angle_deg", "waypoint_step_deg"):
             value = getattr(self, name)
             if not (isinstance(value, (int, float)) and 0.0 < value < 180.0):
@@ -238,7 +245,7 @@ def _steps(prefix: str, horizon_s: float, period_s: float) -> int:
 def capture_weights(config: CaptureMPCConfig, collisions: int):
     """(Q diag (12), R diag (6), Q_f diag (12)) of eq. 79 (c = 0) or eq. 80 (c >= 1)."""
     if collisions >= 1 and config.collision_weights:
-        c = int(collisions)
+        c = min(int(collisions), config.collision_weight_cap)
         Q = np.concatenate([np.full(3, 1e2), np.full(3, 10.0 ** (c + 1)), np.full(6, 10.0 ** (c + 4))])  # eq. 80
         return Q, np.full(6, 10.0), np.full(12, 10.0 ** (c + 6))  # eq. 80 (Q_f read as 10^{c+6} I_12)
     Q = np.repeat([config.Q_rho, config.Q_rho_dot, config.Q_omega, config.Q_q], 3)  # eq. 79
