@@ -73,6 +73,33 @@ def per_step_us(n_steps: int, nav_period: float | None = None, repeats: int = 5)
     return best * 1e6
 
 
+def per_step_full_us(n_steps: int, repeats: int = 5) -> float:
+    """Engine + navigation + actuator + constraint overhead per step (issue 18 goal < 20 us): the
+    do-nothing plant and controller of :func:`per_step_us` with a Gaussian navigation model
+    (noise drawn every step), a thruster model with magnitude and pointing errors (applied every
+    step to a non-zero command) and a keep-out-sphere constraint checked every step."""
+    from proxops.actuators import ThrusterModel
+    from proxops.constraints.keep_out import KeepOutSphere
+    from proxops.navigation import GaussianNavigation
+    from proxops.sim.engine import Setup, simulate
+    from proxops.sim.protocols import Command
+
+    class Push(Hold):
+        def __init__(self, dt):
+            self.dt, self.cmd = dt, Command(u=np.array([1e-4, 0.0, 0.0]))
+
+    best = float("inf")
+    for _ in range(repeats):
+        setup = Setup(plant=_plant_class()(), controller=Push(1.0), duration_s=float(n_steps),
+                      navigation=GaussianNavigation(position_sigma_m=0.1, velocity_sigma_mps=1e-3),
+                      actuator=ThrusterModel(max_per_axis=1.0, magnitude_sigma=0.01, pointing_sigma_rad=1e-3),
+                      constraints=(KeepOutSphere(10.0, (0.0, -100.0, 0.0)),))
+        t0 = time.perf_counter()
+        res = simulate(setup)
+        best = min(best, (time.perf_counter() - t0) / (len(res.t) - 1))
+    return best * 1e6
+
+
 def builtin_wall_s(name: str, overrides: list[str], repeats: int = 5) -> float:
     from proxops.runner import execute
     from proxops.scenarios.loader import load_scenario
@@ -90,6 +117,8 @@ def main() -> None:
     n = int(sys.argv[1]) if len(sys.argv) > 1 else 20000
     print(f"load average {os.getloadavg()[0]:.2f} (2 cores)")
     print(f"engine per-step overhead, single rate:          {per_step_us(n):6.2f} us/step ({n} steps, best of 5)")
+    print(f"engine + navigation + actuator + constraint:    {per_step_full_us(n):6.2f} us/step "
+          "(Gaussian navigation, thruster errors, keep-out check; goal < 20 us)")
     try:
         print(f"engine per-step overhead, navigation 10x faster: {per_step_us(n, nav_period=0.1):6.2f} us/base step")
     except TypeError:

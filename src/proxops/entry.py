@@ -9,6 +9,11 @@ import sys
 
 
 def main() -> None:
+    if sys.argv[1:] == ["--version"]:  # answered without importing the CLI (typer, numpy: 0.3 s)
+        from proxops import __version__
+
+        sys.stdout.write(f"proxops {__version__}\n")
+        sys.exit(0)
     code = 130
     try:
         from proxops.cli import app

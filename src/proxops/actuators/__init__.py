@@ -19,6 +19,12 @@ class ActuatorBase:
 
     period_s: float | None = field(default=None, kw_only=True)
 
+    @property
+    def zero_passthrough(self) -> bool:
+        """True when ``apply`` of a zero command returns zero without drawing random numbers (the
+        engine may then skip idle ticks, :mod:`proxops.sim.engine`). Default False (unknown)."""
+        return False
+
     def apply(self, t: float, u: np.ndarray, kind: str, rng: np.random.Generator) -> np.ndarray:
         raise NotImplementedError
 
@@ -26,6 +32,8 @@ class ActuatorBase:
 @dataclass
 class IdealActuator(ActuatorBase):
     """Applies the command unchanged."""
+
+    zero_passthrough = True
 
     def apply(self, t: float, u: np.ndarray, kind: str, rng: np.random.Generator) -> np.ndarray:
         return np.array(u, dtype=float)
@@ -78,13 +86,20 @@ class ThrusterModel(ActuatorBase):
         self._window = None
         self._window_missed = False
 
+    @property
+    def zero_passthrough(self) -> bool:
+        """A zero command fires nothing and draws nothing unless missed thrusts are drawn per
+        window (one draw per window, whatever the command)."""
+        return not (self.missed_window_s is not None and self.missed_probability > 0.0)
+
     def limited(self, u: np.ndarray) -> np.ndarray:
         """The deterministic part of :meth:`apply` (saturations, minimum impulse bit): what the
         vehicle knows it commanded (a navigation filter propagates with it)."""
         u = np.array(u, dtype=float)
         if self.max_per_axis is not None:
-            u = np.clip(u, -self.max_per_axis, self.max_per_axis)
-        norm = float(np.linalg.norm(u))
+            m = self.max_per_axis
+            u = np.minimum(np.maximum(u, -m), m)  # = np.clip, without its dispatch overhead
+        norm = math.sqrt(u @ u)  # = np.linalg.norm(u) (sqrt of the same dot product)
         if self.max_norm is not None and norm > self.max_norm:
             u *= self.max_norm / norm
             norm = self.max_norm
@@ -102,7 +117,7 @@ class ThrusterModel(ActuatorBase):
             if self._window_missed:
                 return np.zeros_like(u)
         u = self.limited(u)
-        if not u.any():
+        if not (u != 0.0).any():
             return u
         if self.missed_window_s is None and self.missed_probability > 0.0 and rng.random() < self.missed_probability:
             return np.zeros_like(u)
@@ -174,12 +189,12 @@ def thruster_from_values(values: dict) -> ThrusterModel:
 def _rotate_small(v: np.ndarray, rotation_vector: np.ndarray) -> np.ndarray:
     """Rotate the 3-vector ``v`` by the rotation vector (rad) with Rodrigues' formula
     (written on plain floats: this runs once per command in every Monte Carlo run)."""
-    kx, ky, kz = (float(c) for c in rotation_vector)
+    kx, ky, kz = rotation_vector.tolist()
     angle = math.sqrt(kx * kx + ky * ky + kz * kz)
     if angle == 0.0:
         return v
     kx, ky, kz = kx / angle, ky / angle, kz / angle
-    vx, vy, vz = (float(c) for c in v)
+    vx, vy, vz = v.tolist()
     c, s = math.cos(angle), math.sin(angle)
     kdotv = (kx * vx + ky * vy + kz * vz) * (1.0 - c)
     return np.array([

@@ -15,8 +15,7 @@ import pandas as pd
 
 from proxops.analysis.formatting import format_number, unit_of_metric
 
-METRIC_PREFIX = "metric."
-DISP_PREFIX = "disp."
+from proxops.analysis.campaign_worker import DISP_PREFIX, METRIC_PREFIX  # noqa: E402,F401 (one home)
 STAT_COLUMNS = ("n", "mean", "std", "q1", "median", "q3", "p99", "min", "max")
 
 

@@ -58,7 +58,16 @@ class KeepOutSphere:
 
     def violation(self, t: float, x) -> float:
         """Engine hook: r - |p - c| (m), > 0 inside the KOZ."""
-        return float(-self.distance_to_surface(np.asarray(x, dtype=float)[:3]))
+        c = self.center_m
+        dx, dy, dz = float(x[0]) - c[0], float(x[1]) - c[1], float(x[2]) - c[2]
+        # = -distance_to_surface(x[:3]): the same sum of squares (in order) and sqrt, on floats
+        return -(math.sqrt(dx * dx + dy * dy + dz * dz) - self.radius_m)
+
+    def violations(self, t, states) -> np.ndarray:
+        """Vectorised :meth:`violation` over samples: ``r - |p - c|`` (m) for states (n, >= 3) at
+        times ``t`` (n,) (the engine screens a coast with it; equal to :meth:`violation` up to
+        rounding)."""
+        return -self.distance_to_surface(np.asarray(states, dtype=float)[:, :3])
 
     # ------------------------------------------------------------------ CBF (eqs. 26-28)
     def h(self, states) -> np.ndarray:

@@ -223,6 +223,17 @@ class LosMpc:
         self._lb, self._ub = lb, ub
         self._solver: DaqpQP | None = None
         self._plan: np.ndarray | None = None  # (N, 3) last planned body-axes inputs
+        # per-step buffers: the QP vectors are computed in place (DAQP keeps pointers to f and b)
+        n6 = 6 * N
+        self._z = np.empty(6 + nu)  # [x_0; guess]
+        self._parts = np.empty(3 * n6)  # M_0 z, M_c z, M_s z
+        self._harmonic = np.empty(3)
+        self._offset = np.empty(n6)
+        self._dev = np.empty(n6)
+        self._f = np.empty(self.n_var)
+        self._b = np.empty(self._n_rows * N)
+        if self.soft:
+            self._f[nu:] = self._slack_f
 
     # ------------------------------------------------------------------ prediction
     def _prediction_blocks(self, model: BodyFrameModel, N: int):
@@ -328,7 +339,7 @@ class LosMpc:
                                info={"raw_status": res.info.get("raw_status")})
         U = res.x[:nu]
         self._plan = U.reshape(N, 3).copy()
-        states = (offset + self._S_flat @ U).reshape(N, 6)
+        states = (offset + self._S_flat @ U).reshape(N, 6)  # offset: this step's buffer, copied by the sum
         slack = float(res.x[nu:].max()) if self.soft else 0.0
         return MpcSolution(status, U[:3].copy(), R0 @ U[:3], self._plan.copy(), states, solve_time,
                            build_time, iterations, max_slack_m=slack,
@@ -339,13 +350,18 @@ class LosMpc:
         affine prediction offset (6N,) = exact prediction of ``guess`` - S guess."""
         N, nu, n6 = self.N, self.n_u, 6 * self.N
         two_theta = 2.0 * (self.model.theta0_rad + self.model.w_rel * t)
-        parts = (self._offset_maps @ np.concatenate((x_body, guess.reshape(nu)))).reshape(3, n6)
-        offset = np.array([1.0, math.cos(two_theta), math.sin(two_theta)]) @ parts  # M_0 z + cos M_c z + sin M_s z
-        f = self._SW_T @ (offset - ref)  # S' W (offset - ref)
+        z = self._z
+        z[:6] = x_body
+        z[6:] = guess.reshape(nu)
+        parts = np.matmul(self._offset_maps, z, out=self._parts).reshape(3, n6)
+        hm = self._harmonic
+        hm[0], hm[1], hm[2] = 1.0, math.cos(two_theta), math.sin(two_theta)
+        offset = np.matmul(hm, parts, out=self._offset)  # M_0 z + cos M_c z + sin M_s z
+        f = self._f
+        np.matmul(self._SW_T, np.subtract(offset, ref, out=self._dev), out=f[:nu])  # S' W (offset - ref)
         f[:3] -= self._r_d0 * u_prev  # from |u_0 - u_prev|_{R_du}^2
-        b = (self._h - offset.reshape(N, 6)[:, 0:3] @ self._G_T).reshape(-1)
-        if self.soft:
-            f = np.concatenate((f, self._slack_f))
+        b = self._b
+        np.subtract(self._h, offset.reshape(N, 6)[:, 0:3] @ self._G_T, out=b.reshape(N, self._n_rows))
         if self._solver is None:
             self._solver = DaqpQP(max_iter=self.cfg.max_iter)
             self._solver.setup(self._H, f, self._A, bu=b, lb=self._lb, ub=self._ub)

@@ -174,40 +174,53 @@ class EnergyDrift:
     re: float
 
     def target(self, t: float) -> np.ndarray:
-        k = int(round(t / self.dt))
-        if not 0 <= k < len(self.states) or abs(k * self.dt - t) > 1e-6 * max(1.0, t):
-            raise input_error("t", t, f"is not on the ephemeris grid (dt = {self.dt:g} s, {len(self.states)} points)", "s")
-        return self.states[k]
+        return self.states[self._index(t)]
 
     def _accel(self, r: np.ndarray) -> np.ndarray:
         from proxops.core.twobody import accel_gravity_vec
 
         return accel_gravity_vec(r, self.mu, self.j2, self.re)
 
-    def invariant(self, t: float, x) -> float:
-        from proxops.core.twobody import potential
-        from proxops.frames.hill import hill_to_eci_offset
+    def _index(self, t: float) -> int:
+        k = int(round(t / self.dt))
+        if not 0 <= k < len(self.states) or abs(k * self.dt - t) > 1e-6 * max(1.0, t):
+            raise input_error("t", t, f"is not on the ephemeris grid (dt = {self.dt:g} s, {len(self.states)} points)", "s")
+        return k
 
-        tgt = self.target(t)
-        off = hill_to_eci_offset(tgt, np.asarray(x, dtype=float), self._accel(tgt[:3]))
-        r_c = tgt[:3] + off[:3]
-        v_t = tgt[3:]
-        d_kin = float(v_t @ off[3:] + 0.5 * off[3:] @ off[3:])
-        d_pot = potential(*r_c, self.mu, self.j2, self.re) - potential(*tgt[:3], self.mu, self.j2, self.re)
-        return (d_kin + d_pot) / float(np.linalg.norm(v_t))
+    def invariant(self, t: float, x) -> float:
+        return float(self.invariants(np.array([t]), np.asarray(x, dtype=float)[None, :6])[0])
+
+    def invariants(self, t: np.ndarray, xs: np.ndarray) -> np.ndarray:
+        """:meth:`invariant` of Hill states (n, 6) at times (n,) on the ephemeris grid, one jitted
+        call (:func:`proxops.propagation.kernels.energy_invariants`; the same numbers row by row)."""
+        from proxops.propagation.kernels import energy_invariants
+
+        return energy_invariants(self._targets(t), np.ascontiguousarray(xs[:, :6], dtype=float), self._params())
+
+    def _params(self) -> np.ndarray:
+        return np.array([self.mu, self.j2, self.re])
+
+    def _targets(self, t) -> np.ndarray:
+        t = np.asarray(t, dtype=float)
+        k = np.rint(t / self.dt).astype(int)
+        bad = (k < 0) | (k >= len(self.states)) | (np.abs(k * self.dt - t) > 1e-6 * np.maximum(1.0, t))
+        if bad.any():
+            self._index(float(t[np.argmax(bad)]))  # raises the one-line error
+        return np.ascontiguousarray(self.states[k])
+
+    def gains(self, t, xs) -> np.ndarray:
+        """:meth:`gain` of Hill states (n, 6) at times (n,), one jitted call
+        (:func:`proxops.propagation.kernels.energy_gains`)."""
+        from proxops.propagation.kernels import energy_gains
+
+        return energy_gains(self._targets(t), np.ascontiguousarray(xs[:, :6], dtype=float), self._params())
 
     def gain(self, t: float, x=None) -> np.ndarray:
         """Change of the invariant per unit impulse at chaser Hill state ``x`` (Hill components):
         ``C v_c / |v_t|`` with the chaser's inertial velocity ``C v_c = C v_t + rho' + w x rho``
         (first order in the impulse; the rotating-frame term is 1.7 m/s at 2 km along-track)."""
-        from proxops.frames.hill import eci_vector_to_hill, hill_frame_rate
-
-        tgt = self.target(t)
-        v = eci_vector_to_hill(tgt, tgt[3:])
-        if x is not None:
-            x = np.asarray(x, dtype=float)
-            v = v + x[3:6] + np.cross(hill_frame_rate(tgt, self._accel(tgt[:3])), x[:3])
-        return v / float(np.linalg.norm(tgt[3:]))
+        x = np.zeros(6) if x is None else np.asarray(x, dtype=float)
+        return self.gains(np.array([t]), x[None, :6])[0]
 
 
 @dataclass
@@ -424,10 +437,14 @@ class SrfMpc:
         plan = self.plan.copy()
         plan[:i] = 0.0
         flat = plan.ravel()
-        last = int(max([self.drift_nodes.max()] + [j for j, _ in self.hold_nodes]))
-        for l in range(i, min(last, N) + 1):
-            xl = x if l == i else self._phi[l, i] @ x + self._S[l] @ flat
-            k[l] = self.drift_model.gain(float(self.sched.times[l]), xl)
+        last = min(int(max([self.drift_nodes.max()] + [j for j, _ in self.hold_nodes])), N)
+        if last < i:
+            return k
+        xs = np.empty((last - i + 1, 6))
+        xs[0] = x
+        if last > i:  # predicted states at nodes i+1..last, then their gains in one jitted call
+            xs[1:] = np.einsum("lij,j->li", self._phi[i + 1:last + 1, i], x) + self._S[i + 1:last + 1] @ flat
+        k[i:last + 1] = self.drift_model.gains(self.sched.times[i:last + 1], xs)
         return k
 
     def step(self, t: float, x_est) -> Command:
@@ -469,7 +486,29 @@ class SrfMpc:
         info = {"solved": 1.0, "node": float(node), "relax": float(res.relax), "qp_iterations": float(res.iterations),
                 "cbf_min": res.cbf_min, "drift_min_range_m": res.drift_min_range_m}
         self.solve_log.append({"t": t, "node": node, "status": res.status, "u": u.copy(), **info})
-        return Command(u, "impulse", res.status, res.solve_time_s, mode, events, info)
+        if node == N:
+            return Command(u, "impulse", res.status, res.solve_time_s, mode, events, info)
+        # between nodes every step returns this idle command (no impulse) and only samples the drift
+        # invariant: the engine may skip those steps and hand the samples to observe_coast
+        idle = Command(np.zeros(3), "impulse", Status.OK, mode=mode, info={"solved": 0.0})
+        return Command(u, "impulse", res.status, res.solve_time_s, mode, events, info,
+                       next_decision_s=float(self.sched.times[node + 1]), idle=idle)
+
+    def observe_coast(self, t, x_est) -> None:
+        """The estimates of the steps the engine skipped between nodes (engine hook): sampled into
+        the drift invariant's samples exactly as :meth:`step` samples them (same values, same order)."""
+        if self.cfg.drift_free_tol_mps is None:
+            return
+        xs = np.asarray(x_est, dtype=float)
+        if xs.shape[1] != 6:
+            return
+        ok = np.all(np.isfinite(xs), axis=1)
+        times = np.asarray(t, dtype=float)[ok]
+        if self.drift_model is not None:
+            values = self.drift_model.invariants(times, xs[ok]).tolist()
+        else:
+            values = [float(x[4] + 2.0 * self.n_orb * x[0]) for x in xs[ok]]
+        self._c_samples.extend(zip(times.tolist(), values))
 
     def _lift_to_impulse_bit(self, node: int, x: np.ndarray, u: np.ndarray) -> np.ndarray:
         """A trim below the thrusters' minimum impulse bit would fire nothing and leave its drift (up

@@ -52,6 +52,17 @@ class PlantBase:
         """Discrete mode of the full state (e.g. ``"free"``, ``"contact"``); ``""`` for none."""
         return ""
 
+    def coast(self, times: np.ndarray, state, u: np.ndarray, dt: float):
+        """Pieces of ``dt`` s starting at ``times`` (s), each exactly ``propagate(t, state, u, dt)``:
+        returns ``(states, relative)`` -- the full state before every piece and after the last
+        (len(times) + 1 of them) and their relative states (len(times) + 1, n_x). The engine's
+        idle-step coast; plants override it with one jitted call giving the same numbers."""
+        states = [state]
+        for t in times:
+            state = self.propagate(float(t), state, u, dt)
+            states.append(state)
+        return states, np.array([self.relative_state(s) for s in states], dtype=float)
+
     def propagate_events(self, t: float, state: np.ndarray, u: np.ndarray, dt: float):
         """Advance by ``dt`` s like ``propagate``; returns ``(state, events)`` with events
         ``(t_event s, kind, message)`` located inside the step (jump maps already applied)."""

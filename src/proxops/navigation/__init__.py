@@ -28,12 +28,21 @@ class NavigationBase:
     def measure(self, t: float, x_true: np.ndarray, rng: np.random.Generator) -> np.ndarray:
         raise NotImplementedError
 
+    def measure_many(self, t: np.ndarray, x_true: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+        """Estimates (n, n_x) of the samples ``x_true`` (n, n_x) at times ``t`` (n,): the numbers and
+        random draws of ``measure`` called on each in turn (the engine's idle-step coast)."""
+        return np.array([self.measure(float(ti), xi, rng) for ti, xi in zip(t, x_true)], dtype=float).reshape(
+            np.shape(x_true))
+
 
 @dataclass
 class PerfectNavigation(NavigationBase):
     """The controller sees the true state."""
 
     def measure(self, t: float, x_true: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+        return np.array(x_true, dtype=float)
+
+    def measure_many(self, t: np.ndarray, x_true: np.ndarray, rng: np.random.Generator) -> np.ndarray:
         return np.array(x_true, dtype=float)
 
 
@@ -89,17 +98,40 @@ class GaussianNavigation(NavigationBase):
 
     def measure(self, t: float, x_true: np.ndarray, rng: np.random.Generator) -> np.ndarray:
         x = np.array(x_true, dtype=float)
-        if self._sigma_cache is None or self._sigma_cache[0] != x.size:
-            self._sigma_cache = (x.size, self.additive_sigma(x.size))
-        sigma = self._sigma_cache[1]
-        if sigma.any():
-            x = x + self.scale(x) * sigma * rng.standard_normal(x.size)
+        cache = self._sigma_cache
+        if cache is None or cache[0] != x.size:
+            sigma = self.additive_sigma(x.size)
+            cache = self._sigma_cache = (x.size, sigma, bool(sigma.any()))
+        if cache[2]:
+            x = x + self.scale(x) * cache[1] * rng.standard_normal(x.size)
         if self.attitude_sigma_rad > 0.0 and self.layout is not None:
             for b in self.layout.blocks:
                 if b.kind == "quaternion":
                     x[b.start:b.stop] = quat_multiply(x[b.start:b.stop],
                                                       small_rotation(self.attitude_sigma_rad * rng.standard_normal(3)))
         return x
+
+
+    def measure_many(self, t: np.ndarray, x_true: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+        """Vectorised :meth:`measure` (same draws: ``standard_normal((n, n_x))`` is n consecutive
+        ``standard_normal(n_x)``; same numbers: the per-row factor is computed as in ``measure``)."""
+        x = np.array(x_true, dtype=float)
+        if self.attitude_sigma_rad > 0.0 and self.layout is not None and any(
+                b.kind == "quaternion" for b in self.layout.blocks):
+            return super().measure_many(t, x_true, rng)  # quaternion draws interleave with the additive ones
+        if x.shape[0] == 0:
+            return x
+        if self._sigma_cache is None or self._sigma_cache[0] != x.shape[1]:
+            sigma = self.additive_sigma(x.shape[1])
+            self._sigma_cache = (x.shape[1], sigma, bool(sigma.any()))
+        sigma = self._sigma_cache[1]
+        if not sigma.any():
+            return x
+        noise = rng.standard_normal(x.shape)
+        if self.range_scale_m is None:
+            return x + (1.0 * sigma) * noise
+        scale = np.array([self.scale(row) for row in x])
+        return x + (scale[:, None] * sigma) * noise
 
 
 def small_rotation(phi: np.ndarray) -> np.ndarray:

@@ -24,7 +24,7 @@ import math
 import numpy as np
 from numba import njit
 
-from proxops.core.twobody import accel_differential, accel_gravity
+from proxops.core.twobody import accel_differential, accel_gravity, potential
 
 # ---------------------------------------------------------------- DOP853 tableau
 N_STAGES = 12
@@ -256,6 +256,54 @@ def y_from_hill(target: np.ndarray, hill: np.ndarray, p: np.ndarray) -> np.ndarr
 
 
 @njit(cache=True)
+def energy_invariants(targets: np.ndarray, hill: np.ndarray, p: np.ndarray) -> np.ndarray:
+    """Chaser-minus-target specific orbital energy over |v_t| (m/s) for target ECI states (n, 6) and
+    chaser Hill states (n, 6): ``(v_t . dv + |dv|^2 / 2 + V(r_t + dr) - V(r_t)) / |v_t|`` with the
+    exact offset (dr, dv) of :func:`y_from_hill` and V the two-body + J2 potential (J2 = p[1]).
+    Conserved on the free motion of both (axisymmetric J2); zero difference means equal semi-major
+    axes, i.e. no secular along-track drift (the srf MPC's drift invariant)."""
+    n = targets.shape[0]
+    out = np.empty(n)
+    mu, j2, re = p[0], p[1], p[2]
+    for k in range(n):
+        y = y_from_hill(targets[k], hill[k], p)
+        rtx, rty, rtz, vtx, vty, vtz = y[0], y[1], y[2], y[3], y[4], y[5]
+        dx, dy, dz, dvx, dvy, dvz = y[6], y[7], y[8], y[9], y[10], y[11]
+        d_kin = vtx * dvx + vty * dvy + vtz * dvz + 0.5 * (dvx * dvx + dvy * dvy + dvz * dvz)
+        d_pot = potential(rtx + dx, rty + dy, rtz + dz, mu, j2, re) - potential(rtx, rty, rtz, mu, j2, re)
+        out[k] = (d_kin + d_pot) / math.sqrt(vtx * vtx + vty * vty + vtz * vtz)
+    return out
+
+
+@njit(cache=True)
+def energy_gains(targets: np.ndarray, hill: np.ndarray, p: np.ndarray) -> np.ndarray:
+    """Gradient of :func:`energy_invariants` with respect to an impulse in Hill axes (n, 3) (1/1,
+    m/s per m/s): the chaser's inertial velocity in Hill components over |v_t|,
+    ``(C v_t + rho' + w x rho) / |v_t|`` (w: Hill frame rate incl. the J2 x part)."""
+    n = targets.shape[0]
+    out = np.empty((n, 3))
+    y = np.zeros(12)
+    for k in range(n):
+        for i in range(6):
+            y[i] = targets[k, i]
+        xx, xy, xz, yx, yy, yz, zx, zy, zz = hill_axes(y)
+        rn2 = y[0] * y[0] + y[1] * y[1] + y[2] * y[2]
+        hx = y[1] * y[5] - y[2] * y[4]
+        hy = y[2] * y[3] - y[0] * y[5]
+        hz = y[0] * y[4] - y[1] * y[3]
+        wz = math.sqrt(hx * hx + hy * hy + hz * hz) / rn2
+        wx = _frame_rate_x(y, p)
+        vx, vy, vz = y[3], y[4], y[5]
+        px, py, pz = hill[k, 0], hill[k, 1], hill[k, 2]
+        vn = math.sqrt(vx * vx + vy * vy + vz * vz)
+        # w x rho with w = (wx, 0, wz): (-wz py, wz px - wx pz, wx py)
+        out[k, 0] = (xx * vx + xy * vy + xz * vz + hill[k, 3] - wz * py) / vn
+        out[k, 1] = (yx * vx + yy * vy + yz * vz + hill[k, 4] + wz * px - wx * pz) / vn
+        out[k, 2] = (zx * vx + zy * vy + zz * vz + hill[k, 5] + wx * py) / vn
+    return out
+
+
+@njit(cache=True)
 def apply_hill_impulse(y: np.ndarray, dv: np.ndarray) -> np.ndarray:
     """Copy of y with a Hill-axes velocity change ``dv`` (m/s) added to the chaser."""
     out = y.copy()
@@ -401,6 +449,33 @@ def propagate_dop853(y0, dt, u, p, rtol, atol) -> tuple:
     for i in range(y0.size):
         y[i] = out[1, i]
     return y, status, n_steps
+
+
+@njit(cache=True)
+def coast_dop853(y0, n, dt, u, p, rtol, atol) -> tuple:
+    """``n`` consecutive :func:`propagate_dop853` calls of ``dt`` s each (the same numbers, one
+    call): full states (n + 1, 12), their Hill states (n + 1, 6), the status and the index of the
+    piece that failed (-1 if none)."""
+    ys = np.empty((n + 1, y0.size))
+    rel = np.empty((n + 1, 6))
+    times = np.empty(2)
+    times[0] = 0.0
+    times[1] = dt
+    out = np.empty((2, y0.size))
+    for i in range(y0.size):
+        ys[0, i] = y0[i]
+    for k in range(n + 1):
+        h = hill_from_y(ys[k], p)
+        for i in range(6):
+            rel[k, i] = h[i]
+        if k == n:
+            break
+        status, _, _ = integrate_grid(ys[k], times, u, p, rtol, atol, out)
+        if status != STATUS_OK:
+            return ys, rel, status, k
+        for i in range(y0.size):
+            ys[k + 1, i] = out[1, i]
+    return ys, rel, STATUS_OK, -1
 
 
 @njit(cache=True)

@@ -4,7 +4,6 @@ as the fast path (:mod:`proxops.propagation.kernels`), at the papers' tolerances
 from __future__ import annotations
 
 import numpy as np
-from scipy.integrate import solve_ivp
 
 from proxops.errors import ProxopsError
 from proxops.propagation import kernels
@@ -27,6 +26,8 @@ def propagate_reference(
     params = np.ascontiguousarray(params, dtype=float)
     if dt == 0.0:
         return y0.copy()
+
+    from scipy.integrate import solve_ivp  # heavy (0.5 s): only on the reference path
 
     def fun(_t, y):
         return kernels.rhs_relative_alloc(y, u, params)

@@ -134,6 +134,20 @@ class RelativeTruth(PlantBase):
             return y_new
         return propagate_reference(y, dt, uu, self.params, self.rtol, self.atol)
 
+    def coast(self, times: np.ndarray, state: np.ndarray, u: np.ndarray, dt: float):
+        """The engine's idle-step coast (:meth:`PlantBase.coast`): ``len(times)`` pieces of ``dt`` s,
+        one jitted call with the numbers of as many :meth:`propagate` calls."""
+        if self.integrator != "fast":
+            return super().coast(times, state, u, dt)
+        dt = _check_dt(dt)
+        ys, rel, status, k = kernels.coast_dop853(np.ascontiguousarray(state, dtype=float), len(times), dt,
+                                                  self._zero_u if u is None else _control(u), self.params,
+                                                  self.rtol, self.atol)
+        if status != kernels.STATUS_OK:
+            raise ProxopsError(f"truth propagation failed at t = {float(times[k])} s over dt = {dt} s: "
+                               f"{_STATUS_TEXT[status]}")
+        return ys, rel
+
     def apply_impulse(self, t: float, state: np.ndarray, dv: np.ndarray) -> np.ndarray:
         """State with an instantaneous chaser velocity change ``dv`` (m/s, Hill axes)."""
         return kernels.apply_hill_impulse(np.ascontiguousarray(state, dtype=float), _control(dv, "dv"))

@@ -22,6 +22,21 @@ loop it always did. Each base tick k at t_k = k h:
    ``check_substeps`` pieces so constraints are checked between samples); a plant with events
    (``has_events``) returns the events it located inside the step (jump maps applied).
 
+Idle steps (event-driven coasting): a command may carry ``next_decision_s`` and ``idle`` (see
+:class:`proxops.sim.protocols.Command`): the controller promises that each of its ticks before
+``next_decision_s`` would return ``idle`` (a zero command, no events). The engine then skips
+those calls and covers the gap with one propagation of the plant (``plant.coast``: one jitted
+call for the truth plants), checks the constraints at the same resolution vectorised over the
+coast (``constraint.violations`` screens, the scalar ``violation`` decides near zero), measures
+the coast's samples at once (``navigation.measure_many``), hands the skipped estimates to the
+controller (``observe_coast(t, x_est)``, before its next step) and records exactly the samples
+the step-by-step path records: the SimResult is the same (tests/test_engine_coast.py). Coasting
+needs a single-rate loop without periodic components, a plant without events, a controller without
+``observe_truth`` and an actuator that passes a zero command through without drawing
+(``actuator.zero_passthrough``); otherwise, or with ``simulate(..., coast=False)``, every tick
+calls ``step``. A coast's propagation runs to its end before the stop condition is evaluated on
+its samples.
+
 Random streams: the run's ``seed`` spawns one named child stream per component
 (:func:`component_streams`: navigation, actuator, plant, controller), so adding a component
 never shifts another's draws. The plant and controller receive theirs as ``.rng``.
@@ -43,15 +58,16 @@ from typing import Callable, Sequence
 import numpy as np
 
 from proxops.actuators import IdealActuator
-from proxops.dynamics.plant import translational_delta_v  # noqa: F401  (re-exported)
+from proxops.dynamics.plant import PlantBase, translational_delta_v  # noqa: F401  (re-exported)
 from proxops.errors import input_error
 from proxops.navigation import PerfectNavigation
-from proxops.sim.protocols import Actuator, Controller, Navigation, Periodic, Plant
+from proxops.sim.protocols import Actuator, Command, Controller, Navigation, Periodic, Plant
 from proxops.sim.result import SimResult
 from proxops.status import NOT_FLAGGED, Status, StopReason
 
 STREAMS = ("navigation", "actuator", "plant", "controller")
 PERIOD_QUANTUM_S = 1e-6  # periods are commensurate on this grid
+COAST_SCREEN = 1e-6  # a coast's vectorised violation below -this is < 0 (rounding ~1e-12); else checked exactly
 
 
 def component_streams(seed: int, names: Sequence[str] = STREAMS) -> dict[str, np.random.Generator]:
@@ -103,8 +119,11 @@ def schedule(ctrl_dt: float, nav_period: float | None, act_period: float | None,
     return ctrl_dt / k_ctrl, k_ctrl, k_nav, k_act, tuple(k_extra)
 
 
-def simulate(setup: Setup, seed: int = 0, progress: bool = False) -> SimResult:
-    """Run one closed loop to ``setup.duration_s`` (or an earlier stop) and return its SimResult."""
+def simulate(setup: Setup, seed: int = 0, progress: bool = False, coast: bool = True) -> SimResult:
+    """Run one closed loop to ``setup.duration_s`` (or an earlier stop) and return its SimResult.
+
+    ``coast=False``: every controller tick calls ``step`` even when the controller announced its
+    next decision (the reference path of the idle-step coasting; the result is the same)."""
     plant, ctrl, nav, act = setup.plant, setup.controller, setup.navigation, setup.actuator
     streams = component_streams(seed)
     rng_nav, rng_act = streams["navigation"], streams["actuator"]
@@ -139,8 +158,15 @@ def simulate(setup: Setup, seed: int = 0, progress: bool = False) -> SimResult:
     in_violation: dict[str, bool] = {}
     zero_u = np.zeros(n_u)
 
+    constraints = tuple(setup.constraints)
+    stop_condition = setup.stop_condition
+    n_sub = int(setup.check_substeps)
+    sub_dt = h / n_sub
+    propagate, relative_state, measure, step_ctrl, apply_act = (plant.propagate, plant.relative_state, nav.measure,
+                                                                 ctrl.step, act.apply)
+
     def check_constraints(t: float, xr: np.ndarray) -> None:
-        for con in setup.constraints:
+        for con in constraints:
             v = float(con.violation(t, xr))
             name = con.name
             if v > max_violation.get(name, 0.0):
@@ -150,6 +176,9 @@ def simulate(setup: Setup, seed: int = 0, progress: bool = False) -> SimResult:
             in_violation[name] = v > 0.0
 
     bar = _progress_bar(n_steps, progress)
+    bar_close = bar.close
+    if isinstance(bar, _NoBar):
+        bar = None
     wall0 = time.perf_counter()
     x0 = plant.relative_state(state)
     ctrl.reset(0.0, x0)
@@ -163,19 +192,122 @@ def simulate(setup: Setup, seed: int = 0, progress: bool = False) -> SimResult:
     nav_command = getattr(nav, "command", None)  # optional hooks of a filter: the commanded control,
     nav_events = getattr(nav, "events", None)  # and its events (e.g. rejected measurements), drained
     act_limited = getattr(act, "limited", None)  # the filter gets the command after the known saturations
+    can_coast = (coast and single_rate and not periodic and not has_events and observe is None
+                 and bool(getattr(act, "zero_passthrough", False)))
+    coast_to = 0  # sample index the current coast runs to (0: none)
+    plain_mode = getattr(type(plant), "mode", None) is PlantBase.mode
+    observe_coast = getattr(ctrl, "observe_coast", None)
+    measure_many = getattr(nav, "measure_many", None) if (nav_command is None and nav_events is None) else None
+
+    def run_coast(j0: int, j1: int, state, idle: Command):
+        """Samples j0..j1-1 of idle controller ticks (state: the plant state at j0). Returns
+        (plant state at the next sample, index of the stop sample or None, stop reason)."""
+        nonlocal last_mode
+        m = j1 - j0
+        sample_t = np.arange(j0, j1) * h
+        piece_t = (sample_t[:, None] + np.arange(n_sub) * sub_dt).ravel()  # start of every propagated piece
+        u_hold = zero_u if idle.kind == "impulse" else u_idle_applied
+        states, rel = plant.coast(piece_t, state, u_hold, sub_dt)
+        xs = rel[0:m * n_sub:n_sub]
+        # stop condition on the samples (after navigation and constraints, as in the step path)
+        stop_i, reason = None, None
+        if stop_condition is not None:
+            for i in range(m):
+                reason = stop_condition(float(sample_t[i]), xs[i])
+                if reason:
+                    stop_i = i
+                    break
+        n_rec = m if stop_i is None else stop_i + 1
+        n_idle = m if stop_i is None else stop_i  # samples where the controller would have stepped
+        at: dict[int, list] = {}  # events by check point (i * n_sub + s), in the step path's order
+        # navigation
+        if measure_many is not None:
+            xe_rows = measure_many(sample_t[:n_rec], xs[:n_rec], rng_nav)
+        else:
+            xe_rows = np.empty((n_rec, xs.shape[1]))
+            for i in range(n_rec):
+                ti = float(sample_t[i])
+                xe_rows[i] = nav.measure(ti, xs[i], rng_nav)
+                if nav_events:
+                    at.setdefault(i * n_sub, []).extend((ti, kind, msg) for kind, msg in nav_events)
+                    nav_events.clear()
+                if nav_command is not None and i < n_idle:
+                    nav_command(ti, idle.u if act_limited is None else act_limited(idle.u), idle.kind)
+        sl = slice(j0, j0 + n_rec)
+        t_rec[sl], x_true[sl], x_est[sl] = sample_t[:n_rec], xs[:n_rec], xe_rows
+        if not plain_mode:
+            plant_modes.extend(plant_mode(states[i * n_sub]) for i in range(n_rec))
+        # constraints at every check point up to the stop sample (vectorised screen, exact near zero)
+        n_chk = m * n_sub if stop_i is None else stop_i * n_sub + 1
+        chk_t, chk_x = piece_t[:n_chk], rel[:n_chk]
+        for con in constraints:
+            batch = getattr(con, "violations", None)
+            if batch is not None:
+                v = np.array(batch(chk_t, chk_x), dtype=float)
+                for p in np.nonzero(v > -COAST_SCREEN)[0]:
+                    v[p] = float(con.violation(float(chk_t[p]), chk_x[p]))
+            else:
+                v = np.array([float(con.violation(float(chk_t[p]), chk_x[p])) for p in range(n_chk)])
+            name = con.name
+            pos = v > 0.0
+            if pos.any():
+                prev = np.concatenate([[in_violation.get(name, False)], pos[:-1]])
+                for p in np.nonzero(pos & ~prev)[0]:
+                    at.setdefault(int(p), []).append((float(chk_t[p]), "violation", f"{name} violated by {v[p]:.3g}"))
+            vmax = float(v.max())
+            if vmax > max_violation.get(name, 0.0):
+                max_violation[name] = vmax
+            in_violation[name] = bool(pos[-1])
+        if stop_i is not None:
+            at.setdefault(stop_i * n_sub, []).append((float(sample_t[stop_i]), "stop", reason))
+        # the idle commands
+        if n_idle:
+            if idle.mode != last_mode and last_mode is not None:
+                at.setdefault(0, []).append((float(sample_t[0]), "mode", f"{last_mode} -> {idle.mode}"))
+            last_mode = idle.mode
+            isl = slice(j0, j0 + n_idle)
+            u_cmd[isl], u_app[isl], solve_t[isl] = idle.u, u_idle_applied, idle.solve_time_s
+            status.extend([Status.parse(idle.status)] * n_idle)
+            modes.extend([idle.mode] * n_idle)
+            for key, val in idle.info.items():
+                series = info.get(key)
+                if series is None:
+                    series = info[key] = np.full(n_steps + 1, np.nan)
+                series[isl] = val
+            dv0 = delta_v(u_idle_applied, idle.kind, h)
+            if dv0 == 0.0:
+                dv_cum[j0 + 1:j0 + n_idle + 1] = dv_cum[j0]
+            else:
+                for j in range(j0, j0 + n_idle):
+                    dv_cum[j + 1] = dv_cum[j] + dv0
+            if observe_coast is not None:
+                observe_coast(sample_t[:n_idle], xe_rows[:n_idle])
+            if bar is not None:
+                bar.update(n_idle)
+        if stop_i is not None:
+            status.append(Status.NONE)
+            modes.append(last_mode or "")
+        for p in sorted(at):
+            events.extend(at[p])
+        return states[n_rec * n_sub if stop_i is None else stop_i * n_sub], stop_i, reason
+
+    u_idle_applied = zero_u
     try:  # the bar is cleared even when the run is interrupted (Ctrl-C)
-        for k in range(n_steps + 1):
+        k = 0
+        while k <= n_steps:
             t = k * h
-            xr = plant.relative_state(state)
+            xr = relative_state(state)
             if single_rate or k % k_nav == 0:
-                xe = nav.measure(t, xr, rng_nav)
+                xe = measure(t, xr, rng_nav)
                 if nav_events:
                     events.extend((t, kind, msg) for kind, msg in nav_events)
                     nav_events.clear()
             t_rec[k], x_true[k], x_est[k] = t, xr, xe
-            plant_modes.append(plant_mode(state))
-            check_constraints(t, xr)
-            reason = setup.stop_condition(t, xr) if setup.stop_condition else None
+            if not plain_mode:
+                plant_modes.append(plant_mode(state))
+            if constraints:
+                check_constraints(t, xr)
+            reason = stop_condition(t, xr) if stop_condition is not None else None
             if reason:
                 outcome, stop_reason = reason, StopReason.STOP_CONDITION
                 events.append((t, "stop", reason))
@@ -193,7 +325,7 @@ def simulate(setup: Setup, seed: int = 0, progress: bool = False) -> SimResult:
             if ctrl_tick:
                 if observe is not None:
                     observe(t, xr)
-                cmd = ctrl.step(t, xe)
+                cmd = step_ctrl(t, xe)
                 st = Status.parse(cmd.status)
                 if cmd.stop:
                     outcome, stop_reason = cmd.mode or "stopped", StopReason.CONTROLLER
@@ -201,7 +333,7 @@ def simulate(setup: Setup, seed: int = 0, progress: bool = False) -> SimResult:
                     status.append(st)
                     modes.append(cmd.mode)
                     break
-                u = np.asarray(act.apply(t, cmd.u, cmd.kind, rng_act), dtype=float)
+                u = np.asarray(apply_act(t, cmd.u, cmd.kind, rng_act), dtype=float)
                 if nav_command is not None:
                     nav_command(t, cmd.u if act_limited is None else act_limited(cmd.u), cmd.kind)
                 u_cmd[k], u_app[k], solve_t[k] = cmd.u, u, cmd.solve_time_s
@@ -212,13 +344,20 @@ def simulate(setup: Setup, seed: int = 0, progress: bool = False) -> SimResult:
                 if cmd.mode != last_mode and last_mode is not None:
                     events.append((t, "mode", f"{last_mode} -> {cmd.mode}"))
                 last_mode = cmd.mode
-                for kind, msg in cmd.events:
-                    events.append((t, kind, msg))
+                if cmd.events:
+                    events.extend((t, kind, msg) for kind, msg in cmd.events)
                 for key, val in cmd.info.items():
                     series = info.get(key)
                     if series is None:
                         series = info[key] = np.full(n_steps + 1, np.nan)
                     series[k] = val
+                idle = cmd.idle
+                if idle is not None and can_coast and cmd.next_decision_s is not None:
+                    k_next = int(math.ceil(cmd.next_decision_s / h - 1e-9))
+                    if (k_next > k + 1 and not idle.events and not idle.stop and Status.parse(idle.status) in NOT_FLAGGED
+                            and not np.any(idle.u)):
+                        coast_to = min(k_next, n_steps)
+                        u_idle_applied = np.asarray(act.apply(t, idle.u, idle.kind, rng_act), dtype=float)
             else:  # between controller samples: the command is held (an impulse is not repeated)
                 status.append(Status.NONE)
                 modes.append(last_mode or "")
@@ -227,25 +366,38 @@ def simulate(setup: Setup, seed: int = 0, progress: bool = False) -> SimResult:
                 elif k % k_act == 0:
                     u = np.asarray(act.apply(t, cmd.u, cmd.kind, rng_act), dtype=float)
                 u_cmd[k], u_app[k] = (zero_u if cmd.kind == "impulse" else cmd.u), u
-            dv_cum[k + 1] = dv_cum[k] + delta_v(u, cmd.kind, h)
-            if cmd.kind == "impulse":
+            kind = cmd.kind
+            dv_cum[k + 1] = dv_cum[k] + delta_v(u, kind, h)
+            if kind == "impulse":
                 if ctrl_tick and u.any():
                     state = plant.apply_impulse(t, state, u)
                 u_hold = zero_u
             else:
                 u_hold = u
-            sub_dt = h / setup.check_substeps
-            for j in range(setup.check_substeps):
-                if has_events:
-                    state, plant_events = plant.propagate_events(t + j * sub_dt, state, u_hold, sub_dt)
-                    events.extend(plant_events)
-                else:
-                    state = plant.propagate(t + j * sub_dt, state, u_hold, sub_dt)
-                if j < setup.check_substeps - 1:
-                    check_constraints(t + (j + 1) * sub_dt, plant.relative_state(state))
-            bar.update(1)
+            if n_sub == 1 and not has_events:
+                state = propagate(t, state, u_hold, sub_dt)  # = the loop below with one piece (t + 0 * sub_dt)
+            else:
+                for j in range(n_sub):
+                    if has_events:
+                        state, plant_events = plant.propagate_events(t + j * sub_dt, state, u_hold, sub_dt)
+                        events.extend(plant_events)
+                    else:
+                        state = propagate(t + j * sub_dt, state, u_hold, sub_dt)
+                    if j < n_sub - 1:
+                        check_constraints(t + (j + 1) * sub_dt, relative_state(state))
+            if bar is not None:
+                bar.update(1)
+            k += 1
+            if coast_to > k:
+                state, stop_i, reason = run_coast(k, coast_to, state, cmd.idle)
+                if stop_i is not None:
+                    outcome, stop_reason = reason, StopReason.STOP_CONDITION
+                    k += stop_i
+                    break
+                k = coast_to
+            coast_to = 0
     finally:
-        bar.close()
+        bar_close()
     n = k + 1
     meta = dict(setup.meta)
     meta.update(
@@ -279,7 +431,7 @@ def simulate(setup: Setup, seed: int = 0, progress: bool = False) -> SimResult:
         info={key: arr[:n] for key, arr in info.items()},
         events=events,
         meta=meta,
-        plant_mode=plant_modes[:n],
+        plant_mode=[""] * n if plain_mode else plant_modes[:n],
     )
 
 

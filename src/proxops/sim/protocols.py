@@ -43,11 +43,18 @@ class Command:
     info: dict = field(default_factory=dict)  # scalars recorded per step (e.g. value function)
     stop: bool = False  # controller declares the run finished (e.g. docked)
     status_detail: str = ""  # the solver's own words for a failed status (message of the "solver" event)
+    next_decision_s: float | None = None  # the controller's next decision is due at this time (s); None: next tick
+    idle: "Command | None" = None  # what every tick before next_decision_s would return (zero u)
 
 
 @runtime_checkable
 class Controller(Protocol):
     """Every controller: ``reset`` once, then ``step(t, x_est) -> Command`` each sample.
+
+    Optional hooks: ``observe_truth(t, x_true)`` (shown the truth before each step: safety
+    monitors), ``observe_coast(t (n,), x_est (n, n_x))`` (the estimates of the ticks the engine
+    skipped after a command with ``next_decision_s``, in time order, before the next step: what
+    those ``step`` calls would have seen).
 
     ``dt`` is also the controller's period in the multi-rate schedule. Before ``reset`` the
     engine sets ``rng`` (numpy Generator): the controller's own random stream (e.g. for a
@@ -66,7 +73,9 @@ class Plant(Protocol):
     target's inertial state); ``relative_state`` extracts what navigation measures.
 
     Defaults for everything below ``apply_impulse`` are in
-    :class:`proxops.dynamics.plant.PlantBase` (Hill layout, translational delta-v, no events)."""
+    :class:`proxops.dynamics.plant.PlantBase` (Hill layout, translational delta-v, no events), and
+    of the idle-step hook ``coast(times, state, u, dt) -> (states, relative states)``: the numbers
+    of ``len(times)`` ``propagate`` calls (the truth plants give them in one jitted call)."""
 
     n_x: int  # length of the measured state returned by relative_state
     n_u: int  # length of the control vector
@@ -105,7 +114,10 @@ class Plant(Protocol):
 class Navigation(Protocol):
     """What the controller sees: ``measure(t, x_true, rng) -> x_est`` (same layout and units
     as the plant's measured state). ``period_s``: measurement period (s), None = the
-    controller's; the estimate is held between measurements."""
+    controller's; the estimate is held between measurements. Idle-step hook (default in
+    :class:`proxops.navigation.NavigationBase`): ``measure_many(t (n,), x_true (n, n_x), rng)``, the
+    numbers and draws of ``measure`` on each sample in turn (a filter with ``command``/``events``
+    hooks is called sample by sample instead)."""
 
     period_s: float | None
 
@@ -117,7 +129,9 @@ class Actuator(Protocol):
     """Between command and truth: ``apply(t, u, kind, rng) -> u_applied`` (limits, errors),
     in the command's unit (m/s^2 for ``acceleration``, m/s for ``impulse``, or the plant's own
     control units). ``period_s``: None = applied once per controller sample; a shorter period
-    re-applies a held acceleration command (fresh errors) on each of its ticks."""
+    re-applies a held acceleration command (fresh errors) on each of its ticks.
+    ``zero_passthrough`` (:class:`proxops.actuators.ActuatorBase`: False): ``apply`` of a zero
+    command returns zero and draws nothing, so the engine may coast idle ticks."""
 
     period_s: float | None
 
@@ -142,7 +156,9 @@ class Periodic(Protocol):
 class Constraint(Protocol):
     """A path constraint checked by the engine on the true measured state: ``violation(t, x)``
     >= 0 in the constraint's unit (m for keep-out and corridors), 0 when satisfied. Each
-    constraint also gives its solver rows to the controllers that enforce it."""
+    constraint also gives its solver rows to the controllers that enforce it. Optional
+    ``violations(t (n,), x (n, n_x)) -> (n,)``: the same vectorised up to rounding (the engine
+    screens a coast with it and calls ``violation`` wherever it is above -1e-6)."""
 
     name: str
 

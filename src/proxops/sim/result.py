@@ -16,7 +16,6 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
-import pandas as pd
 
 from proxops.core.layout import StateLayout
 from proxops.solvers.stats import solve_time_stats
@@ -124,7 +123,9 @@ class SimResult:
         return out
 
     # --- persistence --------------------------------------------------------------
-    def to_frame(self) -> pd.DataFrame:
+    def to_frame(self) -> "pd.DataFrame":
+        import pandas as pd  # heavy (0.4 s + pyarrow on save): only when a result is stored
+
         cols: dict[str, np.ndarray | list] = {"t": self.t}
         for name, arr in (("x_true", self.x_true), ("x_est", self.x_est), ("u_cmd", self.u_cmd), ("u_applied", self.u_applied)):
             for i in range(arr.shape[1]):
@@ -140,6 +141,8 @@ class SimResult:
         return pd.DataFrame(cols)
 
     def save(self, directory: str | Path) -> Path:
+        import pandas as pd
+
         d = Path(directory)
         d.mkdir(parents=True, exist_ok=True)
         self.to_frame().to_parquet(d / "steps.parquet", index=False)
@@ -152,6 +155,8 @@ class SimResult:
 
     @classmethod
     def load(cls, directory: str | Path) -> "SimResult":
+        import pandas as pd
+
         d = Path(directory)
         df = pd.read_parquet(d / "steps.parquet")
         ev = pd.read_parquet(d / "events.parquet")

@@ -25,28 +25,34 @@ Solver modules are imported lazily (on first use of an adapter). OSQP is not
 shipped: it gave false infeasibility on the seed problems (issues #4, #5).
 """
 
-from proxops.solvers.clarabel_socp import ClarabelSOCP
-from proxops.solvers.daqp_qp import DaqpQP
-from proxops.solvers.feasibility import (
-    FeasibilityReport,
-    check_conic_feasibility,
-    check_feasibility,
-    max_violation,
-)
-from proxops.solvers.forms import (
-    ConicProblem,
-    LinearProgram,
-    QuadraticProgram,
-    build_conic_problem,
-    conic_from_program,
-    conic_from_qp,
-)
-from proxops.solvers.front import make_qp_solver, solve_qp
-from proxops.solvers.highs_lp import HighsLP, HighsMILP
-from proxops.solvers.piqp_qp import PiqpQP
-from proxops.solvers.result import SolverResult, SolveStatus
-from proxops.solvers.scp import ScpResult, TrustRegion, successive_convexification
-from proxops.solvers.stats import solve_time_stats
+import importlib
+
+# name -> submodule. Resolved on first access (PEP 562): importing the package (e.g. for
+# solve_time_stats in every run summary) does not load scipy.sparse and the solver adapters (0.5 s
+# of a short CLI run); ``from proxops.solvers import DaqpQP`` works as before.
+_HOME = {
+    "ClarabelSOCP": "clarabel_socp", "DaqpQP": "daqp_qp", "PiqpQP": "piqp_qp", "HighsLP": "highs_lp",
+    "HighsMILP": "highs_lp", "FeasibilityReport": "feasibility", "check_conic_feasibility": "feasibility",
+    "check_feasibility": "feasibility", "max_violation": "feasibility", "ConicProblem": "forms",
+    "LinearProgram": "forms", "QuadraticProgram": "forms", "build_conic_problem": "forms",
+    "conic_from_program": "forms", "conic_from_qp": "forms", "make_qp_solver": "front", "solve_qp": "front",
+    "SolverResult": "result", "SolveStatus": "result", "ScpResult": "scp", "TrustRegion": "scp",
+    "successive_convexification": "scp", "solve_time_stats": "stats",
+}
+
+
+def __getattr__(name: str):
+    home = _HOME.get(name)
+    if home is None:
+        raise AttributeError(f"module 'proxops.solvers' has no attribute {name!r}")
+    value = getattr(importlib.import_module(f"proxops.solvers.{home}"), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__():
+    return sorted(__all__)
+
 
 __all__ = [
     "ClarabelSOCP",

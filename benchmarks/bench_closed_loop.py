@@ -1,0 +1,334 @@
+"""Closed loops at the solver's speed (issue 18): per system, the wall time of one run, the solver's
+share of it and the glue per step, the 50-run srf campaigns, the analytic certification
+(``reach table``) and the CLI start-up -- for this tree AND the previous release (commit
+``BASELINE_COMMIT``), measured back to back in the same invocation.
+
+    python benchmarks/bench_closed_loop.py                 # this tree vs the baseline tree
+    python benchmarks/bench_closed_loop.py --no-baseline   # this tree, vs the stored baseline.json
+    python benchmarks/bench_closed_loop.py --reach-mc      # also the 3 900-run ``reach mc`` (minutes)
+    python benchmarks/bench_closed_loop.py --store         # measure the baseline tree, write baseline.json
+    python benchmarks/bench_closed_loop.py --parts=campaigns --no-baseline   # one part, vs the stored numbers
+
+The baseline tree is ``git archive BASELINE_COMMIT`` unpacked once into a cache folder (needs the
+git history); without it the numbers stored in benchmarks/baseline.json (same commit, measured
+on this 2-core machine, with their load average) are the reference, and the output says so.
+
+What is measured (each in a fresh interpreter per tree, one BLAS thread, after a warm-up run so
+imports and numba caches are loaded; best of ``--repeats``):
+
+* ``run s``: ``execute(load_scenario(name))`` -- build, simulate, summarise (what ``proxops run``
+  does, without printing);
+* ``sim s``: the engine's wall time (``meta["wall_time_s"]``), ``solve s`` the sum of the
+  controller's ``solve_time_s`` (QP data update + solve, as each controller reports it);
+  ``solver share`` = solve / sim; ``glue us/step`` = (sim - solve) / steps: everything in the loop
+  that is not the solver (engine, navigation, actuator, constraints, truth, controller glue);
+* campaigns: ``run_campaign(name, n_runs=50, workers=2)``; the first in a process includes the
+  pool's cold start (spawn, imports), the second reuses the pool;
+* ``reach table``: the 20-combination analytic certification without the backward LP
+  (``reach_table(backward=False)``, the ``total`` of its Table 4 timings, 300 x 300 grid);
+* CLI: ``python -m proxops.entry --version`` and ``... run station-keeping --json`` wall time
+  (process start to exit), best of ``--repeats`` after one cached use.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+import tarfile
+import time
+from pathlib import Path
+
+HERE = Path(__file__).resolve().parent
+ROOT = HERE.parent
+BASELINE_COMMIT = "99b4039"
+BASELINE_JSON = HERE / "baseline.json"
+RUNS = ("srf-vbar", "srf-rbar", "srf-glideslope-40", "los-tumble", "station-keeping", "underactuated-case1",
+        "cortex-nominal")
+CAMPAIGNS = ("srf-vbar-mc", "srf-rbar-mc", "srf-glideslope-40-mc")
+ENV = dict(os.environ, OPENBLAS_NUM_THREADS="1", OMP_NUM_THREADS="1", MKL_NUM_THREADS="1")
+
+
+# --------------------------------------------------------------------------- inside one tree
+def _measure_runs(repeats: int) -> dict:
+    import numpy as np
+
+    from proxops.analysis.runs import execute
+    from proxops.scenarios.loader import load_scenario
+
+    out = {}
+    for name in RUNS:
+        loaded = load_scenario(name)
+        execute(loaded)  # warm-up: imports, numba caches, solver libraries
+        best = None
+        for _ in range(repeats):
+            loaded = load_scenario(name)
+            t0, c0 = time.perf_counter(), time.process_time()
+            _, results = execute(loaded)
+            wall, cpu = time.perf_counter() - t0, time.process_time() - c0
+            sim = sum(float(r.meta.get("wall_time_s", 0.0)) for r in results.values())
+            # solver = QP data update + solve: srf and cortex time both in solve_time_s; los reports
+            # its update (condensing offset + DAQP update) as info mpc_build_ms
+            solve = sum(float(np.sum(r.solve_time_s)) + float(np.nansum(r.info.get("mpc_build_ms", 0.0))) * 1e-3
+                        for r in results.values())
+            steps = sum(len(r.t) - 1 for r in results.values())
+            decisions = sum(int(np.count_nonzero(r.solve_time_s > 0)) for r in results.values())
+            row = {"run_s": wall, "run_cpu_s": cpu, "sim_s": sim, "solve_s": solve, "steps": steps,
+                   "decisions": decisions}
+            if best is None or wall < best["run_s"]:
+                best = row
+        out[name] = best
+    return out
+
+
+def _measure_campaigns() -> dict:
+    from proxops.analysis.campaign import run_campaign, shutdown_pools
+
+    out = {}
+    for i, name in enumerate(CAMPAIGNS):
+        t0 = time.perf_counter()
+        res = run_campaign(name, n_runs=50, workers=2, progress=False, seed=1)
+        wall = time.perf_counter() - t0
+        out[name] = {"wall_s": wall, "cold_pool": i == 0, "successes": int(res.table["success"].sum())
+                     if "success" in res.table else None}
+    shutdown_pools()
+    return out
+
+
+def _measure_qp(repeats: int) -> dict:
+    """The real QPs inside closed loops, per decision: QP data update + solve (the headline) and
+    the solve alone. los: the eq.-(11) QP of los-tumble (N = 40, DAQP); srf: problem (29) of
+    srf-vbar (PIQP, update and solve both timed in solve_time_s)."""
+    import numpy as np
+
+    from proxops.analysis.runs import execute
+    from proxops.scenarios.loader import load_scenario
+
+    out = {}
+    execute(load_scenario("los-tumble"))
+    best = None
+    for _ in range(repeats):
+        res = next(iter(execute(load_scenario("los-tumble"))[1].values()))
+        solve = res.solve_time_s[1:][res.solve_time_s[1:] > 0] * 1e3  # the first solve is the cold start
+        upd = res.info["mpc_build_ms"][1:][res.solve_time_s[1:] > 0]
+        row = {"update_plus_solve_ms": float(np.median(solve + upd)), "solve_ms": float(np.median(solve)),
+               "update_ms": float(np.median(upd))}
+        if best is None or row["update_plus_solve_ms"] < best["update_plus_solve_ms"]:
+            best = row
+    out["los"] = best
+    res = next(iter(execute(load_scenario("srf-vbar"))[1].values()))
+    st = res.solve_time_s[res.solve_time_s > 0] * 1e3
+    out["srf"] = {"update_plus_solve_ms": float(np.median(st))}
+    return out
+
+
+def _measure_reach_table(repeats: int) -> dict:
+    from proxops.analysis import reach as R
+
+    R.reach_table(n_points=60, backward=False)  # warm-up
+    best = min(R.reach_table(backward=False)[1]["total"] for _ in range(repeats))
+    return {"total_s": best}
+
+
+def _measure_reach_mc() -> dict:
+    import tempfile
+
+    from proxops.analysis import feasibility_maps as F
+
+    with tempfile.TemporaryDirectory() as d:
+        t0 = time.perf_counter()
+        run = F.run_mc(Path(d) / "mc", workers=2, progress=False)
+        return {"wall_s": time.perf_counter() - t0, "runs": int(len(run.table))}
+
+
+def worker(args: list[str]) -> None:
+    repeats = int(args[0])
+    parts = set(args[1:])
+    out = {"load_before": os.getloadavg()[0]}
+    if "runs" in parts:
+        out["runs"] = _measure_runs(repeats)
+    if "reach_table" in parts:
+        out["reach_table"] = _measure_reach_table(repeats)
+    if "qp" in parts:
+        out["qp"] = _measure_qp(repeats)
+    if "campaigns" in parts:
+        out["campaigns"] = _measure_campaigns()
+    if "reach_mc" in parts:
+        out["reach_mc"] = _measure_reach_mc()
+    out["load_after"] = os.getloadavg()[0]
+    print("RESULT " + json.dumps(out))
+
+
+# --------------------------------------------------------------------------- driver
+def baseline_tree() -> Path | None:
+    """The baseline commit's tree unpacked in a cache folder (None without the git history)."""
+    cache = Path(os.environ.get("XDG_CACHE_HOME", Path.home() / ".cache")) / "proxops-bench" / BASELINE_COMMIT
+    if (cache / "src" / "proxops").is_dir():
+        return cache
+    try:
+        blob = subprocess.run(["git", "-C", str(ROOT), "archive", "--format=tar", BASELINE_COMMIT],
+                              capture_output=True, check=True).stdout
+    except (OSError, subprocess.CalledProcessError):
+        return None
+    cache.mkdir(parents=True, exist_ok=True)
+    import io
+
+    with tarfile.open(fileobj=io.BytesIO(blob)) as tar:
+        tar.extractall(cache, filter="data")
+    return cache
+
+
+def measure_tree(src: Path, repeats: int, parts: list[str]) -> dict:
+    env = dict(ENV, PYTHONPATH=str(src))
+    proc = subprocess.run([sys.executable, __file__, "--worker", str(repeats), *parts], env=env,
+                          capture_output=True, text=True)
+    line = next((ln for ln in proc.stdout.splitlines() if ln.startswith("RESULT ")), None)
+    if line is None:
+        raise RuntimeError(f"measuring {src} failed:\n{proc.stderr[-3000:]}")
+    return json.loads(line[len("RESULT "):])
+
+
+def cli_times(src: Path, repeats: int) -> dict:
+    env = dict(ENV, PYTHONPATH=str(src))
+    out = {}
+    for label, args in (("version", ["--version"]), ("run_station_keeping", ["run", "station-keeping", "--json"])):
+        cmd = [sys.executable, "-m", "proxops.entry", *args]
+        subprocess.run(cmd, env=env, capture_output=True, check=True)  # the first (cached) use
+        best = float("inf")
+        for _ in range(repeats):
+            t0 = time.perf_counter()
+            subprocess.run(cmd, env=env, capture_output=True, check=True)
+            best = min(best, time.perf_counter() - t0)
+        out[label] = best
+    return out
+
+
+def cold_compile(src: Path) -> dict:
+    """First ``station-keeping`` and ``srf-vbar`` runs in a fresh interpreter with an EMPTY numba
+    cache (every kernel compiled) against a fresh interpreter with the cache filled: the one-off
+    compile time, printed apart from every other figure."""
+    import tempfile
+
+    code = ("import time; t0 = time.perf_counter(); from proxops.analysis.runs import execute; "
+            "from proxops.scenarios.loader import load_scenario; t1 = time.perf_counter(); "
+            "[execute(load_scenario(n)) for n in ('station-keeping', 'srf-vbar')]; "
+            "print('RESULT', t1 - t0, time.perf_counter() - t1)")
+    out = {}
+    with tempfile.TemporaryDirectory() as cache:
+        env = dict(ENV, PYTHONPATH=str(src), NUMBA_CACHE_DIR=cache)
+        for label in ("cold", "cached"):
+            proc = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True)
+            line = next((ln for ln in proc.stdout.splitlines() if ln.startswith("RESULT")), None)
+            if line is None:
+                raise RuntimeError(proc.stderr[-2000:])
+            imports, runs = map(float, line.split()[1:])
+            out[label] = {"imports_s": imports, "first_runs_s": runs}
+    return out
+
+
+def _ratio(old, new) -> str:
+    return f"{old / new:5.2f}x" if old and new else "   - "
+
+
+def report(new: dict, old: dict, old_label: str) -> None:
+    print(f"baseline: {old_label}")
+    print(f"\nclosed loop per system (best of repeats; solver share = solve / sim; glue = (sim - solve) / steps)")
+    print(f"{'scenario':<20} {'steps':>6} {'decide':>6} {'run s':>7} {'(base)':>7} {'speed-up':>8} {'cpu x':>6} "
+          f"{'sim s':>7} {'solver %':>8} {'(base)':>6} {'glue us/step':>12} {'(base)':>7}")
+    for name, n in new.get("runs", {}).items():
+        o = old.get("runs", {}).get(name, {})
+        share = 100 * n["solve_s"] / n["sim_s"] if n["sim_s"] else 0.0
+        glue = (n["sim_s"] - n["solve_s"]) / max(n["steps"], 1) * 1e6
+        o_share = 100 * o["solve_s"] / o["sim_s"] if o.get("sim_s") else float("nan")
+        o_glue = (o["sim_s"] - o["solve_s"]) / max(o["steps"], 1) * 1e6 if o else float("nan")
+        print(f"{name:<20} {n['steps']:>6d} {n.get('decisions', 0):>6d} {n['run_s']:7.3f} "
+              f"{o.get('run_s', float('nan')):7.3f} {_ratio(o.get('run_s'), n['run_s']):>8} "
+              f"{_ratio(o.get('run_cpu_s'), n.get('run_cpu_s')):>6} {n['sim_s']:7.3f} {share:8.1f} {o_share:6.1f} "
+              f"{glue:12.1f} {o_glue:7.1f}")
+    print("(decide: steps where the controller solved; cpu x: ratio of the run's CPU time, less sensitive "
+          "to the machine's load than the wall time)")
+    if "qp" in new:
+        q, oq = new["qp"], old.get("qp", {})
+        lo, olo = q["los"], oq.get("los", {})
+        print(f"\nheadline, the real QPs in closed loops (median per decision): los eq. (11), N = 40, DAQP: "
+              f"update + solve {lo['update_plus_solve_ms']:.3f} ms (update {lo['update_ms']:.3f}, solve "
+              f"{lo['solve_ms']:.3f}; base {olo.get('update_plus_solve_ms', float('nan')):.3f} ms); "
+              f"srf-vbar problem (29), PIQP: update + solve {q['srf']['update_plus_solve_ms']:.3f} ms "
+              f"(base {oq.get('srf', {}).get('update_plus_solve_ms', float('nan')):.3f} ms)")
+    if "cold" in new:
+        c = new["cold"]
+        print(f"cold start with an empty numba cache (compiles every kernel): imports {c['cold']['imports_s']:.2f} s, "
+              f"first station-keeping + srf-vbar runs {c['cold']['first_runs_s']:.2f} s; with the cache: imports "
+              f"{c['cached']['imports_s']:.2f} s, runs {c['cached']['first_runs_s']:.2f} s "
+              f"(compile time ~ {c['cold']['first_runs_s'] - c['cached']['first_runs_s']:.2f} s, once per machine)")
+    if "campaigns" in new:
+        print("\n50-run srf campaigns, 2 workers (the first includes the pool's cold start)")
+        for name, n in new["campaigns"].items():
+            o = old.get("campaigns", {}).get(name, {})
+            print(f"  {name:<22} {n['wall_s']:6.2f} s (base {o.get('wall_s', float('nan')):6.2f} s) "
+                  f"{_ratio(o.get('wall_s'), n['wall_s'])}  goal < 5 s" + ("  [cold pool]" if n["cold_pool"] else ""))
+    if "reach_table" in new:
+        n, o = new["reach_table"]["total_s"], old.get("reach_table", {}).get("total_s")
+        print(f"\nreach table (20 combinations, 300x300, no backward LP): {n:.3f} s (base {o or float('nan'):.3f} s) "
+              f"{_ratio(o, n)}  goal < 0.5 s")
+    if "reach_mc" in new:
+        n, o = new["reach_mc"], old.get("reach_mc", {})
+        print(f"reach mc ({n['runs']} runs, 2 workers): {n['wall_s']:.1f} s (base {o.get('wall_s', float('nan')):.1f} s)"
+              f"  goal < 30 s")
+    if "cli" in new:
+        for key, goal in (("version", 0.3), ("run_station_keeping", 1.0)):
+            n, o = new["cli"][key], old.get("cli", {}).get(key)
+            print(f"CLI {key:<22} {n:6.3f} s (base {o or float('nan'):6.3f} s) {_ratio(o, n)}  goal < {goal} s")
+    print(f"\nload average: {new.get('load_before', float('nan')):.2f} -> {new.get('load_after', float('nan')):.2f} "
+          f"(this tree), {old.get('load_before', float('nan')):.2f} -> {old.get('load_after', float('nan')):.2f} (baseline)")
+
+
+def main(argv: list[str] | None = None) -> None:
+    argv = sys.argv[1:] if argv is None else argv
+    repeats = 3
+    for a in argv:
+        if a.startswith("--repeats="):
+            repeats = int(a.split("=", 1)[1])
+    parts = ["runs", "qp", "reach_table"] + (["campaigns"] if "--quick" not in argv else [])
+    if "--reach-mc" in argv:
+        parts.append("reach_mc")
+    for a in argv:
+        if a.startswith("--parts="):  # e.g. --parts=campaigns,reach_mc
+            parts = a.split("=", 1)[1].split(",")
+    print(f"load average {os.getloadavg()[0]:.2f} on {len(os.sched_getaffinity(0))} usable cpus")
+    base_src = None if "--no-baseline" in argv else baseline_tree()
+    if "--store" in argv:
+        if base_src is None:
+            raise SystemExit("--store needs the git history (commit %s)" % BASELINE_COMMIT)
+        old = measure_tree(base_src / "src", repeats, parts)
+        old["cli"] = cli_times(base_src / "src", repeats)
+        old.update(commit=BASELINE_COMMIT, machine=f"{len(os.sched_getaffinity(0))} cpus",
+                   measured=time.strftime("%Y-%m-%d %H:%M UTC", time.gmtime()),
+                   command="python benchmarks/bench_closed_loop.py --store" + (" --reach-mc" if "reach_mc" in parts else ""))
+        BASELINE_JSON.write_text(json.dumps(old, indent=1) + "\n")
+        print(f"wrote {BASELINE_JSON}")
+        return
+    if base_src is not None:  # interleave: baseline, this tree (the machine's load drifts)
+        old = measure_tree(base_src / "src", repeats, parts)
+        if "runs" in parts:
+            old["cli"] = cli_times(base_src / "src", repeats)
+        old_label = f"commit {BASELINE_COMMIT} measured now, back to back ({base_src})"
+    else:
+        old = json.loads(BASELINE_JSON.read_text()) if BASELINE_JSON.exists() else {}
+        old_label = (f"STORED numbers of commit {old.get('commit')} ({old.get('measured')}, load "
+                     f"{old.get('load_before', float('nan')):.2f} -> {old.get('load_after', float('nan')):.2f}) from "
+                     f"{BASELINE_JSON.name}; {old.get('note', '')}" if old else "none")
+    new = measure_tree(ROOT / "src", repeats, parts)
+    if "runs" in parts:
+        new["cli"] = cli_times(ROOT / "src", repeats)
+    if "--quick" not in argv and "runs" in parts:
+        new["cold"] = cold_compile(ROOT / "src")
+    report(new, old, old_label)
+
+
+if __name__ == "__main__":
+    if len(sys.argv) > 1 and sys.argv[1] == "--worker":
+        worker(sys.argv[2:])
+    else:
+        main()
