@@ -115,6 +115,7 @@ class GuidanceSection(Section):
     max_recomputes: Annotated[int, Field(ge=0)] = Field(3, description="reference regenerations per run before the next recompute trigger aborts (not in the paper)")
     abort_at_s: Annotated[float, Field(ge=0.0)] | None = Field(None, description="ground abort command at this time (s from the start; none: no command)")
     buffer_tol_m: Annotated[float, Field(ge=0.0)] = Field(0.1, description="buffered-KOS recompute only below rho_bar minus this (the second hold sits on rho_bar)")
+    tracking_cone_margin_deg: Annotated[float, Field(ge=0.0)] = Field(0.0, description="final approach: CP_g imposes the cone row (27g) at alpha_c minus this first and falls back to alpha_c when that is infeasible (0: the printed alpha_c only)")
     cone_buffer_tol_deg: Annotated[float, Field(ge=0.0)] = Field(1.0, description="buffered-cone recompute only beyond alpha_c_bar plus this (CP2 nodes touch the buffered cone)")
     plume_weight: Annotated[float, Field(gt=0.0)] = Field(1e4, description="cost of the plume-row slacks in CP_g per unit of a_max delta_t_g (against 1 per unit of delta-v)")
     plume_in_tracking: bool = Field(True, description="final approach: CP_g keeps each impulse in a plume half-space about the reference (not in the paper; false: the printed CP_g)")
