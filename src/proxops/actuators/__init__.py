@@ -151,8 +151,9 @@ class ThrusterModel(ActuatorBase):
             f = 1.0 + self.magnitude_sigma * rng.standard_normal()
             ux, uy, uz = ux * f, uy * f, uz * f
         if self.pointing_sigma_rad > 0.0:
-            kx, ky, kz = (self.pointing_sigma_rad * rng.standard_normal(3)).tolist()
-            ux, uy, uz = _rotate_small_xyz(ux, uy, uz, kx, ky, kz)
+            ps = self.pointing_sigma_rad
+            kx, ky, kz = rng.standard_normal(3).tolist()
+            ux, uy, uz = _rotate_small_xyz(ux, uy, uz, ps * kx, ps * ky, ps * kz)
         return np.array([ux, uy, uz])
 
 
