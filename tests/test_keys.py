@@ -123,7 +123,7 @@ def test_cli_keys():
     obj = json.loads(res.stdout)  # exactly one object
     assert obj["system"] == "srf" and {s["section"] for s in obj["sections"]} >= {"", "sim", "approach", "mpc"}
     assert {k["name"] for k in obj["dispersions"]["keys"]} >= {"percent", "grid"}
-    for args, message in ((["srv"], "allowed: cortex, los, srf"), (["srf", "--all"], "not both"),
+    for args, message in ((["srv"], "allowed: cortex, hybrid, los, srf"), (["srf", "--all"], "not both"),
                           (["srf", "--json", "--markdown"], "not both")):
         res = runner.invoke(app, ["keys", *args])
         assert res.exit_code == 2 and res.stderr.count("error:") == 1 and message in res.stderr

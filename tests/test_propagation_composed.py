@@ -82,6 +82,19 @@ def test_relative_state_sub_millimetre_against_absolute_integration(sep):
     assert np.linalg.norm(ours[3:] - ref[3:]) < 1e-6  # m/s
 
 
+def test_default_tolerance_at_the_20km_boundary_with_100x100():
+    """The default rtol (3e-11) and step safety (0.8) are set by the roughest forcing, the
+    100x100 field (degree 100 varies on ~57 s along the track): at the boundary, 20 km, one
+    orbit, 100x100 + Sun/Moon + SRP against scipy DOP853 on both absolute states (rtol
+    1e-13, whose own uncorrelated error is part of the difference). Measured 0.52 mm."""
+    models = ForceModels(epoch=EPOCH, gravity="harmonics", degree=100, order=100, sun=True, moon=True, srp=True)
+    sep = 20000.0
+    x0 = np.array([0.2 * sep, sep, 0.1 * sep, 0.0, -2.0 * 1.1e-3 * 0.2 * sep, 0.0])
+    ref, truth = _absolute_reference(models, x0, PERIOD)
+    ours = truth.relative_state(truth.propagate(0.0, truth.initial_state(), None, PERIOD))
+    assert np.linalg.norm(ours[:3] - ref[:3]) < 1e-3  # m, one orbit
+
+
 def test_density_table_against_direct_nrlmsise00_calls():
     models = ForceModels(epoch=EPOCH, gravity="j2", drag=True)
     x0 = np.array([500.0, 20000.0, 300.0, 0.0, -1.1e-3, 0.0])
@@ -95,6 +108,26 @@ def test_density_table_against_direct_nrlmsise00_calls():
     # table vs direct calls: 0.35 mm after one orbit at 20 km. pymsis computes in single
     # precision (float32 density, ~1e-6..1e-5 relative noise), which bounds this comparison.
     assert np.linalg.norm(a[:3] - b[:3]) < 5e-4
+
+
+def test_density_table_at_the_20km_boundary_full_model():
+    """Fast path (density table with height curvature and cross-track gradient) against the
+    reference path (NRLMSISE-00 called at both spacecraft at every evaluation) at the
+    boundary of the stated range: 20 km along-track, 4 km radial, 2 km cross-track, drifting
+    to ~70 km, different A/m (differential drag and SRP real), drag + Sun + Moon + SRP, one
+    orbit. Stated tolerance: < 1 mm. Measured 0.2 mm (without the curvature and cross-track
+    terms: 5e-4 mean density error at the chaser, 16 mm here)."""
+    from proxops.environment.forces import Spacecraft
+
+    models = ForceModels(epoch=EPOCH, gravity="harmonics", degree=8, order=8, drag=True, sun=True, moon=True,
+                         srp=True, target=Spacecraft(mass_kg=500.0, area_m2=2.0, name="truth.target"),
+                         chaser=Spacecraft(mass_kg=100.0, area_m2=1.5, cr=1.5, name="truth.chaser"))  # fmt: skip
+    x0 = np.array([4000.0, 20000.0, 2000.0, 0.0, -4.4, 0.0])
+    fast = ComposedTruth(ORBIT, x0, models, horizon_s=PERIOD)
+    ref = ComposedTruth(ORBIT, x0, models, integrator="reference")
+    a = fast.relative_state(fast.propagate(0.0, fast.initial_state(), None, PERIOD))
+    b = ref.relative_state(ref.propagate(0.0, ref.initial_state(), None, PERIOD))
+    assert np.linalg.norm(a[:3] - b[:3]) < 1e-3
 
 
 def test_hill_round_trip_and_zero_offset_stays_zero():

@@ -12,7 +12,7 @@ from proxops.cli_common import emit
 
 
 def reproduce(
-    system: Annotated[str, typer.Argument(help="srf, los, reach, underactuated, cortex or all.")] = "all",
+    system: Annotated[str, typer.Argument(help="srf, los, reach, underactuated, cortex, hybrid or all.")] = "all",
     quick: Annotated[bool, typer.Option("--quick", help="Reduced campaigns (< 2 min); reduced rows say so.")] = False,
     out: Annotated[Optional[Path], typer.Option("--out", help="Folder for reproduction.md, campaigns and figures "
                                                 "(default: out/ for a full run, nothing for --quick).")] = None,

@@ -16,12 +16,14 @@ both spacecraft on every evaluation). The J2-only and two-body truths stay in
 RelativeTruth (the fastest path, unchanged).
 
 Measured (tests/test_propagation_composed.py, benchmarks/bench_truth.py; 500 km, 51.6 deg,
-2022-05-01, one orbit): fast path vs scipy DOP853 on both absolute states <= 0.002 mm at
-100 m, <= 0.12 mm at 2 km, <= 0.44 mm at 20 km (100x100 + Sun/Moon + SRP); fast (density
-table) vs reference (direct NRLMSISE-00) with drag: 0.004 mm at 2 km, 0.35 mm at 20 km
-ahead + 500 m radial. pymsis computes in single precision (float32, ~1e-6..1e-5 relative
-noise in density), which bounds the latter comparison. Against Orekit (tests marked
-``orekit``): see tests/test_orekit_validation.py.
+2022-05-01, one orbit, default rtol 3e-11): fast path vs scipy DOP853 on both absolute
+states 0.008 mm at 100 m, 0.13 mm at 2 km, 0.52 mm at 20 km (100x100 + Sun/Moon + SRP;
+the absolute integration's own error is part of it); fast (density table) vs reference
+(direct NRLMSISE-00) with drag + Sun/Moon + SRP and different A/m: 0.05 mm at 2 km,
+0.13 mm at 20 km ahead + 4 km radial + 2 km cross-track. pymsis computes in single
+precision (float32, ~1e-6..1e-5 relative noise in density), which bounds the latter
+comparison. Against Orekit 13 with matching models, two orbits (tests/orekit_reference.py):
+<= 0.29 mm at 2 km, <= 3.1 mm at 20 km for every model set, mostly Earth orientation (README, "Validation against Orekit").
 
 Note: ``gravity="j2"`` is RelativeTruth's zonal J2 about the ECI (J2000) z axis; the
 pole of date is 0.12 deg away in 2022, which changes the relative motion by ~18 mm over
@@ -37,7 +39,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from proxops.core.constants import J2_EARTH, MU_EARTH, R_EARTH
-from proxops.environment.earth import earth_rotation, geodetic_many
+from proxops.environment.earth import earth_rotation, geodetic_many, geodetic_to_ecef
 from proxops.environment.ephemeris import AU, GM_MOON, GM_SUN, R_SUN
 from proxops.environment.epochs import Epoch, check_time_range, parse_epoch
 from proxops.environment.forces import Atmosphere, Spacecraft, SpaceWeather
@@ -50,10 +52,13 @@ from proxops.propagation.truth import RelativeTruth
 from proxops.dynamics.plant import PlantBase
 
 DENSITY_STEP_S = 30.0
-# Default relative tolerance of the composed truth: 1e-11, one decade below RelativeTruth's.
-# Measured (benchmarks/bench_truth.py): with a 100x100 field the relative position after one
-# orbit at 20 km separation is off by 0.95 mm at rtol 1e-10, 0.05 mm at 1e-11.
-FULL_RTOL = 1e-11
+DENSITY_DH_M = 5000.0  # height step of the density table's derivatives (m)
+DENSITY_DC_M = 20000.0  # cross-track step of its horizontal derivative (m)
+# Default relative tolerance of the composed truth: 3e-11, a third of a decade below
+# RelativeTruth's. Measured (one orbit, 100x100 + Sun/Moon, 20 km separation, relative
+# position vs the same loop at rtol 1e-13): 0.06 mm at 3e-11 with the loop's safety factor
+# 0.8 (0.09 mm at 1e-11 and 0.8 mm at 1e-10 with the former 0.9).
+FULL_RTOL = 3e-11
 GRAVITY = ("point", "j2", "harmonics")
 SHADOW = ("conical", "cylindrical")
 
@@ -144,7 +149,7 @@ class ComposedTruth(PlantBase):
         self.rotation = earth_rotation(self.epoch)
         self.atmosphere = Atmosphere(self.epoch, self.rotation, models.weather) if models.drag else None
         self._build_arrays()
-        self._dens = np.zeros((2, 3))
+        self._dens = np.zeros((2, 5))
         self._dens_end = -1.0
         if models.drag:
             self._ensure_table(float(horizon_s))
@@ -171,7 +176,7 @@ class ComposedTruth(PlantBase):
             n = m.degree
         else:
             self._C = self._S = np.zeros((1, 1))
-            self._K = np.zeros((5, 3, 3))
+            self._K = np.zeros((8, 3, 3))
             n = 0
         self._V = np.zeros((n + 3, n + 3))
         self._W = np.zeros((n + 3, n + 3))
@@ -188,6 +193,7 @@ class ComposedTruth(PlantBase):
         p[kf.I_GM_SUN], p[kf.I_GM_MOON], p[kf.I_AU] = GM_SUN, GM_MOON, AU
         p[kf.I_R_EARTH], p[kf.I_R_SUN] = R_EARTH, R_SUN
         p[kf.I_DENS_DT] = DENSITY_STEP_S
+        p[kf.I_SAFETY] = kf.SAFETY_HARMONICS if m.gravity == "harmonics" else kf.SAFETY
         self.p = p
         self.npm = np.ascontiguousarray(self.rotation.npm)
 
@@ -211,14 +217,29 @@ class ComposedTruth(PlantBase):
         if status != kernels.STATUS_OK:
             raise ProxopsError("target path prediction for the density table failed")
         r = out[:, :3]
-        dh = 1000.0
+        # +-5 km: the second difference of ln rho resolves the curvature (~4e-11 /m^2 at 500 km)
+        # above pymsis' float32 noise (1e-5 / dh^2 = 4e-13 /m^2)
+        dh = DENSITY_DH_M
         ecef = self.rotation.to_ecef(times, r)
         geo = geodetic_many(ecef)
         up = np.stack([np.cos(geo[:, 0]) * np.cos(geo[:, 1]), np.cos(geo[:, 0]) * np.sin(geo[:, 1]), np.sin(geo[:, 0])], -1)
         up_eci = self._ecef_to_eci(times, up)
-        rho = self.atmosphere.density(np.concatenate([times] * 3), np.vstack([r, r + dh * up_eci, r - dh * up_eci]))
-        rho0, rho_up, rho_dn = np.split(rho, 3)
-        table = np.stack([np.log(rho0), geo[:, 2], (np.log(rho_up) - np.log(rho_dn)) / (2 * dh)], axis=-1)
+        # cross-track gradient at constant geodetic height (the chaser's along-track offset
+        # is taken by its lead time, its height by the two height derivatives): points
+        # +-dc along the orbit normal, moved to the target's geodetic height
+        normal = np.cross(r, out[:, 3:6])
+        normal /= np.linalg.norm(normal, axis=1)[:, None]
+        dc = DENSITY_DC_M
+        side = []
+        for sign in (1.0, -1.0):
+            g = geodetic_many(self.rotation.to_ecef(times, r + sign * dc * normal))
+            e = np.array([geodetic_to_ecef(la, lo, h) for la, lo, h in zip(g[:, 0], g[:, 1], geo[:, 2])])
+            side.append(self._ecef_to_eci(times, e))
+        rho = self.atmosphere.density(np.concatenate([times] * 5),
+                                      np.vstack([r, r + dh * up_eci, r - dh * up_eci, *side]))  # fmt: skip
+        l0, lu, ld, lp, lm = np.split(np.log(rho), 5)
+        table = np.stack([l0, geo[:, 2], (lu - ld) / (2 * dh), (lu - 2.0 * l0 + ld) / dh**2, (lp - lm) / (2 * dc)],
+                         axis=-1)  # fmt: skip
         self._dens = np.ascontiguousarray(table)
         self.p[kf.I_DENS_T0] = times[0]
         self._dens_end = times[-1] - 2 * DENSITY_STEP_S

@@ -1,0 +1,379 @@
+"""System ``hybrid``: hybrid MPC capture and post-capture of a tumbling chief
+(hybrid-mpc-capture.md, issue 16).
+
+Scenarios (src/proxops/scenarios/builtin/hybrid-capture*.toml)::
+
+    proxops run hybrid-capture --json            # §VII: contact(s), dock, snap at 593 s, re-dock
+    proxops run hybrid-capture-no-snap --json    # §VII without the latch snap
+    proxops run hybrid-capture-gentle --json     # a slower, aligned approach: no contact
+    proxops mc hybrid-capture-mc --runs 50 --workers 2 --report
+
+Plant: :class:`proxops.propagation.hybrid_plant.HybridCapturePlant` (two rigid bodies in
+the target orbit frame, cuboid contacts with restitution, eq. 81 latch, latch snap).
+Controller: :class:`proxops.control.hybrid_supervisor.HybridSupervisor` (Cases 1-4, eq. 17,
+dwell timer tau / T_1) over the capture MPC (Problem 2) and the post-capture MPC (Problem 3)
+of :mod:`proxops.control.hybrid_mpc`.
+
+Run summary keys (besides the engine's): ``docked``, ``dock_time_s``, ``contacts``
+([{t_s, impulse_Ns}]), ``mode_changes`` ([{t_s, from, to}]), ``decoupled``,
+``decouple_time_s``, ``redocked``, ``redock_time_s``, ``final_tracking_error_m``,
+``max_tracking_error_after_dock_m`` (|rho_n - r_des| over the post-capture samples after
+the first dock), ``tracking_error_last_100s_max_m``, chief rate at start and end,
+``solve_time_ms`` (median, p95, max of the controller step).
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Annotated
+
+import numpy as np
+from pydantic import Field, model_validator
+
+from proxops.scenarios.registry import register_system
+from proxops.scenarios.schema import ActuatorSection, ScenarioBase, Section
+from proxops.systems.base import SystemBase
+
+Vector3 = Annotated[list[float], Field(min_length=3, max_length=3)]
+Quaternion = Annotated[list[float], Field(min_length=4, max_length=4)]
+Matrix3 = Annotated[list[Vector3], Field(min_length=3, max_length=3)]
+Positive = Annotated[float, Field(gt=0.0)]
+NonNegative = Annotated[float, Field(ge=0.0)]
+
+
+class BodySection(Section):
+    """One rigid body (§VII): constant-density cuboid; inertia and docking port default to
+    the cuboid's (port at the centre of the docking face: chief +y, deputy -y)."""
+
+    mass_kg: Positive = Field(description="mass")
+    dims_m: Vector3 = Field(description="cuboid edges along the body x, y, z axes")
+    inertia_kgm2: Matrix3 | None = Field(None, description="inertia matrix about the CoM in body axes, symmetric "
+                                         "positive definite, moments obeying the triangle inequality "
+                                         "(none: the constant-density cuboid's)")
+    port_m: Vector3 | None = Field(None, description="docking port from the CoM in body axes, on or inside the "
+                                   "cuboid (none: centre of the docking face, chief +y / deputy -y)")
+
+
+class InitialRelativeSection(Section):
+    """Initial relative state, eq. (78) of §VII (the paper's variables)."""
+
+    rho0_m: Vector3 = Field([2.0, 0.0, 0.0], description="rho_0: deputy CoM minus chief CoM, in T (Hill)")
+    rho0_dot_mps: Vector3 = Field([-0.081, 0.011, 0.0133], description="T-frame derivative of rho_0, in T")
+    omega_rad_s: Vector3 = Field([0.09, 0.06, 0.009], description="omega = omega_{D/C} in D")
+    q: Quaternion = Field([0.5773502691896258, 0.5773502691896258, 0.5773502691896258, 0.0],
+                          description="attitude of D relative to C, [qx, qy, qz, qw] scalar last, unit norm "
+                          "(eq. 78 prints 0.57 [1, 1, 1, 0], norm 0.987: normalised here)")
+    p: Quaternion = Field([-0.5, 0.5, 0.5, 0.5], description="attitude of C relative to T, scalar last, unit norm")
+    omega_c_rad_s: Vector3 = Field([-0.0024, 0.0024, -0.0024], description="chief tumble omega_c = omega_{C/T} in C")
+
+
+class ContactSection(Section):
+    """Cuboid contacts in the capture phase (eqs. 33-39)."""
+
+    restitution: float = Field(0.5, description="Newton coefficient of restitution e in [0, 1] (the paper gives "
+                               "none; 0.5: a partly plastic metal contact)")
+    max_substep_s: Positive = Field(0.05, description="plant integration substep; the contact guard is checked at "
+                                    "each substep end and located by bisection")
+    collision_gap_s: NonNegative = Field(1.0, description="contacts closer in time than this to the previous one "
+                                         "belong to the same collision (collision count c of eq. 80)")
+
+
+class LatchSection(Section):
+    """Spring-damper latch (eq. 81) and the scripted latch snap (§VII)."""
+
+    stiffness_N_per_m: Positive = Field(5.0, description="K_T, translational stiffness (eq. 81)")
+    damping_Ns_per_m: Positive = Field(2.0, description="D_T, translational damping (eq. 81)")
+    rot_stiffness_Nm_per_rad: Positive = Field(5.0, description="K_R, torsional stiffness (eq. 81)")
+    rot_damping_Nms_per_rad: Positive = Field(2.0, description="D_R, torsional damping (eq. 81)")
+    snap: bool = Field(True, description="apply the latch-snap impulse at snap_time_s (if latched then)")
+    snap_time_s: NonNegative = Field(593.0, description="time of the latch snap (§VII: about 593 s)")
+    snap_impulse_Ns: NonNegative = Field(0.05, description="snap impulse along rho_0 (§VII: 0.05 N s)")
+    rearm_delay_s: NonNegative = Field(10.0, description="after a snap the latch can engage again only this much "
+                                       "later (re-docking)")
+
+
+class DockingSection(Section):
+    """Transition sets of the supervisor: T_{0->1} (capture envelope, where the latch also
+    engages) and T_{1->0}; the paper gives no numbers (our choice)."""
+
+    position_m: Positive = Field(0.02, description="T_{0->1}: |rho| at most this")
+    velocity_mps: Positive = Field(0.01, description="T_{0->1}: |rho_dot| at most this")
+    angle_deg: Positive = Field(2.0, description="T_{0->1}: attitude error of q from q_I at most this")
+    rate_deg_s: Positive = Field(0.5, description="T_{0->1}: |omega| at most this")
+    release_distance_m: Positive = Field(0.5, description="T_{1->0}: latch open or |rho| at least this "
+                                         "(> position_m: the hysteresis)")
+    min_dwell_s: Positive = Field(10.0, description="T_1: minimum dwell in a mode and period of the dwell timer tau")
+
+
+class ControlSection(Section):
+    """Actuation bounds and horizon (§VII)."""
+
+    force_max_capture_N: Positive = Field(1.0, description="capture-phase thrust bound per axis (§VII: 1 N)")
+    torque_max_capture_Nm: Positive = Field(1.0, description="capture-phase torque bound per axis (§VII: 1 N m)")
+    force_max_post_N: Positive = Field(5.0, description="post-capture thrust bound per axis (§VII: 5 N)")
+    torque_max_post_Nm: Positive = Field(5.0, description="post-capture torque bound per axis (§VII: 5 N m)")
+    horizon_capture_s: Positive = Field(10.0, description="capture MPC horizon T^0 (§VII: 10 s)")
+
+
+class CaptureMPCSection(Section):
+    """Capture MPC (Problem 2) settings the scenario may change; the rest are the paper's
+    (proxops.control.hybrid_mpc.CaptureMPCConfig). Weights are diagonal entries in SI."""
+
+    period_s: Positive = Field(1.0, description="control period (not in the paper); must divide the horizon")
+    R_force: Positive = Field(1e4, description="input weight on F_d while no collision (eq. 79: 1e4, per N^2)")
+    R_torque: Positive = Field(1e4, description="input weight on M_d while no collision (eq. 79: 1e4, per (N m)^2)")
+    approach_guidance: bool = Field(True, description="waypoints round the chief to the port axis (not in the "
+                                    "paper: the eq. 78 deputy starts behind the docking face)")
+
+
+class ReferenceSection(Section):
+    """Desired orbit x_ref of the pair's CoM (natural CW motion from this state, in T)."""
+
+    position_m: Vector3 = Field([0.0, 0.0, 0.0], description="r_des at t = 0 (default: the chief's initial orbit)")
+    velocity_mps: Vector3 = Field([0.0, 0.0, 0.0], description="r_des_dot at t = 0")
+
+
+class HybridScenario(ScenarioBase):
+    actuator: ActuatorSection = Field(ActuatorSection(), description="not used by this system (bounds are in "
+                                      "[control]): leave it out")
+    altitude_km: Positive = Field(500.0, description="circular orbit altitude of the chief (the paper: 'low Earth "
+                                  "orbit'; sets n0)")
+    chief: BodySection = Field(BodySection(mass_kg=360.0, dims_m=[1.04, 1.15, 1.57]), description="chief (§VII)")
+    deputy: BodySection = Field(BodySection(mass_kg=120.0, dims_m=[0.6, 0.7, 0.8]), description="deputy (§VII)")
+    initial: InitialRelativeSection = Field(InitialRelativeSection(), description="initial relative state (eq. 78)")
+    contact: ContactSection = Field(ContactSection(), description="contacts")
+    latch: LatchSection = Field(LatchSection(), description="latch and latch snap")
+    docking: DockingSection = Field(DockingSection(), description="supervisor transition sets")
+    control: ControlSection = Field(ControlSection(), description="bounds and horizon")
+    reference: ReferenceSection = Field(ReferenceSection(), description="desired orbit of the pair's CoM")
+    capture_mpc: CaptureMPCSection = Field(CaptureMPCSection(), description="capture MPC settings")
+
+    @model_validator(mode="after")
+    def _physical(self):
+        """The physics checks of proxops.dynamics.two_rigid_bodies, named by scenario key."""
+        if self.actuator != ActuatorSection():
+            raise ValueError("[actuator] is not used by the hybrid system: its bounds are in [control]")
+        model_objects(self)
+        return self
+
+
+_PARAM_KEYS = {  # HybridParams / HybridInitialState field -> scenario key (for error messages)
+    "mass_chief_kg": "chief.mass_kg", "mass_deputy_kg": "deputy.mass_kg", "dims_chief_m": "chief.dims_m",
+    "dims_deputy_m": "deputy.dims_m", "inertia_chief_kgm2": "chief.inertia_kgm2",
+    "inertia_deputy_kgm2": "deputy.inertia_kgm2", "port_chief_m": "chief.port_m", "port_deputy_m": "deputy.port_m",
+    "restitution": "contact.restitution", "q": "initial.q", "p": "initial.p", "rho0_m": "initial.rho0_m",
+}
+
+
+def _renamed(exc: Exception) -> ValueError:
+    msg = str(exc)
+    field_name = msg.split(" = ", 1)[0]
+    key = _PARAM_KEYS.get(field_name)
+    return ValueError(f"{key}{msg[len(field_name):]}" if key else msg)
+
+
+def model_objects(sc: HybridScenario):
+    """(HybridParams, HybridInitialState, truth x0 (26), CaptureEnvelope) of a scenario; the
+    physics checks raise ValueError naming the scenario key."""
+    from proxops.core.constants import MU_EARTH, R_EARTH
+    from proxops.dynamics.two_rigid_bodies import HybridInitialState, HybridParams, truth_state_from_initial
+    from proxops.errors import ProxopsInputError
+    from proxops.propagation.hybrid_plant import CaptureEnvelope
+
+    c, d, lt, ct = sc.chief, sc.deputy, sc.latch, sc.control
+    try:
+        params = HybridParams(
+            mass_chief_kg=c.mass_kg, mass_deputy_kg=d.mass_kg, dims_chief_m=tuple(c.dims_m),
+            dims_deputy_m=tuple(d.dims_m), inertia_chief_kgm2=c.inertia_kgm2, inertia_deputy_kgm2=d.inertia_kgm2,
+            port_chief_m=c.port_m, port_deputy_m=d.port_m,
+            mean_motion_rad_s=math.sqrt(MU_EARTH / (R_EARTH + sc.altitude_km * 1e3) ** 3),
+            restitution=sc.contact.restitution, latch_KT=lt.stiffness_N_per_m, latch_DT=lt.damping_Ns_per_m,
+            latch_KR=lt.rot_stiffness_Nm_per_rad, latch_DR=lt.rot_damping_Nms_per_rad,
+            force_max_capture_N=ct.force_max_capture_N, torque_max_capture_Nm=ct.torque_max_capture_Nm,
+            force_max_post_N=ct.force_max_post_N, torque_max_post_Nm=ct.torque_max_post_Nm,
+            horizon_capture_s=ct.horizon_capture_s, snap_impulse_Ns=lt.snap_impulse_Ns, snap_time_s=lt.snap_time_s,
+        )
+        i = sc.initial
+        ic = HybridInitialState(rho0_m=tuple(i.rho0_m), rho0_dot_m_s=tuple(i.rho0_dot_mps),
+                                omega_rad_s=tuple(i.omega_rad_s), q=tuple(i.q), omega_c_rad_s=tuple(i.omega_c_rad_s),
+                                p=tuple(i.p))
+        x0 = truth_state_from_initial(params, ic)
+        dk = sc.docking
+        envelope = CaptureEnvelope(dk.position_m, dk.velocity_mps, math.radians(dk.angle_deg),
+                                   math.radians(dk.rate_deg_s))
+    except ProxopsInputError as exc:
+        if str(exc).startswith("initial_state = "):
+            raise ValueError(f"initial.rho0_m = {list(sc.initial.rho0_m)} m: {str(exc).split(': ', 1)[1]}") from None
+        raise _renamed(exc) from None
+    if not dk.release_distance_m > dk.position_m:
+        raise ValueError(f"docking.release_distance_m = {dk.release_distance_m} m must be > docking.position_m = "
+                         f"{dk.position_m} m (hysteresis between T_0->1 and T_1->0)")
+    return params, ic, x0, envelope
+
+
+def _mpc_config(cls, **wanted):
+    """A default MPC config with the wanted fields that it has (dataclasses.replace)."""
+    import dataclasses
+
+    cfg = cls()
+    names = {f.name for f in dataclasses.fields(cfg)}
+    return dataclasses.replace(cfg, **{k: v for k, v in wanted.items() if k in names})
+
+
+def measured_sigma(position_sigma_m: float, velocity_sigma_mps: float) -> np.ndarray:
+    """Navigation 1-sigma per measured-state entry: rho and rho_dot only (the rest exact)."""
+    from proxops.propagation.hybrid_plant import N_MEASURED
+
+    sigma = np.zeros(N_MEASURED)
+    sigma[0:3], sigma[3:6] = position_sigma_m, velocity_sigma_mps
+    return sigma
+
+
+def build_setup(sc: HybridScenario):
+    from proxops.control.hybrid_mpc import CaptureMPC, CaptureMPCConfig, PostCaptureMPC, PostCaptureMPCConfig
+    from proxops.control.hybrid_supervisor import HybridModeRule, HybridSupervisor
+    from proxops.propagation.hybrid_plant import HybridCapturePlant
+    from proxops.sim.engine import Setup
+    from proxops.systems.common import navigation_model
+
+    params, _, x0, envelope = model_objects(sc)
+    plant = HybridCapturePlant(params, x0, envelope, x_ref0=list(sc.reference.position_m) + list(sc.reference.velocity_mps),
+                               snap_enabled=sc.latch.snap, max_substep_s=sc.contact.max_substep_s,
+                               collision_gap_s=sc.contact.collision_gap_s, rearm_delay_s=sc.latch.rearm_delay_s)
+    cm = sc.capture_mpc
+    capture = CaptureMPC(params, _mpc_config(CaptureMPCConfig, horizon_s=sc.control.horizon_capture_s,
+                                             period_s=cm.period_s, R_force=cm.R_force, R_torque=cm.R_torque,
+                                             approach_guidance=cm.approach_guidance))
+    post = PostCaptureMPC(params, _mpc_config(PostCaptureMPCConfig, period_s=cm.period_s))
+    rule = HybridModeRule(envelope, sc.docking.release_distance_m, sc.docking.min_dwell_s)
+    supervisor = HybridSupervisor(capture, post, rule)
+    navigation = navigation_model(sc.navigation, per_state_sigma=measured_sigma, system="hybrid")
+    return Setup(plant=plant, controller=supervisor, duration_s=sc.sim.duration_s, navigation=navigation,
+                 meta={"system": "hybrid", "control": "thrust N + torque N m in D"})
+
+
+def summarize_result(sc: HybridScenario, result) -> dict:
+    """The hybrid keys of one run (module doc)."""
+    from proxops.propagation.hybrid_plant import contact_impulses
+    from proxops.solvers.stats import solve_time_stats
+
+    t = result.t
+    modes = list(result.mode)
+    changes = []
+    for tt, kind, msg in result.events:
+        if kind == "mode" and " -> " in msg:
+            a, b = msg.split(" -> ", 1)
+            changes.append({"t_s": float(tt), "from": a, "to": b})
+    docks = [c["t_s"] for c in changes if c["to"] == "post-capture"]
+    undocks = [c["t_s"] for c in changes if c["from"] == "post-capture"]
+    if modes and modes[0] == "post-capture":
+        docks = [float(t[0])] + docks
+    docked = bool(docks)
+    dock_time = docks[0] if docked else None
+    decoupled = bool(undocks)
+    redock = [d for d in docks if decoupled and d > undocks[0]]
+    x = result.x_true
+    err = np.linalg.norm(x[:, 20:23] - x[:, 26:29], axis=1)
+    post = np.array([m == "post-capture" for m in modes])
+    after = post & (t >= dock_time) if docked else np.zeros(len(t), bool)
+    last = t >= t[-1] - 100.0
+    wc = np.linalg.norm(x[:, 17:20], axis=1)
+    contacts = contact_impulses(result.events)
+    solved = result.solve_time_s[result.solve_time_s > 0]
+    summary = {
+        "docked": docked,
+        "dock_time_s": dock_time,
+        "contacts": contacts,
+        "contacts_before_dock": sum(1 for c in contacts if dock_time is None or c["t_s"] < dock_time),
+        "first_contact_s": contacts[0]["t_s"] if contacts else None,
+        "peak_contact_impulse_Ns": max((c["impulse_Ns"] for c in contacts), default=0.0),
+        "mode_changes": changes,
+        "decoupled": decoupled,
+        "decouple_time_s": undocks[0] if decoupled else None,
+        "redocked": bool(redock),
+        "redock_time_s": redock[0] if redock else None,
+        "final_mode": modes[-1] if modes else "",
+        "final_tracking_error_m": float(err[-1]),
+        "max_tracking_error_after_dock_m": float(err[after].max()) if after.any() else None,
+        "tracking_error_last_100s_max_m": float(err[last].max()),
+        "chief_rate_initial_deg_s": float(np.degrees(wc[0])),
+        "chief_rate_final_deg_s": float(np.degrees(wc[-1])),
+        "solve_time_ms": solve_time_stats(solved),
+    }
+    summary["sequence"] = sequence_text(contacts, changes, result.events)
+    if sc.latch.snap:
+        ok = docked and (not decoupled or bool(redock))
+    else:
+        ok = docked
+    summary["status"] = ("redocked" if redock else "docked") if ok else ("failed: not docked" if not docked
+                                                                          else "failed: decoupled, not re-docked")
+    return summary
+
+
+def sequence_text(contacts: list, changes: list, events) -> str:
+    """One readable line of the run's sequence: contacts (count, first), mode changes, snap."""
+    parts = []
+    if contacts:
+        parts.append(f"{len(contacts)} contact(s) from {contacts[0]['t_s']:.1f} s")
+    snaps = [t for t, k, m in events if k == "snap" and not m.startswith("skipped")]
+    items = [(c["t_s"], f"{c['from']} -> {c['to']} {c['t_s']:.1f} s") for c in changes]
+    items += [(t, f"snap {t:.1f} s") for t in snaps]
+    parts += [text for _, text in sorted(items)]
+    return "; ".join(parts) or "no contact, no mode change"
+
+
+@register_system("hybrid")
+class HybridSystem(SystemBase):
+    Scenario = HybridScenario
+
+    def build(self, sc: HybridScenario):
+        return build_setup(sc)
+
+    def summarize(self, sc: HybridScenario, result) -> dict:
+        return summarize_result(sc, result)
+
+    def success(self, sc: HybridScenario, summary: dict) -> bool:
+        return not str(summary.get("status", "")).startswith("failed")
+
+    def campaign_table(self, sc: HybridScenario, table) -> str:
+        """Outcome table of a hybrid campaign: docked / re-docked / failed counts, contacts per
+        run and peak contact impulse."""
+        return outcome_table(table)
+
+
+def is_true_column(values) -> np.ndarray:
+    """True where a campaign column holds True (None / NaN of a run that raised count as False)."""
+    return np.array([v is True or (isinstance(v, np.bool_) and bool(v)) for v in values], dtype=bool)
+
+
+def outcome_table(table) -> str:
+    """Markdown outcome table from campaign rows (``metric.*`` columns of the run summaries)."""
+    n = len(table)
+    if n == 0:
+        return ""
+
+    def col(name, default=np.nan):
+        c = f"metric.{name}"
+        return table[c] if c in table.columns else np.full(n, default)
+
+    docked = is_true_column(col("docked", False))
+    redocked = is_true_column(col("redocked", False))
+    decoupled = is_true_column(col("decoupled", False))
+    errors = np.asarray(table["outcome"] == "error") if "outcome" in table.columns else np.zeros(n, bool)
+    failed = ~np.asarray(table["success"], dtype=bool) if "success" in table.columns else ~docked
+    before = np.asarray(col("contacts_before_dock", 0), dtype=float)
+    peak = np.asarray(col("peak_contact_impulse_Ns", 0.0), dtype=float)
+    n_contacts = np.array([len(__import__("json").loads(v)) if isinstance(v, str) else 0
+                           for v in col("contacts", "[]")], dtype=float)
+    lines = ["| outcome | runs |", "| --- | --- |",
+             f"| docked | {int(docked.sum())} |",
+             f"| decoupled by the snap | {int(decoupled.sum())} |",
+             f"| re-docked | {int(redocked.sum())} |",
+             f"| failed | {int(failed.sum())} (of which raised: {int(errors.sum())}) |",
+             f"| total | {n} |", "",
+             "| per run | mean | median | max |", "| --- | --- | --- | --- |"]
+    for label, v in (("contacts", n_contacts), ("contacts before dock", before), ("peak contact impulse N s", peak)):
+        v = v[np.isfinite(v)]
+        if v.size:
+            lines.append(f"| {label} | {v.mean():.3g} | {np.median(v):.3g} | {v.max():.3g} |")
+    return "\n".join(lines)
