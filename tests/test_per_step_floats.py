@@ -12,14 +12,21 @@ from proxops.constraints.keep_out import KeepOutSphere
 from proxops.navigation import GaussianNavigation
 
 
-def reference_apply(model: ThrusterModel, u, rng) -> np.ndarray:
-    """ThrusterModel.apply as array operations (the general path, no norm limit / angle errors)."""
+def reference_apply(model: ThrusterModel, u, rng, t: float = 0.0, window: dict | None = None) -> np.ndarray:
+    """ThrusterModel.apply as array operations (the general path, no norm limit / angle errors);
+    ``window`` holds the per-window missed-thrust draw (Alg. 3: one draw per guidance window)."""
     u = np.array(u, dtype=float)
+    if model.missed_window_s is not None and model.missed_probability > 0.0:
+        w = math.floor(t / model.missed_window_s + 1e-9)
+        if window.get("w") != w:
+            window["w"], window["missed"] = w, bool(rng.random() < model.missed_probability)
+        if window["missed"]:
+            return np.zeros(3)
     if model.max_per_axis is not None:
         u = np.clip(u, -model.max_per_axis, model.max_per_axis)
     if not math.sqrt(u @ u) != 0.0:  # norm zero (or the squares underflow)
         return np.zeros(3)
-    if model.missed_probability > 0.0 and rng.random() < model.missed_probability:
+    if model.missed_window_s is None and model.missed_probability > 0.0 and rng.random() < model.missed_probability:
         return np.zeros(3)
     if model.magnitude_sigma > 0.0:
         u *= 1.0 + model.magnitude_sigma * rng.standard_normal()
@@ -36,6 +43,7 @@ COMMANDS = [np.zeros(3), np.array([1e-200, 0.0, 0.0]), np.array([-0.0, 0.0, 0.0]
     dict(max_per_axis=1.0, magnitude_sigma=0.01, pointing_sigma_rad=1e-3),
     dict(magnitude_sigma=0.05, missed_probability=0.3),
     dict(max_per_axis=0.5, pointing_sigma_rad=0.2, missed_probability=0.1),
+    dict(magnitude_sigma=0.01, pointing_sigma_rad=1e-3, missed_probability=0.3, missed_window_s=10.0),
     dict(),
 ])
 def test_thruster_float_path_equals_array_formulas(kw):
@@ -43,9 +51,11 @@ def test_thruster_float_path_equals_array_formulas(kw):
     gen = np.random.default_rng(7)
     cmds = COMMANDS + [gen.standard_normal(3) * 10.0 ** gen.uniform(-6, 2) for _ in range(200)]
     rng_a, rng_b = np.random.default_rng(42), np.random.default_rng(42)
-    for u in cmds:
-        got = model.apply(0.0, u, "acceleration", rng_a)
-        want = reference_apply(model, u, rng_b)
+    window: dict = {}
+    for k, u in enumerate(cmds):
+        t = 2.0 * k  # five commands per 10 s window
+        got = model.apply(t, u, "acceleration", rng_a)
+        want = reference_apply(model, u, rng_b, t, window)
         assert got.shape == (3,) and np.array_equal(got, want), (u, got, want)
     assert rng_a.random() == rng_b.random()  # the same number of draws
 

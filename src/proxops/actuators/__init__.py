@@ -145,8 +145,8 @@ class ThrusterModel(ActuatorBase):
             ux, uy, uz = min(max(ux, -m), m), min(max(uy, -m), m), min(max(uz, -m), m)
         if ux * ux + uy * uy + uz * uz == 0.0:
             return np.zeros(3)
-        if self.missed_probability > 0.0 and rng.random() < self.missed_probability:
-            return np.zeros(3)
+        if self.missed_window_s is None and self.missed_probability > 0.0 and rng.random() < self.missed_probability:
+            return np.zeros(3)  # (per-window misses were drawn in apply)
         if self.magnitude_sigma > 0.0:
             f = 1.0 + self.magnitude_sigma * rng.standard_normal()
             ux, uy, uz = ux * f, uy * f, uz * f
