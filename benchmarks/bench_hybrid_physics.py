@@ -23,20 +23,13 @@ import time
 import numpy as np
 from scipy.integrate import solve_ivp
 
+from proxops.analysis.hybrid_model_check import AGREEMENT_BLOCKS, TUMBLE, relative_model_agreement
+from proxops.analysis.hybrid_model_check import test_input as u_of_t
 from proxops.dynamics.hybrid_relative import (
-    S_OM,
-    S_OMC,
-    S_P,
-    S_Q,
-    S_RHO,
-    S_RHOD,
-    S_RN,
-    S_RND,
     impact_velocity,
     post_capture_rhs,
     relative_contact_jump,
     relative_from_truth,
-    relative_rhs,
 )
 from proxops.dynamics.two_rigid_bodies import (
     HybridInitialState,
@@ -53,28 +46,12 @@ from proxops.dynamics.two_rigid_bodies import (
 )
 
 P = HybridParams()
-TUMBLE = HybridInitialState(omega_c_rad_s=(0.05, -0.03, 0.04))
-BLOCKS = (("rho [m]", S_RHO), ("rho_dot [m/s]", S_RHOD), ("omega [rad/s]", S_OM), ("q [-]", S_Q), ("p [-]", S_P),
-          ("omega_c [rad/s]", S_OMC), ("rho_n [m]", S_RN), ("rho_n_dot [m/s]", S_RND))  # fmt: skip
-
-
-def u_of_t(t, x=None):
-    return np.array([0.3 * np.sin(0.1 * t), 0.2, -0.1 * np.cos(0.05 * t), 0.05, -0.02 * np.sin(0.2 * t), 0.01])
+BLOCKS = AGREEMENT_BLOCKS
 
 
 def agreement(ts):
-    xt0 = truth_state_from_initial(P, TUMBLE)
-    truth = propagate_truth(xt0, (ts[0], ts[-1]), P, u_of_t=u_of_t, t_eval=ts)
-    X = np.array([relative_from_truth(truth.y[:, k], P) for k in range(ts.size)])
-    out = {}
-    for corrected in (True, False):
-        rel = solve_ivp(lambda t, y: relative_rhs(y, u_of_t(t), P, corrected), (ts[0], ts[-1]), X[0],
-                        method="DOP853", rtol=1e-11, atol=1e-12, t_eval=ts)  # fmt: skip
-        Y = rel.y.T.copy()
-        for sl in (S_Q, S_P):
-            Y[:, sl] *= np.sign(np.sum(X[:, sl] * Y[:, sl], axis=1))[:, None]
-        out[corrected] = np.abs(X - Y)
-    return X, out
+    _, X, err = relative_model_agreement(duration_s=float(ts[-1]), samples=ts.size, params=P)
+    return X, err
 
 
 def post_capture_agreement(ts):
@@ -168,23 +145,10 @@ def main() -> None:
           f"{time.perf_counter() - t0:.3f} s")  # fmt: skip
 
     if args.fig:
-        import matplotlib
+        from proxops.plotting.hybrid import plot_model_agreement
 
-        matplotlib.use("Agg")
-        import matplotlib.pyplot as plt
-
-        fig, axes = plt.subplots(1, 2, figsize=(10, 3.8), sharey=True)
-        for ax, corrected, title in ((axes[0], True, "corrected (standard CW G2)"), (axes[1], False, "printed eq. 21 G2")):
-            for name, sl in BLOCKS:
-                ax.semilogy(ts, np.maximum(err[corrected][:, sl].max(axis=1), 1e-17), label=name)
-            ax.set_title(f"f_0 vs two-body truth: {title}")
-            ax.set_xlabel("t [s]")
-        axes[0].set_ylabel("max |error| per block (SI)")
-        axes[1].legend(fontsize=7, loc="lower right")
-        fig.tight_layout()
-        fig.savefig(args.fig, dpi=120)
+        plot_model_agreement(ts, err, BLOCKS, args.fig)
         print(f"figure written: {args.fig}")
-
 
 if __name__ == "__main__":
     main()

@@ -242,6 +242,21 @@ def _steps(prefix: str, horizon_s: float, period_s: float) -> int:
     return n
 
 
+def _solve_box_qp(solver, H, f, lb, ub, max_iter: int, kappa):
+    """Solve min 1/2 U'HU + f'U, lb <= U <= ub with DAQP, set up on the first call and updated
+    in place after (same structure every step). Returns (solver, result, info dict)."""
+    t_solver = time.perf_counter()
+    if solver is None:
+        solver = DaqpQP(max_iter=max_iter)
+        solver.setup_native(H, f, None, lb=lb, ub=ub)
+    else:
+        solver.update(H=H, f=f, lb=lb, ub=ub)
+    res = solver.solve()
+    out = {"status": res.status, "kappa": kappa, "iterations": res.iterations,
+           "solver_time_s": time.perf_counter() - t_solver, "detail": str(res.info.get("raw_status", ""))}
+    return solver, res, out
+
+
 def capture_weights(config: CaptureMPCConfig, collisions: int):
     """(Q diag (12), R diag (6), Q_f diag (12)) of eq. 79 (c = 0) or eq. 80 (c >= 1)."""
     if collisions >= 1 and config.collision_weights:
@@ -585,16 +600,9 @@ class CaptureMPC:
         H[np.diag_indices_from(H)] += r_blk
         H = (2.0 * scale) * 0.5 * (H + H.T)
         f = (2.0 * scale) * f
-        t_solver = time.perf_counter()
-        if self._solver is None or not isinstance(self._solver, DaqpQP):
-            self._solver = DaqpQP(max_iter=cfg.max_iter)
-            self._solver.setup_native(H, f, None, lb=lb, ub=ub)
-        else:
-            self._solver.update(H=H, f=f, lb=lb, ub=ub)
-        res = self._solver.solve()
-        out = {"status": res.status, "kappa": kappa, "iterations": res.iterations,
-               "solver_time_s": time.perf_counter() - t_solver,
-               "detail": str(res.info.get("raw_status", ""))}
+        if not isinstance(self._solver, DaqpQP):
+            self._solver = None
+        self._solver, res, out = _solve_box_qp(self._solver, H, f, lb, ub, cfg.max_iter, kappa)
         if res.x is None or not res.ok:
             self._plan_rho = None
             return out
@@ -751,16 +759,7 @@ class PostCaptureMPC:
         f = (2.0 * self._scale) * (WG.T @ free)
         lb = np.tile(-self.u_max - kappa, N)
         ub = np.tile(self.u_max - kappa, N)
-        t_solver = time.perf_counter()
-        if self._solver is None:
-            self._solver = DaqpQP(max_iter=self.config.max_iter)
-            self._solver.setup_native(H, f, None, lb=lb, ub=ub)
-        else:
-            self._solver.update(H=H, f=f, lb=lb, ub=ub)
-        res = self._solver.solve()
-        out = {"status": res.status, "kappa": kappa, "iterations": res.iterations,
-               "solver_time_s": time.perf_counter() - t_solver,
-               "detail": str(res.info.get("raw_status", ""))}
+        self._solver, res, out = _solve_box_qp(self._solver, H, f, lb, ub, self.config.max_iter, kappa)
         if res.x is None or not res.ok:
             return out
         U = np.clip(res.x, lb, ub)

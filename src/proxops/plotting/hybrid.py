@@ -218,3 +218,18 @@ def mc_figures(sc, results: list, out_dir: Path) -> list[Path]:
         ax.grid(alpha=0.3)
     axes[0].set_title(f"{getattr(sc, 'name', 'hybrid')}: {len(results)} runs")
     return [save(fig, Path(out_dir) / "hybrid_mc_overlay.png")]
+
+
+def plot_model_agreement(ts, errors: dict, blocks, path: Path) -> Path:
+    """The relative model f_0 (eq. 32) against the direct two-body truth: max |error| per block
+    over time, with our corrections (left) and with eq. 21's printed G2 (right)."""
+    fig, axes = plt.subplots(1, 2, figsize=(10, 3.8), sharey=True)
+    for ax, corrected, title in ((axes[0], True, "corrected (standard CW G2)"), (axes[1], False, "printed eq. 21 G2")):
+        for name, sl in blocks:
+            ax.semilogy(ts, np.maximum(errors[corrected][:, sl].max(axis=1), 1e-17), label=name)
+        ax.set_title(f"f_0 vs two-body truth: {title}", fontsize=9)
+        ax.set_xlabel("t [s]")
+        ax.grid(True, which="major", alpha=0.3)
+    axes[0].set_ylabel("max |error| per block (SI units)")
+    axes[1].legend(fontsize=7, loc="lower right")
+    return save(fig, path)
