@@ -116,6 +116,9 @@ class ThrusterModel(ActuatorBase):
                 self._window_missed = bool(rng.random() < self.missed_probability)
             if self._window_missed:
                 return np.zeros_like(u)
+        if (u.shape == (3,) and self.max_norm is None and self.min_impulse == 0.0
+                and self.elevation_sigma_rad == 0.0 and self.azimuth_sigma_rad == 0.0):
+            return self._apply_3(u, rng)
         u = self.limited(u)
         if not (u != 0.0).any():
             return u
@@ -129,6 +132,29 @@ class ThrusterModel(ActuatorBase):
             u = perturb_angles(u, self.elevation_sigma_rad * rng.standard_normal(),
                                self.azimuth_sigma_rad * rng.standard_normal())
         return u
+
+
+    def _apply_3(self, u: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+        """:meth:`apply` of a 3-vector without a norm limit, minimum impulse bit or angle errors,
+        on plain floats (the per-step path of a closed loop): the same operations in the same
+        order, hence the same numbers and draws. The zero test is the sum of squares (no
+        cancellation: zero exactly when ``limited``'s norm is)."""
+        ux, uy, uz = u.tolist()
+        m = self.max_per_axis
+        if m is not None:  # = np.minimum(np.maximum(u, -m), m), NaN kept
+            ux, uy, uz = min(max(ux, -m), m), min(max(uy, -m), m), min(max(uz, -m), m)
+        if ux * ux + uy * uy + uz * uz == 0.0:
+            return np.zeros(3)
+        if self.missed_window_s is None and self.missed_probability > 0.0 and rng.random() < self.missed_probability:
+            return np.zeros(3)  # (per-window misses were drawn in apply)
+        if self.magnitude_sigma > 0.0:
+            f = 1.0 + self.magnitude_sigma * rng.standard_normal()
+            ux, uy, uz = ux * f, uy * f, uz * f
+        if self.pointing_sigma_rad > 0.0:
+            ps = self.pointing_sigma_rad
+            kx, ky, kz = rng.standard_normal(3).tolist()
+            ux, uy, uz = _rotate_small_xyz(ux, uy, uz, ps * kx, ps * ky, ps * kz)
+        return np.array([ux, uy, uz])
 
 
 def perturb_angles(dv: np.ndarray, d_beta: float, d_alpha: float) -> np.ndarray:
@@ -190,18 +216,22 @@ def _rotate_small(v: np.ndarray, rotation_vector: np.ndarray) -> np.ndarray:
     """Rotate the 3-vector ``v`` by the rotation vector (rad) with Rodrigues' formula
     (written on plain floats: this runs once per command in every Monte Carlo run)."""
     kx, ky, kz = rotation_vector.tolist()
+    if kx * kx + ky * ky + kz * kz == 0.0:
+        return v
+    return np.array(_rotate_small_xyz(*v.tolist(), kx, ky, kz))
+
+
+def _rotate_small_xyz(vx: float, vy: float, vz: float, kx: float, ky: float, kz: float) -> tuple[float, float, float]:
+    """:func:`_rotate_small` on floats: (vx, vy, vz) rotated by the rotation vector (kx, ky, kz) (rad)."""
     angle = math.sqrt(kx * kx + ky * ky + kz * kz)
     if angle == 0.0:
-        return v
+        return vx, vy, vz
     kx, ky, kz = kx / angle, ky / angle, kz / angle
-    vx, vy, vz = v.tolist()
     c, s = math.cos(angle), math.sin(angle)
     kdotv = (kx * vx + ky * vy + kz * vz) * (1.0 - c)
-    return np.array([
-        vx * c + (ky * vz - kz * vy) * s + kx * kdotv,
-        vy * c + (kz * vx - kx * vz) * s + ky * kdotv,
-        vz * c + (kx * vy - ky * vx) * s + kz * kdotv,
-    ])
+    return (vx * c + (ky * vz - kz * vy) * s + kx * kdotv,
+            vy * c + (kz * vx - kx * vz) * s + ky * kdotv,
+            vz * c + (kx * vy - ky * vx) * s + kz * kdotv)
 
 
 def propellant_mass_kg(dv_mps: float, wet_mass_kg: float, isp_s: float) -> float:

@@ -44,6 +44,7 @@ class KeepOutSphere:
             raise input_error("keep_out center_m", np.asarray(center_m).tolist(), "must be 3 finite numbers", "m")
         self.radius_m = radius_m
         self.center_m = center
+        self._center_xyz = tuple(center.tolist())  # plain floats for the per-step violation
         self.name = name
 
     # ------------------------------------------------------------------ geometry
@@ -58,8 +59,8 @@ class KeepOutSphere:
 
     def violation(self, t: float, x) -> float:
         """Engine hook: r - |p - c| (m), > 0 inside the KOZ."""
-        c = self.center_m
-        dx, dy, dz = float(x[0]) - c[0], float(x[1]) - c[1], float(x[2]) - c[2]
+        cx, cy, cz = self._center_xyz
+        dx, dy, dz = float(x[0]) - cx, float(x[1]) - cy, float(x[2]) - cz
         # = -distance_to_surface(x[:3]): the same sum of squares (in order) and sqrt, on floats
         return -(math.sqrt(dx * dx + dy * dy + dz * dz) - self.radius_m)
 

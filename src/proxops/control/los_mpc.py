@@ -126,7 +126,7 @@ class MpcSolution:
     u0: np.ndarray
     u0_hill: np.ndarray
     inputs: np.ndarray | None  # (N, 3) planned body-axes inputs (m/s^2)
-    states: np.ndarray | None  # (N, 6) predicted body-frame states x_1..x_N
+    prediction: tuple | None  # (offset (6N,), S (6N, 3N), U (3N,)) of the predicted states, or None
     solve_time_s: float  # DAQP solve call
     build_time_s: float  # condensing + update
     iterations: int
@@ -136,6 +136,15 @@ class MpcSolution:
     @property
     def ok(self) -> bool:
         return self.status.ok
+
+    @property
+    def states(self) -> np.ndarray | None:
+        """(N, 6) predicted body-frame states x_1..x_N = offset + S U (computed when asked: the
+        closed loop does not use them)."""
+        if self.prediction is None:
+            return None
+        offset, S, U = self.prediction
+        return (offset + S @ U).reshape(-1, 6)
 
 
 def _rotations_hill_from_body(theta: np.ndarray) -> np.ndarray:
@@ -339,9 +348,9 @@ class LosMpc:
                                info={"raw_status": res.info.get("raw_status")})
         U = res.x[:nu]
         self._plan = U.reshape(N, 3).copy()
-        states = (offset + self._S_flat @ U).reshape(N, 6)  # offset: this step's buffer, copied by the sum
+        prediction = (offset.copy(), self._S_flat, U)  # offset: this step's buffer, reused by the next
         slack = float(res.x[nu:].max()) if self.soft else 0.0
-        return MpcSolution(status, U[:3].copy(), R0 @ U[:3], self._plan.copy(), states, solve_time,
+        return MpcSolution(status, U[:3].copy(), R0 @ U[:3], self._plan.copy(), prediction, solve_time,
                            build_time, iterations, max_slack_m=slack,
                            info={"raw_status": res.info.get("raw_status"), "dual": res.info.get("dual")})
 

@@ -640,6 +640,22 @@ class SrfMpc:
         F = self._n_cbf
         self._cbf_rows = np.repeat(np.arange(2 * F), 3) + self._n_g_static
         self._cbf_cols = np.tile(np.arange(self._iw, self._iw + 3), 2 * F)
+        self._csc_patterns: dict[str, tuple] = {}  # fixed CSC patterns of A_eq and G (see _csc)
+
+    def _csc(self, key: str, entries, shape: tuple[int, int], values: np.ndarray) -> sp.csc_matrix:
+        """CSC matrix of ``values`` on the fixed pattern ``entries`` = (rows, cols) (or a callable
+        giving them), the same matrix as ``sp.csc_matrix((values, entries), shape)``: the entries
+        are distinct, so the COO -> CSC conversion only permutes them; the permutation and the CSC
+        index arrays are computed once per pattern (``key``) and each build only gathers values."""
+        tmpl = self._csc_patterns.get(key)
+        if tmpl is None:
+            rows, cols = entries() if callable(entries) else entries
+            probe = sp.csc_matrix((np.arange(1.0, len(rows) + 1.0), (rows, cols)), shape=shape)
+            if probe.nnz != len(rows):
+                raise AssertionError(f"{key}: repeated entries in a fixed QP pattern")
+            tmpl = self._csc_patterns[key] = (probe.data.astype(np.intp) - 1, probe.indices, probe.indptr)
+        perm, indices, indptr = tmpl
+        return sp.csc_matrix((values[perm], indices, indptr), shape=shape)
 
     def _rx_const(self, i: int, x: np.ndarray, j: int) -> float:
         """Constant part of a . p at node j: prediction from x_i (j > i) or the recorded value."""
@@ -658,8 +674,8 @@ class SrfMpc:
         wv[wc == 3 * i + axis] = -1.0
         wv[wc == nu + 3 * i + axis] = 1.0
         er, ec, ev = self._eq_coo
-        A_eq = sp.csc_matrix((np.concatenate([ev, wv]), (np.concatenate([er, wr]), np.concatenate([ec, wc]))),
-                             shape=(self._n_eq, nz))
+        A_eq = self._csc("A_eq", (np.concatenate([er, wr]), np.concatenate([ec, wc])), (self._n_eq, nz),
+                         np.concatenate([ev, wv]))
         r_rhs = [self._rx_const(i, x, int(j)) / KM for j in self.sched.hop_nodes] if self._n_r else []
         b_eq = np.concatenate([(self.p_d - fN[:3]) / KM, r_rhs, np.zeros(3)])
         # inequalities with constant coefficients: bounds from the current node
@@ -746,8 +762,6 @@ class SrfMpc:
             scale = np.maximum(np.linalg.norm(gu, axis=1) * um, 1e-12)
             lin = gu * um / scale[:, None]
             lin_lo = (gu @ ur - g_ref) / scale
-            gr = np.concatenate([gr, self._cbf_rows])
-            gc = np.concatenate([gc, self._cbf_cols])
             gv = np.concatenate([gv, half.ravel(), lin.ravel()])
             g_lo = np.concatenate([g_lo, half_lo, lin_lo])
             g_hi = np.concatenate([g_hi, np.full(2 * self._n_cbf, np.inf)])
@@ -760,7 +774,11 @@ class SrfMpc:
         if relax < 2 and i < N:
             tol = c.terminal_pos_tol_m / KM
             lb[self._ie:self._ie + 3], ub[self._ie:self._ie + 3] = -tol, tol
-        G = sp.csc_matrix((gv, (gr, gc)), shape=(self._n_g_static + 2 * n_cbf, nz))
+        if n_cbf:
+            G = self._csc("G_cbf", lambda: (np.concatenate([gr, self._cbf_rows]), np.concatenate([gc, self._cbf_cols])),
+                          (self._n_g_static + 2 * n_cbf, nz), gv)
+        else:
+            G = self._csc("G", lambda: (gr, gc), (self._n_g_static, nz), gv)
         return _Qp(self._P, self._c, A_eq, b_eq, G, g_lo, g_hi, lb, ub, N - i + 1)
 
     def _run_solver(self, qp: _Qp, i: int, persistent: bool = True):

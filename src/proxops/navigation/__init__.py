@@ -101,9 +101,11 @@ class GaussianNavigation(NavigationBase):
         cache = self._sigma_cache
         if cache is None or cache[0] != x.size:
             sigma = self.additive_sigma(x.size)
-            cache = self._sigma_cache = (x.size, sigma, bool(sigma.any()))
+            cache = self._sigma_cache = (x.size, sigma, bool(sigma.any()), 1.0 * sigma)
         if cache[2]:
-            x = x + self.scale(x) * cache[1] * rng.standard_normal(x.size)
+            # without range scaling scale(x) = 1.0: cache[3] = 1.0 * sigma, the same product
+            factor = cache[3] if self.range_scale_m is None else self.scale(x) * cache[1]
+            x = x + factor * rng.standard_normal(x.size)
         if self.attitude_sigma_rad > 0.0 and self.layout is not None:
             for b in self.layout.blocks:
                 if b.kind == "quaternion":
@@ -123,7 +125,7 @@ class GaussianNavigation(NavigationBase):
             return x
         if self._sigma_cache is None or self._sigma_cache[0] != x.shape[1]:
             sigma = self.additive_sigma(x.shape[1])
-            self._sigma_cache = (x.shape[1], sigma, bool(sigma.any()))
+            self._sigma_cache = (x.shape[1], sigma, bool(sigma.any()), 1.0 * sigma)
         sigma = self._sigma_cache[1]
         if not sigma.any():
             return x

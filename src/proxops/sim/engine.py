@@ -139,7 +139,8 @@ def simulate(setup: Setup, seed: int = 0, progress: bool = False, coast: bool = 
     layout = plant.layout
 
     state = plant.initial_state()
-    delta_v = plant.delta_v
+    # the translational default without its method call (the same function)
+    delta_v = translational_delta_v if getattr(type(plant), "delta_v", None) is PlantBase.delta_v else plant.delta_v
     has_events, plant_mode = plant.has_events, plant.mode
     n_x, n_u = plant.n_x, plant.n_u
     t_rec = np.zeros(n_steps + 1)

@@ -286,12 +286,15 @@ class DaqpQP:
             self._f = kwargs["f"] = f
         if bu is not None or bl is not None:
             off = self.n if self.has_bounds else 0
+            # written into the full bound vectors in place (DAQP re-reads them on update)
             if bu is not None:
                 self._bu = bu
-                self._upper = kwargs["bupper"] = np.concatenate((self._upper[:off], bu))
+                self._upper[off:] = bu
+                kwargs["bupper"] = self._upper
             if bl is not None:
                 self._bl = bl
-                self._lower = kwargs["blower"] = np.concatenate((self._lower[:off], bl))
+                self._lower[off:] = bl
+                kwargs["blower"] = self._lower
             self._check_crossed()
         if kwargs:
             try:
