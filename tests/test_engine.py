@@ -155,6 +155,12 @@ def test_units_named_from_key_suffix():
     assert unit_of("a_max_mps2") == "m/s^2"
     assert unit_of("dt_s") == "s"
     assert unit_of("inertia_kgm2") == "kg m^2"
+    assert unit_of("snap_impulse_Ns") == "N s"
+    # _per_<unit> divides: by nothing (1/s) or by the unit of what comes before
+    assert unit_of("alpha_per_s") == "1/s"
+    assert unit_of("stiffness_N_per_m") == "N/m"
+    assert unit_of("damping_Ns_per_m") == "N s/m"
+    assert unit_of("rot_damping_Nms_per_rad") == "N m s/rad"
 
 
 def test_pointing_rotation_matches_rotation_matrix():

@@ -39,7 +39,7 @@ def save_run(loaded, summary: dict, results: dict[str, SimResult], out: Path, fi
     return paths
 
 
-DEMO_SCENARIOS = ("srf-vbar", "srf-rbar", "los-tumble", "underactuated-case1")
+DEMO_SCENARIOS = ("srf-vbar", "srf-rbar", "los-tumble", "cortex-nominal", "hybrid-capture", "underactuated-case1")  # one or more per system
 
 
 def run_demo(out: Path) -> Path:

@@ -27,6 +27,7 @@ UNIT_SUFFIXES = (  # longest first: "_deg_s2" before "_deg_s" before "_s"
     ("_kgm2", "kg m^2"),
     ("_Nms", "N m s"),
     ("_Nm", "N m"),
+    ("_Ns", "N s"),
     ("_mps2", "m/s^2"),
     ("_mps", "m/s"),
     ("_ms", "ms"),
@@ -42,11 +43,14 @@ UNIT_SUFFIXES = (  # longest first: "_deg_s2" before "_deg_s" before "_s"
 
 
 def unit_of(key: str) -> str:
-    """Unit named by a key's suffix ('' when it has none); ``_per_<unit>`` is the inverse unit
-    (``alpha_per_s`` -> 1/s, ``q_terminal_per_m2`` -> 1/m^2)."""
+    """Unit named by a key's suffix ('' when it has none); ``_per_<unit>`` divides by it
+    (``alpha_per_s`` -> 1/s, ``q_terminal_per_m2`` -> 1/m^2, ``damping_Ns_per_m`` -> N s/m)."""
     for suffix, unit in UNIT_SUFFIXES:
         if key.endswith(suffix):
-            return f"1/{unit}" if key[: -len(suffix)].endswith("_per") else unit
+            head = key[: -len(suffix)]
+            if head.endswith("_per"):
+                return f"{unit_of(head[: -len('_per')]) or '1'}/{unit}"
+            return unit
     return ""
 
 
