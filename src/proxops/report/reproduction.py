@@ -16,6 +16,7 @@ Later systems add a ``<system>_claims(ctx)`` function and register it in :data:`
 from __future__ import annotations
 
 import math
+import os
 import time
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
@@ -342,7 +343,8 @@ def reach_claims(ctx: Context) -> list[Claim]:
     rows.append(Claim(
         "reach", "All analytical sets for the 20 combinations", f"{R.PAPER_TIMES_S['total']:.0f} s (Table 4)",
         f"{wall:.1f} s wall", REPRODUCED,
-        "timing on a 2-core machine shared by 4 engineers; faster is the claim's direction", data={"wall_s": wall}))
+        "wall time on this machine (its load average is printed under the table); faster is the claim's direction",
+        data={"wall_s": wall}))
     # §9 Monte Carlo: all 20 combinations (3 900 runs), one in --quick
     from proxops.analysis import feasibility_maps as F
     from proxops.systems.los import run_case
@@ -495,8 +497,8 @@ def underactuated_claims(ctx: Context) -> list[Claim]:
         "same direction, smaller ratio. Both variants here use fatrop (structure-exploiting, warm-started), and the "
         "ratio is close to the horizon ratio (100 vs 30 steps); the paper says only 'using Python' (solver and horizons "
         "unstated), so its 16x is not comparable. The paper's own numbers disagree: 17 569 s / 275 steps = 63.9 s per "
-        "step, not 9.34 s (9.34 s x 275 = 2 569 s); the 16x is 9.34 / 0.58. Timed on a 2-core machine shared by 4 "
-        "engineers: the spread over the repeats is the load", red,
+        "step, not 9.34 s (9.34 s x 275 = 2 569 s); the 16x is 9.34 / 0.58. The spread over the repeats is the "
+        "machine's load (printed under the table)", red,
         data={"ratios": ratios, "median_ms": med}))
     mono = runs["averaged"]["value_function_monotone"]
     rows.append(Claim(
@@ -723,6 +725,7 @@ def reproduce(target: str = "all", quick: bool = False, out: str | Path | None =
         timings[n] = time.perf_counter() - t0
     figures = sorted(ctx.out.rglob("*.png")) if ctx.out is not None else []
     return {"quick": quick, "rows": [asdict(r) for r in rows], "timings_s": timings,
+            "machine": {"cpus": os.cpu_count(), "load_average_1_5_15": list(os.getloadavg())},
             "figures": [{"title": p.parent.name + "/" + p.stem, "path": str(p)} for p in figures]}
 
 
@@ -742,7 +745,9 @@ def markdown(result: dict, notes: bool = True) -> str:
             extra = f" Reduced in --quick: {r['reduced']}." if r["reduced"] else ""
             lines.append(f"{i}. **{r['system']}: {r['claim']}** -- {r['note']}{extra}")
     t = result["timings_s"]
-    lines += ["", "Wall time per system (2-core machine shared by 4 engineers): "
+    m = result.get("machine", {})
+    load = ", ".join(f"{v:.1f}" for v in m.get("load_average_1_5_15", []))
+    lines += ["", f"Wall time per system ({m.get('cpus', '?')} CPUs, load average {load or '?'} at the end): "
               + ", ".join(f"{k} {v:.1f} s" for k, v in t.items())]
     return "\n".join(lines)
 
