@@ -115,8 +115,7 @@ def test_moon_opposite_sun_at_2022_05_16_total_lunar_eclipse():
 
 
 def test_sun_and_moon_against_jpl_de421():
-    pytest.importorskip("jplephem")
-    de421 = pytest.importorskip("de421")
+    import de421  # the [test] extra
     from jplephem.ephem import Ephemeris
 
     eph = Ephemeris(de421)

@@ -136,7 +136,7 @@ def test_successive_convexification_loop_rules():
 
 
 def test_casadi_nlp_optimum_and_statuses():
-    ca = pytest.importorskip("casadi")
+    import casadi as ca  # a core dependency
     x = ca.SX.sym("x", 2)
     # min (x1 - 1)^2 + (x2 - 2)^2 s.t. x1 + x2 = 1: projection of (1, 2) on the line -> (0, 1), f = 2.
     prob = NonlinearProgram(x=x, f=(x[0] - 1) ** 2 + (x[1] - 2) ** 2, g=x[0] + x[1], lbg=[1.0], ubg=[1.0])
