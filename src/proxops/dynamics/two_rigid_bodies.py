@@ -614,7 +614,10 @@ def latch_snap_jump(x, params: HybridParams, impulse_Ns: float | None = None) ->
 # post-capture latch (eqs. 40-42 and 81) as an internal force/torque pair on the truth
 # --------------------------------------------------------------------------------------
 @njit(cache=True)
-def _latch_kernel(x, P_c, P_d, KT, DT, KR, DR, n):
+def port_kinematics_kernel(x, P_c, P_d, n):
+    """Relative port kinematics of the truth state x (26), the numba form of the first 13
+    entries of hybrid_relative.relative_from_truth: ``(Rc = C_{T<-C}, Rd = C_{T<-D}, Q =
+    C_{D<-C}, q (D rel. C, scalar last, q_w >= 0), omega_{D/C}|_D, rho (m, C), rho' (m/s, C))``."""
     Rc = dcm_kernel(x[12:16])  # C_{T<-C}
     Rd = dcm_kernel(x[19:23])  # C_{T<-D}
     qc = x[12:16]
@@ -632,6 +635,12 @@ def _latch_kernel(x, P_c, P_d, KT, DT, KR, DR, n):
     rho0d = x[9:12] - x[3:6]
     rho = R @ rho0 + Q.T @ P_d - P_c
     rhod = R @ rho0d - _cross(omc, rho + P_c) + Q.T @ _cross(wd, P_d)
+    return Rc, Rd, Q, q, om, rho, rhod
+
+
+@njit(cache=True)
+def _latch_kernel(x, P_c, P_d, KT, DT, KR, DR, n):
+    Rc, Rd, Q, q, om, rho, rhod = port_kinematics_kernel(x, P_c, P_d, n)
     F = -(Rc @ (KT * rho + DT * rhod))
     s = math.sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2])
     if s > 1e-15:

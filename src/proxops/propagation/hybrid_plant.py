@@ -54,7 +54,7 @@ import numpy as np
 from numba import njit
 
 from proxops.core.layout import Block, StateLayout
-from proxops.core.quaternion import dcm_kernel, multiply_kernel
+from proxops.core.quaternion import dcm_kernel
 from proxops.dynamics.hybrid_relative import N_REL, relative_from_truth
 from proxops.dynamics.plant import PlantBase, locate_guard
 from proxops.dynamics.two_rigid_bodies import (
@@ -64,6 +64,7 @@ from proxops.dynamics.two_rigid_bodies import (
     contact_jump,
     contact_normal_velocity,
     latch_snap_jump,
+    port_kinematics_kernel,
     truth_rhs_kernel,
 )
 from proxops.errors import input_error
@@ -202,25 +203,8 @@ def sat_gap_kernel(x, hc, hd):
 
 @njit(cache=True)
 def envelope_kernel(x, P_c, P_d, n):
-    """(|rho| m, |rho_dot| m/s, |omega| rad/s, attitude error rad) of the truth state x (26):
-    the numba form of the first 13 entries of hybrid_relative.relative_from_truth."""
-    Rc = dcm_kernel(x[12:16])
-    Rd = dcm_kernel(x[19:23])
-    Q = Rd.T @ Rc  # C_{D<-C}
-    R = Rc.T  # C_{C<-T}
-    wt = np.array([0.0, 0.0, n])
-    omc = x[16:19] - R @ wt
-    om = x[23:26] - Q @ x[16:19]
-    wd = om + Q @ omc
-    rho0 = x[6:9] - x[0:3]
-    rho0d = x[9:12] - x[3:6]
-    rho = R @ rho0 + Q.T @ P_d - P_c
-    a = rho + P_c
-    c1 = np.array([omc[1] * a[2] - omc[2] * a[1], omc[2] * a[0] - omc[0] * a[2], omc[0] * a[1] - omc[1] * a[0]])
-    c2 = np.array([wd[1] * P_d[2] - wd[2] * P_d[1], wd[2] * P_d[0] - wd[0] * P_d[2], wd[0] * P_d[1] - wd[1] * P_d[0]])
-    rhod = R @ rho0d - c1 + Q.T @ c2
-    qc = x[12:16]
-    q = multiply_kernel(np.array([-qc[0], -qc[1], -qc[2], qc[3]]), x[19:23])
+    """(|rho| m, |rho_dot| m/s, |omega| rad/s, attitude error rad) of the truth state x (26)."""
+    _, _, _, q, om, rho, rhod = port_kinematics_kernel(x, P_c, P_d, n)
     s = math.sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2])
     angle = 2.0 * math.atan2(s, abs(q[3]))
     return (math.sqrt(rho @ rho), math.sqrt(rhod @ rhod), math.sqrt(om @ om), angle)
