@@ -204,16 +204,22 @@ def _frame_rate_x(y: np.ndarray, p: np.ndarray) -> float:
 
 
 @njit(cache=True)
-def hill_from_y(y: np.ndarray, p: np.ndarray) -> np.ndarray:
-    """Exact Hill relative state (6,) of the chaser: rho = C dr, rho' = C dv - w x rho
-    (frame rate w incl. the J2 x part; see proxops.frames.hill)."""
-    xx, xy, xz, yx, yy, yz, zx, zy, zz = hill_axes(y)
+def hill_frame_rate(y: np.ndarray, p: np.ndarray):
+    """(w_x, w_z) of the Hill frame of the target state y[0:6] (rad/s): w_z = |h| / r^2 and the
+    J2 part w_x of :func:`_frame_rate_x` (w_y = 0)."""
     rn2 = y[0] * y[0] + y[1] * y[1] + y[2] * y[2]
     hx = y[1] * y[5] - y[2] * y[4]
     hy = y[2] * y[3] - y[0] * y[5]
     hz = y[0] * y[4] - y[1] * y[3]
-    wz = math.sqrt(hx * hx + hy * hy + hz * hz) / rn2
-    wx = _frame_rate_x(y, p)
+    return _frame_rate_x(y, p), math.sqrt(hx * hx + hy * hy + hz * hz) / rn2
+
+
+@njit(cache=True)
+def hill_from_y(y: np.ndarray, p: np.ndarray) -> np.ndarray:
+    """Exact Hill relative state (6,) of the chaser: rho = C dr, rho' = C dv - w x rho
+    (frame rate w incl. the J2 x part; see proxops.frames.hill)."""
+    xx, xy, xz, yx, yy, yz, zx, zy, zz = hill_axes(y)
+    wx, wz = hill_frame_rate(y, p)
     px = xx * y[6] + xy * y[7] + xz * y[8]
     py = yx * y[6] + yy * y[7] + yz * y[8]
     pz = zx * y[6] + zy * y[7] + zz * y[8]
@@ -235,12 +241,7 @@ def y_from_hill(target: np.ndarray, hill: np.ndarray, p: np.ndarray) -> np.ndarr
     for i in range(6):
         y[i] = target[i]
     xx, xy, xz, yx, yy, yz, zx, zy, zz = hill_axes(y)
-    rn2 = y[0] * y[0] + y[1] * y[1] + y[2] * y[2]
-    hx = y[1] * y[5] - y[2] * y[4]
-    hy = y[2] * y[3] - y[0] * y[5]
-    hz = y[0] * y[4] - y[1] * y[3]
-    wz = math.sqrt(hx * hx + hy * hy + hz * hz) / rn2
-    wx = _frame_rate_x(y, p)
+    wx, wz = hill_frame_rate(y, p)
     px, py, pz = hill[0], hill[1], hill[2]
     # rho' + w x rho
     qx = hill[3] - wz * py
@@ -287,12 +288,7 @@ def energy_gains(targets: np.ndarray, hill: np.ndarray, p: np.ndarray) -> np.nda
         for i in range(6):
             y[i] = targets[k, i]
         xx, xy, xz, yx, yy, yz, zx, zy, zz = hill_axes(y)
-        rn2 = y[0] * y[0] + y[1] * y[1] + y[2] * y[2]
-        hx = y[1] * y[5] - y[2] * y[4]
-        hy = y[2] * y[3] - y[0] * y[5]
-        hz = y[0] * y[4] - y[1] * y[3]
-        wz = math.sqrt(hx * hx + hy * hy + hz * hz) / rn2
-        wx = _frame_rate_x(y, p)
+        wx, wz = hill_frame_rate(y, p)
         vx, vy, vz = y[3], y[4], y[5]
         px, py, pz = hill[k, 0], hill[k, 1], hill[k, 2]
         vn = math.sqrt(vx * vx + vy * vy + vz * vz)
