@@ -223,6 +223,47 @@ class EnergyDrift:
         return self.gains(np.array([t]), x[None, :6])[0]
 
 
+# Prediction blocks by (mean motion, node times): every run of a Monte Carlo campaign with the same
+# orbit and hop plan (srf-*-mc: only the initial state is dispersed) reuses them (read-only arrays).
+_BLOCK_CACHE: dict = {}
+
+
+def _cached_blocks(key, build):
+    got = _BLOCK_CACHE.get(key)
+    if got is None:
+        got = build()
+        for a in got:
+            a.flags.writeable = False
+        if len(_BLOCK_CACHE) > 64:
+            _BLOCK_CACHE.clear()
+        _BLOCK_CACHE[key] = got
+    return got
+
+
+def _prediction_blocks(n_orb: float, times: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Phi (N+1, N+1, 6, 6): Phi(t_j - t_i) for j >= i (else unused); S (N+1, 6, 3(N+1)): S[j] the
+    effect of impulse u_l (l < j) on x_j. Cached per (n, node times), read-only."""
+    def build():
+        N = len(times) - 1
+        phi = np.empty((N + 1, N + 1, 6, 6))
+        for i in range(N + 1):
+            for j in range(i, N + 1):
+                phi[j, i] = cw_stm(n_orb, times[j] - times[i])
+        S = np.zeros((N + 1, 6, 3 * (N + 1)))
+        for j in range(N + 1):
+            for l in range(j):
+                S[j, :, 3 * l:3 * l + 3] = phi[j, l][:, 3:6]
+        return phi, S
+
+    return _cached_blocks(("prediction", float(n_orb), np.asarray(times, dtype=float).tobytes()), build)
+
+
+def _drift_stms(n_orb: float, tau: np.ndarray) -> np.ndarray:
+    """Phi(tau_f) (F, 6, 6) of the free-drift grid, cached per (n, grid), read-only."""
+    return _cached_blocks(("drift", float(n_orb), tau.tobytes()),
+                          lambda: (np.array([cw_stm(n_orb, t) for t in tau]),))[0]
+
+
 @dataclass
 class NodeSchedule:
     """MPC nodes on the engine grid: node ``j`` is engine step ``steps[j]`` (t = steps[j] dt).
@@ -334,22 +375,12 @@ class SrfMpc:
             raise input_error("reference point", self.p_d.tolist(),
                               f"lies inside the keep-out zone (radius {keep_out.radius_m:g} m): move it out or shrink the KOZ", "m")
         # ---- prediction blocks, built once for the whole node grid (sliced per horizon length)
-        T = schedule.times
-        N = schedule.n
-        self._phi = np.empty((N + 1, N + 1, 6, 6))  # Phi(t_j - t_i) for j >= i (else unused)
-        for i in range(N + 1):
-            for j in range(i, N + 1):
-                self._phi[j, i] = cw_stm(self.n_orb, T[j] - T[i])
-        # S[j] (6, 3(N+1)): effect of impulse u_l (l < j) on x_j
-        self._S = np.zeros((N + 1, 6, 3 * (N + 1)))
-        for j in range(N + 1):
-            for l in range(j):
-                self._S[j, :, 3 * l:3 * l + 3] = self._phi[j, l][:, 3:6]
+        self._phi, self._S = _prediction_blocks(self.n_orb, schedule.times)
         # free-drift grid (29h-i) and its STMs
         period = 2 * math.pi / self.n_orb
         span = c.free_drift_s if c.free_drift_s is not None else period
         self.tau = np.linspace(span / c.free_drift_nodes, span, c.free_drift_nodes)
-        self._phi_tau = np.array([cw_stm(self.n_orb, t) for t in self.tau])
+        self._phi_tau = _drift_stms(self.n_orb, self.tau)
         self._node_of_step = {int(s): j for j, s in enumerate(schedule.steps)}
         self._hop_node_set = set(schedule.hop_nodes.tolist())
         self.drift_model = c.drift_model
