@@ -29,11 +29,27 @@ def main() -> None:
     except KeyboardInterrupt:
         code = 130
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # the work is done or given up: exit quietly
+    exit_without_teardown(code)
+
+
+def exit_without_teardown(code: int) -> None:
+    """Run the atexit handlers, flush stdout/stderr and end the process without the interpreter's
+    teardown of every module: with numba's compiled kernels loaded that teardown alone took 0.3-0.9 s
+    (measured) after the output was complete. Files are closed where they are written (nothing
+    relies on the teardown to flush them)."""
+    import atexit
+    import os
+
     try:
-        sys.stdout.flush()
-    except (BrokenPipeError, OSError):
+        atexit._run_exitfuncs()
+    except BaseException:  # a failing handler must not change the exit code
         pass
-    sys.exit(code)
+    for stream in (sys.stdout, sys.stderr):
+        try:
+            stream.flush()
+        except (BrokenPipeError, OSError, ValueError):
+            pass
+    os._exit(code)
 
 
 if __name__ == "__main__":
