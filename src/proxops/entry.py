@@ -18,6 +18,9 @@ def main() -> None:
     try:
         from proxops.cli import app
         from proxops.cli_common import guarded
+        from proxops._startup import defer_unused_numpy_submodules
+
+        defer_unused_numpy_submodules()  # numpy is imported by now, scipy not yet
 
         code = guarded(lambda: app(standalone_mode=False))
     except KeyboardInterrupt:  # while importing the CLI

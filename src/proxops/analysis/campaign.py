@@ -87,6 +87,7 @@ from proxops.analysis.campaign_worker import (  # noqa: E402,F401
     RunItem,
     _prepared,
     campaign_run,
+    check_nominal,
     classify,
     flatten_summary,
 )
@@ -274,9 +275,6 @@ def run_campaign(scenario, n_runs: int | None = None, workers: int | None = None
     prep = _prepare(scenario, overrides)
     sc = prep.loaded.scenario
     plan = prep.plan
-    from proxops.analysis.runs import check_scenario
-
-    check_scenario(prep.loaded)  # every check a run makes, once, before anything is written
     previous = read_manifest(Path(out)) if (resume and out is not None and Path(out).is_dir()) else None
     if seed is None:
         seed = previous["seed"] if previous and isinstance(previous.get("seed"), int) else int(sc.sim.seed)
@@ -330,6 +328,7 @@ def run_campaign(scenario, n_runs: int | None = None, workers: int | None = None
     items = _LazyItems(plan, seed, n_runs, done_ids)
     # connect (Dask) / check workers before writing anything, so a bad --scheduler leaves no folder behind
     backend = _make_backend(workers, scheduler, spec, connect_timeout_s, len(items)) if items else None
+    _check_campaign(backend, prep)  # every check a run makes, once, before anything is written
     if out_path is not None:
         out_path.mkdir(parents=True, exist_ok=True)
         manifest["created_utc"] = manifest.get("created_utc") or time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())
@@ -380,6 +379,25 @@ def run_campaign(scenario, n_runs: int | None = None, workers: int | None = None
     else:
         table = _tidy(pd.DataFrame(writer.rows)) if writer.rows else _empty_table()
     return CampaignResult(table=table, manifest=manifest, out=out_path, wall_time_s=wall, new_runs=state.done)
+
+
+def _check_campaign(backend, prep: _Prepared) -> None:
+    """Every check a run makes (:func:`proxops.analysis.runs.check_scenario`: the system's build and
+    the dispersions), once, before anything is written. On a local pool the workers run the build
+    (:func:`check_nominal`, one task per worker: it is their warm-up -- imports, numba kernels,
+    per-process caches -- which the first run would do anyway), so this process never builds the
+    system; its error is raised here as it would be by the check in this process."""
+    from proxops.analysis.runs import check_scenario
+    from proxops.exec.backends import _PoolBackend
+
+    if isinstance(backend, _PoolBackend):
+        try:
+            if backend.check(check_nominal):
+                return  # the dispersions were parsed by _prepare
+        except BaseException:
+            backend.close(cancel=True, force=True)
+            raise
+    check_scenario(prep.loaded)
 
 
 class _LazyItems:

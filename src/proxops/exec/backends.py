@@ -64,7 +64,10 @@ def _init_worker() -> None:
     except ValueError:  # not the main thread
         pass
     signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})
-    atexit.register(_worker_exit)  # runs after the handlers registered later (numba's): last
+    atexit.register(_worker_exit)
+    from proxops._startup import defer_unused_numpy_submodules
+
+    defer_unused_numpy_submodules()  # runs after the handlers registered later (numba's): last
 
 
 def _worker_exit() -> None:
@@ -206,6 +209,21 @@ class _PoolBackend:
 
     def wait(self, futures, timeout):
         return cf_wait(futures, timeout=timeout, return_when=FIRST_COMPLETED)
+
+    def check(self, func) -> bool:
+        """Run ``func(context)`` once per worker slot before any work (each task warms a worker) and
+        wait for the first to finish: True if it returned, its exception re-raised if it raised,
+        False if the pool broke (the caller then checks by itself)."""
+        pending = {self.submit(func, [None], "raise") for _ in range(self.slots)}
+        while pending:
+            done, pending = cf_wait(pending, timeout=0.1, return_when=FIRST_COMPLETED)
+            for fut in done:
+                try:
+                    fut.result()
+                except BrokenProcessPool:
+                    return False
+                return True
+        return False
 
     def cancel(self, fut) -> bool:
         return fut.cancel()
