@@ -26,9 +26,9 @@ def main() -> None:
     except KeyboardInterrupt:  # while importing the CLI
         sys.stderr.write("interrupted\n")
     try:
-        campaign = sys.modules.get("proxops.analysis.campaign")
-        if campaign is not None:  # stop kept worker processes now, not in interpreter shutdown
-            campaign.shutdown_pools(force=code == 130)
+        backends = sys.modules.get("proxops.exec.backends")
+        if backends is not None:  # stop kept worker processes now (terminated after a failure)
+            backends.shutdown_pools(force=code != 0)
     except KeyboardInterrupt:
         code = 130
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # the work is done or given up: exit quietly

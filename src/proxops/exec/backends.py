@@ -265,6 +265,31 @@ def _new_pool(workers: int) -> ProcessPoolExecutor:
                                initializer=_init_worker)
 
 
+def prestart_pool(workers: int, modules: Sequence[str] = ()) -> None:
+    """Spawn the local pool of ``workers`` processes now and have each import ``modules``, so that
+    their start-up overlaps this process's own imports and checks (``proxops mc`` calls it before
+    importing the campaign layer). The pool is the one a later campaign of this process with as
+    many workers uses (kept in ``_POOLS`` like any pool). No effect for fewer than 2 workers or
+    when that pool exists."""
+    if workers < 2 or workers in _POOLS:
+        return
+    saved = _single_thread_env()  # the workers are spawned (inherit the environment) in submit
+    try:
+        pool = _POOLS[workers] = _new_pool(workers)
+        with _sigint_blocked():
+            for _ in range(workers):
+                pool.submit(_import_modules, tuple(modules))
+    finally:
+        _restore_env(saved)
+
+
+def _import_modules(modules: tuple[str, ...]) -> None:
+    import importlib
+
+    for name in modules:
+        importlib.import_module(name)
+
+
 def _stop_pool(pool: ProcessPoolExecutor, force: bool) -> None:
     """Shut a pool down and join its manager thread and workers, so their pipes and semaphores
     are released before this process exits; ``force`` first terminates busy workers. (One
