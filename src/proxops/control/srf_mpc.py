@@ -382,6 +382,7 @@ class SrfMpc:
         self.tau = np.linspace(span / c.free_drift_nodes, span, c.free_drift_nodes)
         self._phi_tau = _drift_stms(self.n_orb, self.tau)
         self._node_of_step = {int(s): j for j, s in enumerate(schedule.steps)}
+        self._hop_boundaries = [0] + schedule.hop_nodes.tolist()  # node 0 and every hop end
         self._hop_node_set = set(schedule.hop_nodes.tolist())
         self.drift_model = c.drift_model
         self.hop_targets_m = None  # guidance distances d_0..d_n (m) for hop_distance_tol_m
@@ -713,6 +714,16 @@ class SrfMpc:
         lo, hi = [], []
         inf = np.inf
         tol_r, tol_w = c.r_tol_m, c.w_tol_mps
+        drift_c = None
+        nodes = self._hop_boundaries
+        rx_memo: dict[int, float] = {}
+
+        def rx(j: int) -> float:  # _rx_const(i, x, j), once per node j in this build
+            got = rx_memo.get(j)
+            if got is None:
+                got = rx_memo[j] = self._rx_const(i, x, j)
+            return got
+
         for kind in self._g_kinds:
             if kind == "brake":
                 continue
@@ -736,7 +747,9 @@ class SrfMpc:
                 if j < i or relax >= 3:
                     lo.append(-OFF); hi.append(OFF)
                     continue
-                v = self.drift_estimate(float(self.sched.times[i]), x)[0]
+                if drift_c is None:  # the same estimate for every drift row of this node
+                    drift_c = self.drift_estimate(float(self.sched.times[i]), x)[0]
+                v = drift_c
                 lo.append(-c.drift_free_tol_mps - v); hi.append(c.drift_free_tol_mps - v)
                 continue
             if tag == "hold":
@@ -745,13 +758,12 @@ class SrfMpc:
                     continue
                 lo.append(-c.drift_free_tol_mps); hi.append(c.drift_free_tol_mps)
                 continue
-            nodes = [0] + self.sched.hop_nodes.tolist()
             if tag == "dist":
                 m = j
                 if nodes[m] <= i or relax >= 1 or nodes[m] == N:
                     lo.append(-OFF); hi.append(OFF)
                     continue
-                v = self._rx_const(i, x, nodes[m])
+                v = rx(nodes[m])
                 d, tol = self.hop_targets_m[m], c.hop_distance_tol_m[m - 1]
                 lo.append((d - tol - v) / KM); hi.append((d + tol - v) / KM)
             elif tag == "len":
@@ -759,14 +771,14 @@ class SrfMpc:
                 if nodes[m] <= i or relax >= 3:
                     lo.append(-OFF); hi.append(OFF)
                     continue
-                v = self._rx_const(i, x, nodes[m - 1]) - self._rx_const(i, x, nodes[m])
+                v = rx(nodes[m - 1]) - rx(nodes[m])
                 lo.append((c.h_min_m - v) / KM); hi.append((c.h_max_m - v) / KM)
             elif tag == "dec":
                 m = j
                 if nodes[m + 1] <= i or relax >= 1:
                     lo.append(-OFF); hi.append(OFF)
                     continue
-                r = [self._rx_const(i, x, nodes[q]) for q in (m - 1, m, m + 1)]
+                r = [rx(nodes[q]) for q in (m - 1, m, m + 1)]
                 v = (r[1] - r[2]) - (r[0] - r[1])
                 lo.append(-inf); hi.append((-c.epsilon_m - v) / KM)
         brake_lo = -c.terminal_vel_tol_mps - fN[3:]
