@@ -18,7 +18,10 @@ On disk (``out``)::
 Execution: ``workers=1`` runs in this process; ``workers>1`` uses a spawn-safe
 ProcessPoolExecutor; ``scheduler="tcp://HOST:PORT"``, a scheduler-file path or a
 ``distributed.Client`` uses Dask. Runs are sent in batches sized on the fly (about
-``target_batch_s`` of work each) to keep per-run overhead low. A run that raises is a row with
+``target_batch_s`` of work each) to keep per-run overhead low. Before anything is written the
+scenario gets every check a run makes, once: on a local pool each worker runs it as its warm-up
+(imports, numba kernels, per-process caches), so this process never builds the system; ``proxops
+mc`` spawns the pool before importing this module, so the workers' start-up overlaps its imports. A run that raises is a row with
 ``outcome = "error"``; a killed pool worker is replaced and its runs retried.
 
 Ctrl-C (or SIGTERM) at any moment: the first one only raises a flag (:class:`_GracefulStop`);
