@@ -340,7 +340,7 @@ class ComposedTruth(PlantBase):
         out = np.empty((grid.size, 12))
         if self.uses_multistep(float(grid[-1] - grid[0])):
             split = p[kf.I_GRAV] == 2.0
-            status, _, _ = km.integrate_multistep(y0, grid, u, p, *self._arrays(), self._dens, self.step_s,
+            status, *_ = km.integrate_multistep(y0, grid, u, p, *self._arrays(), self._dens, self.step_s,
                                                   *self.adams, split, self.rtol, self.atol, out)  # fmt: skip
         else:
             status, _, _ = kf.integrate_full(y0, grid, u, p, *self._arrays(), self._dens, self.rtol, self.atol, out)
