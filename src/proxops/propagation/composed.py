@@ -12,19 +12,21 @@ since the epoch (s), because the forces depend on absolute time.
 
 Integrators (density from a NRLMSISE-00 table along the target's predicted path on the numba
 paths): ``"dop853"`` (numba adaptive DOP853), ``"multistep"`` (numba fixed-step
-Adams-Bashforth-Moulton PECE, order 10 / 11, 20 s steps, harmonics once per step;
+Adams-Bashforth-Moulton PECE, order 6 / 7, 20 s steps, harmonics once per step;
 :mod:`proxops.propagation.kernels_multistep`), ``"fast"`` (the default: multistep with
-spherical harmonics and without SRP on spans of at least MIN_STEPS * order steps (600 s),
+spherical harmonics and without SRP on spans of at least MIN_STEPS * order steps (360 s),
 DOP853 otherwise: for point mass / J2, which stay bit-identical to RelativeTruth, and with
-SRP, whose shadow boundary the fixed step cannot follow) and ``"reference"``
-(scipy DOP853 on the same RHS, with pymsis called at both spacecraft on every evaluation).
-The J2-only and two-body truths stay in RelativeTruth (the fastest path, unchanged).
+SRP, whose shadow boundary the fixed step cannot follow) and ``"reference"`` (scipy DOP853
+on the same RHS, with pymsis called at both spacecraft on every evaluation). The J2-only and
+two-body truths stay in RelativeTruth (the fastest path, unchanged).
 
 Multistep vs DOP853 (benchmarks/bench_truth.py; 100x100 + drag + Sun/Moon, A/m 0.004 /
-0.015 m^2/kg, two orbits, relative position vs numba DOP853 at rtol 1e-13; load ~1.5):
-0.003 mm at 100 m, 0.008 mm at 2 km, 0.14 mm at 20 km (DOP853 at the default rtol: 0.014,
-0.010, 0.29 mm), ~19-22 ms against ~82-96 ms for DOP853 (285 steps per orbit, two 100x100
-evaluations per step against ~2600 per orbit for DOP853).
+0.015 m^2/kg, relative position vs numba DOP853 at rtol 1e-13; 2026-11-23, load ~6 on 2
+cores): one orbit at 2 km 0.011 mm, 620 evaluations of the 100x100 field, 27 ms, against
+DOP853 at the default rtol 0.007 mm, 3122 evaluations, 116 ms; two orbits 0.005 mm at 2 km
+and 0.065 mm at 20 km (DOP853 default: 0.007 and 0.29 mm). With 25 s steps: 508
+evaluations, 0.046 mm at 2 km after one orbit, but 1.4 mm at 20 km after two (the 57 s
+degree-100 terms are then sampled at 2.3 points per period), so 20 s is the default.
 
 Measured (tests/test_propagation_composed.py, benchmarks/bench_truth.py; 500 km, 51.6 deg,
 2022-05-01, one orbit, default rtol 3e-11): fast path vs scipy DOP853 on both absolute
