@@ -77,7 +77,7 @@ import numpy as np
 from numba import njit
 
 from proxops.constraints.los_corridor import LosCorridor
-from proxops.dynamics.tumbling_target import BodyFrameModel, body_from_hill_matrix, hill_from_body_matrix, rot_z
+from proxops.dynamics.tumbling_target import BodyFrameModel, body_from_hill_matrix, hill_from_body_matrix, rotate_z
 from proxops.errors import input_error
 from proxops.solvers.daqp_qp import DaqpQP
 from proxops.status import Status
@@ -136,7 +136,7 @@ class MpcSolution:
     status: Status  # the solver status (proxops.status)
     u0: np.ndarray
     u0_hill: np.ndarray
-    inputs: np.ndarray | None  # (N, 3) planned body-axes inputs (m/s^2)
+    inputs: np.ndarray | None  # (N, 3) planned body-axes inputs (m/s^2; the MPC's own plan: do not modify)
     prediction: tuple | None  # (p_g (6N,), S (6N, 3N), dU (3N,)): predicted states p_g + S dU, or None
     solve_time_s: float  # DAQP solve call
     build_time_s: float  # condensing + update
@@ -334,7 +334,7 @@ class LosMpc:
         t_build = time.perf_counter()
         N, nu = self.N, self.n_u
         x_body = np.asarray(x_body, float)
-        u_prev = np.zeros(3) if u_prev is None else np.asarray(u_prev, float)
+        u_prev = _ZERO3 if u_prev is None else np.asarray(u_prev, float)
         ref = self._reference(x_ref).reshape(6 * N)
         guess = self._guess
         if self._plan is None:
@@ -355,18 +355,19 @@ class LosMpc:
             solve_time += res.solve_time_s
             iterations += res.iterations
         status = res.status
-        R0 = rot_z(self.model.theta0_rad + self.model.w_rel * t)  # R_LB(theta_k)
+        theta_k = self.model.theta0_rad + self.model.w_rel * t
         if res.x is None or not res.ok:
             u0 = self._shifted_plan()
-            return MpcSolution(status, u0, R0 @ u0, None, None, solve_time, build_time, iterations,
-                               info={"raw_status": res.info.get("raw_status")})
-        x = res.x + self._u_c  # w + x_c
+            return MpcSolution(status, u0, rotate_z(theta_k, u0), None, None, solve_time, build_time,
+                               iterations, info={"raw_status": res.info.get("raw_status")})
+        x = res.x  # DAQP's w, a fresh array
+        x += self._u_c  # w + x_c
         U = x[:nu]
-        self._plan = U.reshape(N, 3).copy()
-        prediction = (self._pred.copy(), self._S_flat, U - guess)
+        plan = self._plan = U.reshape(N, 3)  # never modified in place (the next guess is a copy)
+        u0 = U[:3].copy()
         slack = float(x[nu:].max()) if self.soft else 0.0
-        return MpcSolution(status, U[:3].copy(), R0 @ U[:3], self._plan.copy(), prediction, solve_time,
-                           build_time, iterations, max_slack_m=slack,
+        return MpcSolution(status, u0, rotate_z(theta_k, u0), plan, (self._pred.copy(), self._S_flat,
+                           U - guess), solve_time, build_time, iterations, max_slack_m=slack,
                            info={"raw_status": res.info.get("raw_status"), "dual": res.info.get("dual")})
 
     def _load(self, t: float, x_body: np.ndarray, guess: np.ndarray, ref: np.ndarray, u_prev: np.ndarray) -> np.ndarray:
@@ -403,6 +404,9 @@ class LosMpc:
         """Forget the warm start and the stored plan."""
         self._solver = None
         self._plan = None
+
+
+_ZERO3 = np.zeros(3)
 
 
 def _cache_get(cache: dict, key, make):

@@ -48,6 +48,8 @@ RAW_NAMES = {
     -4: "iterlimit", -5: "nonconvex", -6: "overdetermined_initial", -7: "timelimit",
     -8: "unsupported",
 }
+RAW_STATUS = {flag: f"{flag} ({name})" for flag, name in RAW_NAMES.items()}
+_HAS_X = frozenset((SolveStatus.OPTIMAL, SolveStatus.MAX_ITER, SolveStatus.TIME_LIMIT))
 SENSE_EQUALITY = 5  # DAQP: ACTIVE | IMMUTABLE
 SENSE_SOFT = 8
 
@@ -358,16 +360,16 @@ class DaqpQP:
             return failed_result(self.name, error_message(exc))
         flag = int(flag)
         status = STATUS_MAP.get(flag, SolveStatus.NUMERICAL_ERROR)
-        has_x = status in (SolveStatus.OPTIMAL, SolveStatus.MAX_ITER, SolveStatus.TIME_LIMIT)
+        has_x = status in _HAS_X
         return SolverResult(
             status=status,
-            x=np.asarray(x, float) if has_x else None,
+            x=x if has_x else None,  # a fresh float64 array from daqp
             objective=float(fval) if has_x else math.nan,
-            iterations=int(info.get("iterations", 0)),
+            iterations=int(info["iterations"]),
             solve_time_s=wall,
             solver=self.name,
             info={
-                "raw_status": f"{flag} ({RAW_NAMES.get(flag, 'unknown')})",
+                "raw_status": RAW_STATUS.get(flag) or f"{flag} (unknown)",
                 "solver_time_s": float(info.get("solve_time", math.nan)),
                 "dual": info.get("lam"),
                 "soft_relaxed": flag == 2,
