@@ -196,3 +196,16 @@ def test_shifted_qp_equals_the_qp_with_its_linear_term(mode):
     assert res.ok
     np.testing.assert_allclose(sol.inputs.ravel(), res.x[:nu] + g, rtol=0, atol=1e-12)
     np.testing.assert_allclose(sol.states, (p_g + S @ res.x[:nu]).reshape(N, 6), rtol=0, atol=1e-9)
+
+
+def test_nan_state_is_a_status_and_the_next_step_recovers():
+    """A NaN body state (e.g. a diverged navigation filter) gives status numerical_error and a
+    finite fallback input, not an exception; the next finite state solves normally."""
+    mpc = LosMpc(_model(), LosCorridor(), 0.1, LosMpcConfig.single_run())
+    x0 = np.array([1.0, 100.0, 2.0, 0.0, 0.0, 0.0])
+    ref = np.array([0.0, 10.0, 0.0, 0.0, 0.0, 0.0])
+    assert mpc.solve(0.0, x0, ref).ok
+    bad = mpc.solve(1.0, np.array([np.nan, 100.0, 2.0, 0.0, 0.0, 0.0]), ref)
+    assert bad.status == "numerical_error" and not bad.ok
+    assert np.all(np.isfinite(bad.u0)) and np.all(np.abs(bad.u0) <= 0.1)
+    assert mpc.solve(2.0, x0, ref).ok

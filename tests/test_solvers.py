@@ -146,6 +146,14 @@ def test_daqp_without_linear_term_shifted_variable():
         np.testing.assert_allclose(p + r.x, projection_halfspace(p, a, b)[0], atol=1e-12)
     with pytest.raises(ProxopsInputError, match="linear term"):
         s.update(f=np.zeros(2))
+    # crossed bounds through the lean path: DAQP's own check makes the solve INFEASIBLE, and the
+    # next (valid) update recovers
+    s.update_fast(lb=np.array([1.0, -5.0]), ub=np.array([0.0, 5.0]))
+    assert s.solve().status is SolveStatus.INFEASIBLE
+    s.update_fast(bu=np.array([1.0]), lb=lb, ub=ub)
+    r = s.solve()
+    assert r.ok
+    np.testing.assert_allclose(r.x, [0.0, 0.0], atol=1e-12)  # p = 0 is feasible: w = 0
 
 
 def test_daqp_small_perturbation_keeps_active_set():

@@ -38,6 +38,7 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+from numba import njit
 
 from proxops.constraints.los_corridor import LosCorridor
 from proxops.control.los_mpc import LosMpc, LosMpcConfig
@@ -134,7 +135,7 @@ class LosGuidanceController(Supervisor):
         self.W = np.array([0.0, 0.0, model.w_rel])
         self._step_numbers = np.arange(1.0, self.mpc.N + 1) if self.mpc is not None else None  # j = 1..N
         if self.mpc is not None:  # _axis_trajectory's buffers
-            self._ref_buffer, self._ref_ranges = np.zeros((self.mpc.N, 6)), np.empty(self.mpc.N)
+            self._ref_buffer = np.zeros((self.mpc.N, 6))
         super().__init__({name: _Regime(self, name) for name in ("far", "close", "hold")}, self.regime_rule,
                          absorbing=("hold",), dt=self.dt)
         self.reset(0.0, np.zeros(6))
@@ -237,11 +238,15 @@ class LosGuidanceController(Supervisor):
     def _axis_trajectory(self, v_ref: float) -> np.ndarray:
         """Reference x_1..x_N along +y_B: range r_ref - v j dt (not below r_h), co-rotating.
         Written into one buffer per controller (the MPC reads it during its solve only)."""
-        r_h = self.hold_range
-        ref, ranges = self._ref_buffer, self._ref_ranges
-        np.multiply(self._step_numbers, v_ref * self.dt, out=ranges)
-        np.subtract(self.r_ref, ranges, out=ranges)
-        np.maximum(ranges, r_h, out=ranges)
-        ref[:, 1] = ranges
-        ref[:, 4] = np.where(ranges > r_h, -v_ref, 0.0)
-        return ref
+        _fill_axis_reference(self._ref_buffer, self._step_numbers, self.r_ref, v_ref * self.dt, v_ref,
+                             self.hold_range)
+        return self._ref_buffer
+
+
+@njit(cache=True)
+def _fill_axis_reference(ref, steps, r_ref, step_m, v_ref, r_h):  # pragma: no cover - compiled
+    """ref[j] = [0, max(r_ref - step_m j, r_h), 0, 0, -v_ref (0 once at r_h), 0] for j = steps (m, m/s)."""
+    for j in range(steps.shape[0]):
+        rj = max(r_ref - step_m * steps[j], r_h)
+        ref[j, 1] = rj
+        ref[j, 4] = -v_ref if rj > r_h else 0.0

@@ -284,7 +284,8 @@ class DaqpQP:
         The caller guarantees: 1-D C-contiguous float64 arrays of the set-up sizes
         (f, lb, ub: (n,), bu/bl: (m,)), no NaN, no entry beyond +-1e30, and no row or variable
         turning into or out of an equality (lower == upper) - so DAQP's senses and working set
-        stay as they are. Nothing is checked (``f`` is handed to DAQP, which keeps a pointer to
+        stay as they are. Crossed bounds (lower > upper) are rejected by DAQP's own check: the
+        next solve reports INFEASIBLE. Nothing is checked (``f`` is handed to DAQP, which keeps a pointer to
         it: do not modify it afterwards; the bounds are copied into the full bound vectors).
         Saves the ~50 us of input checking of :meth:`update`. After a failed set-up/update it
         falls back to :meth:`update`.
@@ -323,7 +324,8 @@ class DaqpQP:
                 kwargs["bupper"] = self._upper
             if bl is not None or lb is not None:
                 kwargs["blower"] = self._lower
-            self._check_crossed()
+            # no crossing check here: DAQP checks lower <= upper itself and rejects crossed data
+            # (update flag -1: the next solve reports INFEASIBLE, the next update rebuilds)
         if kwargs:
             try:
                 self._solver_flag = int(self._model.update(**kwargs))
