@@ -131,11 +131,12 @@ class LosMpcConfig:
 @dataclass
 class MpcSolution:
     """Result of one MPC solve. ``u0`` is the body-axes input to apply (m/s^2) and
-    ``u0_hill`` the same vector in LVLH components (what the plant receives)."""
+    ``u0_hill`` the same vector in LVLH components (what the plant receives; computed when asked
+    from ``theta_rad`` = theta_k, the body angle at the solve)."""
 
     status: Status  # the solver status (proxops.status)
     u0: np.ndarray
-    u0_hill: np.ndarray
+    theta_rad: float
     inputs: np.ndarray | None  # (N, 3) planned body-axes inputs (m/s^2; the MPC's own plan: do not modify)
     prediction: tuple | None  # (p_g (6N,), S (6N, 3N), dU (3N,)): predicted states p_g + S dU, or None
     solve_time_s: float  # DAQP solve call
@@ -147,6 +148,11 @@ class MpcSolution:
     @property
     def ok(self) -> bool:
         return self.status.ok
+
+    @property
+    def u0_hill(self) -> np.ndarray:
+        """u0 in LVLH components: R_LB(theta_k) u0 (m/s^2)."""
+        return rotate_z(self.theta_rad, self.u0)
 
     @property
     def states(self) -> np.ndarray | None:
@@ -197,6 +203,7 @@ class LosMpc:
         self.soft = self.cfg.constraint_mode == "soft"
         self.n_var = nu + (N if self.soft else 0)
         self._offsets = model.w_rel * model.dt * np.arange(N + 1)  # theta_j - theta_k
+        self._ref_shape = (N, 6)
         key = (model.n, model.w_rel, model.dt, N)
         cached = _cache_get(_PREDICTION_CACHE, key, lambda: self._prediction_blocks(model, N))
         self._Phi_pow, self._Su_L, self._S = cached
@@ -345,7 +352,8 @@ class LosMpc:
         N, nu = self.N, self.n_u
         x_body = np.asarray(x_body, float)
         u_prev = _ZERO3 if u_prev is None else np.asarray(u_prev, float)
-        ref = self._reference(x_ref).reshape(6 * N)
+        ref = (x_ref if x_ref.__class__ is np.ndarray and x_ref.shape == self._ref_shape
+               else self._reference(x_ref)).reshape(6 * N)
         guess = self._guess
         if self._plan is None:
             guess.reshape(N, 3)[:] = u_prev
@@ -368,7 +376,7 @@ class LosMpc:
         theta_k = self.model.theta0_rad + self.model.w_rel * t
         if res.x is None or not res.ok:
             u0 = self._shifted_plan()
-            return MpcSolution(status, u0, rotate_z(theta_k, u0), None, None, solve_time, build_time,
+            return MpcSolution(status, u0, theta_k, None, None, solve_time, build_time,
                                iterations, info={"raw_status": res.info.get("raw_status")})
         x = res.x  # DAQP's w, a fresh array
         x += self._u_c  # w + x_c
@@ -376,7 +384,7 @@ class LosMpc:
         plan = self._plan = U.reshape(N, 3)  # never modified in place (the next guess is a copy)
         u0 = U[:3].copy()
         slack = float(x[nu:].max()) if self.soft else 0.0
-        return MpcSolution(status, u0, rotate_z(theta_k, u0), plan, (self._pred.copy(), self._S_flat,
+        return MpcSolution(status, u0, theta_k, plan, (self._pred.copy(), self._S_flat,
                            U - guess), solve_time, build_time, iterations, max_slack_m=slack,
                            info={"raw_status": res.info.get("raw_status"), "dual": res.info.get("dual")})
 

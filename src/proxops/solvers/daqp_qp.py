@@ -337,6 +337,20 @@ class DaqpQP:
         """Solve from the current working set and return a :class:`SolverResult`."""
         if self._model is None:
             raise input_error("DaqpQP.solve", "called before setup", "call setup() first")
+        if (self._bad.fields or self._crossed is not None or self._solver_error is not None or self._solver_flag < 0
+                or not self.warm_start_enabled):
+            return self._solve_checked()
+        try:
+            t0 = time.perf_counter()
+            x, fval, flag, info = self._model.solve()
+            wall = time.perf_counter() - t0
+        except Exception as exc:
+            return failed_result(self.name, error_message(exc))
+        return self._result(x, fval, flag, info, wall)
+
+    def _solve_checked(self) -> SolverResult:
+        """:meth:`solve` when something is off (bad data, crossed bounds, a failed set-up) or the
+        working set is reset before every solve."""
         bad = self._bad.message()
         if bad is not None:
             return failed_result(self.name, bad)
@@ -360,6 +374,9 @@ class DaqpQP:
             wall = time.perf_counter() - t0
         except Exception as exc:
             return failed_result(self.name, error_message(exc))
+        return self._result(x, fval, flag, info, wall)
+
+    def _result(self, x, fval, flag, info, wall: float) -> SolverResult:
         flag = int(flag)
         status = STATUS_MAP.get(flag, SolveStatus.NUMERICAL_ERROR)
         has_x = status in _HAS_X
