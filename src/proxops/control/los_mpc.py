@@ -220,8 +220,10 @@ class LosMpc:
         self._G_T = np.ascontiguousarray(G.T)
         self._G = np.ascontiguousarray(G, dtype=float)
         self._n_rows = G.shape[0]
-        self._S_posT = np.ascontiguousarray(self._S[:, 0:3, :].reshape(3 * N, nu).T)  # (3N, 3N)^T: positions
-        A = np.matmul(G, self._S[:, 0:3, :]).reshape(self._n_rows * N, nu)
+        # per-geometry arrays, shared by every run of a campaign (read only)
+        self._S_posT, A, self._HS, self._PB = _cache_get(
+            _WEIGHTS_CACHE, (key, weights, self._G.tobytes(), np.asarray(self._h, float).tobytes()),
+            lambda: self._geometry_blocks(model))
         lb = np.full(self.n_var, -self.a_max)
         ub = np.full(self.n_var, self.a_max)
         # hard mode: DAQP gets the QP in w = U - U_c without a linear term (module doc); soft mode
@@ -252,8 +254,6 @@ class LosMpc:
         self._inp = np.zeros(9 + nu + n6)
         self._guess = self._inp[9 : 9 + nu]
         self._consts = np.concatenate([self._offsets, self._r_u, self._r_d, np.asarray(self._h, float)])
-        self._PB = np.ascontiguousarray(np.hstack([model.Phi, model.Bd]))
-        self._HS = np.ascontiguousarray(np.stack([self._H_inv, self._S_posT]))
         self._work = np.empty(n6 + 4 * nv + nb)
         self._pred = self._work[:n6]  # p_g
         self._f = self._work[n6 : n6 + nv]  # linear term in dU (soft mode: DAQP's f)
@@ -285,6 +285,15 @@ class LosMpc:
         angles = 2.0 * np.pi * np.arange(self.n_average_angles) / self.n_average_angles
         S = np.mean([self.input_map(a) for a in angles], axis=0)
         return self._Phi_pow, Su, S
+
+    def _geometry_blocks(self, model: BodyFrameModel):
+        """(S_pos^T (3N, 3N), corridor rows G S_pos (N r, 3N), [H^-1; S_pos^T] (2, 3N, 3N), [Phi | Bd] (6, 9))."""
+        N, nu = self.N, self.n_u
+        S_posT = np.ascontiguousarray(self._S[:, 0:3, :].reshape(3 * N, nu).T)
+        A = np.matmul(self._G, self._S[:, 0:3, :]).reshape(self._n_rows * N, nu)
+        HS = np.ascontiguousarray(np.stack([self._H_inv, S_posT]))
+        PB = np.ascontiguousarray(np.hstack([model.Phi, model.Bd]))
+        return S_posT, A, HS, PB
 
     def _weighted_blocks(self):
         """(W S (6N, 3N), H (3N, 3N), H^-1 (3N, 3N), exactly symmetric) for this configuration."""

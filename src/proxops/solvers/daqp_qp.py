@@ -157,7 +157,10 @@ class DaqpQP:
         self._model.settings = self._native
         self._solver_error = None
         self._solver_flag = 0
-        clean = lambda a: np.nan_to_num(a, nan=0.0, posinf=DAQP_INF, neginf=-DAQP_INF)  # noqa: E731
+        # copies (DAQP keeps pointers to what it is given); NaN/inf only where BadData saw them
+        bad = self._bad.fields
+        clean = lambda a: (np.nan_to_num(a, nan=0.0, posinf=DAQP_INF, neginf=-DAQP_INF) if bad  # noqa: E731
+                           else np.array(a, dtype=float))
         try:
             flag, _ = self._model.setup(clean(self._H), None if self._f is None else clean(self._f), clean(self._A),
                                         clean(self._upper), clean(self._lower), self._sense.copy())
