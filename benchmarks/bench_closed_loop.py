@@ -25,7 +25,11 @@ imports and numba caches are loaded; best of ``--repeats``):
 * campaigns: ``run_campaign(name, n_runs=50, workers=2)``; the first in a process includes the
   pool's cold start (spawn, imports), the second reuses the pool;
 * ``reach table``: the 20-combination analytic certification without the backward LP
-  (``reach_table(backward=False)``, the ``total`` of its Table 4 timings, 300 x 300 grid);
+  (``reach_table(backward=False)``, the ``total`` of its Table 4 timings, 300 x 300 grid), and as
+  ``proxops reproduce`` runs it (``reach_table(n_points=300)``, backward LP kernel included: the
+  wall time of the "All analytical sets for the 20 combinations" row, goal < 0.5 s);
+* ``reach mc`` (``--reach-mc``): the 3 900-run §9 campaign on 2 workers, its wall time and the sum
+  of the runs' CPU times (halved: what two free cores would need for the runs);
 * CLI: ``python -m proxops.entry --version`` and ``... run station-keeping --json`` wall time
   (process start to exit), best of ``--repeats`` after one cached use.
 """
