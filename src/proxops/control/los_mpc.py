@@ -29,9 +29,9 @@ Were the CW model isotropic about the orbit normal, this map would not depend on
 current angle theta_k at all; only the 3 n^2 x gravity-gradient term is anisotropic
 (relative size ~1.5 n^2 t^2 / 2 = 1.5e-3 over a 40 s horizon). So the condensed map is
 split into its rotation average S (constant: H and the corridor rows never change, and
-DAQP keeps its factorisation; updating H or A costs DAQP 3-4 ms at N = 40, updating f
-and b 0.15 ms) plus an exact affine offset evaluated at the previous plan shifted by one
-step (real-time-iteration style). Predictions are exact at that plan and the remaining
+DAQP keeps its factorisation; updating H or A would cost DAQP 3-4 ms at N = 40) plus an
+exact affine offset evaluated at the previous plan shifted by one step (real-time-iteration
+style). Predictions are exact at that plan and the remaining
 error is the anisotropic part acting on the change of plan; for the first step it is
 ~n^2 dt^2 ~ 1e-6 of the input effect (tested in tests/test_los_mpc.py). The paper
 instead freezes the step-k finite-difference linearisation over the horizon (§4.4).
