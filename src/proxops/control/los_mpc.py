@@ -247,13 +247,14 @@ class LosMpc:
         self._plan: np.ndarray | None = None  # (N, 3) last planned body-axes inputs
         # per-step buffers written by the kernel (DaqpQP copies the bounds into its own vectors)
         # the kernel's arguments, packed (a jitted call costs ~0.3 us per argument):
-        # inputs [x_0 (6), u_prev (3), g (3N), ref (6N)], constants [theta_j - theta_k (N+1), R_u (3N),
-        # R_du (3N), h (r)], [Phi | Bd] (6, 9), [H^-1; S_pos^T] (2, 3N, 3N), outputs
+        # inputs [x_0 (6), u_prev (3), g (3N), ref (6N)], constants [o_j = theta_j - theta_k, cos o_j,
+        # sin o_j (N+1 each), R_u (3N), R_du (3N), h (r)], [Phi | Bd] (6, 9), [H^-1; S_pos^T] (2, 3N, 3N), outputs
         # [p_g (6N), f, x_c, lb - x_c, ub - x_c (n_var each), rows (N r)]
         nv, n6, nb = self.n_var, 6 * N, self._n_rows * N
         self._inp = np.zeros(9 + nu + n6)
         self._guess = self._inp[9 : 9 + nu]
-        self._consts = np.concatenate([self._offsets, self._r_u, self._r_d, np.asarray(self._h, float)])
+        self._consts = np.concatenate([self._offsets, np.cos(self._offsets), np.sin(self._offsets), self._r_u,
+                                       self._r_d, np.asarray(self._h, float)])
         self._work = np.empty(n6 + 4 * nv + nb)
         self._pred = self._work[:n6]  # p_g
         self._f = self._work[n6 : n6 + nv]  # linear term in dU (soft mode: DAQP's f)
@@ -458,8 +459,8 @@ def _shifted_qp_data(theta_k, w_rel, a_max, shift, n_var, inp, consts, PB, WS, H
     when every output is finite.
 
     theta_k (rad), w_rel (rad/s), a_max (m/s^2); inp = [x_0 (6), u_prev (3), plan g (3N,
-    body-axes m/s^2), ref (6N)]; consts = [theta_j - theta_k (N+1), diag R_u (3N), diag R_du (3N),
-    h (r)]; PB = [Phi | B_d] (6, 9) CW ZOH step; WS = W S (6N, 3N); HS = [H^-1 (symmetric);
+    body-axes m/s^2), ref (6N)]; consts = [o_j = theta_j - theta_k, cos o_j, sin o_j (N+1 each),
+    diag R_u (3N), diag R_du (3N), h (r)]; PB = [Phi | B_d] (6, 9) CW ZOH step; WS = W S (6N, 3N); HS = [H^-1 (symmetric);
     S_pos^T] (2, 3N, 3N), S_pos the position rows of S; G (r, 3) corridor rows.
     work = [p_g (6N), f (n_var; [:3N] written: the linear term in dU), x_c (n_var; [:3N] = U_c
     (shift) or g), lb_w, ub_w (n_var; [:3N] = -+a_max - x_c), b (N r) = h - G (p_g + S (x_c - g))_pos].
@@ -472,10 +473,11 @@ def _shifted_qp_data(theta_k, w_rel, a_max, shift, n_var, inp, consts, PB, WS, H
     u_prev = inp[6:9]
     guess = inp[9 : 9 + n3]
     ref = inp[9 + n3 :]
-    offsets = consts[0 : N + 1]
-    r_u = consts[N + 1 : N + 1 + n3]
-    r_d = consts[N + 1 + n3 : N + 1 + 2 * n3]
-    h = consts[N + 1 + 2 * n3 :]
+    cos_o = consts[N + 1 : 2 * N + 2]
+    sin_o = consts[2 * N + 2 : 3 * N + 3]
+    r_u = consts[3 * N + 3 : 3 * N + 3 + n3]
+    r_d = consts[3 * N + 3 + n3 : 3 * N + 3 + 2 * n3]
+    h = consts[3 * N + 3 + 2 * n3 :]
     H_inv = HS[0]
     S_posT = HS[1]
     n6 = 6 * N
@@ -486,8 +488,9 @@ def _shifted_qp_data(theta_k, w_rel, a_max, shift, n_var, inp, consts, PB, WS, H
     ub_w = work[n6 + 3 * n_var : n6 + 4 * n_var]
     b = work[n6 + 4 * n_var :]
     # 1. p_g: exact LTV prediction of the plan (LVLH recursion, rotated to the body frame)
-    c = math.cos(theta_k)
-    s = math.sin(theta_k)
+    ck = math.cos(theta_k)
+    sk = math.sin(theta_k)
+    c, s = ck, sk
     v0 = x_body[3] - w_rel * x_body[1]
     v1 = x_body[4] + w_rel * x_body[0]
     xl = np.empty(6)
@@ -509,9 +512,8 @@ def _shifted_qp_data(theta_k, w_rel, a_max, shift, n_var, inp, consts, PB, WS, H
             xn[r] = acc
         for r in range(6):
             xl[r] = xn[r]
-        th = theta_k + offsets[j + 1]
-        c = math.cos(th)
-        s = math.sin(th)
+        c = ck * cos_o[j + 1] - sk * sin_o[j + 1]  # cos, sin of theta_k + o_j+1 (angle addition)
+        s = sk * cos_o[j + 1] + ck * sin_o[j + 1]
         rb0 = c * xl[0] + s * xl[1]
         rb1 = -s * xl[0] + c * xl[1]
         k = 6 * j
