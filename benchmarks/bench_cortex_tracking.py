@@ -1,8 +1,10 @@
 """Benchmark of the CORTEX tracking loop (cortex-convex-guidance.md §5.1.2, issue 15).
 
-1. CP_g solve time (Clarabel, one guidance interval of 15 impulses; with and without the cone and
-   plume rows): median / p95 / max over states taken from a nominal run, by in-place ``update`` and
-   by a full rebuild, next to the paper's 38.43 +- 12.8 ms (goal: median < 1 ms).
+1. CP_g solve time (Clarabel, one guidance interval of 15 impulses): median / p95 / max of the
+   update+solve of every CP_g call of a whole nominal run and of three cortex-low-mc runs (all
+   phases, full truth), per phase (with / without the cone and plume rows) with iterations, next to
+   the paper's 38.43 +- 12.8 ms (goal: median < 1 ms) and the load average; then in-place ``update``
+   against a full rebuild on the states of a nominal run.
 2. Wall time of one nominal run with the high-fidelity truth (``proxops run cortex-nominal``, in this
    process after a warm-up run that pays numba compilation; goal < 10 s).
 3. The thruster chain on the nominal run: delta-v and propellant against the impulsive actuator.
@@ -39,7 +41,59 @@ def _stats(ms):
     return f"median {np.median(ms):.3f} ms, p95 {np.percentile(ms, 95):.3f} ms, max {ms.max():.3f} ms (n = {ms.size})"
 
 
+def _load() -> str:
+    return "load average " + " ".join(f"{v:.2f}" for v in os.getloadavg()) + f" on {os.cpu_count()} CPUs"
+
+
+def _cpg_calls(runs):
+    """Every CP_g call of whole closed-loop runs ``[(scenario, seed), ...]`` (full truth): per call the
+    update+solve wall time (``TrackingSOCP.solve``: right-hand side, in-place update, Clarabel, impulse
+    extraction), the solver's wall time (``SolverResult.solve_time_s``, what ``solve_time_ms`` of a
+    run summary reports), iterations, and whether the cone rows (27g) were in the problem."""
+    from proxops.control import cortex_tracking
+
+    calls = []
+    original = cortex_tracking.TrackingSOCP.solve
+
+    def timed(self, x_k, x_T, rebuild=False):
+        t0 = time.perf_counter()
+        out = original(self, x_k, x_T, rebuild)
+        calls.append(((time.perf_counter() - t0) * 1e3, out[1].solve_time_s * 1e3, out[1].iterations,
+                      self.cone_c is not None, "first_attempt" in out[1].info))
+        return out
+
+    cortex_tracking.TrackingSOCP.solve = timed
+    try:
+        for name, seed in runs:
+            run_closed_loop(load_scenario(name).scenario, seed=seed)
+    finally:
+        cortex_tracking.TrackingSOCP.solve = original
+    wall, solver, iters, coned, retried = (np.array(v) for v in zip(*calls))
+    return wall, solver, iters, coned, retried
+
+
 def cpg_times():
+    """CP_g over whole runs (all phases): one nominal run and three cortex-low-mc runs, full truth."""
+    from proxops.analysis.campaign import run_seeds
+
+    run_closed_loop(load_scenario("cortex-nominal").scenario)  # warm-up: numba compilation of the truth kernels
+    low_seed = load_scenario("cortex-low-mc").scenario.sim.seed
+    cases = {"cortex-nominal (1 run)": [("cortex-nominal", 0)],
+             "cortex-low-mc (runs 0-2)": [("cortex-low-mc", run_seeds(low_seed, k)[0]) for k in range(3)]}
+    paper = PAPER_CPG_SOLVE_MS[0]
+    for label, runs in cases.items():
+        wall, solver, iters, coned, retried = _cpg_calls(runs)
+        med = float(np.median(wall))
+        print(f"CP_g {label}: update+solve {_stats(wall)}; {paper / med:.0f}x faster than the paper's "
+              f"{paper} +- {PAPER_CPG_SOLVE_MS[1]} ms; goal median < {GOAL_MEDIAN_MS} ms: "
+              f"{'met' if med < GOAL_MEDIAN_MS else 'NOT met'} ({_load()})")
+        print(f"   solver call alone (run summary solve_time_ms): {_stats(solver)}")
+        for phase, sel in (("without cone rows", ~coned), ("with cone (27g) + plume rows", coned)):
+            if sel.any():
+                print(f"   {phase}: update+solve {_stats(wall[sel])}; iterations median {np.median(iters[sel]):.0f}, "
+                      f"max {iters[sel].max()}")
+        print(f"   solves retried with Clarabel's defaults (first attempt inaccurate/failed): {int(retried.sum())}")
+    # in-place update against a full set-up, on the states of a nominal run (CW truth)
     from proxops.control.cortex_tracking import TrackingSOCP
     from proxops.sim.engine import simulate
 
@@ -62,10 +116,8 @@ def cpg_times():
             t0 = time.perf_counter()
             prob.solve(x, xt, rebuild=True)
             reb.append((time.perf_counter() - t0) * 1e3)
-        print(f"CP_g {label}: update in place {_stats(upd)}")
-        print(f"CP_g {label}: rebuild          {_stats(reb)}  (update is {np.median(reb) / np.median(upd):.2f}x faster)")
-        print(f"   vs paper {PAPER_CPG_SOLVE_MS[0]} +- {PAPER_CPG_SOLVE_MS[1]} ms: {PAPER_CPG_SOLVE_MS[0] / np.median(upd):.0f}x; "
-              f"goal median < {GOAL_MEDIAN_MS} ms: {'met' if np.median(upd) < GOAL_MEDIAN_MS else 'NOT met'}")
+        print(f"CP_g {label}, states of a nominal run: update in place {_stats(upd)}; rebuild {_stats(reb)} "
+              f"(update is {np.median(reb) / np.median(upd):.2f}x faster)")
 
 
 def nominal_run():
