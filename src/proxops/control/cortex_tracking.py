@@ -53,7 +53,7 @@ import scipy.sparse as sp
 
 from proxops.core.cw import cw_stm
 from proxops.errors import input_error
-from proxops.solvers import ClarabelSOCP, SolveStatus
+from proxops.solvers import ClarabelSOCP, SolveStatus, soc_rows
 
 # Clarabel settings of CP_g (measured in benchmarks/bench_cortex_tracking.py): iterative refinement of
 # the KKT solves off (about 30 % less time per solve); a solve that then ends inaccurate, failed or at
@@ -128,13 +128,15 @@ class TrackingSOCP:
         def dcol(j):  # columns of d'_j (j = 2..N+1)
             return 3 * (j - 2) + np.arange(3)
 
-        def impulse_rows(r0, j, sign):
-            """sign * dv'_j at rows r0..r0+2: the nonzero entries of the blocks on d'_{j+1}, d'_j, d'_{j-1}
-            that exist (d'_1 = 0 is not a variable)."""
+        def impulse_terms(j):
+            """dv'_j as (row 0..2, column, value): the nonzero entries of the blocks on d'_{j+1}, d'_j,
+            d'_{j-1} that exist (d'_1 = 0 is not a variable)."""
+            rows_, cols_, vals_ = [], [], []
             for M, jj in ((self._R, j + 1), (self._S, j), (self._T, j - 1)):
                 if 2 <= jj <= N + 1:
                     ii, cc = np.nonzero(M)
-                    put(r0 + ii, dcol(jj)[cc], sign * M[ii, cc])
+                    rows_.append(ii); cols_.append(dcol(jj)[cc]); vals_.append(M[ii, cc])  # noqa: E702
+            return np.concatenate(rows_), np.concatenate(cols_), np.concatenate(vals_)
 
         b = []
         # nonneg cone: (27e) s_j <= 1 (a_max delta_t_g in units of V)
@@ -158,19 +160,19 @@ class TrackingSOCP:
         cones = [("nonneg", r)]
         # (27d) ||dv'_j|| <= s_j: s = [s_j; dv'_j]
         for j in range(1, N + 1):
-            put(r, self.i_s + j - 1, -1.0)
-            impulse_rows(r + 1, j, -1.0)
+            ii, cc, vv = impulse_terms(j)
+            put(*soc_rows(r, self.i_s + j - 1, 1.0, 1 + ii, cc, vv))
             b.append(np.zeros(4))
             cones.append(("soc", 4))
             r += 4
         # (27f) ||x_{N+1} - x_T|| <= eps: s = [eps' / eps_scale; x^free_{N+1} - x_T + (d_{N+1}; w_{N+1})]
         self.term_row = r
-        put(r, self.i_e, -1.0 / eps_scale)
-        put(r + 1 + np.arange(3), dcol(N + 1), np.full(3, -L))
-        for M, jj in ((W1 * L, N + 1), (W0 * L, N)):
+        tail = [(1 + np.arange(3), dcol(N + 1), np.full(3, L))]  # position: L d'_{N+1}
+        for M, jj in ((W1 * L, N + 1), (W0 * L, N)):  # velocity: w_{N+1}
             if jj >= 2:
                 ii, cc = np.nonzero(M)
-                put(r + 4 + ii, dcol(jj)[cc], -M[ii, cc])
+                tail.append((4 + ii, dcol(jj)[cc], M[ii, cc]))
+        put(*soc_rows(r, self.i_e, 1.0 / eps_scale, *(np.concatenate(p) for p in zip(*tail))))
         b.append(np.zeros(7))
         cones.append(("soc", 7))
         r += 7
@@ -179,10 +181,9 @@ class TrackingSOCP:
         self.cone_c = None
         if cone is not None:
             self.cone_c = c = cone.axis / math.cos(cone.half_angle_rad)
+            nzc = np.flatnonzero(c)
             for j in range(2, N + 2):
-                nzc = np.flatnonzero(c)
-                put(np.full(nzc.size, r), dcol(j)[nzc], -L * c[nzc])
-                put(r + 1 + np.arange(3), dcol(j), np.full(3, -L))
+                put(*soc_rows(r, dcol(j)[nzc], L * c[nzc], 1 + np.arange(3), dcol(j), np.full(3, L)))
                 b.append(np.zeros(4))
                 cones.append(("soc", 4))
                 r += 4
