@@ -544,3 +544,22 @@ def test_cpg_reports_infeasible_like_eq27():
     status, _, _ = _eq27_reference(N_RAD, 15, 2.0, ctrl.a_max, ctrl.s.terminal_penalty, x, x_t, cone)
     assert status in ("PrimalInfeasible", "AlmostPrimalInfeasible")
     assert dv is None and res.status.value == "infeasible"
+
+
+def test_nominal_run_with_the_lean_settings_matches_a_tight_tolerance_run(monkeypatch):
+    """Whole cortex-nominal loop (CW truth): CP_g with its lean settings (no iterative refinement, Clarabel's
+    defaults on retry) against every CP_g solved at 1e-10 tolerances: the same outcome, total delta-v within
+    1e-5 m/s (of 0.45 m/s; measured 1.9e-6) and terminal position / velocity errors within 1e-6 m / 1e-6 m/s
+    (measured on cortex-nominal and 16 Monte Carlo runs with the full truth: at most 3.7e-6 m/s, 4.2e-7 m,
+    1.2e-8 m/s)."""
+    from proxops.control import cortex_tracking
+
+    lean, _ = _run([])
+    monkeypatch.setattr(cortex_tracking, "DEFAULT_SOLVER_SETTINGS",
+                        {"settings": {"tol_gap_abs": 1e-10, "tol_gap_rel": 1e-10, "tol_feas": 1e-10, "max_iter": 500}})
+    tight, _ = _run([])
+    assert lean["status"] == tight["status"] == "docked" and lean["recomputes"] == tight["recomputes"] == 0
+    assert lean["cpg_solves"] == tight["cpg_solves"]
+    assert lean["total_dv_mps"] == pytest.approx(tight["total_dv_mps"], abs=1e-5)
+    assert lean["terminal_position_error_m"] == pytest.approx(tight["terminal_position_error_m"], abs=1e-6)
+    assert lean["terminal_velocity_error_mps"] == pytest.approx(tight["terminal_velocity_error_mps"], abs=1e-6)
