@@ -4,7 +4,8 @@ Canonical forms (:mod:`proxops.solvers.forms`): :class:`QuadraticProgram`,
 :class:`ConicProblem` (SOCP), :class:`LinearProgram` ((MI)LP) and
 :class:`~proxops.solvers.casadi_nlp.NonlinearProgram`. Every adapter has the same calls:
 ``setup(problem)`` once, ``update(**fields)`` in place (the form's field names),
-``warm_start(...)`` (a hint; returns whether the solver uses it) and ``solve()``:
+``warm_start(...)`` (a hint; returns whether the solver uses it) and ``solve()``; DaqpQP and
+ClarabelSOCP add ``update_fast`` (trusted per-step vectors / matrix values, nothing checked):
 
 - :class:`DaqpQP`       dense QP, active set, warm-started working set (condensed MPC)
 - :class:`PiqpQP`       sparse QP/LP, proximal interior point (fuel problems)
