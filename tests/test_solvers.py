@@ -358,7 +358,7 @@ def test_clarabel_qp_lp_and_infinite_rows():
 
 def test_clarabel_update_fast_matches_validated_update():
     """update_fast (b and A values in the set-up pattern, no checks) gives what update gives. Problem: distance
-    from (1, 2) to the line a1 x1 + a2 x2 = 0, |a . (1, 2)| / ||a|| (closed form); foot point (1, 2) - (a . p / |a|^2) a."""
+    from p to the line a . x = 0, |a . p| / ||a|| (closed form); foot point p - (a . p / |a|^2) a."""
     F = np.array([[1.0, 0, 0], [0, 1.0, 0]])
     prob = build_conic_problem([0, 0, 1.0], eq=([[1.0, 1.0, 0]], [0.0]), soc=[(F, [-1.0, -2.0], [0, 0, 1.0], 0.0)])
     fast, slow = ClarabelSOCP(), ClarabelSOCP()

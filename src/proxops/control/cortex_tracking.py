@@ -124,7 +124,9 @@ class TrackingSOCP:
         rows, cols, vals = [], [], []
 
         def put(r, c, v):
-            rows.append(np.ravel(r)); cols.append(np.ravel(c)); vals.append(np.ravel(np.asarray(v, float)))  # noqa: E702
+            rows.append(np.ravel(r))
+            cols.append(np.ravel(c))
+            vals.append(np.ravel(np.asarray(v, float)))
 
         def dcol(j):  # columns of d'_j (j = 2..N+1)
             return 3 * (j - 2) + np.arange(3)
@@ -208,8 +210,8 @@ class TrackingSOCP:
                 lo, hi = A.indptr[col], A.indptr[col + 1]
                 return int(lo + np.flatnonzero(A.indices[lo:hi] == row)[0])
 
-            self._plume_idx = [np.array([[position(row, col) for col in cs] for row, cs in plume_entries[blk]], dtype=np.intp).reshape(-1, 3)
-                               for blk in range(3)]
+            self._plume_idx = [np.array([[position(row, col) for col in cs] for row, cs in plume_entries[blk]],
+                                        dtype=np.intp).reshape(-1, 3) for blk in range(3)]
         self.solver_settings = DEFAULT_SOLVER_SETTINGS if solver_settings is None else solver_settings
         self.solver = ClarabelSOCP(**self.solver_settings)
         self.solver.setup(None, self.q, A, self.b, cones)

@@ -36,7 +36,8 @@ _HOME = {
     "HighsMILP": "highs_lp", "FeasibilityReport": "feasibility", "check_conic_feasibility": "feasibility",
     "check_feasibility": "feasibility", "max_violation": "feasibility", "ConicProblem": "forms",
     "LinearProgram": "forms", "QuadraticProgram": "forms", "build_conic_problem": "forms",
-    "conic_from_program": "forms", "conic_from_qp": "forms", "soc_rows": "forms", "make_qp_solver": "front", "solve_qp": "front",
+    "conic_from_program": "forms", "conic_from_qp": "forms", "soc_rows": "forms", "make_qp_solver": "front",
+    "solve_qp": "front",
     "SolverResult": "result", "SolveStatus": "result", "ScpResult": "scp", "TrustRegion": "scp",
     "successive_convexification": "scp", "solve_time_stats": "stats",
 }
