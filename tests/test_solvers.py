@@ -381,6 +381,64 @@ def test_clarabel_qp_lp_and_infinite_rows():
     assert r.objective == pytest.approx(1.0, abs=1e-7)
 
 
+def test_clarabel_update_fast_matches_validated_update():
+    """update_fast (b and A values in the set-up pattern, no checks) gives what update gives. Problem: distance
+    from p to the line a . x = 0, |a . p| / ||a|| (closed form); foot point p - (a . p / |a|^2) a."""
+    F = np.array([[1.0, 0, 0], [0, 1.0, 0]])
+    prob = build_conic_problem([0, 0, 1.0], eq=([[1.0, 1.0, 0]], [0.0]), soc=[(F, [-1.0, -2.0], [0, 0, 1.0], 0.0)])
+    fast, slow = ClarabelSOCP(), ClarabelSOCP()
+    fast.setup_problem(prob)
+    slow.setup_problem(prob)
+    A = prob.A.copy()
+    A.sort_indices()
+    for a, p in (((1.0, 2.0), (1.0, 2.0)), ((3.0, -1.0), (2.0, 0.5)), ((0.5, 0.5), (-1.0, 4.0))):
+        A[prob.blocks["eq"].start, 0], A[prob.blocks["eq"].start, 1] = a
+        b = prob.b.copy()
+        b[prob.blocks["soc0"].start + 1:prob.blocks["soc0"].start + 3] = [-p[0], -p[1]]
+        fast.update_fast(b=b, A_values=A.data)
+        slow.update(b=b, A=A)
+        rf, rs = fast.solve(), slow.solve()
+        a, p = np.array(a), np.array(p)
+        foot = p - (a @ p) / (a @ a) * a
+        for r in (rf, rs):
+            assert r.status is SolveStatus.OPTIMAL and r.info["rebuilt"] is False
+            np.testing.assert_allclose(r.x, [*foot, abs(a @ p) / np.linalg.norm(a)], atol=1e-6)
+        np.testing.assert_allclose(rf.x, rs.x, atol=1e-9)
+
+
+def test_clarabel_update_fast_falls_back_with_removed_rows():
+    """With a +inf row (removed before Clarabel sees it), update_fast takes the validated path, which sets the
+    solver up again when the row becomes finite (same problem as test_clarabel_qp_lp_and_infinite_rows)."""
+    prob = conic_from_qp(np.eye(2), -np.array([2.0, 1.0]), A=[[1.0, 1.0]], bu=[1.0], lb=[-5, -5], ub=[5, np.inf])
+    s = ClarabelSOCP()
+    s.setup_problem(prob)
+    b = prob.b.copy()
+    b[prob.blocks["ub"]] = [5.0, -2.0]
+    s.update_fast(b=b)
+    r = s.solve()
+    assert r.info["rebuilt"] is True
+    np.testing.assert_allclose(r.x, [2.0, -2.0], atol=1e-6)
+
+
+def test_clarabel_retry_settings_resolve_an_iteration_limited_solve():
+    """A first attempt capped at 2 interior-point iterations ends MAX_ITER; retry_settings (the cap lifted) solves
+    the same data again: the ball problem's optimum -r c/||c|| (Cauchy-Schwarz), both attempts reported."""
+    c = np.array([1.0, 2.0])
+    prob = build_conic_problem(c, soc=[(np.eye(2), np.zeros(2), np.zeros(2), 2.0)])
+    plain = ClarabelSOCP(max_iter=2)
+    plain.setup_problem(prob)
+    assert plain.solve().status is SolveStatus.MAX_ITER
+    s = ClarabelSOCP(max_iter=2, retry_settings={"max_iter": 200})
+    s.setup_problem(prob)
+    r = s.solve()
+    assert r.status is SolveStatus.OPTIMAL
+    np.testing.assert_allclose(r.x, -2 * c / np.linalg.norm(c), atol=1e-6)
+    assert r.info["first_attempt"]["raw_status"] == "MaxIterations"
+    assert r.iterations > r.info["first_attempt"]["iterations"] == 2
+    with pytest.raises(ProxopsInputError, match="clarabel settings"):
+        ClarabelSOCP(retry_settings={"no_such_setting": 1})
+
+
 def test_clarabel_infeasible_and_unbounded():
     # ||x|| <= 1 and x1 >= 2 (-x1 <= -2) are incompatible.
     prob = build_conic_problem([0.0, 0.0], ineq=([[-1.0, 0.0]], [-2.0]),

@@ -21,10 +21,27 @@ Corrections and choices (stated in the report):
   situation the supervisor handles (abort / recompute), not the solver.
 * The terminal norm (27f) is the 2-norm of the 6-vector [m, m/s] as printed (mixed units).
 
-The problem is built once per (N_sub, cone) structure and only its right-hand side changes
-between calls (x_k and x_T enter ``b`` only): :class:`proxops.solvers.ClarabelSOCP` ``update``
-keeps Clarabel's factorisation pattern (no rebuild; ``bench_cortex_tracking`` measures both).
-Variables are scaled: velocities and impulses by V = a_max delta_t_g.
+Formulation handed to the solver (the same problem, fewer variables). (27b)-(27c) are
+eliminated by a change of variables: the decision variables are the position deviations
+``d_j = r_j - r_j^free`` (j = 2..N+1) from the thrust-free CW response ``x_j^free = Phi^(j-1) x_k``.
+With ``Phi = [[P_rr, P_rv], [P_vr, P_vv]]`` (P_rv invertible for delta_t_g well below an orbit)
+each impulse is a fixed combination of three neighbouring deviations (d_1 = 0)::
+
+    dv_j = P_rv^-1 d_{j+1} - (P_rv^-1 P_rr + P_vv P_rv^-1) d_j + (P_vv P_rv^-1 P_rr - P_vr) d_{j-1}
+
+and the terminal velocity deviation is ``P_vv P_rv^-1 d_{N+1} + (P_vr - P_vv P_rv^-1 P_rr) d_N``.
+The map (dv_1..dv_N) <-> (d_2..d_{N+1}) is linear and invertible, so the feasible set and
+the optimum are those of eq. 27; every row stays sparse (banded in j) and x_k, x_T enter the
+right-hand side only (the cone and terminal rows). Against the stacked form (states and
+impulses as variables, 96 dynamics rows) the KKT system of Clarabel shrinks from 335 to
+143 rows without the cone (from 440 to 248 with cone and plume rows); ``bench_cortex_tracking``
+measures the solve times. Variables are scaled so that every cost coefficient is 1: impulses in
+units of V = a_max delta_t_g, deviations in V delta_t_g, eps_xf by eps_P / V, plume slacks by
+their weight.
+
+The problem is built once per (N_sub, cone, plume) structure; each call writes x_k, x_T into
+``b`` and (with plume rows) the row values into the fixed sparsity pattern of ``A``, handed to
+:meth:`proxops.solvers.ClarabelSOCP.update_fast` (no scipy.sparse construction per call).
 """
 
 from __future__ import annotations
@@ -36,7 +53,15 @@ import scipy.sparse as sp
 
 from proxops.core.cw import cw_stm
 from proxops.errors import input_error
-from proxops.solvers import ClarabelSOCP, SolveStatus
+from proxops.solvers import ClarabelSOCP, SolveStatus, soc_rows
+
+# Clarabel settings of CP_g (measured in benchmarks/bench_cortex_tracking.py): iterative refinement of
+# the KKT solves off (about 30 % less time per solve); a solve that then ends inaccurate, failed or at
+# the iteration limit is solved again with Clarabel's defaults (refinement on). Measured on the 1672 CP_g
+# calls of 32 runs (cortex-nominal, cortex-abort, 10 cortex-low-mc, 20 cortex-high-mc): 12 first attempts
+# ended inaccurate or failed, all 12 retries optimal.
+DEFAULT_SOLVER_SETTINGS = {"settings": {"iterative_refinement_enable": False},
+                           "retry_settings": {"iterative_refinement_enable": True}}
 
 
 def substeps(dt_g_s: float, substep_s: float) -> int:
@@ -52,6 +77,17 @@ def substeps(dt_g_s: float, substep_s: float) -> int:
     return n
 
 
+def impulse_maps(phi: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Blocks of the change of variables of the module doc for the STM ``phi`` of one substep:
+    ``(R, S, T, W1, W0)`` with dv_j = R d_{j+1} + S d_j + T d_{j-1} and the terminal velocity
+    deviation W1 d_{N+1} + W0 d_N (physical units: m -> m/s)."""
+    p_rr, p_rv, p_vr, p_vv = phi[:3, :3], phi[:3, 3:], phi[3:, :3], phi[3:, 3:]
+    R = np.linalg.inv(p_rv)
+    S = -(R @ p_rr + p_vv @ R)
+    T = p_vv @ R @ p_rr - p_vr
+    return R, S, T, p_vv @ R, p_vr - p_vv @ R @ p_rr
+
+
 class TrackingSOCP:
     """CP_g for a fixed number of impulses ``n_sub`` spaced ``substep_s`` apart (eq. 27).
 
@@ -64,104 +100,121 @@ class TrackingSOCP:
             raise input_error("guidance.terminal_penalty", terminal_penalty, "must be a finite number > 0")
         if not (math.isfinite(a_max_mps2) and a_max_mps2 > 0):
             raise input_error("servicer.a_max_mps2", a_max_mps2, "must be a finite number > 0", "m/s^2")
+        if not (math.isfinite(plume_weight) and plume_weight > 0):
+            raise input_error("guidance.plume_weight", plume_weight, "must be a finite number > 0")
         self.n_sub = N = int(n_sub)
         self.substep_s = float(substep_s)
         self.a_max = float(a_max_mps2)
         self.dv_max = self.a_max * self.substep_s
-        V = self.V = self.dv_max
-        D = self.D = np.array([1.0, 1.0, 1.0, V, V, V])
-        self.nx = 6 * (N + 1)
-        self.iv = self.nx
-        self.isv = self.nx + 3 * N
-        self.ie = self.isv + N
-        self.isig = self.ie + 1  # plume slacks (only with plume)
-        nz = self.ie + 1 + (N if plume else 0)
-        phi = self.phi = cw_stm(n_rad_s, self.substep_s)
-        Ad = phi / D[:, None] * D[None, :]
-        Bd = phi[:, 3:6] / D[:, None] * V
-        rows, cols, vals, b, cones = [], [], [], [], []
+        self.V = V = self.dv_max  # impulse unit (m/s)
+        self.L = L = V * self.substep_s  # deviation unit (m)
+        self.phi = phi = cw_stm(n_rad_s, self.substep_s)
+        if np.linalg.cond(phi[:3, 3:]) > 1e8:
+            raise input_error("guidance.substep_s", substep_s,
+                              "must be well below an orbital period (the CW position-velocity block is singular)", "s")
+        R, S, T, W1, W0 = impulse_maps(phi)
+        self._R, self._S, self._T = (M * (L / V) for M in (R, S, T))  # scaled: d' -> dv'
+        self.has_plume = bool(plume)
+        self.i_s = 3 * N  # s_j
+        self.i_e = self.i_s + N  # eps'
+        self.i_sig = self.i_e + 1  # plume slacks sigma'_j
+        nz = self.i_e + 1 + (N if plume else 0)
+        eps_scale = float(terminal_penalty) / V  # eps = eps' / eps_scale (cost 1)
+        sig_scale = float(plume_weight)  # sigma = sigma' / sig_scale (cost 1)
+        rows, cols, vals = [], [], []
 
         def put(r, c, v):
-            rows.append(np.atleast_1d(r)); cols.append(np.atleast_1d(c)); vals.append(np.atleast_1d(np.asarray(v, float)))  # noqa: E702
+            rows.append(np.ravel(r))
+            cols.append(np.ravel(c))
+            vals.append(np.ravel(np.asarray(v, float)))
 
-        # (27b) x_1 = x_k  (rows 0..5, b updated each call)
-        put(np.arange(6), np.arange(6), np.ones(6))
-        b.append(np.zeros(6))
-        r = 6
-        for j in range(N):  # (27c)
-            rr = r + np.arange(6)
-            put(rr, 6 * (j + 1) + np.arange(6), np.ones(6))
-            ii, jj = np.meshgrid(rr, 6 * j + np.arange(6), indexing="ij")
-            put(ii.ravel(), jj.ravel(), -Ad.ravel())
-            ii, jj = np.meshgrid(rr, self.iv + 3 * j + np.arange(3), indexing="ij")
-            put(ii.ravel(), jj.ravel(), -Bd.ravel())
-            b.append(np.zeros(6))
-            r += 6
-        cones.append(("zero", r))
-        # (27e) s_j <= a_max delta_t_g (scaled: 1)
-        put(r + np.arange(N), self.isv + np.arange(N), np.ones(N))
+        def dcol(j):  # columns of d'_j (j = 2..N+1)
+            return 3 * (j - 2) + np.arange(3)
+
+        def impulse_terms(j):
+            """dv'_j as (row 0..2, column, value): the nonzero entries of the blocks on d'_{j+1}, d'_j,
+            d'_{j-1} that exist (d'_1 = 0 is not a variable)."""
+            rows_, cols_, vals_ = [], [], []
+            for M, jj in ((self._R, j + 1), (self._S, j), (self._T, j - 1)):
+                if 2 <= jj <= N + 1:
+                    ii, cc = np.nonzero(M)
+                    rows_.append(ii); cols_.append(dcol(jj)[cc]); vals_.append(M[ii, cc])  # noqa: E702
+            return np.concatenate(rows_), np.concatenate(cols_), np.concatenate(vals_)
+
+        b = []
+        # nonneg cone: (27e) s_j <= 1 (a_max delta_t_g in units of V)
+        put(np.arange(N), self.i_s + np.arange(N), np.ones(N))
         b.append(np.ones(N))
-        r += N
-        n_nonneg = N
-        # optional soft plume half-spaces g_j . dv_j - sig_j <= 0, sig_j >= 0 (see set_plume)
+        r = N
         self.plume_row0 = r
-        self.has_plume = bool(plume)
-        if plume:
-            for j in range(N):
-                put(np.full(3, r + j), self.iv + 3 * j + np.arange(3), np.zeros(3))
-                put(r + j, self.isig + j, -1.0)
+        if plume:  # soft plume rows g_j . dv'_j - sigma'_j / sig_scale <= 0 (values set by set_plume), sigma' >= 0
+            plume_entries = {0: [], 1: [], 2: []}  # block R, S, T: (row, columns of d')
+            for j in range(1, N + 1):
+                for blk, jj in enumerate((j + 1, j, j - 1)):
+                    if 2 <= jj <= N + 1:
+                        plume_entries[blk].append((r + j - 1, dcol(jj)))
+                        put(np.full(3, r + j - 1), dcol(jj), np.zeros(3))
+            put(r + np.arange(N), self.i_sig + np.arange(N), np.full(N, -1.0 / sig_scale))
             b.append(np.zeros(N))
             r += N
-            put(r + np.arange(N), self.isig + np.arange(N), -np.ones(N))
+            put(r + np.arange(N), self.i_sig + np.arange(N), -np.ones(N))
             b.append(np.zeros(N))
             r += N
-            n_nonneg += 2 * N
-        cones.append(("nonneg", n_nonneg))
-        # (27d) ||dv_j|| <= s_j
-        for j in range(N):
-            put(r, self.isv + j, -1.0)
-            put(r + 1 + np.arange(3), self.iv + 3 * j + np.arange(3), -np.ones(3))
+        cones = [("nonneg", r)]
+        # (27d) ||dv'_j|| <= s_j: s = [s_j; dv'_j]
+        for j in range(1, N + 1):
+            ii, cc, vv = impulse_terms(j)
+            put(*soc_rows(r, self.i_s + j - 1, 1.0, 1 + ii, cc, vv))
             b.append(np.zeros(4))
             cones.append(("soc", 4))
             r += 4
-        # (27f) ||D (x_{N+1} - x_T)|| <= eps_xf: s = [e; D x_{N+1} - D x_T] -> A = -[1; D], b = [0; -D x_T]
+        # (27f) ||x_{N+1} - x_T|| <= eps: s = [eps' / eps_scale; x^free_{N+1} - x_T + (d_{N+1}; w_{N+1})]
         self.term_row = r
-        put(r, self.ie, -1.0)
-        put(r + 1 + np.arange(6), 6 * N + np.arange(6), -D)
+        tail = [(1 + np.arange(3), dcol(N + 1), np.full(3, L))]  # position: L d'_{N+1}
+        for M, jj in ((W1 * L, N + 1), (W0 * L, N)):  # velocity: w_{N+1}
+            if jj >= 2:
+                ii, cc = np.nonzero(M)
+                tail.append((4 + ii, dcol(jj)[cc], M[ii, cc]))
+        put(*soc_rows(r, self.i_e, 1.0 / eps_scale, *(np.concatenate(p) for p in zip(*tail))))
         b.append(np.zeros(7))
         cones.append(("soc", 7))
         r += 7
-        if cone is not None:  # (27g) at j = 2..N+1
-            c = cone.axis / math.cos(cone.half_angle_rad)
-            for j in range(1, N + 1):
-                put(np.full(3, r), 6 * j + np.arange(3), -c)
-                put(r + 1 + np.arange(3), 6 * j + np.arange(3), -np.ones(3))
+        # (27g) at j = 2..N+1: s = [c . r_j; r_j], r_j = r^free_j + L d'_j, c = e / cos(alpha_c)
+        self.cone_row0 = r
+        self.cone_c = None
+        if cone is not None:
+            self.cone_c = c = cone.axis / math.cos(cone.half_angle_rad)
+            nzc = np.flatnonzero(c)
+            for j in range(2, N + 2):
+                put(*soc_rows(r, dcol(j)[nzc], L * c[nzc], 1 + np.arange(3), dcol(j), np.full(3, L)))
                 b.append(np.zeros(4))
                 cones.append(("soc", 4))
                 r += 4
         self.m = r
-        A = sp.csc_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))), shape=(r, nz))
-        self.b = np.concatenate(b)
-        q = np.zeros(nz)
-        q[self.isv : self.isv + N] = 1.0
-        q[self.ie] = float(terminal_penalty) / V  # objective divided by V (Delta-v in units of V)
-        if plume:
-            q[self.isig :] = plume_weight
-        self.q = q
+        A = sp.coo_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))), shape=(r, nz)).tocsc()
+        A.sum_duplicates()
+        A.sort_indices()  # canonical CSC: A.data is in the order update_fast expects
         self.A = A
+        self.b = np.concatenate(b)
+        self.q = np.ones(nz)
+        self.q[: 3 * N] = 0.0
         self.cones = cones
-        self.solver_settings = solver_settings or {}
+        # thrust-free response: positions r^free_2..r^free_{N+1} (stacked) and x^free_{N+1}
+        powers = [np.eye(6)]
+        for _ in range(N):
+            powers.append(phi @ powers[-1])
+        self._free_r = np.vstack([powers[j - 1][:3] for j in range(2, N + 2)])
+        self._free_end = powers[N]
+        if plume:  # A.data index of the plume-row entries per block: R (rows 1..N), S (rows 2..N), T (rows 3..N)
+            def position(row, col):
+                lo, hi = A.indptr[col], A.indptr[col + 1]
+                return int(lo + np.flatnonzero(A.indices[lo:hi] == row)[0])
+
+            self._plume_idx = [np.array([[position(row, col) for col in cs] for row, cs in plume_entries[blk]],
+                                        dtype=np.intp).reshape(-1, 3) for blk in range(3)]
+        self.solver_settings = DEFAULT_SOLVER_SETTINGS if solver_settings is None else solver_settings
         self.solver = ClarabelSOCP(**self.solver_settings)
-        self.solver.setup(None, q, A, self.b, cones)
-        if plume:  # entry index of each plume-row coefficient in A.data (column order = dv_j x, y, z)
-            A.sort_indices()
-            self._plume_idx = np.empty((N, 3), dtype=int)
-            for j in range(N):
-                for c in range(3):
-                    col = self.iv + 3 * j + c
-                    lo, hi = A.indptr[col], A.indptr[col + 1]
-                    k = lo + int(np.flatnonzero(A.indices[lo:hi] == self.plume_row0 + j)[0])
-                    self._plume_idx[j, c] = k
+        self.solver.setup(None, self.q, A, self.b, cones)
         self._A_dirty = False
 
     def set_plume(self, g_rows) -> None:
@@ -170,15 +223,30 @@ class TrackingSOCP:
         dv-linearisation of eq. (21) about the reference (r_ref_j, dv_ref_j), a half-space inside the
         allowed thrust set at r = r_ref_j (:meth:`PlumeConstraint.linearization`)."""
         g = np.asarray(g_rows, float)
-        scale = np.maximum(np.abs(g).max(axis=1), 1e-300)
-        self.A.data[self._plume_idx.ravel()] = (g / scale[:, None]).ravel()
+        g = g / np.maximum(np.abs(g).max(axis=1), 1e-300)[:, None]
+        data = self.A.data
+        iR, iS, iT = self._plume_idx  # g_j . dv'_j = (g_j R') d'_{j+1} + (g_j S') d'_j + (g_j T') d'_{j-1}
+        data[iR] = g @ self._R
+        data[iS] = g[1:] @ self._S
+        data[iT] = g[2:] @ self._T
         self._A_dirty = True
 
     def _set_rhs(self, x_k, x_T) -> None:
         x_k = np.asarray(x_k, float)
-        x_T = np.asarray(x_T, float)
-        self.b[:6] = x_k / self.D
-        self.b[self.term_row + 1 : self.term_row + 7] = -x_T  # D (x_T / D) = x_T in the D-scaled norm
+        self.b[self.term_row + 1 : self.term_row + 7] = self._free_end @ x_k - np.asarray(x_T, float)
+        if self.cone_c is not None:
+            r_free = (self._free_r @ x_k).reshape(self.n_sub, 3)
+            rows = self.b[self.cone_row0 : self.cone_row0 + 4 * self.n_sub].reshape(self.n_sub, 4)
+            rows[:, 0] = r_free @ self.cone_c
+            rows[:, 1:] = r_free
+
+    def impulses(self, z) -> np.ndarray:
+        """Impulses (n_sub, 3) m/s from the solver's variables (the change of variables of the module doc)."""
+        d = z[: 3 * self.n_sub].reshape(self.n_sub, 3)  # d'_2..d'_{N+1}
+        dv = d @ self._R.T
+        dv[1:] += d[:-1] @ self._S.T
+        dv[2:] += d[:-2] @ self._T.T
+        return dv * self.V
 
     def solve(self, x_k, x_T, rebuild: bool = False):
         """Impulses (n_sub, 3) m/s from the state x_k towards x_T after n_sub substeps.
@@ -190,12 +258,12 @@ class TrackingSOCP:
             self.solver = ClarabelSOCP(**self.solver_settings)
             self.solver.setup(None, self.q, self.A, self.b, self.cones)
         else:
-            self.solver.update(b=self.b, A=self.A if self._A_dirty else None)
+            self.solver.update_fast(b=self.b, A_values=self.A.data if self._A_dirty else None)
         self._A_dirty = False
         res = self.solver.solve()
         if res.x is None or res.status not in (SolveStatus.OPTIMAL, SolveStatus.OPTIMAL_INACCURATE):
             return None, res
-        dv = res.x[self.iv : self.isv].reshape(self.n_sub, 3) * self.V
+        dv = self.impulses(res.x)
         # the bound (27e) holds to the solver tolerance; clip the tiny excess so the command is physical
         norm = np.linalg.norm(dv, axis=1)
         over = norm > self.dv_max
@@ -213,4 +281,3 @@ class TrackingSOCP:
             xj[3:] += dv[j]
             x[j + 1] = phi @ xj
         return x
-

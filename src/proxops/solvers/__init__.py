@@ -4,7 +4,8 @@ Canonical forms (:mod:`proxops.solvers.forms`): :class:`QuadraticProgram`,
 :class:`ConicProblem` (SOCP), :class:`LinearProgram` ((MI)LP) and
 :class:`~proxops.solvers.casadi_nlp.NonlinearProgram`. Every adapter has the same calls:
 ``setup(problem)`` once, ``update(**fields)`` in place (the form's field names),
-``warm_start(...)`` (a hint; returns whether the solver uses it) and ``solve()``:
+``warm_start(...)`` (a hint; returns whether the solver uses it) and ``solve()``; DaqpQP and
+ClarabelSOCP add ``update_fast`` (trusted per-step vectors / matrix values, nothing checked):
 
 - :class:`DaqpQP`       dense QP, active set, warm-started working set (condensed MPC)
 - :class:`PiqpQP`       sparse QP/LP, proximal interior point (fuel problems)
@@ -37,7 +38,8 @@ _HOME = {
     "HighsMILP": "highs_lp", "FeasibilityReport": "feasibility", "check_conic_feasibility": "feasibility",
     "check_feasibility": "feasibility", "max_violation": "feasibility", "ConicProblem": "forms",
     "LinearProgram": "forms", "QuadraticProgram": "forms", "build_conic_problem": "forms",
-    "conic_from_program": "forms", "conic_from_qp": "forms", "make_qp_solver": "front", "solve_qp": "front",
+    "conic_from_program": "forms", "conic_from_qp": "forms", "soc_rows": "forms", "make_qp_solver": "front",
+    "solve_qp": "front",
     "SolverResult": "result", "SolveStatus": "result", "ScpResult": "scp", "TrustRegion": "scp",
     "successive_convexification": "scp", "solve_time_stats": "stats",
 }
@@ -78,6 +80,7 @@ __all__ = [
     "make_qp_solver",
     "max_violation",
     "solve_qp",
+    "soc_rows",
     "solve_time_stats",
     "successive_convexification",
 ]

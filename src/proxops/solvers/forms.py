@@ -115,6 +115,18 @@ class ConicProblem:
     blocks: dict[str, slice] = field(default_factory=dict)
 
 
+def soc_rows(row0: int, head_cols, head_vals, tail_rows, tail_cols, tail_vals):
+    """COO entries ``(rows, cols, vals)`` of A for one second-order cone block of the conic form
+    ``A z + s = b``, ``s_0 >= ||(s_1, ..., s_k)||``, with ``s_0 = head . z + b_0`` and
+    ``s_i = tail_i . z + b_i``: A holds the negated coefficients. The head row is ``row0``; entry
+    ``e`` of the tail is in row ``row0 + tail_rows[e]`` (1..k), column ``tail_cols[e]``."""
+    head_cols = np.atleast_1d(head_cols)
+    rows = np.concatenate([np.full(head_cols.size, row0), row0 + np.atleast_1d(tail_rows)])
+    cols = np.concatenate([head_cols, np.atleast_1d(tail_cols)])
+    vals = -np.concatenate([np.atleast_1d(np.asarray(head_vals, float)), np.atleast_1d(np.asarray(tail_vals, float))])
+    return rows, cols, vals
+
+
 def build_conic_problem(q, P=None, *, eq=None, ineq=None, lb=None, ub=None, soc=()) -> ConicProblem:
     """Assemble a :class:`ConicProblem`.
 

@@ -53,7 +53,7 @@ import scipy.sparse as sp
 from proxops.constraints.approach_cone import ApproachCone, PlumeConstraint
 from proxops.constraints.keep_out import KeepOutSphere
 from proxops.core.cw import cw_discretize_impulsive, cw_stm
-from proxops.solvers import ClarabelSOCP, ConicProblem, SolveStatus, TrustRegion, successive_convexification
+from proxops.solvers import ClarabelSOCP, ConicProblem, SolveStatus, TrustRegion, soc_rows, successive_convexification
 
 SLACK_WEIGHT = 1e3  # cost of the plume-row slacks (scaled units; the plan's cost is ~1-10)
 DV_ZERO_MPS = 1e-6  # impulses below this are "no thrust" for the plume linearisation and checks
@@ -197,8 +197,7 @@ class _PhaseSOCP:
         cones.append(("nonneg", n_nonneg))
         # --- ||dv_k|| <= s_k (17d)
         for k in range(M):
-            put(r, self.isv + k, -1.0)
-            put(r + 1 + np.arange(3), self.iv + 3 * k + np.arange(3), -np.ones(3))
+            put(*soc_rows(r, self.isv + k, 1.0, 1 + np.arange(3), self.iv + 3 * k + np.arange(3), np.ones(3)))
             b.append(np.zeros(4))
             cones.append(("soc", 4))
             r += 4
@@ -206,8 +205,7 @@ class _PhaseSOCP:
         if cone is not None:
             c = cone.axis / math.cos(cone.half_angle_rad)
             for k in range(1, N):
-                put(np.full(3, r), 6 * k + np.arange(3), -c)
-                put(r + 1 + np.arange(3), 6 * k + np.arange(3), -np.ones(3))
+                put(*soc_rows(r, 6 * k + np.arange(3), c, 1 + np.arange(3), 6 * k + np.arange(3), np.ones(3)))
                 b.append(np.zeros(4))
                 cones.append(("soc", 4))
                 r += 4
