@@ -87,3 +87,22 @@ def test_box_change_reaches_the_support_lps():
     assert status is SolveStatus.OPTIMAL
     np.testing.assert_allclose(p, [0.25, 0.5], atol=1e-9)
     assert sec.n_highs == 0
+
+
+@pytest.mark.parametrize("extra", [0, 1])
+def test_support_lps_beyond_the_daqp_size_go_to_highs(extra):
+    """A random section with SUPPORT_DAQP_MAX_VARIABLES (+1) variables: DAQP up to the limit, HiGHS
+    beyond it; support values equal cold HiGHS either way."""
+    rng = np.random.default_rng(7)
+    n = ConvexSection.SUPPORT_DAQP_MAX_VARIABLES + extra
+    A = rng.normal(size=(30, n))
+    x0 = rng.uniform(-0.5, 0.5, n)
+    b = A @ x0 + rng.uniform(0.1, 1.0, 30)  # x0 strictly inside
+    sec = ConvexSection(A, b, -np.ones(n), np.ones(n))
+    assert (sec.support_lp is None) is bool(extra)
+    dirs = [np.array([math.cos(t), math.sin(t)]) for t in np.linspace(0.0, 2 * np.pi, 6, endpoint=False)]
+    for d in dirs:
+        status, p = sec.support_point(d)
+        assert status is SolveStatus.OPTIMAL
+        assert d @ p == pytest.approx(_cold_support(sec, d), abs=1e-8)
+    assert sec.n_highs == (len(dirs) if extra else 0)

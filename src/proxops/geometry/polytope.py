@@ -52,19 +52,25 @@ class ConvexSection:
     ``polygon`` computes support points in many directions; ``contains`` classifies query points
     exactly (inner hull / outer half-planes / one feasibility LP per point in between).
 
-    Support LPs differ only in their cost. They run on :class:`proxops.solvers.DaqpQP` in its LP
-    mode (H = 0, proximal-point iterations with ``eps_prox`` > 0), warm-started from the previous
-    direction's working set: ~0.02 ms per LP against HiGHS's ~0.15-0.3 ms fixed cost per ``run()``
-    even hot-started (benchmarks/bench_closed_loop.py, issue 18). A direction DAQP does not settle
-    as optimal (infeasible included) is re-solved by HiGHS (``n_highs`` counts those; ``n_lp``
-    counts every support and feasibility LP). Point feasibility LPs (bounds change per point) run
-    on the hot-started HiGHS model."""
+    Support LPs differ only in their cost. Small ones (at most ``SUPPORT_DAQP_MAX_VARIABLES``
+    variables) run on :class:`proxops.solvers.DaqpQP` in its LP mode (H = 0, proximal-point
+    iterations with ``eps_prox`` > 0), warm-started from the previous direction's working set:
+    ~0.02 ms per LP against HiGHS's ~0.15-0.3 ms fixed cost per ``run()`` even hot-started
+    (benchmarks/bench_closed_loop.py, issue 18). Larger ones, and any direction DAQP does not
+    settle as optimal (infeasible included), are solved by the hot-started HiGHS model
+    (``n_highs`` counts those; ``n_lp`` counts every support and feasibility LP). Point
+    feasibility LPs (bounds change per point) run on HiGHS too."""
 
     # small LPs re-solved from the last basis: presolve only adds overhead (0.07 ms per solve)
     HOT_SETTINGS = {"presolve": "off", "solver": "simplex"}
-    # DAQP's proximal weight for LPs (H = 0): any value > 0 converges to an LP optimum; the
-    # support values of the 20 reach sections agree with HiGHS to 1e-10 for 1e-4..1
+    # DAQP's proximal weight for LPs (H = 0): any value > 0 converges to an LP optimum; on the reach
+    # section (1 deg/s, 0.1 m/s^2; 48 directions) the support values agree with HiGHS to 1e-10 for
+    # 1e-4..1 (3.7-4.8 DAQP iterations per LP)
     SUPPORT_EPS_PROX = 1e-2
+    # dense active set: a 20-step reach section (42 variables, 63 rows) takes ~4 iterations per
+    # direction, but a 400-step one (802 x 802) up to 3 300 iterations and 4.6 s per direction
+    # (HiGHS: < 1 s), so larger LPs stay on HiGHS
+    SUPPORT_DAQP_MAX_VARIABLES = 200
 
     def __init__(self, A: np.ndarray, b: np.ndarray, lb: np.ndarray, ub: np.ndarray):
         self.A = np.asarray(A, float)
@@ -78,28 +84,31 @@ class ConvexSection:
         self.n_lp = 0
         self.n_retry = 0  # cold re-solves after numerical trouble
         self.n_highs = 0  # support LPs DAQP left to HiGHS (counted in n_lp)
-        self.support_lp = DaqpQP(settings={"eps_prox": self.SUPPORT_EPS_PROX})
-        self.support_lp.setup_native(np.zeros((self.n_var, self.n_var)), np.zeros(self.n_var), self.A,
-                                     np.full(len(self.b), -np.inf), self.b, self.lb, self.ub)
+        self.support_lp: DaqpQP | None = None
+        if self.n_var <= self.SUPPORT_DAQP_MAX_VARIABLES:
+            self.support_lp = DaqpQP(settings={"eps_prox": self.SUPPORT_EPS_PROX})
+            self.support_lp.setup_native(np.zeros((self.n_var, self.n_var)), np.zeros(self.n_var), self.A,
+                                         np.full(len(self.b), -np.inf), self.b, self.lb, self.ub)
         self._poly: SectionPolygon | None = None
 
     def set_box(self, lo: np.ndarray, hi: np.ndarray) -> None:
         """Change the bounds of p (the first 2 variables)."""
         self.lb[:2], self.ub[:2] = lo, hi
         self._set(lb=self.lb.copy(), ub=self.ub.copy())
-        self.support_lp.update(lb=self.lb, ub=self.ub)
+        if self.support_lp is not None:
+            self.support_lp.update(lb=self.lb, ub=self.ub)
         self._poly = None
 
     def support_point(self, direction: np.ndarray) -> tuple[SolveStatus, np.ndarray | None]:
         """(status, argmax d.p over P); the point is None unless the status is OPTIMAL."""
         c = np.zeros(self.n_var)
         c[:2] = -np.asarray(direction, float)
-        self.n_lp += 1
-        self.support_lp.update_fast(f=c)  # a fresh array: DAQP keeps a pointer to f
-        res = self.support_lp.solve()
-        if res.status is SolveStatus.OPTIMAL:
-            return res.status, res.x[:2].copy()
-        self.n_lp -= 1  # counted again by _solve
+        if self.support_lp is not None:
+            self.support_lp.update_fast(f=c)  # a fresh array: DAQP keeps a pointer to f
+            res = self.support_lp.solve()
+            if res.status is SolveStatus.OPTIMAL:
+                self.n_lp += 1
+                return res.status, res.x[:2].copy()
         self.n_highs += 1
         self._set(c=c)
         res = self._solve()
