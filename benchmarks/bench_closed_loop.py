@@ -37,7 +37,10 @@ imports and numba caches are loaded; best of ``--repeats``):
   (load 2.6-3.0; 16 directions: 1.04-1.27 s, the coarser polygon leaves more grid points to
   per-point LPs); a fresh HiGHS model per LP 2.6-2.9 s. One support LP: DAQP 0.02 ms, HiGHS hot
   0.15-0.32 ms (its fixed cost per ``run()``: 0.16 ms with nothing changed; no option tried
-  lowered it).
+  lowered it). Large sections stay on HiGHS (``ConvexSection.SUPPORT_DAQP_MAX_VARIABLES``): for
+  ``viable_points`` (400 steps, 802 variables x 802 rows, 30 random starts) DAQP took up to 4.6 s
+  per direction; HiGHS alone 1.4 s / 4.5 s (1 deg/s, 0.1 m/s^2 / 3 deg/s, 0.05 m/s^2) against the
+  warm simplex's 4.8 s / 10.9 s (load 4.0-4.4).
 * ``reach mc`` (``--reach-mc``): the 3 900-run §9 campaign on 2 workers, its wall time and the sum
   of the runs' CPU times (halved: what two free cores would need for the runs);
 * CLI: ``python -m proxops.entry --version`` and ``... run station-keeping --json`` wall time
