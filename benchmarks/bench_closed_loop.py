@@ -31,8 +31,9 @@ imports and numba caches are loaded; best of ``--repeats``):
   Its support LPs (``ConvexSection.polygon``, 1 234 per certification) run on DAQP's LP mode; the
   row also prints one support LP's cost per solver. Measured for issue 18 (2-core machine, best of
   3, the 20-combination masks and percentages identical to cold HiGHS in every variant):
-  hand-written warm simplex (removed) 0.38-0.45 s, DAQP LP mode 0.23-0.37 s (same runs alternated,
-  load 4.0-4.6); HiGHS alone, hot-started, presolve off: dual simplex 0.55-0.59 s, primal simplex
+  hand-written warm simplex (removed) 0.29-0.55 s, DAQP LP mode 0.23-0.51 s (7 pairs of fresh
+  processes alternated, load 3.9-4.6; DAQP faster in 6 of 7; time in ``polygon`` 0.13-0.19 s
+  against 0.06-0.13 s); HiGHS alone, hot-started, presolve off: dual simplex 0.55-0.59 s, primal simplex
   (``simplex_strategy`` 4) 0.52-0.55 s, primal with 24 instead of 48 first directions 0.47-0.49 s
   (load 2.6-3.0; 16 directions: 1.04-1.27 s, the coarser polygon leaves more grid points to
   per-point LPs); a fresh HiGHS model per LP 2.6-2.9 s. One support LP: DAQP 0.02 ms, HiGHS hot
