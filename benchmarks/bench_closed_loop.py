@@ -28,6 +28,20 @@ imports and numba caches are loaded; best of ``--repeats``):
   (``reach_table(backward=False)``, the ``total`` of its Table 4 timings, 300 x 300 grid), and as
   ``proxops reproduce`` runs it (``reach_table(n_points=300)``, backward LP kernel included: the
   wall time of the "All analytical sets for the 20 combinations" row, goal < 0.5 s);
+  Its support LPs (``ConvexSection.polygon``, 1 234 per certification) run on DAQP's LP mode; the
+  row also prints one support LP's cost per solver. Measured for issue 18 (2-core machine, best of
+  3, the 20-combination masks and percentages identical to cold HiGHS in every variant):
+  hand-written warm simplex (removed) 0.29-0.55 s, DAQP LP mode 0.23-0.51 s (7 pairs of fresh
+  processes alternated, load 3.9-4.6; DAQP faster in 6 of 7; time in ``polygon`` 0.13-0.19 s
+  against 0.06-0.13 s); HiGHS alone, hot-started, presolve off: dual simplex 0.55-0.59 s, primal simplex
+  (``simplex_strategy`` 4) 0.52-0.55 s, primal with 24 instead of 48 first directions 0.47-0.49 s
+  (load 2.6-3.0; 16 directions: 1.04-1.27 s, the coarser polygon leaves more grid points to
+  per-point LPs); a fresh HiGHS model per LP 2.6-2.9 s. One support LP: DAQP 0.02 ms, HiGHS hot
+  0.15-0.32 ms (its fixed cost per ``run()``: 0.16 ms with nothing changed; no option tried
+  lowered it). Large sections stay on HiGHS (``ConvexSection.SUPPORT_DAQP_MAX_VARIABLES``): for
+  ``viable_points`` (400 steps, 802 variables x 802 rows, 30 random starts) DAQP took up to 4.6 s
+  per direction; HiGHS alone 1.4 s / 4.5 s (1 deg/s, 0.1 m/s^2 / 3 deg/s, 0.05 m/s^2) against the
+  warm simplex's 4.8 s / 10.9 s (load 4.0-4.4).
 * ``reach mc`` (``--reach-mc``): the 3 900-run §9 campaign on 2 workers, its wall time and the sum
   of the runs' CPU times (halved: what two free cores would need for the runs);
 * CLI: ``python -m proxops.entry --version``, ``... run station-keeping --json`` and ``... run srf-vbar
@@ -142,7 +156,56 @@ def _measure_reach_table(repeats: int) -> dict:
         t0 = time.perf_counter()
         R.reach_table(n_points=300)
         walls.append(time.perf_counter() - t0)
-    return {"total_s": best, "reproduce_s": min(walls)}
+    return {"total_s": best, "reproduce_s": min(walls), "support_lp": _measure_support_lps(repeats)}
+
+
+def _measure_support_lps(repeats: int) -> dict:
+    """One support LP of the backward section (1 deg/s, 0.1 m/s^2, 300-point grid box; 63 rows, 42
+    variables), re-solved for 48 directions with only the cost changed: ms per LP for DAQP's LP mode
+    (what ConvexSection uses) and for HiGHS hot-started with presolve off (dual simplex, HiGHS's
+    default, and primal simplex, ``simplex_strategy`` 4), and the largest support-value difference
+    DAQP - HiGHS (m)."""
+    import math
+
+    import numpy as np
+
+    from proxops.analysis import reach as R
+    from proxops.geometry.polytope import ConvexSection
+    from proxops.solvers import DaqpQP, HighsLP
+
+    corridor = R.LosCorridor()
+    grid = R.body_grid(corridor, 300, R.DEFAULT_GRID_Y_MAX_M)
+    sec = R.backward_section(corridor, np.radians(1.0), 0.1, ((grid.x_m[0], grid.y_m[0]), (grid.x_m[-1], grid.y_m[-1])))
+    A, b, lb, ub = sec.A, sec.b, sec.lb, sec.ub
+    m, n = A.shape
+    costs = []
+    for ang in np.linspace(0.0, 2 * np.pi, 48, endpoint=False):
+        c = np.zeros(n)
+        c[:2] = -math.cos(ang), -math.sin(ang)
+        costs.append(c)
+    hot = {"presolve": "off", "solver": "simplex"}
+    solvers = {"daqp": lambda: DaqpQP(settings={"eps_prox": getattr(ConvexSection, "SUPPORT_EPS_PROX", 1e-2)}),
+               "highs_dual": lambda: HighsLP(settings=hot),
+               "highs_primal": lambda: HighsLP(settings={**hot, "simplex_strategy": 4})}
+    out, support = {}, {}
+    for name, make in solvers.items():
+        s = make()
+        if name == "daqp":
+            s.setup_native(np.zeros((n, n)), np.zeros(n), A, np.full(m, -np.inf), b, lb, ub)
+        else:
+            s.setup(np.zeros(n), A, None, b, lb, ub)
+        best = math.inf
+        for _ in range(max(repeats, 3)):
+            vals = []
+            t0 = time.perf_counter()
+            for c in costs:
+                s.update(q=c) if name == "daqp" else s.update(c=c)
+                vals.append(-s.solve().objective)
+            best = min(best, time.perf_counter() - t0)
+        out[f"{name}_ms"] = best / len(costs) * 1e3
+        support[name] = np.array(vals)
+    out["max_support_diff_m"] = float(max(np.abs(support["daqp"] - support[k]).max() for k in ("highs_dual", "highs_primal")))
+    return out
 
 
 def _measure_reach_mc() -> dict:
@@ -329,6 +392,11 @@ def report(new: dict, old: dict, old_label: str) -> None:
         if n is not None:
             print(f"reach table as in proxops reproduce (backward LP included): {n:.3f} s "
                   f"(base {o or float('nan'):.3f} s) {_ratio(o, n)}  goal < 0.5 s")
+        lp = new["reach_table"].get("support_lp")
+        if lp:
+            print(f"  one support LP (63 x 42, cost change only): DAQP LP mode {lp['daqp_ms']:.3f} ms, HiGHS hot "
+                  f"dual {lp['highs_dual_ms']:.3f} ms, primal {lp['highs_primal_ms']:.3f} ms; "
+                  f"max support difference {lp['max_support_diff_m']:.1e} m")
     if "reach_mc" in new:
         n, o = new["reach_mc"], old.get("reach_mc", {})
         print(f"reach mc ({n['runs']} runs, 2 workers): {n['wall_s']:.1f} s (base {o.get('wall_s', float('nan')):.1f} s)"

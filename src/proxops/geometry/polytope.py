@@ -2,7 +2,8 @@
 
 :class:`ConvexSection` is the projection P = {p in R^2 : exists u, A [p; u] <= b, lb <= [p; u] <= ub}
 onto its first two variables: inner (support points) and outer (supporting half-planes) polygons
-from hot-started HiGHS LPs, and exact point membership. Units are the caller's.
+from warm-started support LPs (DAQP, HiGHS as fallback), and exact point membership (HiGHS).
+Units are the caller's.
 """
 
 from __future__ import annotations
@@ -14,8 +15,7 @@ import numpy as np
 from scipy.spatial import ConvexHull, QhullError
 
 from proxops.errors import ProxopsError
-from proxops.solvers import HighsLP, SolveStatus
-from proxops.solvers.warm_simplex import WarmPrimalSimplex
+from proxops.solvers import DaqpQP, HighsLP, SolveStatus
 
 
 @dataclass
@@ -49,17 +49,28 @@ class SectionPolygon:
 class ConvexSection:
     """The convex set P = {p in R^2 : exists u, A [p; u] <= b, lb <= [p; u] <= ub} (p = first 2 variables).
 
-    ``polygon`` computes support points in many directions (hot-started HiGHS LPs);
-    ``contains`` classifies query points exactly (inner hull / outer half-planes /
-    one feasibility LP per point in between).
+    ``polygon`` computes support points in many directions; ``contains`` classifies query points
+    exactly (inner hull / outer half-planes / one feasibility LP per point in between).
 
-    Support LPs differ only in their cost: after the first HiGHS solve (and whenever the bounds
-    change) the following ones run on :class:`proxops.solvers.warm_simplex.WarmPrimalSimplex`
-    from HiGHS's optimal basis (a pivot or two each, no per-run overhead); a direction it cannot
-    settle is re-solved by HiGHS, which then restarts it (``n_warm`` counts the warm solves)."""
+    Support LPs differ only in their cost. Small ones (at most ``SUPPORT_DAQP_MAX_VARIABLES``
+    variables) run on :class:`proxops.solvers.DaqpQP` in its LP mode (H = 0, proximal-point
+    iterations with ``eps_prox`` > 0), warm-started from the previous direction's working set:
+    ~0.02 ms per LP against HiGHS's ~0.15-0.3 ms fixed cost per ``run()`` even hot-started
+    (benchmarks/bench_closed_loop.py, issue 18). Larger ones, and any direction DAQP does not
+    settle as optimal (infeasible included), are solved by the hot-started HiGHS model
+    (``n_highs`` counts those; ``n_lp`` counts every support and feasibility LP). Point
+    feasibility LPs (bounds change per point) run on HiGHS too."""
 
     # small LPs re-solved from the last basis: presolve only adds overhead (0.07 ms per solve)
     HOT_SETTINGS = {"presolve": "off", "solver": "simplex"}
+    # DAQP's proximal weight for LPs (H = 0): any value > 0 converges to an LP optimum; on the reach
+    # section (1 deg/s, 0.1 m/s^2; 48 directions) the support values agree with HiGHS to 1e-10 for
+    # 1e-4..1 (3.7-4.8 DAQP iterations per LP)
+    SUPPORT_EPS_PROX = 1e-2
+    # dense active set: a 20-step reach section (42 variables, 63 rows) takes ~4 iterations per
+    # direction, but a 400-step one (802 x 802) up to 3 300 iterations and 4.6 s per direction
+    # (HiGHS: < 1 s), so larger LPs stay on HiGHS
+    SUPPORT_DAQP_MAX_VARIABLES = 200
 
     def __init__(self, A: np.ndarray, b: np.ndarray, lb: np.ndarray, ub: np.ndarray):
         self.A = np.asarray(A, float)
@@ -72,55 +83,46 @@ class ConvexSection:
         self.lp.setup(self._current[0], self.A, None, self.b, self.lb, self.ub)
         self.n_lp = 0
         self.n_retry = 0  # cold re-solves after numerical trouble
-        self.n_warm = 0  # support LPs solved by the warm simplex (counted in n_lp)
-        self._warm: WarmPrimalSimplex | None = None
+        self.n_highs = 0  # support LPs DAQP left to HiGHS (counted in n_lp)
+        self.support_lp: DaqpQP | None = None
+        if self.n_var <= self.SUPPORT_DAQP_MAX_VARIABLES:
+            self.support_lp = DaqpQP(settings={"eps_prox": self.SUPPORT_EPS_PROX})
+            self.support_lp.setup_native(np.zeros((self.n_var, self.n_var)), np.zeros(self.n_var), self.A,
+                                         np.full(len(self.b), -np.inf), self.b, self.lb, self.ub)
         self._poly: SectionPolygon | None = None
 
     def set_box(self, lo: np.ndarray, hi: np.ndarray) -> None:
         """Change the bounds of p (the first 2 variables)."""
         self.lb[:2], self.ub[:2] = lo, hi
         self._set(lb=self.lb.copy(), ub=self.ub.copy())
+        if self.support_lp is not None:
+            self.support_lp.update(lb=self.lb, ub=self.ub)
         self._poly = None
 
     def support_point(self, direction: np.ndarray) -> tuple[SolveStatus, np.ndarray | None]:
         """(status, argmax d.p over P); the point is None unless the status is OPTIMAL."""
         c = np.zeros(self.n_var)
         c[:2] = -np.asarray(direction, float)
-        if self._warm is not None:
-            status, x = self._warm.solve(c)
-            if status is SolveStatus.OPTIMAL:
+        if self.support_lp is not None:
+            self.support_lp.update_fast(f=c)  # a fresh array: DAQP keeps a pointer to f
+            res = self.support_lp.solve()
+            if res.status is SolveStatus.OPTIMAL:
                 self.n_lp += 1
-                self.n_warm += 1
-                return status, x[:2].copy()
-            self._warm = None  # HiGHS settles this direction and restarts the warm simplex
+                return res.status, res.x[:2].copy()
+        self.n_highs += 1
         self._set(c=c)
         res = self._solve()
         if res.status is not SolveStatus.OPTIMAL:
             return res.status, None
-        if self._hot:
-            self._start_warm(res.x)
         return res.status, res.x[:2].copy()
-
-    def _start_warm(self, x: np.ndarray) -> None:
-        """Warm simplex from HiGHS's optimal basis of the last solve (none if it is unusable)."""
-        status = self.lp.basis_status()
-        if status is None:
-            return
-        try:
-            self._warm = WarmPrimalSimplex(self.A, np.full(len(self.b), -np.inf), self.b, self.lb, self.ub,
-                                           status[0], status[1], x)
-        except (ValueError, np.linalg.LinAlgError):
-            self._warm = None
 
     def _solve(self):
         """Solve the current LP; on numerical trouble (neither optimal nor infeasible) rebuild the
         solver cold, with presolve, and solve again (HiGHS hot starts can stall on long horizons)."""
         res = self.lp.solve()
         self.n_lp += 1
-        self._hot = True  # the result (and the basis) is self.lp's
         if res.status in (SolveStatus.OPTIMAL, SolveStatus.INFEASIBLE):
             return res
-        self._hot = False
         c, lb, ub = self._current
         fresh = HighsLP()
         fresh.setup(c, self.A, None, self.b, lb, ub)
@@ -135,8 +137,6 @@ class ConvexSection:
         """Change the LP's cost and/or variable bounds (kept for cold re-solves)."""
         c0, lb0, ub0 = self._current
         self._current = (c0 if c is None else c, lb0 if lb is None else lb, ub0 if ub is None else ub)
-        if lb is not None or ub is not None:
-            self._warm = None  # its basis belongs to the old bounds
         self.lp.update(c=c, lb=lb, ub=ub)
 
     def polygon(self, n_directions: int = 48, refine_tol: float = 0.05, max_rounds: int = 6) -> SectionPolygon:

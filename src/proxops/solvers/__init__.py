@@ -7,13 +7,12 @@ Canonical forms (:mod:`proxops.solvers.forms`): :class:`QuadraticProgram`,
 ``warm_start(...)`` (a hint; returns whether the solver uses it) and ``solve()``; DaqpQP and
 ClarabelSOCP add ``update_fast`` (trusted per-step vectors / matrix values, nothing checked):
 
-- :class:`DaqpQP`       dense QP, active set, warm-started working set (condensed MPC)
+- :class:`DaqpQP`       dense QP, active set, warm-started working set (condensed MPC); small
+  dense LPs in its proximal-point mode (support functions of 2-D sections)
 - :class:`PiqpQP`       sparse QP/LP, proximal interior point (fuel problems)
 - :class:`ClarabelSOCP` conic QP / SOCP, interior point (cones, robust fallback)
 - :class:`HighsLP`      pure LP, dual simplex hot-started from the last basis
 - :class:`HighsMILP`    mixed-integer LP, HiGHS branch and cut
-- :class:`~proxops.solvers.warm_simplex.WarmPrimalSimplex` not an adapter: re-solves a small
-  dense LP whose cost changes, from an optimal HiGHS basis (support functions of 2-D sections)
 - :class:`~proxops.solvers.casadi_nlp.CasadiNLP` NLP by IPOPT or fatrop (CasADi)
 
 :func:`make_qp_solver` picks a QP adapter by name, so a controller is not welded to one

@@ -13,7 +13,11 @@ data (no input checks; see its docstring), for MPC loops where checking costs mo
 DAQP's own update. This is the solver for condensed linear MPC (issue #2 item 7:
 0.09 ms per step at N = 40). H must be positive definite or semidefinite; DAQP's
 default automatic proximal regularisation (``eps_prox < 0``) handles singular H, so
-LPs (H = 0) also solve, but prefer HiGHS or PIQP for real LPs.
+LPs (H = 0) also solve: with ``settings={"eps_prox": e}``, e > 0, DAQP runs proximal-point
+iterations to an LP optimum, and a sequence of small LPs differing only in f re-solves from the
+last working set in a few iterations (the support LPs of geometry/polytope.ConvexSection: ~0.02 ms
+each against HiGHS's ~0.15-0.3 ms per hot-started ``run()``). For large or sparse LPs prefer
+HiGHS or PIQP.
 """
 
 from __future__ import annotations
