@@ -78,6 +78,7 @@ from numba import njit
 
 from proxops.constraints.los_corridor import LosCorridor
 from proxops.dynamics.tumbling_target import BodyFrameModel, body_from_hill_matrix, hill_from_body_matrix, rotate_z
+from proxops.core.memo import memo_get
 from proxops.errors import input_error
 from proxops.solvers.daqp_qp import DaqpQP
 from proxops.status import Status
@@ -85,7 +86,6 @@ from proxops.status import Status
 PAPER_Q = (15.0, 30.0, 15.0, 1.0, 1.0, 1.0)
 _PREDICTION_CACHE: dict = {}  # (n, w_rel, dt, N) -> prediction blocks (Monte Carlo reuses them)
 _WEIGHTS_CACHE: dict = {}  # (prediction key, weights) -> (W S, H, H^-1)
-_CACHE_SIZE = 64
 DAQP_INF = 1e30  # DAQP's "no bound" (proxops.solvers.daqp_qp.DAQP_INF)
 
 
@@ -205,7 +205,7 @@ class LosMpc:
         self._offsets = model.w_rel * model.dt * np.arange(N + 1)  # theta_j - theta_k
         self._ref_shape = (N, 6)
         key = (model.n, model.w_rel, model.dt, N)
-        cached = _cache_get(_PREDICTION_CACHE, key, lambda: self._prediction_blocks(model, N))
+        cached = memo_get(_PREDICTION_CACHE, key, lambda: self._prediction_blocks(model, N))
         self._Phi_pow, self._Su_L, self._S = cached
         self._Phi_pow_flat = self._Phi_pow.reshape(6 * N, 6)
         self._Su_L_flat = self._Su_L.reshape(6 * N, nu)
@@ -214,14 +214,14 @@ class LosMpc:
         self._r_u = np.tile(np.asarray(self.cfg.R_u, float), N)
         self._r_d = np.tile(np.asarray(self.cfg.R_du, float), N)
         weights = (tuple(self.cfg.Q), float(self.cfg.terminal_factor), tuple(self.cfg.R_u), tuple(self.cfg.R_du))
-        self._WS, H, self._H_inv = _cache_get(_WEIGHTS_CACHE, (key, weights), self._weighted_blocks)
+        self._WS, H, self._H_inv = memo_get(_WEIGHTS_CACHE, (key, weights), self._weighted_blocks)
         self._r_d0 = np.asarray(self.cfg.R_du, float)
         G, self._h = corridor.G, corridor.h
         self._G_T = np.ascontiguousarray(G.T)
         self._G = np.ascontiguousarray(G, dtype=float)
         self._n_rows = G.shape[0]
         # per-geometry arrays, shared by every run of a campaign (read only)
-        self._S_posT, A, self._HS, self._PB = _cache_get(
+        self._S_posT, A, self._HS, self._PB = memo_get(
             _WEIGHTS_CACHE, (key, weights, self._G.tobytes(), np.asarray(self._h, float).tobytes()),
             lambda: self._geometry_blocks(model))
         lb = np.full(self.n_var, -self.a_max)
@@ -439,17 +439,6 @@ class LosMpc:
 
 
 _ZERO3 = np.zeros(3)
-
-
-def _cache_get(cache: dict, key, make):
-    """cache[key], computed by ``make()`` on a miss (bounded: cleared beyond _CACHE_SIZE entries)."""
-    value = cache.get(key)
-    if value is None:
-        value = make()
-        if len(cache) >= _CACHE_SIZE:
-            cache.clear()
-        cache[key] = value
-    return value
 
 
 @njit(cache=True)

@@ -115,6 +115,7 @@ import scipy.sparse as sp
 
 from proxops.constraints.keep_out import KeepOutSphere
 from proxops.core.cw import cw_stm
+from proxops.core.memo import memo_get
 from proxops.errors import input_error
 from proxops.sim.protocols import Command
 from proxops.solvers import QuadraticProgram, SolveStatus, make_qp_solver, solve_qp, successive_convexification
@@ -229,15 +230,7 @@ _BLOCK_CACHE: dict = {}
 
 
 def _cached_blocks(key, build):
-    got = _BLOCK_CACHE.get(key)
-    if got is None:
-        got = build()
-        for a in got:
-            a.flags.writeable = False
-        if len(_BLOCK_CACHE) > 64:
-            _BLOCK_CACHE.clear()
-        _BLOCK_CACHE[key] = got
-    return got
+    return memo_get(_BLOCK_CACHE, key, build, read_only=True)
 
 
 def _prediction_blocks(n_orb: float, times: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -21,6 +21,7 @@ import numpy as np
 
 from proxops.core.constants import J2_EARTH, MU_EARTH, R_EARTH
 from proxops.core.cw import cw_discretize_zoh, cw_stm
+from proxops.core.memo import memo_get
 from proxops.errors import ProxopsError, input_error
 from proxops.frames.elements import OrbitalElements, check_perigee_above_surface, eci_to_elements, elements_to_eci
 from proxops.propagation import kernels
@@ -218,13 +219,7 @@ class CWPlant(PlantBase):
         return np.array(state, dtype=float)
 
     def _matrices(self, dt: float) -> tuple[np.ndarray, np.ndarray]:
-        mats = self._cache.get(dt)
-        if mats is None:
-            if len(self._cache) > 64:
-                self._cache.clear()
-            mats = cw_discretize_zoh(self.mean_motion, dt)
-            self._cache[dt] = mats
-        return mats
+        return memo_get(self._cache, dt, lambda: cw_discretize_zoh(self.mean_motion, dt))
 
     def propagate(self, t: float, state: np.ndarray, u: np.ndarray | None, dt: float) -> np.ndarray:
         dt = _check_dt(dt)

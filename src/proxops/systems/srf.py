@@ -46,6 +46,7 @@ from pydantic import Field, model_validator
 
 from proxops.constraints.passive_safety import drift_safety, first_entry_time, hermite_min_range
 from proxops.core.cw import cw_stm, mean_motion
+from proxops.core.memo import memo_get
 from proxops.errors import ProxopsInputError, input_error
 from proxops.scenarios.registry import register_system
 from proxops.systems.base import SystemBase
@@ -212,17 +213,6 @@ def keep_out_hill(sc: SrfScenario):
 # onboard target ephemeris. Keyed on every input they depend on; a dispersed input only misses.
 _PLAN_CACHE: dict = {}
 _EPHEMERIS_CACHE: dict = {}
-_CACHE_MAX = 64
-
-
-def _remember(cache: dict, key, make):
-    got = cache.get(key)
-    if got is None:
-        got = make()
-        if len(cache) >= _CACHE_MAX:
-            cache.clear()
-        cache[key] = got
-    return got
 
 
 def plan_of(sc: SrfScenario):
@@ -235,7 +225,7 @@ def plan_of(sc: SrfScenario):
     ap = sc.approach
     args = (math.radians(ap.angle_deg), ap.hops, ap.gamma, ap.start_m, ap.end_m, mean_motion(sc.orbit.sma_m))
     key = (*args, ap.vbar_period_fraction)
-    plan = _remember(_PLAN_CACHE, key, lambda: plan_hops(*args, vbar_period_fraction=ap.vbar_period_fraction))
+    plan = memo_get(_PLAN_CACHE, key, lambda: plan_hops(*args, vbar_period_fraction=ap.vbar_period_fraction))
     return copy.deepcopy(plan)
 
 
@@ -248,7 +238,7 @@ def onboard_drift_model(sc: SrfScenario, dt: float, span_s: float):
 
     j2 = sc.truth.model == "j2"
     key = (sc.orbit.model_dump_json(), j2, sc.truth.integrator, float(dt), float(span_s))
-    states = _remember(_EPHEMERIS_CACHE, key, lambda: _target_ephemeris(sc, j2, dt, span_s))
+    states = memo_get(_EPHEMERIS_CACHE, key, lambda: _target_ephemeris(sc, j2, dt, span_s))
     return EnergyDrift(dt, states, MU_EARTH, J2_EARTH if j2 else 0.0, R_EARTH)
 
 
