@@ -44,7 +44,7 @@ from numba import njit
 
 from proxops.core.constants import MU_EARTH
 from proxops.core.cw import cw_discretize_zoh
-from proxops.core.quaternion import IDENTITY, dcm_to_quat, quat_normalize, quat_propagate, quat_to_dcm
+from proxops.core.quaternion import IDENTITY, dcm_kernel, dcm_to_quat, quat_normalize, quat_propagate, quat_to_dcm
 from proxops.errors import input_error
 from proxops.dynamics.plant import PlantBase
 
@@ -124,18 +124,6 @@ def cross3(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     a0, a1, a2 = np.asarray(a, float).tolist()  # Python floats: same arithmetic, less overhead
     b0, b1, b2 = np.asarray(b, float).tolist()
     return np.array([a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0])
-
-
-def _dcm_single(q: np.ndarray) -> np.ndarray:
-    """quat_to_dcm for one unit quaternion (same convention, scalar formulas for speed)."""
-    x, y, z, w = q.tolist()
-    return np.array(
-        [
-            [w * w + x * x - y * y - z * z, 2 * (x * y - w * z), 2 * (x * z + w * y)],
-            [2 * (x * y + w * z), w * w - x * x + y * y - z * z, 2 * (y * z - w * x)],
-            [2 * (x * z - w * y), 2 * (y * z + w * x), w * w - x * x - y * y + z * z],
-        ]
-    )
 
 
 def _right_product_matrix(dq: np.ndarray) -> np.ndarray:
@@ -404,19 +392,8 @@ class TumblingTargetTruth(PlantBase):
 @njit(cache=True)
 def _body_state(state, w_t):  # pragma: no cover - compiled
     """Eqs. (7)-(8) from the full state (16,): r_B = R_IB^T dr, v_B = R_IB^T dv - w_B x r_B with
-    R_IB from q_IB = state[12:16] (scalar last, the formulas of :func:`_dcm_single`) and
-    w_B = [0, 0, w_t]."""
-    x, y, z, w = state[12], state[13], state[14], state[15]
-    R = np.empty((3, 3))
-    R[0, 0] = w * w + x * x - y * y - z * z
-    R[0, 1] = 2 * (x * y - w * z)
-    R[0, 2] = 2 * (x * z + w * y)
-    R[1, 0] = 2 * (x * y + w * z)
-    R[1, 1] = w * w - x * x + y * y - z * z
-    R[1, 2] = 2 * (y * z - w * x)
-    R[2, 0] = 2 * (x * z - w * y)
-    R[2, 1] = 2 * (y * z + w * x)
-    R[2, 2] = w * w - x * x - y * y + z * z
+    R_IB = dcm_kernel(q_IB), q_IB = state[12:16] (scalar last) and w_B = [0, 0, w_t]."""
+    R = dcm_kernel(state[12:16])
     out = np.empty(6)
     for i in range(3):
         out[i] = R[0, i] * state[6] + R[1, i] * state[7] + R[2, i] * state[8]
