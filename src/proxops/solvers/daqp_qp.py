@@ -347,13 +347,7 @@ class DaqpQP:
         if (self._bad.fields or self._crossed is not None or self._solver_error is not None or self._solver_flag < 0
                 or not self.warm_start_enabled):
             return self._solve_checked()
-        try:
-            t0 = time.perf_counter()
-            x, fval, flag, info = self._model.solve()
-            wall = time.perf_counter() - t0
-        except Exception as exc:
-            return failed_result(self.name, error_message(exc))
-        return self._result(x, fval, flag, info, wall)
+        return self._run_model()
 
     def _solve_checked(self) -> SolverResult:
         """:meth:`solve` when something is off (bad data, crossed bounds, a failed set-up) or the
@@ -373,9 +367,16 @@ class DaqpQP:
                 info={"raw_status": f"{flag} ({RAW_NAMES.get(flag, 'unknown')})",
                       "error": "daqp rejected the problem data at setup/update"},
             )
-        try:
-            if not self.warm_start_enabled:
+        if not self.warm_start_enabled:
+            try:
                 self._model.update(sense=self._sense.copy())
+            except Exception as exc:
+                return failed_result(self.name, error_message(exc))
+        return self._run_model()
+
+    def _run_model(self) -> SolverResult:
+        """One call of DAQP's solve on the current model, timed; an exception is a failed result."""
+        try:
             t0 = time.perf_counter()
             x, fval, flag, info = self._model.solve()
             wall = time.perf_counter() - t0
