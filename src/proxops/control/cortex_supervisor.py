@@ -38,11 +38,19 @@ Choices the paper leaves open (documented keys of the scenario, stated in the re
   angle so that it stays well inside the true cone near the apex). Measured: without it the error-free
   nominal run recomputes at 474 s (0.1 mm outside the buffered cone);
 * plume in CP_g (deviation from §3.2.1, which leaves the plume out of CP_g): in the final approach
-  CP_g carries one SOFT half-space per impulse (slack cost 10 per unit of a_max delta_t_g), the
-  dv-linearisation of eq. (21) at the reference (position and impulse of the reference at that
-  time, alpha_p_bar). Hard rows forbid every braking correction (measured: low-error runs drift to
-  the true cone edge and abort); soft rows keep the nominal clean and leave real conflicts to the
-  plume triggers (recompute / abort).
+  CP_g carries one SOFT half-space per impulse (slack cost ``plume_weight`` per unit of a_max delta_t_g),
+  the dv-linearisation of eq. (21) (alpha_p_bar). Hard rows forbid every braking correction (measured:
+  low-error runs drift to the true cone edge and abort); soft rows keep the nominal clean and leave real
+  conflicts to the plume triggers (recompute / abort). Linearisation point (``plume_linearization``):
+  ``"solution"`` (default) solves CP_g without the rows first and keeps that answer when every impulse
+  clears alpha_p_bar at its predicted position; otherwise the rows are linearised about the reference
+  impulse where the reference thrusts and about the plume-free impulse elsewhere (one successive-
+  convexification step, eq. 22), and CP_g is solved again. ``"reference"`` linearises about the
+  reference only: where the reference coasts (most of CP2) the row is dv . r <= 0, which forbids any
+  impulse with a component away from the target, so CP_g cannot slow down a state running ahead of the
+  reference (measured, cortex-low-mc run 25: the tracking error grew 0.29 -> 0.84 m over 200 s with CP_g
+  idle, then C_cone_bar recomputes; 100-run campaigns reference -> solution: low 95/11/5 -> 100/4/0,
+  high 39/61/61 -> 95/17/5 docked / runs with a recompute / aborted).
   Measured: with the printed CP_g the error-free nominal run commands a braking impulse 8.6 deg
   from the target direction and aborts on C_plume at 528 s (``plume_in_tracking = false``
   reproduces it);
@@ -85,6 +93,7 @@ from proxops.constraints.approach_cone import ApproachCone, PlumeConstraint
 from proxops.control.cortex_tracking import TrackingSOCP, substeps
 from proxops.core.cw import cw_stm
 from proxops.errors import ProxopsInputError, input_error
+from proxops.guidance.cortex.phases import DV_ZERO_MPS
 from proxops.sim.protocols import Command
 
 TRACK_PHASES = ("hold1", "flyaround", "hold2", "approach")
@@ -358,6 +367,7 @@ class SupervisorSettings:
     insertion_max_intervals: int = 20  # most extra guidance intervals spent trimming onto the safe orbit
     recompute_every: str = "guidance"  # "guidance": recompute conditions at the guidance steps (Alg. 2); "impulse"
     tracking_cone_margin_deg: float = 0.0  # CP_g tries (27g) at alpha_c minus this first (0: only the printed alpha_c)
+    plume_linearization: str = "solution"  # CP_g plume rows about the reference ("reference") or a plume-free solve ("solution")
 
 
 class CortexSupervisor:
@@ -503,12 +513,31 @@ class CortexSupervisor:
         for coned, with_plume in ladder:
             prob = self._problem(n_sub, coned, with_plume)
             if with_plume:
-                from proxops.guidance.cortex.phases import DV_ZERO_MPS
-
-                tj = t + self.dt * np.arange(n_sub)
-                r_ref = np.array([self.timeline.state(tt)[:3] for tt in tj])
-                dv_ref = np.array([seg.impulse(tt) for tt in tj])
-                _, g, _ = self.plume_bar.linearization(r_ref, dv_ref, DV_ZERO_MPS)
+                if self.s.plume_linearization == "solution":
+                    # one successive-convexification step of eq. (22) on CP_g: solve without the plume rows; an
+                    # interval whose impulses all keep alpha_p_bar at their predicted positions is the answer, else
+                    # the rows are linearised about those impulses (a violating one moved to the nearest generatrix
+                    # of the plume cone: the tangent plane admits braking alpha_p_bar off the target direction)
+                    free = self._problem(n_sub, coned, False)
+                    dv0, res0 = free.solve(x_est, x_T)
+                    self.solve_times.append(res0.solve_time_s)
+                    total += res0.solve_time_s
+                    if dv0 is None:  # infeasible without the plume rows: infeasible with them
+                        res = res0
+                        continue
+                    r0 = free.predicted_states(x_est, dv0)[:-1, :3]
+                    margin = self.plume_bar.margin_rad(r0, dv0, self.triggers.plume_min_dv_mps)
+                    if float(margin.min()) >= 0.0:
+                        if coned not in ("tight", approach):
+                            self.relaxed = f"CP_g {(approach, plume)} infeasible -> solved with cone={coned}, plume=True"
+                        return dv0, total, res0.status.value
+                    dv_lin = self._plume_directions(dv0, seg, t)
+                    _, g, _ = self.plume_bar.linearization(r0, dv_lin, DV_ZERO_MPS)
+                else:  # "reference": about the reference's position and impulse at each impulse time
+                    tj = t + self.dt * np.arange(n_sub)
+                    r_ref = np.array([self.timeline.state(tt)[:3] for tt in tj])
+                    dv_ref = np.array([seg.impulse(tt) for tt in tj])
+                    _, g, _ = self.plume_bar.linearization(r_ref, dv_ref, DV_ZERO_MPS)
                 prob.set_plume(g)
             dv, res = prob.solve(x_est, x_T)
             self.solve_times.append(res.solve_time_s)
@@ -518,6 +547,22 @@ class CortexSupervisor:
                     self.relaxed = f"CP_g {(approach, plume)} infeasible -> solved with cone={coned}, plume={with_plume}"
                 return dv, total, res.status.value
         return None, total, res.status.value
+
+    def _plume_directions(self, dv0, seg, t) -> np.ndarray:
+        """Linearisation points of the plume rows: the reference impulse at each impulse time where the
+        reference thrusts (its tangent plane admits the reference's own direction, which the planner chose
+        plume-compatible), elsewhere the impulse of the plume-free CP_g solution, or for a zero impulse
+        there the direction of that solution's total impulse."""
+        dv = np.array(dv0, float)
+        ref = np.array([seg.impulse(tt) for tt in t + self.dt * np.arange(len(dv))])
+        thrusting = np.linalg.norm(ref, axis=1) > DV_ZERO_MPS
+        dv[thrusting] = ref[thrusting]
+        zero = np.linalg.norm(dv, axis=1) <= DV_ZERO_MPS
+        if zero.any():
+            total = np.asarray(dv0, float).sum(axis=0)
+            if float(np.linalg.norm(total)) > DV_ZERO_MPS:
+                dv[zero] = total
+        return dv
 
     def _rearm(self, r_true) -> None:
         """Re-arm a suspended buffered condition once the true state no longer violates it."""
