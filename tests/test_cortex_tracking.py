@@ -295,6 +295,8 @@ def test_high_error_abort_is_trimmed_onto_a_passively_safe_orbit():
     ("actuator.model=rockets", "model"),
     ("actuator.min_on_time_s=5", "min_on_time_s"),
     ("guidance.tracking_cone_margin_deg=10", "tracking_cone_margin_deg"),
+    ("guidance.plume_linearization=gradient", "plume_linearization"),
+    ("planner.tau1_s=0", "tau1_s"),
 ])
 def test_cli_bad_input_is_one_line_exit_2(setting, field):
     import subprocess
@@ -353,7 +355,7 @@ def test_bad_tracking_cone_margin():
         build_setup(sc)
 
 
-def _braking_probe(linearization):
+def _braking_probe(linearization, plume_margin_deg=0.0):
     """CP_g of the supervisor 90 s into the approach of cortex-nominal (CW truth), where the reference coasts,
     from a state 0.3 m ahead of the reference (closer to the target) closing 5 mm/s faster: catching the
     reference needs impulses with a component away from the target. Returns the CW-predicted (eq. 2,
@@ -364,7 +366,8 @@ def _braking_probe(linearization):
     from proxops.systems.cortex_loop import build_setup
 
     sc = load_scenario("cortex-nominal", ["truth.model=cw", "eclipse.model=none",
-                                          f"guidance.plume_linearization={linearization}"]).scenario
+                                          f"guidance.plume_linearization={linearization}",
+                                          f"guidance.tracking_plume_margin_deg={plume_margin_deg}"]).scenario
     _, ctrl, _ = build_setup(sc)
     seg = next(s for s in ctrl.timeline.segments if s.phase == "approach")
     ctrl.mode = "approach"
@@ -393,3 +396,20 @@ def test_plume_rows_linearised_about_the_solution_allow_braking_off_the_target_d
     miss_sol, ang_sol = _braking_probe("solution")
     assert ang_sol.min() < 60.0 and ang_sol.min() > 23.9
     assert miss_sol < miss_ref / 3
+
+
+def test_tracking_plume_margin_keeps_braking_impulses_off_the_recompute_threshold():
+    """Without the margin the braking impulses of the probe above sit on alpha_p_bar = 24 deg, the C_plume_bar
+    recompute threshold (every C_plume_bar recompute measured in the campaigns fired at 23.7-24.0 deg); with
+    tracking_plume_margin_deg = 2 every thrusting impulse keeps >= 26 deg (to the soft rows' 0.1 deg)."""
+    _, ang0 = _braking_probe("solution", 0.0)
+    assert ang0.min() < 24.1
+    _, ang2 = _braking_probe("solution", 2.0)
+    assert ang2.min() > 25.9
+
+
+def test_bad_tracking_plume_margin():
+    from proxops.scenarios.loader import load_scenario
+
+    with pytest.raises(ProxopsInputError, match="tracking_plume_margin_deg"):
+        load_scenario("cortex-nominal", ["guidance.tracking_plume_margin_deg=-1"])

@@ -300,8 +300,9 @@ class CortexReplanner:
         if margin * cfg.r_kos_m >= r0:
             margin = 1.0
         tau_ub = min(cfg.tau_ub_s, cfg.tau_lb_s + (self.max_candidates - 1) * max(cfg.dt_cp1_s, cfg.dt_cp2_s))
+        # a regeneration searches its durations from tau_lb (eq. 12): fixed durations belong to the initial plan
         return replace(cfg, start_state=tuple(float(v) for v in x0), kos_margin=margin, flyaround_end_range_m=rho_end,
-                       tau_ub_s=tau_ub)
+                       tau_ub_s=tau_ub, tau1_s=None, tau2_s=None)
 
     def full(self, x0, t_now: float):
         from proxops.guidance.cortex.reference import plan_reference
@@ -367,6 +368,7 @@ class SupervisorSettings:
     insertion_max_intervals: int = 20  # most extra guidance intervals spent trimming onto the safe orbit
     recompute_every: str = "guidance"  # "guidance": recompute conditions at the guidance steps (Alg. 2); "impulse"
     tracking_cone_margin_deg: float = 0.0  # CP_g tries (27g) at alpha_c minus this first (0: only the printed alpha_c)
+    tracking_plume_margin_deg: float = 0.0  # CP_g plume rows at alpha_p_bar plus this ("solution" linearisation)
     plume_linearization: str = "solution"  # CP_g plume rows about the reference ("reference") or a plume-free solve ("solution")
 
 
@@ -387,6 +389,11 @@ class CortexSupervisor:
         self.replanner = replanner
         self.cone = approach_cone
         self.plume_bar = plume_bar
+        # CP_g's plume rows (solution linearisation) at alpha_p_bar + tracking_plume_margin: a design margin
+        # like the cone's, so that execution errors do not carry an impulse across the C_plume_bar threshold
+        pm = math.radians(settings.tracking_plume_margin_deg)
+        self.plume_track = (PlumeConstraint(plume_bar.half_angle_rad + pm) if plume_bar is not None and pm > 0
+                            else plume_bar)
         self.x_f2 = timeline.final_state
         margin = math.radians(settings.tracking_cone_margin_deg)
         if not 0.0 <= margin < approach_cone.half_angle_rad:
@@ -526,13 +533,16 @@ class CortexSupervisor:
                         res = res0
                         continue
                     r0 = free.predicted_states(x_est, dv0)[:-1, :3]
-                    margin = self.plume_bar.margin_rad(r0, dv0, self.triggers.plume_min_dv_mps)
+                    margin = self.plume_track.margin_rad(r0, dv0, self.triggers.plume_min_dv_mps)
                     if float(margin.min()) >= 0.0:
                         if coned not in ("tight", approach):
                             self.relaxed = f"CP_g {(approach, plume)} infeasible -> solved with cone={coned}, plume=True"
                         return dv0, total, res0.status.value
-                    dv_lin = self._plume_directions(dv0, seg, t)
-                    _, g, _ = self.plume_bar.linearization(r0, dv_lin, DV_ZERO_MPS)
+                    dv_lin, on_reference = self._plume_directions(dv0, seg, t)
+                    _, g, _ = self.plume_track.linearization(r0, dv_lin, DV_ZERO_MPS)
+                    if on_reference.any():  # rows about the reference's own impulse admit it (alpha_p_bar)
+                        _, g_ref, _ = self.plume_bar.linearization(r0, dv_lin, DV_ZERO_MPS)
+                        g[on_reference] = g_ref[on_reference]
                 else:  # "reference": about the reference's position and impulse at each impulse time
                     tj = t + self.dt * np.arange(n_sub)
                     r_ref = np.array([self.timeline.state(tt)[:3] for tt in tj])
@@ -549,10 +559,11 @@ class CortexSupervisor:
         return None, total, res.status.value
 
     def _plume_directions(self, dv0, seg, t) -> np.ndarray:
-        """Linearisation points of the plume rows: the reference impulse at each impulse time where the
-        reference thrusts (its tangent plane admits the reference's own direction, which the planner chose
-        plume-compatible), elsewhere the impulse of the plume-free CP_g solution, or for a zero impulse
-        there the direction of that solution's total impulse."""
+        """Linearisation points of the plume rows and where they are the reference's: the reference impulse
+        at each impulse time where the reference thrusts (its tangent plane at alpha_p_bar admits the
+        reference's own direction, which the planner chose plume-compatible: the tracking margin is not
+        applied there), elsewhere the impulse of the plume-free CP_g solution, or for a zero impulse there
+        the direction of that solution's total impulse."""
         dv = np.array(dv0, float)
         ref = np.array([seg.impulse(tt) for tt in t + self.dt * np.arange(len(dv))])
         thrusting = np.linalg.norm(ref, axis=1) > DV_ZERO_MPS
@@ -562,7 +573,7 @@ class CortexSupervisor:
             total = np.asarray(dv0, float).sum(axis=0)
             if float(np.linalg.norm(total)) > DV_ZERO_MPS:
                 dv[zero] = total
-        return dv
+        return dv, thrusting
 
     def _rearm(self, r_true) -> None:
         """Re-arm a suspended buffered condition once the true state no longer violates it."""

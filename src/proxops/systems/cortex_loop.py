@@ -142,7 +142,8 @@ def build_setup(sc):
                                   passive_margin_m=g.passive_margin_m, insertion_max_intervals=g.insertion_max_intervals,
                                   recompute_every=g.recompute_every,
                                   tracking_cone_margin_deg=g.tracking_cone_margin_deg,
-                                  plume_linearization=g.plume_linearization)
+                                  plume_linearization=g.plume_linearization,
+                                  tracking_plume_margin_deg=g.tracking_plume_margin_deg)
     replanner = CortexReplanner(cfg, axis, eclipse=eclipse_profile(sc), t0_offset_s=sc.planner.start_delay_s,
                                 max_candidates=g.replan_candidates)
     ctrl = CortexSupervisor(n, cfg.a_max_mps2, timeline, triggers, replanner, settings,
