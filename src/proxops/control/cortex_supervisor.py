@@ -391,6 +391,7 @@ class CortexSupervisor:
         self.plume_bar = plume_bar
         # CP_g's plume rows (solution linearisation) at alpha_p_bar + tracking_plume_margin: a design margin
         # like the cone's, so that execution errors do not carry an impulse across the C_plume_bar threshold
+        # (nor, at ~1 m range where a few cm move the angle by degrees, across alpha_p)
         pm = math.radians(settings.tracking_plume_margin_deg)
         self.plume_track = (PlumeConstraint(plume_bar.half_angle_rad + pm) if plume_bar is not None and pm > 0
                             else plume_bar)
@@ -538,11 +539,7 @@ class CortexSupervisor:
                         if coned not in ("tight", approach):
                             self.relaxed = f"CP_g {(approach, plume)} infeasible -> solved with cone={coned}, plume=True"
                         return dv0, total, res0.status.value
-                    dv_lin, on_reference = self._plume_directions(dv0, seg, t)
-                    _, g, _ = self.plume_track.linearization(r0, dv_lin, DV_ZERO_MPS)
-                    if on_reference.any():  # rows about the reference's own impulse admit it (alpha_p_bar)
-                        _, g_ref, _ = self.plume_bar.linearization(r0, dv_lin, DV_ZERO_MPS)
-                        g[on_reference] = g_ref[on_reference]
+                    _, g, _ = self.plume_track.linearization(r0, self._plume_directions(dv0, seg, t), DV_ZERO_MPS)
                 else:  # "reference": about the reference's position and impulse at each impulse time
                     tj = t + self.dt * np.arange(n_sub)
                     r_ref = np.array([self.timeline.state(tt)[:3] for tt in tj])
@@ -559,11 +556,11 @@ class CortexSupervisor:
         return None, total, res.status.value
 
     def _plume_directions(self, dv0, seg, t) -> np.ndarray:
-        """Linearisation points of the plume rows and where they are the reference's: the reference impulse
-        at each impulse time where the reference thrusts (its tangent plane at alpha_p_bar admits the
-        reference's own direction, which the planner chose plume-compatible: the tracking margin is not
-        applied there), elsewhere the impulse of the plume-free CP_g solution, or for a zero impulse there
-        the direction of that solution's total impulse."""
+        """Linearisation points of the plume rows: the reference impulse at each impulse time where the
+        reference thrusts (the planner chose its direction plume-compatible), elsewhere the impulse of the
+        plume-free CP_g solution, or for a zero impulse there the direction of that solution's total impulse.
+        (A point inside the plume cone of ``plume_track`` is moved to its nearest generatrix by the
+        linearisation, so the rows keep alpha_p_bar + tracking_plume_margin everywhere.)"""
         dv = np.array(dv0, float)
         ref = np.array([seg.impulse(tt) for tt in t + self.dt * np.arange(len(dv))])
         thrusting = np.linalg.norm(ref, axis=1) > DV_ZERO_MPS
@@ -573,7 +570,7 @@ class CortexSupervisor:
             total = np.asarray(dv0, float).sum(axis=0)
             if float(np.linalg.norm(total)) > DV_ZERO_MPS:
                 dv[zero] = total
-        return dv, thrusting
+        return dv
 
     def _rearm(self, r_true) -> None:
         """Re-arm a suspended buffered condition once the true state no longer violates it."""
