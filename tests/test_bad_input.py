@@ -174,6 +174,13 @@ CASES = [
     ("reach-mc-ny-zero", ["reach", "mc", "--out", "{dir}/rmc", "--n-y", "0"], "--n-y"),
     ("reach-mc-duration-nan", ["reach", "mc", "--out", "{dir}/rmc", "--duration-s", "nan"], "--duration-s"),
     ("keys-unknown-system", ["keys", "nosystem"], "nosystem"),
+    ("propagate-multistep-j2", ["propagate", "--scenario", "station-keeping", "--duration-s", "100", "--set",
+                                'truth.integrator="multistep"'], "integrator = 'multistep' needs model = 'full'"),
+    ("propagate-multistep-srp", ["propagate", "--scenario", "station-keeping", "--duration-s", "100", "--model",
+                                 "full", "--set", "truth.srp=true", "--set", 'truth.integrator="multistep"'],
+     "without srp"),
+    ("propagate-integrator-unknown", ["propagate", "--scenario", "station-keeping", "--duration-s", "100", "--set",
+                                      'truth.integrator="rk4"'], "truth.integrator"),
 ]
 
 

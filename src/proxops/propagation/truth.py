@@ -67,7 +67,7 @@ class RelativeTruth(PlantBase):
     chaser_hill : array (6,)
         Initial chaser Hill state ``[x, y, z, vx, vy, vz]`` (m, m/s), exact (nonlinear) map.
     j2 : include the J2 zonal term for both spacecraft.
-    integrator : ``"fast"`` (numba DOP853) or ``"reference"`` (scipy DOP853).
+    integrator : ``"fast"`` or ``"dop853"`` (the same: numba DOP853) or ``"reference"`` (scipy DOP853).
     rtol, atol : integrator tolerances (default 1e-10 / 1e-12, the papers' values).
     """
 
@@ -87,8 +87,9 @@ class RelativeTruth(PlantBase):
         rtol: float = REFERENCE_RTOL,
         atol: float = REFERENCE_ATOL,
     ) -> None:
-        if integrator not in ("fast", "reference"):
-            raise input_error("integrator", integrator, "must be 'fast' or 'reference'")
+        if integrator not in ("fast", "dop853", "reference"):
+            raise input_error("integrator", integrator, "must be 'fast', 'dop853' or 'reference'")
+        integrator = "fast" if integrator == "dop853" else integrator
         for name, value in (("rtol", rtol), ("atol", atol)):
             if not (value > 0 and math.isfinite(value)):
                 raise input_error(name, value, "must be finite and > 0")

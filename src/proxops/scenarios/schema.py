@@ -174,8 +174,10 @@ class TruthSection(Section):
 
     model: Literal["j2", "two-body", "cw", "full"] = Field(
         "j2", description="truth dynamics: two-body + J2 (Encke), two-body, linear CW, or full (composed force models)")
-    integrator: Literal["fast", "reference"] = Field(
-        "fast", description="fast: numba DOP853; reference: scipy solve_ivp (slower, for checks)")
+    integrator: Literal["fast", "dop853", "multistep", "reference"] = Field(
+        "fast", description="fast: the fastest numba path (full without srp: multistep on spans >= 360 s, else "
+        "DOP853); dop853: numba adaptive DOP853; multistep (full without srp): fixed-step Adams-Bashforth-Moulton, "
+        "order 6, 20 s; reference: scipy solve_ivp (slower, for checks)")
     gravity_degree: int = Field(20, description="full: EGM96 spherical-harmonic degree (2 to 120, shipped offline)")
     gravity_order: int | None = Field(None, description="full: harmonic order, 0 to gravity_degree "
                                       "(none: gravity_degree)")
@@ -198,6 +200,13 @@ class TruthSection(Section):
         if not 2 <= v <= SHIPPED_DEGREE:
             raise ValueError(f"must be in [2, {SHIPPED_DEGREE}] (the shipped EGM96 truncation)")
         return v
+
+    @model_validator(mode="after")
+    def _multistep_needs_full(self):
+        if self.integrator == "multistep" and (self.model != "full" or self.srp):
+            raise ValueError(f"integrator = 'multistep' needs model = 'full' without srp (model is '{self.model}', "
+                             f"srp = {str(self.srp).lower()}); use 'fast' or 'dop853'")
+        return self
 
     @model_validator(mode="after")
     def _order_within_degree(self):
