@@ -653,7 +653,7 @@ def cortex_claims(ctx: Context) -> list[Claim]:
             "braking correction (low 95/11/5 -> 100/4/0, high 39/61/61 -> 95/17/5); (2) those rows keep alpha_p_bar + 2 "
             "deg and (27g) is imposed at alpha_c - 4 deg first: a convex optimum sits on its constraint, and an impulse "
             "or interval end on a Table 1 threshold is carried across it by execution errors (every C_plume_bar "
-            "recompute had fired at 23.7-24.0 deg: low -> 100/0/0, high -> 97/7/3; other campaign seeds: low 100/0/0, "
+            "recompute had fired at 23.7-24.0 deg: low -> 100/0/0, high -> 97/8/3; other campaign seeds: low 100/0/0, "
             "high 98/7/2, seeds 7 / 8); (3) the reference duration is CALIBRATED to the paper's Table 4 TOF (tau_lb = 600 s per "
             "phase, 1200 s). The §5.1.2 split (fly-around 870 s, approach 300 s: planner.tau1_s / tau2_s) was measured "
             "and not kept: low 99/5/1, high 89/12/11 with the settings above (the faster approach brakes harder at the end: true C_plume aborts). "
