@@ -279,7 +279,7 @@ def test_high_error_abort_is_trimmed_onto_a_passively_safe_orbit():
 
     # the scenario as the run was recorded (Table 2's tau_lb, the printed 27g cone only, plume rows about the reference)
     sc = load_scenario("cortex-high-mc", ["planner.tau_lb_s=300", "guidance.tracking_cone_margin_deg=0",
-                                          "guidance.plume_linearization=reference"]).scenario
+                                          "guidance.plume_linearization=reference", "guidance.regen_cone_return_s=0"]).scenario
     seed, _ = run_seeds(sc.sim.seed, 7)
     summary, _ = run_closed_loop(sc, seed=seed)
     assert summary["status"] == "aborted"
@@ -413,3 +413,30 @@ def test_bad_tracking_plume_margin():
 
     with pytest.raises(ProxopsInputError, match="tracking_plume_margin_deg"):
         load_scenario("cortex-nominal", ["guidance.tracking_plume_margin_deg=-1"])
+
+
+@pytest.mark.parametrize("return_s", [0.0, 60.0])
+def test_regeneration_from_outside_the_planning_cone_returns_towards_the_axis(return_s):
+    """A final-approach regeneration from rest 8 m out and 6.5 deg off the axis (outside alpha_c_bar = 5 deg,
+    past the 6 deg C_cone_bar threshold), on the side the CW curvature pushes the path to. The planning cone
+    is widened to 7 deg to admit the start. Without the funnel the fuel-optimal reference rides the widened
+    7 deg edge after its first minute; with regen_cone_return_s = 60 every node from 60 s on is inside
+    alpha_c_bar (angles from the node positions, independent of the solver)."""
+    from proxops.scenarios.loader import load_scenario
+    from proxops.systems.cortex_loop import build_setup
+
+    sc = load_scenario("cortex-nominal", ["truth.model=cw", "eclipse.model=none",
+                                          f"guidance.regen_cone_return_s={return_s}"]).scenario
+    _, ctrl, _ = build_setup(sc)
+    ang = math.radians(6.5)
+    side = -np.array([1.0, -1.0, 0.0]) / math.sqrt(2)
+    r0 = 8.0 * (math.cos(ang) * AXIS + math.sin(ang) * side)
+    res = ctrl.replanner.approach(np.r_[r0, 0.0, 0.0, 0.0], ctrl.x_f2)
+    assert res is not None and res.ok
+    r = res.x[:, :3]
+    off = np.degrees(np.arccos(r @ AXIS / np.linalg.norm(r, axis=1)))
+    later = off[(res.t >= 60.0) & (res.t < res.t[-1])]
+    if return_s == 0.0:
+        assert later.max() > 6.9
+    else:
+        assert later.max() <= 5.0 + 1e-3

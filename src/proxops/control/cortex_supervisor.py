@@ -69,7 +69,10 @@ Choices the paper leaves open (documented keys of the scenario, stated in the re
   holds and the fly-around the whole planner runs from the current state (holds re-evaluated on
   the sunlight profile); a start inside the buffered KOS shrinks the planning sphere to 0.95 of
   the current range (else CP1 is infeasible at once); a final-approach regeneration from outside the
-  planning cone alpha_c_bar widens it to pass 0.5 deg outside the start (never beyond alpha_c); A regeneration tries at most
+  planning cone alpha_c_bar widens it to pass 0.5 deg outside the start (never beyond alpha_c) and, with
+  ``regen_cone_return_s`` > 0, closes it linearly back onto alpha_c_bar within that time (per-node cone angles
+  of CP2: the regenerated reference returns towards the axis instead of riding the widened edge beyond the
+  C_cone_bar threshold, measured up to 280 of 300 s); A regeneration tries at most
   ``replan_candidates`` durations per phase from tau_lb (an onboard time budget: measured, a failing
   CP2 regeneration over the whole [5, 60] min grid took 90 s of CPU); none converged -> abort.
   After ``max_recomputes`` the next recompute trigger aborts;
@@ -288,9 +291,11 @@ class CortexTriggers:
 class CortexReplanner:
     """The planner of cortex (1/2) called from the loop: full plan, approach only, retreat."""
 
-    def __init__(self, cfg, axis, eclipse=None, t0_offset_s: float = 0.0, max_candidates: int = 30):
+    def __init__(self, cfg, axis, eclipse=None, t0_offset_s: float = 0.0, max_candidates: int = 30,
+                 cone_return_s: float = 0.0):
         self.cfg, self.axis, self.eclipse, self.t0_offset_s = cfg, np.asarray(axis, float), eclipse, t0_offset_s
         self.max_candidates = int(max_candidates)  # durations tried per phase in a regeneration (time budget)
+        self.cone_return_s = float(cone_return_s)  # approach regeneration: widened cone closes onto alpha_c_bar over this
 
     def _cfg_from(self, x0):
         r0 = float(np.linalg.norm(x0[:3]))
@@ -328,9 +333,15 @@ class CortexReplanner:
         half = min(max(c.alpha_c_bar, off + math.radians(0.5)), c.cone_half_angle_rad)
         cone = ApproachCone(self.axis, half)
         plume = PlumeConstraint(c.alpha_p_bar)
+        funnel = None
+        if self.cone_return_s > 0 and half > c.alpha_c_bar:
+            # the widened cone closes linearly back onto alpha_c_bar over cone_return_s: the regenerated
+            # reference's first leg returns towards the axis instead of riding the widened edge
+            rate = (half - c.alpha_c_bar) / self.cone_return_s
+            funnel = lambda tk: max(c.alpha_c_bar, half - rate * tk)  # noqa: E731
         return self._scan(lambda tau: solve_final_approach(
             c.mean_motion_rad_s, tau, c.dt_cp2_s, x0, x_f2, c.a_bar, cone, plume, scp_max_iter=c.scp_max_iter,
-            scp_tol_mps=c.scp_tol_mps, plume_tol_rad=c.plume_tol_rad), c.dt_cp2_s)
+            scp_tol_mps=c.scp_tol_mps, plume_tol_rad=c.plume_tol_rad, cone_half_angle_at=funnel), c.dt_cp2_s)
 
     def retreat(self, x0, x_safe):
         from proxops.guidance.cortex.phases import solve_flyaround

@@ -124,6 +124,7 @@ class GuidanceSection(Section):
     plume_linearization: Literal["reference", "solution"] = Field("solution", description="final approach: CP_g plume rows linearised about the reference impulse (reference; a coasting reference gives dv . r <= 0, no braking) or about a plume-free CP_g solve, re-solved only when that breaks alpha_p_bar (solution)")
     tracking_plume_margin_deg: Annotated[float, Field(ge=0.0, lt=45.0)] = Field(0.0, description="final approach: CP_g's plume rows (plume_linearization = solution) keep each impulse this far beyond alpha_p_bar (a design margin against execution errors; 0: at alpha_p_bar)")
     plume_min_dv_mps: Annotated[float, Field(ge=0.0)] = Field(1e-4, description="impulses below this are not thrust for the plume triggers (minimum impulse bit)")
+    regen_cone_return_s: Annotated[float, Field(ge=0.0)] = Field(0.0, description="final-approach regeneration from outside alpha_c_bar: the planning cone, widened to pass the start, closes linearly back onto alpha_c_bar within this time (0: the widened cone throughout)")
     replan_candidates: Annotated[int, Field(ge=1)] = Field(30, description="regeneration: most phase durations tried from tau_lb (onboard time budget; none converged -> abort)")
     null_tol_mps: Annotated[float, Field(gt=0.0)] = Field(1e-3, description="velocity nulling before a re-plan / retreat ends below this speed")
     passive_orbits: Annotated[float, Field(gt=0.0)] = Field(2.0, description="after an abort: orbits of thrust-free truth propagation checked outside the KOS")
