@@ -136,9 +136,9 @@ def test_paper_configurations():
 
 
 @pytest.mark.parametrize("w_deg,make_cfg", [(2.0, LosMpcConfig.monte_carlo), (5.0, LosMpcConfig.single_run)])
-def test_fast_offset_equals_exact_rollout(w_deg, make_cfg):
-    """The per-step offset (three constant harmonics of the exact map, module doc) against
-    the step-by-step product of exact one-step Jacobians, at several angles/times."""
+def test_fast_prediction_equals_exact_rollout(w_deg, make_cfg):
+    """The per-step prediction of the plan (the kernel's LVLH recursion, module doc) against the
+    step-by-step product of exact one-step Jacobians, at several angles/times."""
     model = _model(w_deg)
     mpc = LosMpc(model, LosCorridor(), 0.1, make_cfg())
     N = mpc.N
@@ -148,5 +148,64 @@ def test_fast_offset_equals_exact_rollout(w_deg, make_cfg):
         plan = rng.uniform(-0.1, 0.1, size=(N, 3))
         F, Gam = _rollout_matrices(model, t, N)
         exact = F @ x0 + Gam @ plan.ravel()
-        offset = mpc._load(t, x0, plan, np.zeros(6 * N), np.zeros(3))
-        np.testing.assert_allclose(offset + mpc._S_flat @ plan.ravel(), exact, rtol=0, atol=1e-9)
+        p_g = mpc._load(t, x0, plan.ravel(), np.zeros(6 * N), np.zeros(3))
+        np.testing.assert_allclose(p_g, exact, rtol=0, atol=1e-9)
+
+
+@pytest.mark.parametrize("mode", ["hard", "soft"])
+def test_shifted_qp_equals_the_qp_with_its_linear_term(mode):
+    """DAQP is given the QP in w = U - U_c without a linear term (module doc). The same QP
+    written the direct way - H and the linear term f = H g + S'W (p_g - r) - ..., built here
+    from the exact rollout matrices and the MPC's H - and solved by DAQP with f gives the same
+    plan: the shift changes rounding only."""
+    from proxops.solvers import DaqpQP
+
+    model, corridor, a_max = _model(), LosCorridor(), 0.05
+    cfg = LosMpcConfig.single_run(constraint_mode=mode)
+    mpc = LosMpc(model, corridor, a_max, cfg)
+    N, nu = mpc.N, mpc.n_u
+    x0 = np.array([12.0, 60.0, -3.0, 0.3, -0.4, 0.05])
+    ref = np.array([0.0, 10.0, 0.0, 0.0, 0.0, 0.0])
+    u_prev = np.array([0.01, -0.02, 0.0])
+    t = 37.0
+    sol = mpc.solve(t, x0, ref, u_prev)
+    assert sol.ok
+    g = np.tile(u_prev, N)  # first call: the plan guess is u_prev held
+    F, Gam = _rollout_matrices(model, t, N)
+    p_g = F @ x0 + Gam @ g
+    S = mpc._S_flat
+    W = np.tile(np.asarray(cfg.Q, float), N)
+    W[-6:] *= cfg.terminal_factor
+    D = np.eye(nu) - np.eye(nu, k=-3)
+    rd = np.tile(cfg.R_du, N)
+    H = S.T @ (W[:, None] * S) + np.diag(np.tile(cfg.R_u, N)) + D.T @ (rd[:, None] * D)
+    f = S.T @ (W * (p_g - np.tile(ref, N))) + (H - S.T @ (W[:, None] * S)) @ g  # in dU = U - g
+    f[:3] -= np.asarray(cfg.R_du) * u_prev
+    rows = np.vstack([corridor.G @ S[6 * j : 6 * j + 3] for j in range(N)])
+    h_rows = np.concatenate([corridor.h - corridor.G @ p_g[6 * j : 6 * j + 3] for j in range(N)])
+    lb, ub = -a_max - g, a_max - g
+    if mode == "soft":
+        Hs = np.zeros((nu + N, nu + N))
+        Hs[:nu, :nu], Hs[nu:, nu:] = H, np.eye(N) * cfg.slack_quadratic
+        rows = np.hstack([rows, -np.kron(np.eye(N), np.ones((corridor.G.shape[0], 1)))])
+        H, f = Hs, np.concatenate([f, np.full(N, cfg.slack_penalty)])
+        lb, ub = np.concatenate([lb, np.zeros(N)]), np.concatenate([ub, np.full(N, np.inf)])
+    qp = DaqpQP()
+    qp.setup(H, f, rows, None, h_rows, lb, ub)
+    res = qp.solve()
+    assert res.ok
+    np.testing.assert_allclose(sol.inputs.ravel(), res.x[:nu] + g, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(sol.states, (p_g + S @ res.x[:nu]).reshape(N, 6), rtol=0, atol=1e-9)
+
+
+def test_nan_state_is_a_status_and_the_next_step_recovers():
+    """A NaN body state (e.g. a diverged navigation filter) gives status numerical_error and a
+    finite fallback input, not an exception; the next finite state solves normally."""
+    mpc = LosMpc(_model(), LosCorridor(), 0.1, LosMpcConfig.single_run())
+    x0 = np.array([1.0, 100.0, 2.0, 0.0, 0.0, 0.0])
+    ref = np.array([0.0, 10.0, 0.0, 0.0, 0.0, 0.0])
+    assert mpc.solve(0.0, x0, ref).ok
+    bad = mpc.solve(1.0, np.array([np.nan, 100.0, 2.0, 0.0, 0.0, 0.0]), ref)
+    assert bad.status == "numerical_error" and not bad.ok
+    assert np.all(np.isfinite(bad.u0)) and np.all(np.abs(bad.u0) <= 0.1)
+    assert mpc.solve(2.0, x0, ref).ok

@@ -131,6 +131,31 @@ def test_daqp_update_fast_matches_validated_update():
     np.testing.assert_allclose(s.solve().x, [0.5, -1.0], atol=1e-9)  # p = (3, -1) clipped by x1 <= 0.5 only
 
 
+def test_daqp_without_linear_term_shifted_variable():
+    # f=None: min 1/2 |w|^2 with the variable shifted to the unconstrained minimiser p
+    # (x = p + w): rows b - a'p, bounds lb - p, ub - p, written by update_fast. x = p + w must
+    # be the closed-form projection of p onto {x1 + x2 <= b} (inside the box), as with f = -p.
+    a, lb, ub = np.array([1.0, 1.0]), -5 * np.ones(2), 5 * np.ones(2)
+    s = DaqpQP()
+    s.setup(np.eye(2), None, a[None, :], None, [1.0], lb, ub)
+    for p, b in (([2.0, 1.0], 0.5), ([0.2, -0.1], 1.0), ([3.0, -1.0], -1.0), ([4.0, 4.0], 1.0)):
+        p = np.array(p)
+        s.update_fast(bu=np.array([b - a @ p]), lb=lb - p, ub=ub - p)
+        r = s.solve()
+        assert r.ok
+        np.testing.assert_allclose(p + r.x, projection_halfspace(p, a, b)[0], atol=1e-12)
+    with pytest.raises(ProxopsInputError, match="linear term"):
+        s.update(f=np.zeros(2))
+    # crossed bounds through the lean path: DAQP's own check makes the solve INFEASIBLE, and the
+    # next (valid) update recovers
+    s.update_fast(lb=np.array([1.0, -5.0]), ub=np.array([0.0, 5.0]))
+    assert s.solve().status is SolveStatus.INFEASIBLE
+    s.update_fast(bu=np.array([1.0]), lb=lb, ub=ub)
+    r = s.solve()
+    assert r.ok
+    np.testing.assert_allclose(r.x, [0.0, 0.0], atol=1e-12)  # p = 0 is feasible: w = 0
+
+
 def test_daqp_small_perturbation_keeps_active_set():
     # p = (2 + e, 1 - e): a'p = 3 > 1 so the half-space row stays the only active row;
     # the warm-started solve needs no new active-set change (<= 1 iteration).

@@ -16,6 +16,11 @@ import typer
 from proxops.errors import ProxopsError, ProxopsInputError
 
 
+# What every campaign worker imports (the system module comes with the first check)
+WORKER_MODULES = ("proxops.analysis.campaign_worker", "proxops.analysis.runs", "proxops.scenarios.loader",
+                  "proxops.systems.base")
+
+
 def mc(
     scenario: Annotated[str, typer.Argument(help="Scenario file or built-in name (its dispersions table says what varies).")],
     runs: Annotated[Optional[int], typer.Option("--runs", "-n", help="Number of runs (default: the grid size when the dispersions declare grids; on --resume the folder's).")] = None,
@@ -32,8 +37,6 @@ def mc(
     as_json: Annotated[bool, typer.Option("--json", help="One JSON object on stdout: runs, succeeded, failed, wall_time_s, statistics.")] = False,
 ):
     """Run a Monte Carlo campaign of a scenario (local processes or Dask) and print its statistics."""
-    from proxops.analysis.campaign import CampaignInterrupted, run_campaign, write_report
-    from proxops.cli_common import Interrupted
     from proxops.errors import ProxopsInputError
 
     if runs is not None and runs < 1:
@@ -44,6 +47,14 @@ def mc(
         raise ProxopsInputError(f"--connect-timeout-s {connect_timeout_s}: give a positive, finite number of seconds")
     if seed is not None and not 0 <= seed < 2**63:
         raise ProxopsInputError(f"--seed {seed}: give a whole number from 0 to 2^63 - 1")
+    if scheduler is None:  # local workers start now: their imports overlap this process's
+        from proxops.exec.backends import default_workers, prestart_pool
+
+        n_workers = workers if workers is not None else default_workers()
+        prestart_pool(min(n_workers, runs) if runs is not None else n_workers, WORKER_MODULES)
+    from proxops.analysis.campaign import CampaignInterrupted, run_campaign, write_report
+    from proxops.cli_common import Interrupted
+
     out = out if out is not None else Path("out") / f"mc-{Path(scenario).stem}"
     try:
         result = run_campaign(scenario, n_runs=runs, workers=workers, scheduler=scheduler, seed=seed, out=out,

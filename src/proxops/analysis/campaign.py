@@ -18,7 +18,10 @@ On disk (``out``)::
 Execution: ``workers=1`` runs in this process; ``workers>1`` uses a spawn-safe
 ProcessPoolExecutor; ``scheduler="tcp://HOST:PORT"``, a scheduler-file path or a
 ``distributed.Client`` uses Dask. Runs are sent in batches sized on the fly (about
-``target_batch_s`` of work each) to keep per-run overhead low. A run that raises is a row with
+``target_batch_s`` of work each) to keep per-run overhead low. Before anything is written the
+scenario gets every check a run makes, once: on a local pool each worker runs it as its warm-up
+(imports, numba kernels, per-process caches), so this process never builds the system; ``proxops
+mc`` spawns the pool before importing this module, so the workers' start-up overlaps its imports. A run that raises is a row with
 ``outcome = "error"``; a killed pool worker is replaced and its runs retried.
 
 Ctrl-C (or SIGTERM) at any moment: the first one only raises a flag (:class:`_GracefulStop`);
@@ -87,6 +90,7 @@ from proxops.analysis.campaign_worker import (  # noqa: E402,F401
     RunItem,
     _prepared,
     campaign_run,
+    check_nominal,
     classify,
     flatten_summary,
 )
@@ -274,9 +278,6 @@ def run_campaign(scenario, n_runs: int | None = None, workers: int | None = None
     prep = _prepare(scenario, overrides)
     sc = prep.loaded.scenario
     plan = prep.plan
-    from proxops.analysis.runs import check_scenario
-
-    check_scenario(prep.loaded)  # every check a run makes, once, before anything is written
     previous = read_manifest(Path(out)) if (resume and out is not None and Path(out).is_dir()) else None
     if seed is None:
         seed = previous["seed"] if previous and isinstance(previous.get("seed"), int) else int(sc.sim.seed)
@@ -330,6 +331,7 @@ def run_campaign(scenario, n_runs: int | None = None, workers: int | None = None
     items = _LazyItems(plan, seed, n_runs, done_ids)
     # connect (Dask) / check workers before writing anything, so a bad --scheduler leaves no folder behind
     backend = _make_backend(workers, scheduler, spec, connect_timeout_s, len(items)) if items else None
+    _check_campaign(backend, prep)  # every check a run makes, once, before anything is written
     if out_path is not None:
         out_path.mkdir(parents=True, exist_ok=True)
         manifest["created_utc"] = manifest.get("created_utc") or time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())
@@ -380,6 +382,25 @@ def run_campaign(scenario, n_runs: int | None = None, workers: int | None = None
     else:
         table = _tidy(pd.DataFrame(writer.rows)) if writer.rows else _empty_table()
     return CampaignResult(table=table, manifest=manifest, out=out_path, wall_time_s=wall, new_runs=state.done)
+
+
+def _check_campaign(backend, prep: _Prepared) -> None:
+    """Every check a run makes (:func:`proxops.analysis.runs.check_scenario`: the system's build and
+    the dispersions), once, before anything is written. On a local pool the workers run the build
+    (:func:`check_nominal`, one task per worker: it is their warm-up -- imports, numba kernels,
+    per-process caches -- which the first run would do anyway), so this process never builds the
+    system; its error is raised here as it would be by the check in this process."""
+    from proxops.analysis.runs import check_scenario
+    from proxops.exec.backends import _PoolBackend
+
+    if isinstance(backend, _PoolBackend):
+        try:
+            if backend.check(check_nominal):
+                return  # the dispersions were parsed by _prepare
+        except BaseException:
+            backend.close(cancel=True, force=True)
+            raise
+    check_scenario(prep.loaded)
 
 
 class _LazyItems:

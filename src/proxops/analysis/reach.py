@@ -61,6 +61,7 @@ import time
 from dataclasses import dataclass, field
 
 import numpy as np
+from numba import njit
 from scipy.spatial import HalfspaceIntersection, QhullError
 from scipy.stats import norm
 
@@ -225,11 +226,27 @@ def ratio_fields(corridor: LosCorridor, points: np.ndarray, sense: float = 1.0) 
 def ratio_from_fields(fields: tuple, tightening: np.ndarray | float = 0.0) -> np.ndarray:
     """:func:`required_ratio` from :func:`ratio_fields` and a per-row tightening."""
     slack, half_g2, half_r = fields
-    margin = slack - np.asarray(tightening, float)
-    positive = margin > 0.0
-    q = np.full(margin.shape, np.inf)
-    np.divide(half_g2, margin, out=q, where=positive)
-    return np.maximum(q.max(axis=1), half_r)
+    rows = slack.shape[-1]
+    t = np.ascontiguousarray(np.broadcast_to(np.asarray(tightening, float), (rows,)))
+    return _ratio_kernel(np.ascontiguousarray(slack, dtype=float), np.ascontiguousarray(half_g2, dtype=float),
+                         np.ascontiguousarray(half_r, dtype=float), t)
+
+
+@njit(cache=True)
+def _ratio_kernel(slack, half_g2, half_r, tightening):  # pragma: no cover - compiled
+    """max(max_i q_i, half_r) per point, q_i = half_g2_i / (s_i - Delta_i) where s_i - Delta_i > 0,
+    else +inf (one pass; the numbers of the array expression it replaces)."""
+    n, rows = slack.shape
+    out = np.empty(n)
+    for k in range(n):
+        worst = -np.inf
+        for i in range(rows):
+            margin = slack[k, i] - tightening[i]
+            q = half_g2[k, i] / margin if margin > 0.0 else np.inf
+            if q > worst:
+                worst = q
+        out[k] = worst if worst > half_r[k] else half_r[k]
+    return out
 
 
 # --------------------------------------------------------------------------------------

@@ -34,6 +34,7 @@ from __future__ import annotations
 from collections.abc import Callable
 
 import numpy as np
+from numba import njit
 
 from proxops.errors import input_error
 
@@ -130,10 +131,21 @@ class LosCorridor:
         p = np.asarray(x_rel, dtype=float)[:3]
         if self.frame != "body":
             p = self.rotation_body_from_frame(t) @ p
-        return max(float((p @ self.G.T - self.h).max()), 0.0)  # = violation_body(p), one point, less overhead
+        return _max_row_excess(self.G, self.h, p)  # = violation_body(p), one point, one jitted call
 
     def __repr__(self) -> str:
         return (
             f"LosCorridor(half_angle_deg={np.degrees(self.half_angle_rad):g}, y_min_m={self.y_min_m:g}, "
             f"n_faces={self.n_faces}, tolerance_m={self.tolerance_m:g}, frame={self.frame!r})"
         )
+
+
+@njit(cache=True)
+def _max_row_excess(G, h, p):  # pragma: no cover - compiled
+    """max(0, max_i (G p - h)_i) for one position p (3,) (m)."""
+    worst = 0.0
+    for i in range(G.shape[0]):
+        e = G[i, 0] * p[0] + G[i, 1] * p[1] + G[i, 2] * p[2] - h[i]
+        if e > worst:
+            worst = e
+    return worst

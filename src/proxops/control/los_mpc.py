@@ -29,22 +29,29 @@ Were the CW model isotropic about the orbit normal, this map would not depend on
 current angle theta_k at all; only the 3 n^2 x gravity-gradient term is anisotropic
 (relative size ~1.5 n^2 t^2 / 2 = 1.5e-3 over a 40 s horizon). So the condensed map is
 split into its rotation average S (constant: H and the corridor rows never change, and
-DAQP keeps its factorisation; updating H or A costs DAQP 3-4 ms at N = 40, updating f
-and b 0.15 ms) plus an exact affine offset evaluated at the previous plan shifted by one
-step (real-time-iteration style). Predictions are exact at that plan and the remaining
+DAQP keeps its factorisation; updating H or A would cost DAQP 3-4 ms at N = 40) plus an
+exact affine offset evaluated at the previous plan shifted by one step (real-time-iteration
+style). Predictions are exact at that plan and the remaining
 error is the anisotropic part acting on the change of plan; for the first step it is
 ~n^2 dt^2 ~ 1e-6 of the input effect (tested in tests/test_los_mpc.py). The paper
 instead freezes the step-k finite-difference linearisation over the horizon (§4.4).
 
-Fast evaluation of the exact prediction. With R_k = R_z(theta_k) the exact map
-[x_0; U] -> [x_1..x_N] is T(o_j) R6_k^T (CW blocks) R6_k (...), o_j = theta_j - theta_k,
-R6_k = diag(R_k, R_k). Conjugating a 2x2 (x-y) block by a rotation leaves its
-isotropic part (a I + b J) unchanged and turns its symmetric traceless part by 2 theta_k;
-the z rows/columns of the CW model do not couple to x-y. Hence, exactly,
-E(theta_k) = E_0 + cos(2 theta_k) E_c + sin(2 theta_k) E_s with three constant matrices
-(computed once from E at 16 angles; E_0's input block is S). Each step evaluates the
-offset with one product of a precomputed stack instead of re-rotating the horizon
-(tests/test_los_mpc.py checks it against the product of exact one-step Jacobians).
+Per-step data without re-condensing. The QP is centred on the plan guess g (the previous
+plan shifted by one step): with U = g + dU the predicted states are p_g + S dU, p_g the exact
+LTV prediction of g (one recursion x_L,j+1 = Phi x_L,j + B_d R_LB(theta_j) g_j in LVLH,
+rotated to the body frame: O(N), tests/test_los_mpc.py checks it against the product of
+exact one-step Jacobians). The linear term is
+f = S'W (p_g - r) + (R_u + D'R_du D) g - [R_du u_{-1}; 0] and the unconstrained minimiser
+U_c = g - H^-1 f. DAQP is given the QP in w = U - U_c, which has no linear term
+(1/2 w'Hw): its bounds are -a_max - U_c <= w <= a_max - U_c and
+G (S w)_pos,j <= h - G (p_g + S (U_c - g))_pos,j. This is the same LDP DAQP builds from
+(H, f) (its u = R (U - U_c) either way), but DAQP then keeps no linear term, so a step
+only rewrites bound vectors (O(m)) instead of DAQP recomputing R^-T f and d = b + M v
+(O(m n), ~40 us at N = 40). One jitted kernel (:func:`_shifted_qp_data`) computes p_g, f,
+U_c and the bounds using the lower block-triangular structure of S; U = w + U_c. Soft mode
+keeps the linear term (the QP in dU with f, DAQP's own update): shifting the slack to its
+unconstrained minimiser -rho / w = -1e7 m would put 1e7 m offsets into every row and cost
+~1e-9 of accuracy (tests/test_los_mpc.py compares both forms with the direct QP).
 
 Constraint handling (``constraint_mode``):
 - ``"hard"`` (paper, used for feasibility classification): an infeasible QP is returned
@@ -67,15 +74,19 @@ import time
 from dataclasses import dataclass, field
 
 import numpy as np
+from numba import njit
 
 from proxops.constraints.los_corridor import LosCorridor
-from proxops.dynamics.tumbling_target import BodyFrameModel, body_from_hill_matrix, hill_from_body_matrix, rot_z
+from proxops.dynamics.tumbling_target import BodyFrameModel, body_from_hill_matrix, hill_from_body_matrix, rotate_z
 from proxops.errors import input_error
 from proxops.solvers.daqp_qp import DaqpQP
 from proxops.status import Status
 
 PAPER_Q = (15.0, 30.0, 15.0, 1.0, 1.0, 1.0)
 _PREDICTION_CACHE: dict = {}  # (n, w_rel, dt, N) -> prediction blocks (Monte Carlo reuses them)
+_WEIGHTS_CACHE: dict = {}  # (prediction key, weights) -> (W S, H, H^-1)
+_CACHE_SIZE = 64
+DAQP_INF = 1e30  # DAQP's "no bound" (proxops.solvers.daqp_qp.DAQP_INF)
 
 
 @dataclass
@@ -120,13 +131,14 @@ class LosMpcConfig:
 @dataclass
 class MpcSolution:
     """Result of one MPC solve. ``u0`` is the body-axes input to apply (m/s^2) and
-    ``u0_hill`` the same vector in LVLH components (what the plant receives)."""
+    ``u0_hill`` the same vector in LVLH components (what the plant receives; computed when asked
+    from ``theta_rad`` = theta_k, the body angle at the solve)."""
 
     status: Status  # the solver status (proxops.status)
     u0: np.ndarray
-    u0_hill: np.ndarray
-    inputs: np.ndarray | None  # (N, 3) planned body-axes inputs (m/s^2)
-    prediction: tuple | None  # (offset (6N,), S (6N, 3N), U (3N,)) of the predicted states, or None
+    theta_rad: float
+    inputs: np.ndarray | None  # (N, 3) planned body-axes inputs (m/s^2; the MPC's own plan: do not modify)
+    prediction: tuple | None  # (p_g (6N,), S (6N, 3N), dU (3N,)): predicted states p_g + S dU, or None
     solve_time_s: float  # DAQP solve call
     build_time_s: float  # condensing + update
     iterations: int
@@ -138,13 +150,19 @@ class MpcSolution:
         return self.status.ok
 
     @property
+    def u0_hill(self) -> np.ndarray:
+        """u0 in LVLH components: R_LB(theta_k) u0 (m/s^2)."""
+        return rotate_z(self.theta_rad, self.u0)
+
+    @property
     def states(self) -> np.ndarray | None:
-        """(N, 6) predicted body-frame states x_1..x_N = offset + S U (computed when asked: the
-        closed loop does not use them)."""
+        """(N, 6) predicted body-frame states x_1..x_N = p_g + S dU (p_g: exact prediction of the
+        plan the QP was centred on, dU: the change of plan; computed when asked: the closed loop
+        does not use them)."""
         if self.prediction is None:
             return None
-        offset, S, U = self.prediction
-        return (offset + S @ U).reshape(-1, 6)
+        base, S, dU = self.prediction
+        return (base + S @ dU).reshape(-1, 6)
 
 
 def _rotations_hill_from_body(theta: np.ndarray) -> np.ndarray:
@@ -185,38 +203,33 @@ class LosMpc:
         self.soft = self.cfg.constraint_mode == "soft"
         self.n_var = nu + (N if self.soft else 0)
         self._offsets = model.w_rel * model.dt * np.arange(N + 1)  # theta_j - theta_k
+        self._ref_shape = (N, 6)
         key = (model.n, model.w_rel, model.dt, N)
-        cached = _PREDICTION_CACHE.get(key)
-        if cached is None:
-            cached = self._prediction_blocks(model, N)
-            if len(_PREDICTION_CACHE) > 64:
-                _PREDICTION_CACHE.clear()
-            _PREDICTION_CACHE[key] = cached
-        self._Phi_pow, self._Su_L, self._S, harmonics = cached
+        cached = _cache_get(_PREDICTION_CACHE, key, lambda: self._prediction_blocks(model, N))
+        self._Phi_pow, self._Su_L, self._S = cached
         self._Phi_pow_flat = self._Phi_pow.reshape(6 * N, 6)
         self._Su_L_flat = self._Su_L.reshape(6 * N, nu)
         self._S_flat = self._S.reshape(6 * N, nu)
-        # offset map [x_0; plan] -> exact prediction - S plan = M_0 + cos(2 theta) M_c + sin(2 theta) M_s,
-        # stacked (3 * 6N, 6 + 3N) so that one product gives the three parts (module doc)
-        self._offset_maps = harmonics
-        # weights for x_1..x_N: Q, ..., Q, Q_N
-        W = np.tile(np.asarray(self.cfg.Q, float), (N, 1))
-        W[-1] *= self.cfg.terminal_factor
-        self._W = W.reshape(6 * N)
-        self._SW_T = np.ascontiguousarray((self._W[:, None] * self._S_flat).T)
-        # QP written as 1/2 U'HU + f'U = 1/2 of (11a): H = S'WS + R_u + D' R_du D
-        r_u = np.tile(np.asarray(self.cfg.R_u, float), N)
-        r_d = np.tile(np.asarray(self.cfg.R_du, float), N)
-        D = np.eye(nu) - np.eye(nu, k=-3)
-        H = self._S_flat.T @ (self._W[:, None] * self._S_flat) + np.diag(r_u) + D.T @ (r_d[:, None] * D)
+        # QP written as 1/2 U'HU + f'U = 1/2 of (11a): H = S'WS + R_u + D' R_du D, W = diag(Q, ..., Q, Q_N)
+        self._r_u = np.tile(np.asarray(self.cfg.R_u, float), N)
+        self._r_d = np.tile(np.asarray(self.cfg.R_du, float), N)
+        weights = (tuple(self.cfg.Q), float(self.cfg.terminal_factor), tuple(self.cfg.R_u), tuple(self.cfg.R_du))
+        self._WS, H, self._H_inv = _cache_get(_WEIGHTS_CACHE, (key, weights), self._weighted_blocks)
         self._r_d0 = np.asarray(self.cfg.R_du, float)
         G, self._h = corridor.G, corridor.h
         self._G_T = np.ascontiguousarray(G.T)
-        self._slack_f = np.full(N, self.cfg.slack_penalty)
+        self._G = np.ascontiguousarray(G, dtype=float)
         self._n_rows = G.shape[0]
-        A = np.matmul(G, self._S[:, 0:3, :]).reshape(self._n_rows * N, nu)
+        # per-geometry arrays, shared by every run of a campaign (read only)
+        self._S_posT, A, self._HS, self._PB = _cache_get(
+            _WEIGHTS_CACHE, (key, weights, self._G.tobytes(), np.asarray(self._h, float).tobytes()),
+            lambda: self._geometry_blocks(model))
         lb = np.full(self.n_var, -self.a_max)
         ub = np.full(self.n_var, self.a_max)
+        # hard mode: DAQP gets the QP in w = U - U_c without a linear term (module doc); soft mode
+        # keeps the linear term (QP in dU = U - g): shifting the slack to its unconstrained
+        # minimiser -rho / w_s = -1e7 m would put 1e7 m offsets into every row (errors ~1e-9)
+        self._shift = not self.soft
         if self.soft:
             Hs = np.zeros((self.n_var, self.n_var))
             Hs[:nu, :nu] = H
@@ -227,27 +240,37 @@ class LosMpc:
             H, A = Hs, As
             lb[nu:] = 0.0
             ub[nu:] = np.inf
-        self._H = 0.5 * (H + H.T)
+        self._H = H
         self._A = A
         self._lb, self._ub = lb, ub
         self._solver: DaqpQP | None = None
         self._plan: np.ndarray | None = None  # (N, 3) last planned body-axes inputs
-        # per-step buffers: the QP vectors are computed in place (DAQP keeps pointers to f and b)
-        n6 = 6 * N
-        self._z = np.empty(6 + nu)  # [x_0; guess]
-        self._parts = np.empty(3 * n6)  # M_0 z, M_c z, M_s z
-        self._harmonic = np.empty(3)
-        self._offset = np.empty(n6)
-        self._dev = np.empty(n6)
-        self._f = np.empty(self.n_var)
-        self._b = np.empty(self._n_rows * N)
+        # per-step buffers written by the kernel (DaqpQP copies the bounds into its own vectors)
+        # the kernel's arguments, packed (a jitted call costs ~0.3 us per argument):
+        # inputs [x_0 (6), u_prev (3), g (3N), ref (6N)], constants [o_j = theta_j - theta_k, cos o_j,
+        # sin o_j (N+1 each), R_u (3N), R_du (3N), h (r)], [Phi | Bd] (6, 9), [H^-1; S_pos^T] (2, 3N, 3N), outputs
+        # [p_g (6N), f, x_c, lb - x_c, ub - x_c (n_var each), rows (N r)]
+        nv, n6, nb = self.n_var, 6 * N, self._n_rows * N
+        self._inp = np.zeros(9 + nu + n6)
+        self._guess = self._inp[9 : 9 + nu]
+        self._consts = np.concatenate([self._offsets, np.cos(self._offsets), np.sin(self._offsets), self._r_u,
+                                       self._r_d, np.asarray(self._h, float)])
+        self._work = np.empty(n6 + 4 * nv + nb)
+        self._pred = self._work[:n6]  # p_g
+        self._f = self._work[n6 : n6 + nv]  # linear term in dU (soft mode: DAQP's f)
+        self._u_c = self._work[n6 + nv : n6 + 2 * nv]  # x = DAQP's solution + this (U_c or g; slack: 0)
+        self._lb_w = self._work[n6 + 2 * nv : n6 + 3 * nv]
+        self._ub_w = self._work[n6 + 3 * nv : n6 + 4 * nv]
+        self._b = self._work[n6 + 4 * nv :]
         if self.soft:
-            self._f[nu:] = self._slack_f
+            self._f[nu:] = self.cfg.slack_penalty
+            self._u_c[nu:] = 0.0
+            self._lb_w[nu:] = 0.0
+            self._ub_w[nu:] = DAQP_INF
 
     # ------------------------------------------------------------------ prediction
     def _prediction_blocks(self, model: BodyFrameModel, N: int):
-        """(Phi^j (N,6,6), LVLH input map (N,6,3N), rotation-averaged body input map S,
-        stacked harmonics of the offset map (3 * 6N, 6 + 3N), see module doc)."""
+        """(Phi^j (N,6,6), LVLH input map (N,6,3N), rotation-averaged body input map S (N,6,3N))."""
         nu = 3 * N
         # LVLH blocks: x_L,j = Phi^j x_L,0 + sum_i Phi^(j-1-i) Bd u_L,i, j = 1..N
         powers = [np.eye(6)]
@@ -262,14 +285,29 @@ class LosMpc:
         self._Phi_pow = np.array(powers[1:])
         angles = 2.0 * np.pi * np.arange(self.n_average_angles) / self.n_average_angles
         S = np.mean([self.input_map(a) for a in angles], axis=0)
-        # E(theta) = E_0 + cos(2 theta) E_c + sin(2 theta) E_s exactly; the 16 equispaced angles
-        # give the three coefficients exactly (discrete Fourier orthogonality)
-        E = np.array([self.exact_map(a).reshape(6 * N, 6 + nu) for a in angles])
-        E0 = E.mean(axis=0)
-        Ec = 2.0 * np.mean(np.cos(2.0 * angles)[:, None, None] * E, axis=0)
-        Es = 2.0 * np.mean(np.sin(2.0 * angles)[:, None, None] * E, axis=0)
-        E0[:, 6:] -= S.reshape(6 * N, nu)
-        return self._Phi_pow, Su, S, np.ascontiguousarray(np.vstack([E0, Ec, Es]))
+        return self._Phi_pow, Su, S
+
+    def _geometry_blocks(self, model: BodyFrameModel):
+        """(S_pos^T (3N, 3N), corridor rows G S_pos (N r, 3N), [H^-1; S_pos^T] (2, 3N, 3N), [Phi | Bd] (6, 9))."""
+        N, nu = self.N, self.n_u
+        S_posT = np.ascontiguousarray(self._S[:, 0:3, :].reshape(3 * N, nu).T)
+        A = np.matmul(self._G, self._S[:, 0:3, :]).reshape(self._n_rows * N, nu)
+        HS = np.ascontiguousarray(np.stack([self._H_inv, S_posT]))
+        PB = np.ascontiguousarray(np.hstack([model.Phi, model.Bd]))
+        return S_posT, A, HS, PB
+
+    def _weighted_blocks(self):
+        """(W S (6N, 3N), H (3N, 3N), H^-1 (3N, 3N), exactly symmetric) for this configuration."""
+        N, nu = self.N, self.n_u
+        W = np.tile(np.asarray(self.cfg.Q, float), (N, 1))
+        W[-1] *= self.cfg.terminal_factor
+        W = W.reshape(6 * N)
+        WS = np.ascontiguousarray(W[:, None] * self._S_flat)
+        D = np.eye(nu) - np.eye(nu, k=-3)
+        H = self._S_flat.T @ WS + np.diag(self._r_u) + D.T @ (self._r_d[:, None] * D)
+        H = 0.5 * (H + H.T)
+        H_inv = np.linalg.inv(H)
+        return WS, H, np.ascontiguousarray(0.5 * (H_inv + H_inv.T))
 
     def exact_map(self, theta_k: float) -> np.ndarray:
         """Exact d x_j / d [x_0, U] (body frame, body-axes inputs) at angle theta_k, (N, 6, 6 + 3N)."""
@@ -323,62 +361,66 @@ class LosMpc:
         t_build = time.perf_counter()
         N, nu = self.N, self.n_u
         x_body = np.asarray(x_body, float)
-        u_prev = np.zeros(3) if u_prev is None else np.asarray(u_prev, float)
-        ref = self._reference(x_ref).reshape(6 * N)
+        u_prev = _ZERO3 if u_prev is None else np.asarray(u_prev, float)
+        ref = (x_ref if x_ref.__class__ is np.ndarray and x_ref.shape == self._ref_shape
+               else self._reference(x_ref)).reshape(6 * N)
+        guess = self._guess
         if self._plan is None:
-            guess = np.tile(u_prev, (N, 1))
+            guess.reshape(N, 3)[:] = u_prev
         else:
-            guess = np.concatenate((self._plan[1:], self._plan[-1:]))
-        offset = self._load(t, x_body, guess, ref, u_prev)
+            guess[: nu - 3] = self._plan.reshape(nu)[3:]
+            guess[nu - 3 :] = self._plan[-1]
+        self._load(t, x_body, guess, ref, u_prev)
         build_time = time.perf_counter() - t_build
         res = self._solver.solve()
         solve_time, iterations = res.solve_time_s, res.iterations
         for _ in range(self.cfg.refinements):
             if res.x is None or not res.ok:
                 break
-            offset = self._load(t, x_body, res.x[:nu].reshape(N, 3), ref, u_prev)
+            np.add(res.x[:nu], self._u_c[:nu], out=guess)
+            self._load(t, x_body, guess, ref, u_prev)
             res = self._solver.solve()
             solve_time += res.solve_time_s
             iterations += res.iterations
         status = res.status
-        R0 = rot_z(self.model.theta0_rad + self.model.w_rel * t)  # R_LB(theta_k)
+        theta_k = self.model.theta0_rad + self.model.w_rel * t
         if res.x is None or not res.ok:
             u0 = self._shifted_plan()
-            return MpcSolution(status, u0, R0 @ u0, None, None, solve_time, build_time, iterations,
-                               info={"raw_status": res.info.get("raw_status")})
-        U = res.x[:nu]
-        self._plan = U.reshape(N, 3).copy()
-        prediction = (offset.copy(), self._S_flat, U)  # offset: this step's buffer, reused by the next
-        slack = float(res.x[nu:].max()) if self.soft else 0.0
-        return MpcSolution(status, U[:3].copy(), R0 @ U[:3], self._plan.copy(), prediction, solve_time,
-                           build_time, iterations, max_slack_m=slack,
+            return MpcSolution(status, u0, theta_k, None, None, solve_time, build_time,
+                               iterations, info={"raw_status": res.info.get("raw_status")})
+        x = res.x  # DAQP's w, a fresh array
+        x += self._u_c  # w + x_c
+        U = x[:nu]
+        plan = self._plan = U.reshape(N, 3)  # never modified in place (the next guess is a copy)
+        u0 = U[:3].copy()
+        slack = float(x[nu:].max()) if self.soft else 0.0
+        return MpcSolution(status, u0, theta_k, plan, (self._pred.copy(), self._S_flat,
+                           U - guess), solve_time, build_time, iterations, max_slack_m=slack,
                            info={"raw_status": res.info.get("raw_status"), "dual": res.info.get("dual")})
 
     def _load(self, t: float, x_body: np.ndarray, guess: np.ndarray, ref: np.ndarray, u_prev: np.ndarray) -> np.ndarray:
-        """Put f and b of the QP centred on the plan ``guess`` (N, 3) into DAQP; returns the
-        affine prediction offset (6N,) = exact prediction of ``guess`` - S guess."""
-        N, nu, n6 = self.N, self.n_u, 6 * self.N
-        two_theta = 2.0 * (self.model.theta0_rad + self.model.w_rel * t)
-        z = self._z
-        z[:6] = x_body
-        z[6:] = guess.reshape(nu)
-        parts = np.matmul(self._offset_maps, z, out=self._parts).reshape(3, n6)
-        hm = self._harmonic
-        hm[0], hm[1], hm[2] = 1.0, math.cos(two_theta), math.sin(two_theta)
-        offset = np.matmul(hm, parts, out=self._offset)  # M_0 z + cos M_c z + sin M_s z
-        f = self._f
-        np.matmul(self._SW_T, np.subtract(offset, ref, out=self._dev), out=f[:nu])  # S' W (offset - ref)
-        f[:3] -= self._r_d0 * u_prev  # from |u_0 - u_prev|_{R_du}^2
-        b = self._b
-        np.subtract(self._h, offset.reshape(N, 6)[:, 0:3] @ self._G_T, out=b.reshape(N, self._n_rows))
+        """Put the bounds of the QP in w = x - x_c, centred on the plan ``guess`` (3N,), into DAQP
+        (module doc); returns p_g (6N,), the exact prediction of ``guess``."""
+        theta_k = self.model.theta0_rad + self.model.w_rel * t
+        nu = self.n_u
+        inp = self._inp
+        inp[:6] = x_body
+        inp[6:9] = u_prev
+        if guess is not self._guess:
+            self._guess[:] = guess
+        inp[9 + nu :] = ref
+        finite = _shifted_qp_data(theta_k, self.model.w_rel, self.a_max, self._shift, self.n_var, inp, self._consts,
+                                  self._PB, self._WS, self._HS, self._G, self._work)
+        f = None if self._shift else self._f
         if self._solver is None:
             self._solver = DaqpQP(max_iter=self.cfg.max_iter)
-            self._solver.setup(self._H, f, self._A, bu=b, lb=self._lb, ub=self._ub)
-        elif math.isfinite(f.sum() + b.sum()):  # fresh contiguous finite arrays, rows stay inequalities
-            self._solver.update_fast(f=f, bu=b)
+            self._solver.setup(self._H, None if f is None else f.copy(), self._A, bu=self._b.copy(),
+                               lb=self._lb_w.copy(), ub=self._ub_w.copy())
+        elif finite:  # finite data: rows stay inequalities, no bound crossed
+            self._solver.update_fast(f=f, bu=self._b, lb=self._lb_w, ub=self._ub_w)
         else:  # NaN/inf state: the checked path turns it into a NUMERICAL_ERROR status
-            self._solver.update(f=f, bu=b)
-        return offset
+            self._solver.update(f=f, bu=self._b, lb=self._lb_w, ub=self._ub_w)
+        return self._pred
 
     def _shifted_plan(self) -> np.ndarray:
         """Fallback input after a failed solve: the previous plan shifted by one step, else zero."""
@@ -394,3 +436,138 @@ class LosMpc:
         """Forget the warm start and the stored plan."""
         self._solver = None
         self._plan = None
+
+
+_ZERO3 = np.zeros(3)
+
+
+def _cache_get(cache: dict, key, make):
+    """cache[key], computed by ``make()`` on a miss (bounded: cleared beyond _CACHE_SIZE entries)."""
+    value = cache.get(key)
+    if value is None:
+        value = make()
+        if len(cache) >= _CACHE_SIZE:
+            cache.clear()
+        cache[key] = value
+    return value
+
+
+@njit(cache=True)
+def _shifted_qp_data(theta_k, w_rel, a_max, shift, n_var, inp, consts, PB, WS, HS, G, work):  # pragma: no cover
+    """Per-step data of the QP (module doc), written into ``work``: in w = U - U_c without a
+    linear term (``shift`` True) or in dU = U - g with the linear term f (False). Returns True
+    when every output is finite.
+
+    theta_k (rad), w_rel (rad/s), a_max (m/s^2); inp = [x_0 (6), u_prev (3), plan g (3N,
+    body-axes m/s^2), ref (6N)]; consts = [o_j = theta_j - theta_k, cos o_j, sin o_j (N+1 each),
+    diag R_u (3N), diag R_du (3N), h (r)]; PB = [Phi | B_d] (6, 9) CW ZOH step; WS = W S (6N, 3N); HS = [H^-1 (symmetric);
+    S_pos^T] (2, 3N, 3N), S_pos the position rows of S; G (r, 3) corridor rows.
+    work = [p_g (6N), f (n_var; [:3N] written: the linear term in dU), x_c (n_var; [:3N] = U_c
+    (shift) or g), lb_w, ub_w (n_var; [:3N] = -+a_max - x_c), b (N r) = h - G (p_g + S (x_c - g))_pos].
+    Loops run over the nonzero blocks of S only (x_j+1 depends on u_0..u_j) and are written as
+    column sweeps (axpy) so that they vectorise without reordering any sum."""
+    n3 = WS.shape[1]
+    N = n3 // 3
+    n_rows = G.shape[0]
+    x_body = inp[0:6]
+    u_prev = inp[6:9]
+    guess = inp[9 : 9 + n3]
+    ref = inp[9 + n3 :]
+    cos_o = consts[N + 1 : 2 * N + 2]
+    sin_o = consts[2 * N + 2 : 3 * N + 3]
+    r_u = consts[3 * N + 3 : 3 * N + 3 + n3]
+    r_d = consts[3 * N + 3 + n3 : 3 * N + 3 + 2 * n3]
+    h = consts[3 * N + 3 + 2 * n3 :]
+    H_inv = HS[0]
+    S_posT = HS[1]
+    n6 = 6 * N
+    pred = work[0:n6]
+    f = work[n6 : n6 + n_var]
+    x_c = work[n6 + n_var : n6 + 2 * n_var]
+    lb_w = work[n6 + 2 * n_var : n6 + 3 * n_var]
+    ub_w = work[n6 + 3 * n_var : n6 + 4 * n_var]
+    b = work[n6 + 4 * n_var :]
+    # 1. p_g: exact LTV prediction of the plan (LVLH recursion, rotated to the body frame)
+    ck = math.cos(theta_k)
+    sk = math.sin(theta_k)
+    c, s = ck, sk
+    v0 = x_body[3] - w_rel * x_body[1]
+    v1 = x_body[4] + w_rel * x_body[0]
+    xl = np.empty(6)
+    xn = np.empty(6)
+    xl[0] = c * x_body[0] - s * x_body[1]
+    xl[1] = s * x_body[0] + c * x_body[1]
+    xl[2] = x_body[2]
+    xl[3] = c * v0 - s * v1
+    xl[4] = s * v0 + c * v1
+    xl[5] = x_body[5]
+    for j in range(N):
+        g0, g1, g2 = guess[3 * j], guess[3 * j + 1], guess[3 * j + 2]
+        ul0 = c * g0 - s * g1  # u_L,j = R_LB(theta_j) g_j
+        ul1 = s * g0 + c * g1
+        for r in range(6):
+            acc = PB[r, 6] * ul0 + PB[r, 7] * ul1 + PB[r, 8] * g2
+            for q in range(6):
+                acc += PB[r, q] * xl[q]
+            xn[r] = acc
+        for r in range(6):
+            xl[r] = xn[r]
+        c = ck * cos_o[j + 1] - sk * sin_o[j + 1]  # cos, sin of theta_k + o_j+1 (angle addition)
+        s = sk * cos_o[j + 1] + ck * sin_o[j + 1]
+        rb0 = c * xl[0] + s * xl[1]
+        rb1 = -s * xl[0] + c * xl[1]
+        k = 6 * j
+        pred[k] = rb0
+        pred[k + 1] = rb1
+        pred[k + 2] = xl[2]
+        pred[k + 3] = c * xl[3] + s * xl[4] + w_rel * rb1
+        pred[k + 4] = -s * xl[3] + c * xl[4] - w_rel * rb0
+        pred[k + 5] = xl[5]
+    # 2. f = S'W (p_g - ref) + (R_u + D'R_du D) g - [R_du u_prev; 0]
+    for i in range(n3):
+        f[i] = 0.0
+    for row in range(6 * N):
+        d = pred[row] - ref[row]
+        lim = 3 * (row // 6 + 1)
+        for i in range(lim):
+            f[i] += WS[row, i] * d
+    for i in range(n3):
+        dg = guess[i] - guess[i - 3] if i >= 3 else guess[i]
+        e = r_d[i] * dg
+        if i + 3 < n3:
+            e -= r_d[i + 3] * (guess[i + 3] - guess[i])
+        f[i] += r_u[i] * guess[i] + e
+    for i in range(3):
+        f[i] -= r_d[i] * u_prev[i]
+    # 3. U_c - g = -H^-1 f (shift), else 0
+    for i in range(n3):
+        x_c[i] = 0.0
+    if shift:
+        for j in range(n3):
+            fj = f[j]
+            for i in range(n3):
+                x_c[i] -= H_inv[j, i] * fj
+    # 4. positions of p_g + S (U_c - g): column sweeps over the lower block triangle
+    xp = np.empty(n3)
+    for j in range(N):
+        xp[3 * j] = pred[6 * j]
+        xp[3 * j + 1] = pred[6 * j + 1]
+        xp[3 * j + 2] = pred[6 * j + 2]
+    for i in range(n3):
+        di = x_c[i]
+        for r in range(3 * (i // 3), n3):
+            xp[r] += S_posT[i, r] * di
+    # 5. corridor rows and input bounds in w
+    for j in range(N):
+        p0, p1, p2 = xp[3 * j], xp[3 * j + 1], xp[3 * j + 2]
+        for q in range(n_rows):
+            b[j * n_rows + q] = h[q] - (G[q, 0] * p0 + G[q, 1] * p1 + G[q, 2] * p2)
+    total = 0.0
+    for i in range(n3):
+        x_c[i] += guess[i]
+        lb_w[i] = -a_max - x_c[i]
+        ub_w[i] = a_max - x_c[i]
+        total += ub_w[i] + f[i]
+    for i in range(b.shape[0]):
+        total += b[i]
+    return math.isfinite(total)

@@ -223,6 +223,47 @@ class EnergyDrift:
         return self.gains(np.array([t]), x[None, :6])[0]
 
 
+# Prediction blocks by (mean motion, node times): every run of a Monte Carlo campaign with the same
+# orbit and hop plan (srf-*-mc: only the initial state is dispersed) reuses them (read-only arrays).
+_BLOCK_CACHE: dict = {}
+
+
+def _cached_blocks(key, build):
+    got = _BLOCK_CACHE.get(key)
+    if got is None:
+        got = build()
+        for a in got:
+            a.flags.writeable = False
+        if len(_BLOCK_CACHE) > 64:
+            _BLOCK_CACHE.clear()
+        _BLOCK_CACHE[key] = got
+    return got
+
+
+def _prediction_blocks(n_orb: float, times: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Phi (N+1, N+1, 6, 6): Phi(t_j - t_i) for j >= i (else unused); S (N+1, 6, 3(N+1)): S[j] the
+    effect of impulse u_l (l < j) on x_j. Cached per (n, node times), read-only."""
+    def build():
+        N = len(times) - 1
+        phi = np.empty((N + 1, N + 1, 6, 6))
+        for i in range(N + 1):
+            for j in range(i, N + 1):
+                phi[j, i] = cw_stm(n_orb, times[j] - times[i])
+        S = np.zeros((N + 1, 6, 3 * (N + 1)))
+        for j in range(N + 1):
+            for l in range(j):
+                S[j, :, 3 * l:3 * l + 3] = phi[j, l][:, 3:6]
+        return phi, S
+
+    return _cached_blocks(("prediction", float(n_orb), np.asarray(times, dtype=float).tobytes()), build)
+
+
+def _drift_stms(n_orb: float, tau: np.ndarray) -> np.ndarray:
+    """Phi(tau_f) (F, 6, 6) of the free-drift grid, cached per (n, grid), read-only."""
+    return _cached_blocks(("drift", float(n_orb), tau.tobytes()),
+                          lambda: (np.array([cw_stm(n_orb, t) for t in tau]),))[0]
+
+
 @dataclass
 class NodeSchedule:
     """MPC nodes on the engine grid: node ``j`` is engine step ``steps[j]`` (t = steps[j] dt).
@@ -334,23 +375,14 @@ class SrfMpc:
             raise input_error("reference point", self.p_d.tolist(),
                               f"lies inside the keep-out zone (radius {keep_out.radius_m:g} m): move it out or shrink the KOZ", "m")
         # ---- prediction blocks, built once for the whole node grid (sliced per horizon length)
-        T = schedule.times
-        N = schedule.n
-        self._phi = np.empty((N + 1, N + 1, 6, 6))  # Phi(t_j - t_i) for j >= i (else unused)
-        for i in range(N + 1):
-            for j in range(i, N + 1):
-                self._phi[j, i] = cw_stm(self.n_orb, T[j] - T[i])
-        # S[j] (6, 3(N+1)): effect of impulse u_l (l < j) on x_j
-        self._S = np.zeros((N + 1, 6, 3 * (N + 1)))
-        for j in range(N + 1):
-            for l in range(j):
-                self._S[j, :, 3 * l:3 * l + 3] = self._phi[j, l][:, 3:6]
+        self._phi, self._S = _prediction_blocks(self.n_orb, schedule.times)
         # free-drift grid (29h-i) and its STMs
         period = 2 * math.pi / self.n_orb
         span = c.free_drift_s if c.free_drift_s is not None else period
         self.tau = np.linspace(span / c.free_drift_nodes, span, c.free_drift_nodes)
-        self._phi_tau = np.array([cw_stm(self.n_orb, t) for t in self.tau])
+        self._phi_tau = _drift_stms(self.n_orb, self.tau)
         self._node_of_step = {int(s): j for j, s in enumerate(schedule.steps)}
+        self._hop_boundaries = [0] + schedule.hop_nodes.tolist()  # node 0 and every hop end
         self._hop_node_set = set(schedule.hop_nodes.tolist())
         self.drift_model = c.drift_model
         self.hop_targets_m = None  # guidance distances d_0..d_n (m) for hop_distance_tol_m
@@ -682,6 +714,16 @@ class SrfMpc:
         lo, hi = [], []
         inf = np.inf
         tol_r, tol_w = c.r_tol_m, c.w_tol_mps
+        drift_c = None
+        nodes = self._hop_boundaries
+        rx_memo: dict[int, float] = {}
+
+        def rx(j: int) -> float:  # _rx_const(i, x, j), once per node j in this build
+            got = rx_memo.get(j)
+            if got is None:
+                got = rx_memo[j] = self._rx_const(i, x, j)
+            return got
+
         for kind in self._g_kinds:
             if kind == "brake":
                 continue
@@ -705,7 +747,9 @@ class SrfMpc:
                 if j < i or relax >= 3:
                     lo.append(-OFF); hi.append(OFF)
                     continue
-                v = self.drift_estimate(float(self.sched.times[i]), x)[0]
+                if drift_c is None:  # the same estimate for every drift row of this node
+                    drift_c = self.drift_estimate(float(self.sched.times[i]), x)[0]
+                v = drift_c
                 lo.append(-c.drift_free_tol_mps - v); hi.append(c.drift_free_tol_mps - v)
                 continue
             if tag == "hold":
@@ -714,13 +758,12 @@ class SrfMpc:
                     continue
                 lo.append(-c.drift_free_tol_mps); hi.append(c.drift_free_tol_mps)
                 continue
-            nodes = [0] + self.sched.hop_nodes.tolist()
             if tag == "dist":
                 m = j
                 if nodes[m] <= i or relax >= 1 or nodes[m] == N:
                     lo.append(-OFF); hi.append(OFF)
                     continue
-                v = self._rx_const(i, x, nodes[m])
+                v = rx(nodes[m])
                 d, tol = self.hop_targets_m[m], c.hop_distance_tol_m[m - 1]
                 lo.append((d - tol - v) / KM); hi.append((d + tol - v) / KM)
             elif tag == "len":
@@ -728,14 +771,14 @@ class SrfMpc:
                 if nodes[m] <= i or relax >= 3:
                     lo.append(-OFF); hi.append(OFF)
                     continue
-                v = self._rx_const(i, x, nodes[m - 1]) - self._rx_const(i, x, nodes[m])
+                v = rx(nodes[m - 1]) - rx(nodes[m])
                 lo.append((c.h_min_m - v) / KM); hi.append((c.h_max_m - v) / KM)
             elif tag == "dec":
                 m = j
                 if nodes[m + 1] <= i or relax >= 1:
                     lo.append(-OFF); hi.append(OFF)
                     continue
-                r = [self._rx_const(i, x, nodes[q]) for q in (m - 1, m, m + 1)]
+                r = [rx(nodes[q]) for q in (m - 1, m, m + 1)]
                 v = (r[1] - r[2]) - (r[0] - r[1])
                 lo.append(-inf); hi.append((-c.epsilon_m - v) / KM)
         brake_lo = -c.terminal_vel_tol_mps - fN[3:]

@@ -40,6 +40,7 @@ import math
 from functools import cached_property
 
 import numpy as np
+from numba import njit
 
 from proxops.core.constants import MU_EARTH
 from proxops.core.cw import cw_discretize_zoh
@@ -150,6 +151,13 @@ def rot_z(theta: float) -> np.ndarray:
     """Active rotation R_z(theta) (3x3): components in the turned frame -> original frame."""
     c, s = math.cos(theta), math.sin(theta)
     return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+
+
+def rotate_z(theta: float, v: np.ndarray) -> np.ndarray:
+    """R_z(theta) v for one 3-vector (rot_z(theta) @ v written out; equal to it up to rounding)."""
+    c, s = math.cos(theta), math.sin(theta)
+    a, b, z = np.asarray(v, float).tolist()
+    return np.array([c * a - s * b, s * a + c * b, z])
 
 
 def body_from_hill_matrix(theta: float | np.ndarray, w_rel: float) -> np.ndarray:
@@ -375,8 +383,8 @@ class TumblingTargetTruth(PlantBase):
         return self._x0.copy()
 
     def relative_state(self, state: np.ndarray) -> np.ndarray:
-        """Body-frame relative state [r_B, v_B] (eqs. 7-8)."""
-        return body_state_from_offset(_dcm_single(state[12:16]), self.target.omega_body, state[6:12])
+        """Body-frame relative state [r_B, v_B] (eqs. 7-8), one jitted call (:func:`_body_state`)."""
+        return _body_state(np.ascontiguousarray(state, dtype=float), self.target.tumble_rate_rad_s)
 
     def hill_state(self, state: np.ndarray) -> np.ndarray:
         """Hill/LVLH relative state of the chaser (6,) from the inner truth."""
@@ -387,8 +395,51 @@ class TumblingTargetTruth(PlantBase):
         if dt != self._q_dt:  # exact eq.-(2) step q (x) exp(0.5 w dt) as a 4x4 matrix, cached per dt
             self._q_step = _right_product_matrix(quat_propagate(IDENTITY, self.target.omega_body, dt))
             self._q_dt = dt
-        q = self._q_step @ state[12:16]
-        return np.concatenate((y, q / math.sqrt(q @ q)))
+        return _with_quaternion_step(y, np.ascontiguousarray(state, dtype=float), self._q_step)
 
     def apply_impulse(self, t: float, state: np.ndarray, dv: np.ndarray) -> np.ndarray:
         return np.concatenate([self.inner.apply_impulse(t, state[:12], dv), state[12:16]])
+
+
+@njit(cache=True)
+def _body_state(state, w_t):  # pragma: no cover - compiled
+    """Eqs. (7)-(8) from the full state (16,): r_B = R_IB^T dr, v_B = R_IB^T dv - w_B x r_B with
+    R_IB from q_IB = state[12:16] (scalar last, the formulas of :func:`_dcm_single`) and
+    w_B = [0, 0, w_t]."""
+    x, y, z, w = state[12], state[13], state[14], state[15]
+    R = np.empty((3, 3))
+    R[0, 0] = w * w + x * x - y * y - z * z
+    R[0, 1] = 2 * (x * y - w * z)
+    R[0, 2] = 2 * (x * z + w * y)
+    R[1, 0] = 2 * (x * y + w * z)
+    R[1, 1] = w * w - x * x + y * y - z * z
+    R[1, 2] = 2 * (y * z - w * x)
+    R[2, 0] = 2 * (x * z - w * y)
+    R[2, 1] = 2 * (y * z + w * x)
+    R[2, 2] = w * w - x * x - y * y + z * z
+    out = np.empty(6)
+    for i in range(3):
+        out[i] = R[0, i] * state[6] + R[1, i] * state[7] + R[2, i] * state[8]
+        out[3 + i] = R[0, i] * state[9] + R[1, i] * state[10] + R[2, i] * state[11]
+    out[3] += w_t * out[1]  # - (w_B x r_B) = -[-w_t r_y, w_t r_x, 0]
+    out[4] -= w_t * out[0]
+    return out
+
+
+@njit(cache=True)
+def _with_quaternion_step(y12, state, q_step):  # pragma: no cover - compiled
+    """[y12; q'] (16,): q' = q_step q (the exact eq.-(2) step as a 4x4 matrix) normalised."""
+    out = np.empty(16)
+    for i in range(12):
+        out[i] = y12[i]
+    norm2 = 0.0
+    for i in range(4):
+        acc = 0.0
+        for j in range(4):
+            acc += q_step[i, j] * state[12 + j]
+        out[12 + i] = acc
+        norm2 += acc * acc
+    norm = math.sqrt(norm2)
+    for i in range(4):
+        out[12 + i] /= norm
+    return out

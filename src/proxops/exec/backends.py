@@ -64,6 +64,23 @@ def _init_worker() -> None:
     except ValueError:  # not the main thread
         pass
     signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})
+    atexit.register(_worker_exit)
+    from proxops._startup import defer_unused_numpy_submodules
+
+    defer_unused_numpy_submodules()  # runs after the handlers registered later (numba's): last
+
+
+def _worker_exit() -> None:
+    """A pool worker's last atexit handler: end the process without the interpreter's teardown of
+    every module (0.3-0.9 s with numba's kernels loaded, measured), which ``shutdown_pools`` would
+    wait for. The worker has handed every result over the pool's synchronous result queue and run
+    multiprocessing's exit functions by then."""
+    for stream in (sys.stdout, sys.stderr):
+        try:
+            stream.flush()
+        except (OSError, ValueError):
+            pass
+    os._exit(0)
 
 
 class _sigint_blocked:
@@ -193,6 +210,21 @@ class _PoolBackend:
     def wait(self, futures, timeout):
         return cf_wait(futures, timeout=timeout, return_when=FIRST_COMPLETED)
 
+    def check(self, func) -> bool:
+        """Run ``func(context)`` once per worker slot before any work (each task warms a worker) and
+        wait for the first to finish: True if it returned, its exception re-raised if it raised,
+        False if the pool broke (the caller then checks by itself)."""
+        pending = {self.submit(func, [None], "raise") for _ in range(self.slots)}
+        while pending:
+            done, pending = cf_wait(pending, timeout=0.1, return_when=FIRST_COMPLETED)
+            for fut in done:
+                try:
+                    fut.result()
+                except BrokenProcessPool:
+                    return False
+                return True
+        return False
+
     def cancel(self, fut) -> bool:
         return fut.cancel()
 
@@ -231,6 +263,31 @@ def _restore_env(saved: dict) -> None:
 def _new_pool(workers: int) -> ProcessPoolExecutor:
     return ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context(START_METHOD),
                                initializer=_init_worker)
+
+
+def prestart_pool(workers: int, modules: Sequence[str] = ()) -> None:
+    """Spawn the local pool of ``workers`` processes now and have each import ``modules``, so that
+    their start-up overlaps this process's own imports and checks (``proxops mc`` calls it before
+    importing the campaign layer). The pool is the one a later campaign of this process with as
+    many workers uses (kept in ``_POOLS`` like any pool). No effect for fewer than 2 workers or
+    when that pool exists."""
+    if workers < 2 or workers in _POOLS:
+        return
+    saved = _single_thread_env()  # the workers are spawned (inherit the environment) in submit
+    try:
+        pool = _POOLS[workers] = _new_pool(workers)
+        with _sigint_blocked():
+            for _ in range(workers):
+                pool.submit(_import_modules, tuple(modules))
+    finally:
+        _restore_env(saved)
+
+
+def _import_modules(modules: tuple[str, ...]) -> None:
+    import importlib
+
+    for name in modules:
+        importlib.import_module(name)
 
 
 def _stop_pool(pool: ProcessPoolExecutor, force: bool) -> None:

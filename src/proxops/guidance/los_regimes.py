@@ -38,14 +38,18 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+from numba import njit
 
 from proxops.constraints.los_corridor import LosCorridor
 from proxops.control.los_mpc import LosMpc, LosMpcConfig
 from proxops.control.supervisor import Supervisor
-from proxops.dynamics.tumbling_target import BodyFrameModel, cross3, rot_z, sync_range
+from proxops.dynamics.tumbling_target import BodyFrameModel, cross3, rot_z, rotate_z, sync_range
 from proxops.errors import input_error
 from proxops.sim.protocols import Command
 from proxops.status import Status
+
+
+_NO_EVENTS = ()  # a step without events (a step with events makes its own list)
 
 
 def auto_hold_range(a_max: float, tumble_rate_rad_s: float) -> float:
@@ -130,6 +134,8 @@ class LosGuidanceController(Supervisor):
         self.kd = 2.0 * self.g.pd_damping * self.g.pd_natural_frequency_rad_s
         self.W = np.array([0.0, 0.0, model.w_rel])
         self._step_numbers = np.arange(1.0, self.mpc.N + 1) if self.mpc is not None else None  # j = 1..N
+        if self.mpc is not None:  # _axis_trajectory's buffers
+            self._ref_buffer = np.zeros((self.mpc.N, 6))
         super().__init__({name: _Regime(self, name) for name in ("far", "close", "hold")}, self.regime_rule,
                          absorbing=("hold",), dt=self.dt)
         self.reset(0.0, np.zeros(6))
@@ -165,9 +171,11 @@ class LosGuidanceController(Supervisor):
         else:
             v_ref = min(v_achv, math.sqrt(self.a_max * max(self.r_ref - r_h, 0.0)))
             self.r_ref = max(self.r_ref - v_ref * self.dt, r_h)
-        p_ref = np.array([0.0, self.r_ref, 0.0])
-        R_LB = rot_z(self.model.theta0_rad + self.model.w_rel * t)
+        theta = self.model.theta0_rad + self.model.w_rel * t
+        p_ref = R_LB = v_ref_L = None
         if mode == "far":
+            p_ref = np.array([0.0, self.r_ref, 0.0])
+            R_LB = rot_z(theta)
             v_ref_L = self._spiral_velocity(p_ref, v_ref, v_achv, R_LB)
             x_ref = np.concatenate([p_ref, R_LB.T @ v_ref_L - cross3(self.W, p_ref)])  # limited ref in F_B
         else:
@@ -175,6 +183,9 @@ class LosGuidanceController(Supervisor):
 
         def nominal_body() -> np.ndarray:
             """The §7 PD law of the current regime (body axes, clipped to the box)."""
+            nonlocal p_ref, R_LB
+            if R_LB is None:
+                p_ref, R_LB = np.array([0.0, self.r_ref, 0.0]), rot_z(theta)
             x_hill = self.model.hill_from_body(t, x)
             if mode == "far":
                 u_hill = (self.kp * (R_LB @ p_ref - x_hill[:3]) + self.kd * (v_ref_L - x_hill[3:6])
@@ -185,15 +196,15 @@ class LosGuidanceController(Supervisor):
                 u_hill = R_LB @ a_body + cw_feedforward(self.model.n, x_hill)
             return np.minimum(np.maximum(R_LB.T @ u_hill, -self.a_max), self.a_max)
 
-        info = {"range_m": r, "r_ref_m": self.r_ref}
-        events: list = []
         stop = False
         if self.mpc is None:
             u_body, status, solve_time = nominal_body(), Status.OK, 0.0
+            info = {"range_m": r, "r_ref_m": self.r_ref}
         else:
             sol = self.mpc.solve(t, x, x_ref, self.u_prev)
             status, solve_time = sol.status, sol.solve_time_s
-            info.update(mpc_iterations=sol.iterations, mpc_build_ms=sol.build_time_s * 1e3, slack_m=sol.max_slack_m)
+            info = {"range_m": r, "r_ref_m": self.r_ref, "mpc_iterations": sol.iterations,
+                    "mpc_build_ms": sol.build_time_s * 1e3, "slack_m": sol.max_slack_m}
             if sol.ok:
                 u_body = sol.u0
             elif self.mpc.soft:
@@ -203,14 +214,15 @@ class LosGuidanceController(Supervisor):
                 if self.g.stop_on_infeasible:
                     stop = True
                     mode = "qp_infeasible"
-        info.update(u_body_0=u_body[0], u_body_1=u_body[1], u_body_2=u_body[2])
+        info["u_body_0"], info["u_body_1"], info["u_body_2"] = u_body.tolist()
         self.u_prev = u_body
+        events = _NO_EVENTS
         if mode == "hold" and not self.hold_reached:
             self.hold_reached = True
-            events.append(("hold", f"hold reached at range {r:.2f} m"))
+            events = [("hold", f"hold reached at range {r:.2f} m")]
         if self.hold_reached and self.g.stop_at_hold:
             stop, mode = True, "hold_reached"
-        return Command(u=R_LB @ u_body, status=status, solve_time_s=solve_time, mode=mode, events=events,
+        return Command(u=rotate_z(theta, u_body), status=status, solve_time_s=solve_time, mode=mode, events=events,
                        info=info, stop=stop)
 
     # ------------------------------------------------------------------ pieces
@@ -224,10 +236,17 @@ class LosGuidanceController(Supervisor):
         return v_ref_L
 
     def _axis_trajectory(self, v_ref: float) -> np.ndarray:
-        """Reference x_1..x_N along +y_B: range r_ref - v j dt (not below r_h), co-rotating."""
-        r_h = self.hold_range
-        ranges = np.maximum(self.r_ref - v_ref * self.dt * self._step_numbers, r_h)
-        ref = np.zeros((len(ranges), 6))
-        ref[:, 1] = ranges
-        ref[:, 4] = np.where(ranges > r_h, -v_ref, 0.0)
-        return ref
+        """Reference x_1..x_N along +y_B: range r_ref - v j dt (not below r_h), co-rotating.
+        Written into one buffer per controller (the MPC reads it during its solve only)."""
+        _fill_axis_reference(self._ref_buffer, self._step_numbers, self.r_ref, v_ref * self.dt, v_ref,
+                             self.hold_range)
+        return self._ref_buffer
+
+
+@njit(cache=True)
+def _fill_axis_reference(ref, steps, r_ref, step_m, v_ref, r_h):  # pragma: no cover - compiled
+    """ref[j] = [0, max(r_ref - step_m j, r_h), 0, 0, -v_ref (0 once at r_h), 0] for j = steps (m, m/s)."""
+    for j in range(steps.shape[0]):
+        rj = max(r_ref - step_m * steps[j], r_h)
+        ref[j, 1] = rj
+        ref[j, 4] = -v_ref if rj > r_h else 0.0

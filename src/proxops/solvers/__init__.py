@@ -11,6 +11,8 @@ Canonical forms (:mod:`proxops.solvers.forms`): :class:`QuadraticProgram`,
 - :class:`ClarabelSOCP` conic QP / SOCP, interior point (cones, robust fallback)
 - :class:`HighsLP`      pure LP, dual simplex hot-started from the last basis
 - :class:`HighsMILP`    mixed-integer LP, HiGHS branch and cut
+- :class:`~proxops.solvers.warm_simplex.WarmPrimalSimplex` not an adapter: re-solves a small
+  dense LP whose cost changes, from an optimal HiGHS basis (support functions of 2-D sections)
 - :class:`~proxops.solvers.casadi_nlp.CasadiNLP` NLP by IPOPT or fatrop (CasADi)
 
 :func:`make_qp_solver` picks a QP adapter by name, so a controller is not welded to one

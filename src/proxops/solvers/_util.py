@@ -91,6 +91,21 @@ def same_pattern(a: sp.csc_matrix, b: sp.csc_matrix) -> bool:
     )
 
 
+def refill_same_pattern(stored: sp.csc_matrix, value) -> sp.csc_matrix | None:
+    """``stored`` with its entries overwritten by ``value``'s when ``value`` is a CSC float64 matrix
+    in canonical form with exactly ``stored``'s shape and sparsity pattern (an in-place update of a
+    fixed-pattern problem: the same entries :func:`csc_matrix` would give, without building a new
+    matrix, 0.1-0.2 ms a call); None otherwise (the caller converts and checks ``value``)."""
+    if not (sp.issparse(value) and value.format == "csc" and value.dtype == np.float64
+            and value.shape == stored.shape and value.nnz == stored.nnz):
+        return None
+    if not (np.array_equal(value.indptr, stored.indptr) and np.array_equal(value.indices, stored.indices)
+            and value.has_canonical_format):
+        return None
+    stored.data[:] = value.data
+    return stored
+
+
 def rows_of(name: str, A) -> int:
     """Number of rows of a matrix given densely or sparsely (0 for None)."""
     if A is None:

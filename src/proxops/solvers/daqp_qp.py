@@ -48,6 +48,8 @@ RAW_NAMES = {
     -4: "iterlimit", -5: "nonconvex", -6: "overdetermined_initial", -7: "timelimit",
     -8: "unsupported",
 }
+RAW_STATUS = {flag: f"{flag} ({name})" for flag, name in RAW_NAMES.items()}
+_HAS_X = frozenset((SolveStatus.OPTIMAL, SolveStatus.MAX_ITER, SolveStatus.TIME_LIMIT))
 SENSE_EQUALITY = 5  # DAQP: ACTIVE | IMMUTABLE
 SENSE_SOFT = 8
 
@@ -115,8 +117,13 @@ class DaqpQP:
         ``info["soft_relaxed"]`` tells when one was relaxed).
         Shape errors raise ProxopsInputError; NaN data makes ``solve`` return NUMERICAL_ERROR.
         """
-        f = _util.vector("f", f, np.size(f), allow_nan=True)
-        n = f.shape[0]
+        if f is None:  # no linear term (see update_fast): DAQP keeps no v, bound updates cost O(m)
+            if H is None:
+                raise input_error("H", None, "give H when f is None (the problem needs a size)")
+            n = int(np.shape(H)[0])
+        else:
+            f = _util.vector("f", f, np.size(f), allow_nan=True)
+            n = f.shape[0]
         if n == 0:
             raise input_error("f", "empty", "the problem needs at least one variable")
         self.n = n
@@ -132,7 +139,8 @@ class DaqpQP:
         self._lb = _util.vector("lb", lb, n, fill=-np.inf, allow_inf=True, allow_nan=True)
         self._ub = _util.vector("ub", ub, n, fill=np.inf, allow_inf=True, allow_nan=True)
         for name in ("H", "f", "A"):
-            self._bad.check(name, getattr(self, "_" + name))
+            if getattr(self, "_" + name) is not None:
+                self._bad.check(name, getattr(self, "_" + name))
         for name in ("bl", "bu", "lb", "ub"):
             self._bad.check(name, getattr(self, "_" + name), allow_inf=True)
         soft = np.zeros(m, bool) if soft_rows is None else np.asarray(soft_rows, bool).reshape(-1)
@@ -149,9 +157,12 @@ class DaqpQP:
         self._model.settings = self._native
         self._solver_error = None
         self._solver_flag = 0
-        clean = lambda a: np.nan_to_num(a, nan=0.0, posinf=DAQP_INF, neginf=-DAQP_INF)  # noqa: E731
+        # copies (DAQP keeps pointers to what it is given); NaN/inf only where BadData saw them
+        bad = self._bad.fields
+        clean = lambda a: (np.nan_to_num(a, nan=0.0, posinf=DAQP_INF, neginf=-DAQP_INF) if bad  # noqa: E731
+                           else np.array(a, dtype=float))
         try:
-            flag, _ = self._model.setup(clean(self._H), clean(self._f), clean(self._A),
+            flag, _ = self._model.setup(clean(self._H), None if self._f is None else clean(self._f), clean(self._A),
                                         clean(self._upper), clean(self._lower), self._sense.copy())
         except Exception as exc:  # solver failure -> status at solve time, never a crash
             self._solver_error = error_message(exc)
@@ -229,6 +240,8 @@ class DaqpQP:
             if self._bad.check("H", self._H):
                 kwargs["H"] = self._H
         if f is not None:
+            if self._f is None:
+                raise input_error("f", "update", "the problem was set up without a linear term (f=None)")
             self._f = _util.vector("f", f, self.n, allow_nan=True)
             if self._bad.check("f", self._f):
                 kwargs["f"] = self._f
@@ -267,35 +280,55 @@ class DaqpQP:
             self._solver_error = error_message(exc)
 
     def update_fast(self, *, f: np.ndarray | None = None, bu: np.ndarray | None = None,
-                    bl: np.ndarray | None = None) -> None:
-        """Lean :meth:`update` of ``f`` and the row bounds for trusted data (per-step MPC use).
+                    bl: np.ndarray | None = None, lb: np.ndarray | None = None, ub: np.ndarray | None = None) -> None:
+        """Lean :meth:`update` of ``f``, the row bounds and the variable bounds for trusted data
+        (per-step MPC use).
 
         The caller guarantees: 1-D C-contiguous float64 arrays of the set-up sizes
-        (f: (n,), bu/bl: (m,)), no NaN, no entry beyond +-1e30, and no row turning into or
-        out of an equality (bl == bu) - so DAQP's senses and working set stay as they are.
-        Nothing is checked or copied (the arrays are handed to DAQP, which keeps pointers
-        to them: do not modify them afterwards). Saves the ~50 us of input checking of
-        :meth:`update`. After a failed set-up/update it falls back to :meth:`update`.
-        """
+        (f, lb, ub: (n,), bu/bl: (m,)), no NaN, no entry beyond +-1e30, and no row or variable
+        turning into or out of an equality (lower == upper) - so DAQP's senses and working set
+        stay as they are. Crossed bounds (lower > upper) are rejected by DAQP's own check: the
+        next solve reports INFEASIBLE. Nothing is checked (``f`` is handed to DAQP, which keeps a pointer to
+        it: do not modify it afterwards; the bounds are copied into the full bound vectors).
+        Saves the ~50 us of input checking of :meth:`update`. After a failed set-up/update it
+        falls back to :meth:`update`.
+
+        Changing the linear term makes DAQP recompute its LDP data (v = R^-T f and
+        d = b + M v: O(m n), ~40 us at n = 120, m = 360). A problem set up with ``f=None``
+        keeps no v, and a bound-only update costs O(m): a caller whose linear term changes
+        every step can instead shift the variable to the unconstrained minimiser x_c = -H^-1 f
+        (x = x_c + w: objective 1/2 w'Hw + const, bounds lb - x_c, ub - x_c, rows bl - A x_c,
+        bu - A x_c). DAQP then solves the same LDP (its u = R (x - x_c) either way)."""
         if (self._model is None or self._solver_error is not None or self._solver_flag < 0 or self._bad.fields
-                or getattr(self, "_p_eq", None)):
-            self.update(q=f, bu=bu, bl=bl)
+                or getattr(self, "_p_eq", None) or ((lb is not None or ub is not None) and not self.has_bounds)):
+            self.update(q=f, bu=bu, bl=bl, lb=lb, ub=ub)
             return
         kwargs = {}
         if f is not None:
+            if self._f is None:
+                raise input_error("f", "update_fast", "the problem was set up without a linear term (f=None)")
             self._f = kwargs["f"] = f
-        if bu is not None or bl is not None:
+        if bu is not None or bl is not None or lb is not None or ub is not None:
             off = self.n if self.has_bounds else 0
             # written into the full bound vectors in place (DAQP re-reads them on update)
             if bu is not None:
                 self._bu = bu
                 self._upper[off:] = bu
-                kwargs["bupper"] = self._upper
+            if ub is not None:
+                self._ub = ub
+                self._upper[:off] = ub
             if bl is not None:
                 self._bl = bl
                 self._lower[off:] = bl
+            if lb is not None:
+                self._lb = lb
+                self._lower[:off] = lb
+            if bu is not None or ub is not None:
+                kwargs["bupper"] = self._upper
+            if bl is not None or lb is not None:
                 kwargs["blower"] = self._lower
-            self._check_crossed()
+            # no crossing check here: DAQP checks lower <= upper itself and rejects crossed data
+            # (update flag -1: the next solve reports INFEASIBLE, the next update rebuilds)
         if kwargs:
             try:
                 self._solver_flag = int(self._model.update(**kwargs))
@@ -307,6 +340,20 @@ class DaqpQP:
         """Solve from the current working set and return a :class:`SolverResult`."""
         if self._model is None:
             raise input_error("DaqpQP.solve", "called before setup", "call setup() first")
+        if (self._bad.fields or self._crossed is not None or self._solver_error is not None or self._solver_flag < 0
+                or not self.warm_start_enabled):
+            return self._solve_checked()
+        try:
+            t0 = time.perf_counter()
+            x, fval, flag, info = self._model.solve()
+            wall = time.perf_counter() - t0
+        except Exception as exc:
+            return failed_result(self.name, error_message(exc))
+        return self._result(x, fval, flag, info, wall)
+
+    def _solve_checked(self) -> SolverResult:
+        """:meth:`solve` when something is off (bad data, crossed bounds, a failed set-up) or the
+        working set is reset before every solve."""
         bad = self._bad.message()
         if bad is not None:
             return failed_result(self.name, bad)
@@ -330,18 +377,21 @@ class DaqpQP:
             wall = time.perf_counter() - t0
         except Exception as exc:
             return failed_result(self.name, error_message(exc))
+        return self._result(x, fval, flag, info, wall)
+
+    def _result(self, x, fval, flag, info, wall: float) -> SolverResult:
         flag = int(flag)
         status = STATUS_MAP.get(flag, SolveStatus.NUMERICAL_ERROR)
-        has_x = status in (SolveStatus.OPTIMAL, SolveStatus.MAX_ITER, SolveStatus.TIME_LIMIT)
+        has_x = status in _HAS_X
         return SolverResult(
             status=status,
-            x=np.asarray(x, float) if has_x else None,
+            x=x if has_x else None,  # a fresh float64 array from daqp
             objective=float(fval) if has_x else math.nan,
-            iterations=int(info.get("iterations", 0)),
+            iterations=int(info["iterations"]),
             solve_time_s=wall,
             solver=self.name,
             info={
-                "raw_status": f"{flag} ({RAW_NAMES.get(flag, 'unknown')})",
+                "raw_status": RAW_STATUS.get(flag) or f"{flag} (unknown)",
                 "solver_time_s": float(info.get("solve_time", math.nan)),
                 "dual": info.get("lam"),
                 "soft_relaxed": flag == 2,

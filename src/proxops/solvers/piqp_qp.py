@@ -190,9 +190,11 @@ class PiqpQP:
             if value is None:
                 continue
             if key in _MATRICES:
-                new = _util.csc_matrix(key, value, shapes[key], upper=key == "P", allow_nonfinite=True)
-                if not _util.same_pattern(new, d[key]):
-                    rebuild = True
+                new = _util.refill_same_pattern(d[key], value) if key != "P" else None
+                if new is None:
+                    new = _util.csc_matrix(key, value, shapes[key], upper=key == "P", allow_nonfinite=True)
+                    if not _util.same_pattern(new, d[key]):
+                        rebuild = True
             else:
                 new = _util.vector(key, value, sizes[key], allow_inf=key not in ("c", "b"), allow_nan=True)
             d[key] = new

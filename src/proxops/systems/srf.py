@@ -207,30 +207,62 @@ def keep_out_hill(sc: SrfScenario):
     return KeepOutSphere(sc.keep_out.radius_m, lvlh_vector_to_hill(np.array(sc.keep_out.center_m)), name="keep_out")
 
 
+# Per-process caches of what every run of a campaign recomputes identically (srf-*-mc disperse only
+# the initial state): Algorithm 1's plan (root finding: 50 ms per glideslope/R-bar run) and the
+# onboard target ephemeris. Keyed on every input they depend on; a dispersed input only misses.
+_PLAN_CACHE: dict = {}
+_EPHEMERIS_CACHE: dict = {}
+_CACHE_MAX = 64
+
+
+def _remember(cache: dict, key, make):
+    got = cache.get(key)
+    if got is None:
+        got = make()
+        if len(cache) >= _CACHE_MAX:
+            cache.clear()
+        cache[key] = got
+    return got
+
+
 def plan_of(sc: SrfScenario):
-    """Algorithm 1 output for the scenario (raises ProxopsInputError in the infeasible band)."""
+    """Algorithm 1 output for the scenario (raises ProxopsInputError in the infeasible band); a copy
+    of the plan cached per (approach, orbit) in this process."""
+    import copy
+
     from proxops.guidance.hop_times import plan_hops
 
     ap = sc.approach
-    return plan_hops(math.radians(ap.angle_deg), ap.hops, ap.gamma, ap.start_m, ap.end_m,
-                     mean_motion(sc.orbit.sma_m), vbar_period_fraction=ap.vbar_period_fraction)
+    args = (math.radians(ap.angle_deg), ap.hops, ap.gamma, ap.start_m, ap.end_m, mean_motion(sc.orbit.sma_m))
+    key = (*args, ap.vbar_period_fraction)
+    plan = _remember(_PLAN_CACHE, key, lambda: plan_hops(*args, vbar_period_fraction=ap.vbar_period_fraction))
+    return copy.deepcopy(plan)
 
 
 def onboard_drift_model(sc: SrfScenario, dt: float, span_s: float):
     """The MPC's J2-aware drift invariant: the target's ECI states every engine step over the mission
-    (the onboard ephemeris of the known target orbit, same force model as the truth: two-body or J2)."""
+    (the onboard ephemeris of the known target orbit, same force model as the truth: two-body or J2).
+    The ephemeris (read-only) is cached per (orbit, truth model, dt, span) in this process."""
     from proxops.control.srf_mpc import EnergyDrift
     from proxops.core.constants import J2_EARTH, MU_EARTH, R_EARTH
+
+    j2 = sc.truth.model == "j2"
+    key = (sc.orbit.model_dump_json(), j2, sc.truth.integrator, float(dt), float(span_s))
+    states = _remember(_EPHEMERIS_CACHE, key, lambda: _target_ephemeris(sc, j2, dt, span_s))
+    return EnergyDrift(dt, states, MU_EARTH, J2_EARTH if j2 else 0.0, R_EARTH)
+
+
+def _target_ephemeris(sc: SrfScenario, j2: bool, dt: float, span_s: float) -> np.ndarray:
     from proxops.propagation.truth import RelativeTruth
     from proxops.systems.common import target_elements
 
-    j2 = sc.truth.model == "j2"
     plant = RelativeTruth(target_elements(sc.orbit), np.zeros(6), j2=j2, integrator=sc.truth.integrator)
     n = int(math.ceil(span_s / dt)) + 3
     # n - 1 propagate() calls of dt in one (jitted) coast: the same numbers
     full, _ = plant.coast(np.arange(n - 1) * dt, plant.initial_state(), np.zeros(3), dt)
     states = np.array([plant.target_state(y) for y in full])
-    return EnergyDrift(dt, states, MU_EARTH, J2_EARTH if j2 else 0.0, R_EARTH)
+    states.flags.writeable = False
+    return states
 
 
 def build_controller(sc: SrfScenario, cbf: bool | None = None):

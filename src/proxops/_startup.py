@@ -1,0 +1,36 @@
+"""Start-up cost of a process (CLI, pool worker) that the work does not need.
+
+numba's first compile-or-cache-load imports ``scipy.linalg`` (its BLAS check), and
+``scipy.linalg`` imports scipy's array-API shim, which reads every public attribute of numpy --
+importing ``numpy.f2py`` (a Fortran wrapper generator whose import compiles hundreds of regular
+expressions) and ``numpy.testing``: about 90 ms of a 1 s ``proxops run`` (measured with
+``python -X importtime``), for modules no run uses.
+"""
+
+from __future__ import annotations
+
+import importlib.util
+import sys
+
+_UNUSED_NUMPY_SUBMODULES = ("numpy.f2py", "numpy.testing")
+
+
+def defer_unused_numpy_submodules() -> None:
+    """Register ``numpy.f2py`` and ``numpy.testing`` as lazily executed modules
+    (:class:`importlib.util.LazyLoader`): reading the attribute gives the module object, its code
+    runs on the first access to anything in it, so every real use works unchanged. No effect on a
+    submodule already imported."""
+    import numpy
+
+    for name in _UNUSED_NUMPY_SUBMODULES:
+        if name in sys.modules:
+            continue
+        spec = importlib.util.find_spec(name)
+        if spec is None or spec.loader is None:
+            continue
+        loader = importlib.util.LazyLoader(spec.loader)
+        spec.loader = loader
+        module = importlib.util.module_from_spec(spec)
+        sys.modules[name] = module
+        loader.exec_module(module)
+        setattr(numpy, name.rsplit(".", 1)[1], module)  # numpy's __getattr__ would import it eagerly
