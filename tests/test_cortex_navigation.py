@@ -106,9 +106,11 @@ def test_guidance_sees_the_filter_estimate_and_nees_stays_in_bound():
 
 def test_nees_leaves_the_bound_when_the_filter_ignores_the_thruster_errors():
     """The same loop with command_sigma_fraction = 0: the filter believes every impulse exactly, its
-    covariance no longer covers the error and the NEES test fails (fewer than 80 % inside)."""
+    covariance no longer covers the error and the NEES test above fails: fewer than 90 % inside, against
+    the >= 95 % it asks (measured 86 %; it was 80 % before CP_g's plume rows were linearised about its own
+    solution, which fires fewer and smaller impulses)."""
     _, nav_out, _ = _closed_loop(["errors.p_misthrust=0", "navigation.command_sigma_fraction=0"])
-    assert np.mean(_nees(nav_out) <= chi2.ppf(0.99, 6)) < 0.8
+    assert np.mean(_nees(nav_out) <= chi2.ppf(0.99, 6)) < 0.9
 
 
 @pytest.mark.parametrize("scenario, setting, field", [

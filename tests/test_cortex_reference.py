@@ -226,6 +226,19 @@ def test_outer_search_returns_the_first_converged_duration(cfg):
     assert scan.tau1_s == plan.tau1_s  # linear scan (no monotonicity assumption) agrees
 
 
+def test_fixed_phase_durations_replace_the_search():
+    """planner.tau1_s / tau2_s (the §5.1.2 split: fly-around 14.66 min, final approach 5 min) fix the
+    durations: the plan has exactly those, ends on x_f1 / x_f2 (closed-form STM re-propagation in the checks)
+    and tries no other duration; a CP1 node grid that does not divide tau_1 ends with a shorter interval."""
+    fixed = CortexConfig(mean_motion_rad_s=N_CSO, tau1_s=880.0, tau2_s=300.0)
+    plan = plan_reference(PAPER_FIXED_AXIS_HILL, fixed)
+    assert plan.ok, plan.reason
+    assert plan.tau1_s == 880.0 and plan.tau2_s == 300.0
+    assert [tau for _, tau, _ in plan.tried] == [880.0, 300.0]
+    assert plan.checks.terminal_miss_m < 1e-6
+    assert plan.cp1.t[-1] - plan.cp1.t[-2] == pytest.approx(10.0)  # 880 = 29 x 30 + 10
+
+
 def test_infeasible_plan_is_a_status(cfg):
     weak = CortexConfig(mean_motion_rad_s=N_CSO, a_max_mps2=1e-5, tau_ub_s=400.0)
     plan = plan_reference([0.0, 1.0, 0.0], weak)
@@ -246,6 +259,7 @@ def test_holds_from_a_profile_put_both_transfers_in_sunlight(cfg):
     (dict(cone_half_angle_rad=0.0), "alpha_c"),
     (dict(r_kos_m=80.0), "r_kos"),
     (dict(tau_lb_s=4000.0), "tau_lb"),
+    (dict(tau1_s=-5.0), "tau1"),
     (dict(start_state=(0.0, -10.0, 0.0, 0.0, 0.0, 0.0)), "start position"),
     (dict(approach_end_position_m=(0.0, 0.0, 1.0)), "approach end position"),
 ])

@@ -277,8 +277,9 @@ def test_high_error_abort_is_trimmed_onto_a_passively_safe_orbit():
     from proxops.scenarios.loader import load_scenario
     from proxops.systems.cortex_loop import run_closed_loop
 
-    # the scenario as the run was recorded (Table 2's tau_lb, the printed 27g cone only)
-    sc = load_scenario("cortex-high-mc", ["planner.tau_lb_s=300", "guidance.tracking_cone_margin_deg=0"]).scenario
+    # the scenario as the run was recorded (Table 2's tau_lb, the printed 27g cone only, plume rows about the reference)
+    sc = load_scenario("cortex-high-mc", ["planner.tau_lb_s=300", "guidance.tracking_cone_margin_deg=0",
+                                          "guidance.plume_linearization=reference", "guidance.regen_cone_return_s=0"]).scenario
     seed, _ = run_seeds(sc.sim.seed, 7)
     summary, _ = run_closed_loop(sc, seed=seed)
     assert summary["status"] == "aborted"
@@ -294,6 +295,8 @@ def test_high_error_abort_is_trimmed_onto_a_passively_safe_orbit():
     ("actuator.model=rockets", "model"),
     ("actuator.min_on_time_s=5", "min_on_time_s"),
     ("guidance.tracking_cone_margin_deg=10", "tracking_cone_margin_deg"),
+    ("guidance.plume_linearization=gradient", "plume_linearization"),
+    ("planner.tau1_s=0", "tau1_s"),
 ])
 def test_cli_bad_input_is_one_line_exit_2(setting, field):
     import subprocess
@@ -313,7 +316,7 @@ def _approach_probe(margin_deg):
     from proxops.scenarios.loader import load_scenario
     from proxops.systems.cortex_loop import build_setup
 
-    sc = load_scenario("cortex-nominal", ["truth.model=cw", "eclipse.model=none",
+    sc = load_scenario("cortex-nominal", ["truth.model=cw", "eclipse.model=none", "guidance.plume_linearization=reference",
                                           f"guidance.tracking_cone_margin_deg={margin_deg}"]).scenario
     _, ctrl, _ = build_setup(sc)
     seg = next(s for s in ctrl.timeline.segments if s.phase == "approach")
@@ -563,3 +566,90 @@ def test_nominal_run_with_the_lean_settings_matches_a_tight_tolerance_run(monkey
     assert lean["total_dv_mps"] == pytest.approx(tight["total_dv_mps"], abs=1e-5)
     assert lean["terminal_position_error_m"] == pytest.approx(tight["terminal_position_error_m"], abs=1e-6)
     assert lean["terminal_velocity_error_mps"] == pytest.approx(tight["terminal_velocity_error_mps"], abs=1e-6)
+
+
+def _braking_probe(linearization, plume_margin_deg=0.0):
+    """CP_g of the supervisor 90 s into the approach of cortex-nominal (CW truth), where the reference coasts,
+    from a state 0.3 m ahead of the reference (closer to the target) closing 5 mm/s faster: catching the
+    reference needs impulses with a component away from the target. Returns the CW-predicted (eq. 2,
+    independent of the solver) miss of the interval's target as the printed (27f) norm of [dr (m), dv (m/s)]
+    and the angles (deg) between each thrusting impulse and the target-to-servicer direction at its
+    predicted position (>= 90: no component away from the target)."""
+    from proxops.scenarios.loader import load_scenario
+    from proxops.systems.cortex_loop import build_setup
+
+    sc = load_scenario("cortex-nominal", ["truth.model=cw", "eclipse.model=none",
+                                          f"guidance.plume_linearization={linearization}",
+                                          f"guidance.tracking_plume_margin_deg={plume_margin_deg}"]).scenario
+    _, ctrl, _ = build_setup(sc)
+    seg = next(s for s in ctrl.timeline.segments if s.phase == "approach")
+    ctrl.mode = "approach"
+    t = seg.t0 + 90.0
+    assert max(np.linalg.norm(seg.impulse(t + 2.0 * j)) for j in range(15)) < 1e-9  # the reference coasts here
+    x = ctrl.timeline.state(t).copy()
+    x[:3] -= 0.3 * AXIS
+    x[3:] -= 0.005 * AXIS
+    dv, _, status = ctrl._guidance(t, x, seg)
+    assert dv is not None and ctrl.relaxed is None
+    xp = ctrl._problem(len(dv), False, False).predicted_states(x, dv)
+    x_T = ctrl.timeline.state(t + 30.0)
+    thrust = np.linalg.norm(dv, axis=1) > 1e-4
+    ang = np.degrees(PlumeConstraint(math.radians(24)).angle_rad(xp[:-1, :3][thrust], dv[thrust]))
+    return float(np.linalg.norm(xp[-1] - x_T)), ang
+
+
+def test_plume_rows_linearised_about_the_solution_allow_braking_off_the_target_direction():
+    """Where the reference coasts, plume rows linearised about the reference impulse are dv . r <= 0: CP_g
+    fires nothing with a component away from the target, so it cannot slow down and misses the interval's
+    target by ~0.45 m. Linearised about the plume-free solution (one step of eq. 22), CP_g brakes along the
+    plume-cone generatrix, every impulse outside the true plume cone alpha_p = 20 deg (within 0.1 deg of
+    alpha_p_bar = 24 deg: the rows are soft), and the miss drops below a third."""
+    miss_ref, ang_ref = _braking_probe("reference")
+    assert ang_ref.min() > 89.9 and miss_ref > 0.4
+    miss_sol, ang_sol = _braking_probe("solution")
+    assert ang_sol.min() < 60.0 and ang_sol.min() > 23.9
+    assert miss_sol < miss_ref / 3
+
+
+def test_tracking_plume_margin_keeps_braking_impulses_off_the_recompute_threshold():
+    """Without the margin the braking impulses of the probe above sit on alpha_p_bar = 24 deg, the C_plume_bar
+    recompute threshold (every C_plume_bar recompute measured in the campaigns fired at 23.7-24.0 deg); with
+    tracking_plume_margin_deg = 2 every thrusting impulse keeps >= 26 deg (to the soft rows' 0.1 deg)."""
+    _, ang0 = _braking_probe("solution", 0.0)
+    assert ang0.min() < 24.1
+    _, ang2 = _braking_probe("solution", 2.0)
+    assert ang2.min() > 25.9
+
+
+def test_bad_tracking_plume_margin():
+    from proxops.scenarios.loader import load_scenario
+
+    with pytest.raises(ProxopsInputError, match="tracking_plume_margin_deg"):
+        load_scenario("cortex-nominal", ["guidance.tracking_plume_margin_deg=-1"])
+
+
+@pytest.mark.parametrize("return_s", [0.0, 60.0])
+def test_regeneration_from_outside_the_planning_cone_returns_towards_the_axis(return_s):
+    """A final-approach regeneration from rest 8 m out and 6.5 deg off the axis (outside alpha_c_bar = 5 deg,
+    past the 6 deg C_cone_bar threshold), on the side the CW curvature pushes the path to. The planning cone
+    is widened to 7 deg to admit the start. Without the funnel the fuel-optimal reference rides the widened
+    7 deg edge after its first minute; with regen_cone_return_s = 60 every node from 60 s on is inside
+    alpha_c_bar (angles from the node positions, independent of the solver)."""
+    from proxops.scenarios.loader import load_scenario
+    from proxops.systems.cortex_loop import build_setup
+
+    sc = load_scenario("cortex-nominal", ["truth.model=cw", "eclipse.model=none",
+                                          f"guidance.regen_cone_return_s={return_s}"]).scenario
+    _, ctrl, _ = build_setup(sc)
+    ang = math.radians(6.5)
+    side = -np.array([1.0, -1.0, 0.0]) / math.sqrt(2)
+    r0 = 8.0 * (math.cos(ang) * AXIS + math.sin(ang) * side)
+    res = ctrl.replanner.approach(np.r_[r0, 0.0, 0.0, 0.0], ctrl.x_f2)
+    assert res is not None and res.ok
+    r = res.x[:, :3]
+    off = np.degrees(np.arccos(r @ AXIS / np.linalg.norm(r, axis=1)))
+    later = off[(res.t >= 60.0) & (res.t < res.t[-1])]
+    if return_s == 0.0:
+        assert later.max() > 6.9
+    else:
+        assert later.max() <= 5.0 + 1e-3

@@ -38,11 +38,19 @@ Choices the paper leaves open (documented keys of the scenario, stated in the re
   angle so that it stays well inside the true cone near the apex). Measured: without it the error-free
   nominal run recomputes at 474 s (0.1 mm outside the buffered cone);
 * plume in CP_g (deviation from §3.2.1, which leaves the plume out of CP_g): in the final approach
-  CP_g carries one SOFT half-space per impulse (slack cost 10 per unit of a_max delta_t_g), the
-  dv-linearisation of eq. (21) at the reference (position and impulse of the reference at that
-  time, alpha_p_bar). Hard rows forbid every braking correction (measured: low-error runs drift to
-  the true cone edge and abort); soft rows keep the nominal clean and leave real conflicts to the
-  plume triggers (recompute / abort).
+  CP_g carries one SOFT half-space per impulse (slack cost ``plume_weight`` per unit of a_max delta_t_g),
+  the dv-linearisation of eq. (21) (alpha_p_bar). Hard rows forbid every braking correction (measured:
+  low-error runs drift to the true cone edge and abort); soft rows keep the nominal clean and leave real
+  conflicts to the plume triggers (recompute / abort). Linearisation point (``plume_linearization``):
+  ``"solution"`` (default) solves CP_g without the rows first and keeps that answer when every impulse
+  clears alpha_p_bar at its predicted position; otherwise the rows are linearised about the reference
+  impulse where the reference thrusts and about the plume-free impulse elsewhere (one successive-
+  convexification step, eq. 22), and CP_g is solved again. ``"reference"`` linearises about the
+  reference only: where the reference coasts (most of CP2) the row is dv . r <= 0, which forbids any
+  impulse with a component away from the target, so CP_g cannot slow down a state running ahead of the
+  reference (measured, cortex-low-mc run 25: the tracking error grew 0.29 -> 0.84 m over 200 s with CP_g
+  idle, then C_cone_bar recomputes; 100-run campaigns reference -> solution: low 95/11/5 -> 100/4/0,
+  high 39/61/61 -> 95/17/5 docked / runs with a recompute / aborted).
   Measured: with the printed CP_g the error-free nominal run commands a braking impulse 8.6 deg
   from the target direction and aborts on C_plume at 528 s (``plume_in_tracking = false``
   reproduces it);
@@ -61,7 +69,10 @@ Choices the paper leaves open (documented keys of the scenario, stated in the re
   holds and the fly-around the whole planner runs from the current state (holds re-evaluated on
   the sunlight profile); a start inside the buffered KOS shrinks the planning sphere to 0.95 of
   the current range (else CP1 is infeasible at once); a final-approach regeneration from outside the
-  planning cone alpha_c_bar widens it to pass 0.5 deg outside the start (never beyond alpha_c); A regeneration tries at most
+  planning cone alpha_c_bar widens it to pass 0.5 deg outside the start (never beyond alpha_c) and, with
+  ``regen_cone_return_s`` > 0, closes it linearly back onto alpha_c_bar within that time (per-node cone angles
+  of CP2: the regenerated reference returns towards the axis instead of riding the widened edge beyond the
+  C_cone_bar threshold, measured up to 280 of 300 s); A regeneration tries at most
   ``replan_candidates`` durations per phase from tau_lb (an onboard time budget: measured, a failing
   CP2 regeneration over the whole [5, 60] min grid took 90 s of CPU); none converged -> abort.
   After ``max_recomputes`` the next recompute trigger aborts;
@@ -85,6 +96,7 @@ from proxops.constraints.approach_cone import ApproachCone, PlumeConstraint
 from proxops.control.cortex_tracking import TrackingSOCP, substeps
 from proxops.core.cw import cw_stm
 from proxops.errors import ProxopsInputError, input_error
+from proxops.guidance.cortex.phases import DV_ZERO_MPS
 from proxops.sim.protocols import Command
 
 TRACK_PHASES = ("hold1", "flyaround", "hold2", "approach")
@@ -279,9 +291,11 @@ class CortexTriggers:
 class CortexReplanner:
     """The planner of cortex (1/2) called from the loop: full plan, approach only, retreat."""
 
-    def __init__(self, cfg, axis, eclipse=None, t0_offset_s: float = 0.0, max_candidates: int = 30):
+    def __init__(self, cfg, axis, eclipse=None, t0_offset_s: float = 0.0, max_candidates: int = 30,
+                 cone_return_s: float = 0.0):
         self.cfg, self.axis, self.eclipse, self.t0_offset_s = cfg, np.asarray(axis, float), eclipse, t0_offset_s
         self.max_candidates = int(max_candidates)  # durations tried per phase in a regeneration (time budget)
+        self.cone_return_s = float(cone_return_s)  # approach regeneration: widened cone closes onto alpha_c_bar over this
 
     def _cfg_from(self, x0):
         r0 = float(np.linalg.norm(x0[:3]))
@@ -291,8 +305,9 @@ class CortexReplanner:
         if margin * cfg.r_kos_m >= r0:
             margin = 1.0
         tau_ub = min(cfg.tau_ub_s, cfg.tau_lb_s + (self.max_candidates - 1) * max(cfg.dt_cp1_s, cfg.dt_cp2_s))
+        # a regeneration searches its durations from tau_lb (eq. 12): fixed durations belong to the initial plan
         return replace(cfg, start_state=tuple(float(v) for v in x0), kos_margin=margin, flyaround_end_range_m=rho_end,
-                       tau_ub_s=tau_ub)
+                       tau_ub_s=tau_ub, tau1_s=None, tau2_s=None)
 
     def full(self, x0, t_now: float):
         from proxops.guidance.cortex.reference import plan_reference
@@ -318,9 +333,15 @@ class CortexReplanner:
         half = min(max(c.alpha_c_bar, off + math.radians(0.5)), c.cone_half_angle_rad)
         cone = ApproachCone(self.axis, half)
         plume = PlumeConstraint(c.alpha_p_bar)
+        funnel = None
+        if self.cone_return_s > 0 and half > c.alpha_c_bar:
+            # the widened cone closes linearly back onto alpha_c_bar over cone_return_s: the regenerated
+            # reference's first leg returns towards the axis instead of riding the widened edge
+            rate = (half - c.alpha_c_bar) / self.cone_return_s
+            funnel = lambda tk: max(c.alpha_c_bar, half - rate * tk)  # noqa: E731
         return self._scan(lambda tau: solve_final_approach(
             c.mean_motion_rad_s, tau, c.dt_cp2_s, x0, x_f2, c.a_bar, cone, plume, scp_max_iter=c.scp_max_iter,
-            scp_tol_mps=c.scp_tol_mps, plume_tol_rad=c.plume_tol_rad), c.dt_cp2_s)
+            scp_tol_mps=c.scp_tol_mps, plume_tol_rad=c.plume_tol_rad, cone_half_angle_at=funnel), c.dt_cp2_s)
 
     def retreat(self, x0, x_safe):
         from proxops.guidance.cortex.phases import solve_flyaround
@@ -358,6 +379,8 @@ class SupervisorSettings:
     insertion_max_intervals: int = 20  # most extra guidance intervals spent trimming onto the safe orbit
     recompute_every: str = "guidance"  # "guidance": recompute conditions at the guidance steps (Alg. 2); "impulse"
     tracking_cone_margin_deg: float = 0.0  # CP_g tries (27g) at alpha_c minus this first (0: only the printed alpha_c)
+    tracking_plume_margin_deg: float = 0.0  # CP_g plume rows at alpha_p_bar plus this ("solution" linearisation)
+    plume_linearization: str = "solution"  # CP_g plume rows about the reference ("reference") or a plume-free solve ("solution")
 
 
 class CortexSupervisor:
@@ -377,6 +400,12 @@ class CortexSupervisor:
         self.replanner = replanner
         self.cone = approach_cone
         self.plume_bar = plume_bar
+        # CP_g's plume rows (solution linearisation) at alpha_p_bar + tracking_plume_margin: a design margin
+        # like the cone's, so that execution errors do not carry an impulse across the C_plume_bar threshold
+        # (nor, at ~1 m range where a few cm move the angle by degrees, across alpha_p)
+        pm = math.radians(settings.tracking_plume_margin_deg)
+        self.plume_track = (PlumeConstraint(plume_bar.half_angle_rad + pm) if plume_bar is not None and pm > 0
+                            else plume_bar)
         self.x_f2 = timeline.final_state
         margin = math.radians(settings.tracking_cone_margin_deg)
         if not 0.0 <= margin < approach_cone.half_angle_rad:
@@ -503,12 +532,30 @@ class CortexSupervisor:
         for coned, with_plume in ladder:
             prob = self._problem(n_sub, coned, with_plume)
             if with_plume:
-                from proxops.guidance.cortex.phases import DV_ZERO_MPS
-
-                tj = t + self.dt * np.arange(n_sub)
-                r_ref = np.array([self.timeline.state(tt)[:3] for tt in tj])
-                dv_ref = np.array([seg.impulse(tt) for tt in tj])
-                _, g, _ = self.plume_bar.linearization(r_ref, dv_ref, DV_ZERO_MPS)
+                if self.s.plume_linearization == "solution":
+                    # one successive-convexification step of eq. (22) on CP_g: solve without the plume rows; an
+                    # interval whose impulses all keep alpha_p_bar at their predicted positions is the answer, else
+                    # the rows are linearised about those impulses (a violating one moved to the nearest generatrix
+                    # of the plume cone: the tangent plane admits braking alpha_p_bar off the target direction)
+                    free = self._problem(n_sub, coned, False)
+                    dv0, res0 = free.solve(x_est, x_T)
+                    self.solve_times.append(res0.solve_time_s)
+                    total += res0.solve_time_s
+                    if dv0 is None:  # infeasible without the plume rows: infeasible with them
+                        res = res0
+                        continue
+                    r0 = free.predicted_states(x_est, dv0)[:-1, :3]
+                    margin = self.plume_track.margin_rad(r0, dv0, self.triggers.plume_min_dv_mps)
+                    if float(margin.min()) >= 0.0:
+                        if coned not in ("tight", approach):
+                            self.relaxed = f"CP_g {(approach, plume)} infeasible -> solved with cone={coned}, plume=True"
+                        return dv0, total, res0.status.value
+                    _, g, _ = self.plume_track.linearization(r0, self._plume_directions(dv0, seg, t), DV_ZERO_MPS)
+                else:  # "reference": about the reference's position and impulse at each impulse time
+                    tj = t + self.dt * np.arange(n_sub)
+                    r_ref = np.array([self.timeline.state(tt)[:3] for tt in tj])
+                    dv_ref = np.array([seg.impulse(tt) for tt in tj])
+                    _, g, _ = self.plume_bar.linearization(r_ref, dv_ref, DV_ZERO_MPS)
                 prob.set_plume(g)
             dv, res = prob.solve(x_est, x_T)
             self.solve_times.append(res.solve_time_s)
@@ -518,6 +565,23 @@ class CortexSupervisor:
                     self.relaxed = f"CP_g {(approach, plume)} infeasible -> solved with cone={coned}, plume={with_plume}"
                 return dv, total, res.status.value
         return None, total, res.status.value
+
+    def _plume_directions(self, dv0, seg, t) -> np.ndarray:
+        """Linearisation points of the plume rows: the reference impulse at each impulse time where the
+        reference thrusts (the planner chose its direction plume-compatible), elsewhere the impulse of the
+        plume-free CP_g solution, or for a zero impulse there the direction of that solution's total impulse.
+        (A point inside the plume cone of ``plume_track`` is moved to its nearest generatrix by the
+        linearisation, so the rows keep alpha_p_bar + tracking_plume_margin everywhere.)"""
+        dv = np.array(dv0, float)
+        ref = np.array([seg.impulse(tt) for tt in t + self.dt * np.arange(len(dv))])
+        thrusting = np.linalg.norm(ref, axis=1) > DV_ZERO_MPS
+        dv[thrusting] = ref[thrusting]
+        zero = np.linalg.norm(dv, axis=1) <= DV_ZERO_MPS
+        if zero.any():
+            total = np.asarray(dv0, float).sum(axis=0)
+            if float(np.linalg.norm(total)) > DV_ZERO_MPS:
+                dv[zero] = total
+        return dv
 
     def _rearm(self, r_true) -> None:
         """Re-arm a suspended buffered condition once the true state no longer violates it."""

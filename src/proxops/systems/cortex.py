@@ -82,6 +82,8 @@ class PlannerSection(Section):
 
     tau_lb_s: Annotated[float, Field(gt=0.0)] = Field(300.0, description="shortest phase duration tau_lb searched (Table 2: 5 min)")
     tau_ub_s: Annotated[float, Field(gt=0.0)] = Field(3600.0, description="longest phase duration tau_ub searched (Table 2: 60 min)")
+    tau1_s: Annotated[float, Field(gt=0.0)] | None = Field(None, description="fixed fly-around duration tau_1 of the initial plan (none: the eq. 12 search over [tau_lb_s, tau_ub_s]; regenerations always search)")
+    tau2_s: Annotated[float, Field(gt=0.0)] | None = Field(None, description="fixed final-approach duration tau_2 of the initial plan (none: the eq. 12 search over [tau_lb_s, tau_ub_s]; regenerations always search)")
     convergence_penalty_s: Annotated[float, Field(ge=0.0)] = Field(6000.0, description="penalty eps_C added to J when a phase does not converge (eq. 12; 100, read in minutes)")
     dt_cp1_s: Annotated[float, Field(gt=0.0)] = Field(30.0, description="node spacing of the fly-around problem CP1 (Table 2: 30 s)")
     dt_cp2_s: Annotated[float, Field(gt=0.0)] = Field(10.0, description="node spacing of the final-approach problem CP2 (Table 2: 10 s)")
@@ -118,8 +120,11 @@ class GuidanceSection(Section):
     tracking_cone_margin_deg: Annotated[float, Field(ge=0.0)] = Field(0.0, description="final approach: CP_g imposes the cone row (27g) at alpha_c minus this first and falls back to alpha_c when that is infeasible (0: the printed alpha_c only)")
     cone_buffer_tol_deg: Annotated[float, Field(ge=0.0)] = Field(1.0, description="buffered-cone recompute only beyond alpha_c_bar plus this (CP2 nodes touch the buffered cone)")
     plume_weight: Annotated[float, Field(gt=0.0)] = Field(1e4, description="cost of the plume-row slacks in CP_g per unit of a_max delta_t_g (against 1 per unit of delta-v)")
-    plume_in_tracking: bool = Field(True, description="final approach: CP_g keeps each impulse in a plume half-space about the reference (not in the paper; false: the printed CP_g)")
+    plume_in_tracking: bool = Field(True, description="final approach: CP_g keeps each impulse in a soft plume half-space (not in the paper; linearisation point: plume_linearization; false: the printed CP_g)")
+    plume_linearization: Literal["reference", "solution"] = Field("solution", description="final approach: CP_g plume rows linearised about the reference impulse (reference; a coasting reference gives dv . r <= 0, no braking) or about a plume-free CP_g solve, re-solved only when that breaks alpha_p_bar (solution)")
+    tracking_plume_margin_deg: Annotated[float, Field(ge=0.0, lt=45.0)] = Field(0.0, description="final approach: CP_g's plume rows (plume_linearization = solution) keep each impulse this far beyond alpha_p_bar (a design margin against execution errors; 0: at alpha_p_bar)")
     plume_min_dv_mps: Annotated[float, Field(ge=0.0)] = Field(1e-4, description="impulses below this are not thrust for the plume triggers (minimum impulse bit)")
+    regen_cone_return_s: Annotated[float, Field(ge=0.0)] = Field(0.0, description="final-approach regeneration from outside alpha_c_bar: the planning cone, widened to pass the start, closes linearly back onto alpha_c_bar within this time (0: the widened cone throughout)")
     replan_candidates: Annotated[int, Field(ge=1)] = Field(30, description="regeneration: most phase durations tried from tau_lb (onboard time budget; none converged -> abort)")
     null_tol_mps: Annotated[float, Field(gt=0.0)] = Field(1e-3, description="velocity nulling before a re-plan / retreat ends below this speed")
     passive_orbits: Annotated[float, Field(gt=0.0)] = Field(2.0, description="after an abort: orbits of thrust-free truth propagation checked outside the KOS")
@@ -208,7 +213,7 @@ def config_from_scenario(sc: CortexScenario):
         r_kos_m=g.r_kos_m, r_as_m=g.r_as_m, r_rs_m=g.r_rs_m,
         plume_half_angle_rad=math.radians(g.plume_half_angle_deg), cone_half_angle_rad=math.radians(g.cone_half_angle_deg),
         thrust_margin=m.thrust, kos_margin=m.kos, plume_margin=m.plume, cone_margin=m.cone,
-        tau_lb_s=p.tau_lb_s, tau_ub_s=p.tau_ub_s, convergence_penalty_s=p.convergence_penalty_s,
+        tau_lb_s=p.tau_lb_s, tau_ub_s=p.tau_ub_s, tau1_s=p.tau1_s, tau2_s=p.tau2_s, convergence_penalty_s=p.convergence_penalty_s,
         dt_cp1_s=p.dt_cp1_s, dt_cp2_s=p.dt_cp2_s, start_state=tuple(list(start) + list(g.start_velocity_mps)),
         flyaround_end_range_m=g.flyaround_end_range_m, approach_end_range_m=g.approach_end_range_m,
         approach_end_position_m=None if g.approach_end_position_m is None else tuple(g.approach_end_position_m),

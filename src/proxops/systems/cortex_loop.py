@@ -141,9 +141,11 @@ def build_setup(sc):
                                   plume_weight=g.plume_weight, passive_orbits=g.passive_orbits,
                                   passive_margin_m=g.passive_margin_m, insertion_max_intervals=g.insertion_max_intervals,
                                   recompute_every=g.recompute_every,
-                                  tracking_cone_margin_deg=g.tracking_cone_margin_deg)
+                                  tracking_cone_margin_deg=g.tracking_cone_margin_deg,
+                                  plume_linearization=g.plume_linearization,
+                                  tracking_plume_margin_deg=g.tracking_plume_margin_deg)
     replanner = CortexReplanner(cfg, axis, eclipse=eclipse_profile(sc), t0_offset_s=sc.planner.start_delay_s,
-                                max_candidates=g.replan_candidates)
+                                max_candidates=g.replan_candidates, cone_return_s=g.regen_cone_return_s)
     ctrl = CortexSupervisor(n, cfg.a_max_mps2, timeline, triggers, replanner, settings,
                             ApproachCone(axis, cfg.cone_half_angle_rad), plume_bar=PlumeConstraint(cfg.alpha_p_bar))
     x0 = np.asarray(cfg.start_state, float)

@@ -98,7 +98,7 @@ class _PhaseSOCP:
 
     def __init__(self, n_rad_s: float, t: np.ndarray, x0, xf, a_bar_mps2: float, *, kos: bool = False,
                  cone: ApproachCone | None = None, plume: bool = False, arc: bool = False,
-                 solver_settings: dict | None = None):
+                 solver_settings: dict | None = None, cone_half_angles_rad=None):
         self.t = t
         self.N = N = len(t) - 1
         self.M = M = N + 1  # impulses at nodes 0..N (the last one is the terminal burn)
@@ -203,8 +203,10 @@ class _PhaseSOCP:
             r += 4
         # --- approach cone (20f) at free nodes 1..N-1: ||r|| <= e . r / cos(alpha)
         if cone is not None:
-            c = cone.axis / math.cos(cone.half_angle_rad)
+            angles = (np.full(N + 1, cone.half_angle_rad) if cone_half_angles_rad is None
+                      else np.asarray(cone_half_angles_rad, float))
             for k in range(1, N):
+                c = cone.axis / math.cos(float(angles[k]))
                 put(*soc_rows(r, 6 * k + np.arange(3), c, 1 + np.arange(3), 6 * k + np.arange(3), np.ones(3)))
                 b.append(np.zeros(4))
                 cones.append(("soc", 4))
@@ -351,11 +353,15 @@ def solve_final_approach(n_rad_s: float, tau_s: float, dt_s: float, x0, xf, a_ba
                          cone: ApproachCone, plume: PlumeConstraint, scp_max_iter: int = 30,
                          scp_tol_mps: float = 1e-5, plume_tol_rad: float = 1e-4,
                          scp_cost_rtol: float = 1e-4, linearize_position: bool = True,
-                         solver_settings: dict | None = None) -> PhaseResult:
+                         solver_settings: dict | None = None, cone_half_angle_at=None) -> PhaseResult:
     """CP2 (eqs. 20-22): fuel-optimal final approach inside the cone with the plume constraint
-    by successive convexification with a trust region."""
+    by successive convexification with a trust region. ``cone_half_angle_at``: optional function of the
+    node time (s from the phase start) giving that node's cone half-angle (rad) about ``cone.axis``
+    (a regeneration's funnel back into the planning cone); None: ``cone.half_angle_rad`` at every node."""
     t = node_times(tau_s, dt_s)
-    prob = _PhaseSOCP(n_rad_s, t, x0, xf, a_bar_mps2, cone=cone, plume=True, solver_settings=solver_settings)
+    angles = None if cone_half_angle_at is None else np.array([cone_half_angle_at(float(tk)) for tk in t])
+    prob = _PhaseSOCP(n_rad_s, t, x0, xf, a_bar_mps2, cone=cone, plume=True, solver_settings=solver_settings,
+                      cone_half_angles_rad=angles)
     out = PhaseResult(status="not_converged", t=t, setup_time_s=prob.setup_time_s)
     # the largest impulse: no restriction at first; halved when the plume violation grows
     trust = TrustRegion(a_bar_mps2 * float(prob.dt.max()))

@@ -84,6 +84,8 @@ class CortexConfig:
     cone_margin: float = 0.5
     tau_lb_s: float = 300.0
     tau_ub_s: float = 3600.0
+    tau1_s: float | None = None  # fixed fly-around duration (no search over tau_1); None: eq. 12 search
+    tau2_s: float | None = None  # fixed final-approach duration (no search over tau_2); None: eq. 12 search
     convergence_penalty_s: float = 100.0 * 60.0
     dt_cp1_s: float = 30.0
     dt_cp2_s: float = 10.0
@@ -142,6 +144,9 @@ class CortexConfig:
             raise input_error("r_kos", self.r_kos_m, f"must be smaller than r_AS = {self.r_as_m}", "m")
         if not (math.isfinite(self.tau_ub_s) and self.tau_lb_s <= self.tau_ub_s):
             raise input_error("tau_lb", self.tau_lb_s, f"must not exceed tau_ub = {self.tau_ub_s}", "s")
+        for name, v in (("tau1", self.tau1_s), ("tau2", self.tau2_s)):
+            if v is not None:
+                pos(name, v, "s")
         if self.search not in ("auto", "scan"):
             raise input_error("search", self.search, "allowed: auto, scan")
         x0 = np.asarray(self.start_state, float)
@@ -393,8 +398,9 @@ def plan_reference(axis, cfg: CortexConfig, eclipse=None, t0_s: float = 0.0) -> 
                                     scp_max_iter=cfg.scp_max_iter, scp_tol_mps=cfg.scp_tol_mps,
                                     plume_tol_rad=cfg.plume_tol_rad)
 
-    g1 = duration_grid(cfg.tau_lb_s, cfg.tau_ub_s, cfg.dt_cp1_s)
-    g2 = duration_grid(cfg.tau_lb_s, cfg.tau_ub_s, cfg.dt_cp2_s)
+    # a fixed duration replaces the search of that phase (a one-point grid)
+    g1 = np.array([float(cfg.tau1_s)]) if cfg.tau1_s is not None else duration_grid(cfg.tau_lb_s, cfg.tau_ub_s, cfg.dt_cp1_s)
+    g2 = np.array([float(cfg.tau2_s)]) if cfg.tau2_s is not None else duration_grid(cfg.tau_lb_s, cfg.tau_ub_s, cfg.dt_cp2_s)
     mono1 = cfg.search == "auto" and _is_vbar_rest(x_i1)
     i1, res1 = _first_converged(cp1, g1, mono1, plan.tried, "cp1")
     i2, res2 = _first_converged(cp2, g2, False, plan.tried, "cp2")
@@ -406,7 +412,7 @@ def plan_reference(axis, cfg: CortexConfig, eclipse=None, t0_s: float = 0.0) -> 
     reasons = []
     if i1 is None:
         last = res1[max(res1)]
-        reasons.append(f"CP1 did not converge for any tau_1 in [{cfg.tau_lb_s:g}, {cfg.tau_ub_s:g}] s "
+        reasons.append(f"CP1 did not converge for any tau_1 in [{g1[0]:g}, {g1[-1]:g}] s "
                        f"(tau_1 = {g1[max(res1)]:g} s: {last.status}: {last.reason})")
     else:
         plan.cp1 = res1[i1]
@@ -415,7 +421,7 @@ def plan_reference(axis, cfg: CortexConfig, eclipse=None, t0_s: float = 0.0) -> 
         plan.kos_iterations = plan.cp1.iterations
     if i2 is None:
         last = res2[max(res2)]
-        reasons.append(f"CP2 did not converge for any tau_2 in [{cfg.tau_lb_s:g}, {cfg.tau_ub_s:g}] s "
+        reasons.append(f"CP2 did not converge for any tau_2 in [{g2[0]:g}, {g2[-1]:g}] s "
                        f"(tau_2 = {g2[max(res2)]:g} s: {last.status}: {last.reason})")
     else:
         plan.cp2 = res2[i2]
