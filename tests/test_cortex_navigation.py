@@ -18,6 +18,8 @@ from proxops.cli import app
 from proxops.scenarios.loader import BUILTIN_DIR, load_scenario
 
 REDUCED = ["truth.model=cw", "eclipse.model=none"]
+TABLE3_HIGH = ["errors.p_misthrust=0.1", "errors.sigma_dv=0.2", "errors.sigma_beta_deg=1.0",
+               "errors.sigma_alpha_deg=1.0"]  # cortex-convex-guidance.md Table 3, high error level (execution errors)
 
 
 @pytest.mark.parametrize("ekf, noise", [("cortex-nominal-ekf", "cortex-nominal"), ("cortex-low-mc-ekf", "cortex-low-mc")])
@@ -157,17 +159,19 @@ def test_campaign_report_shows_estimation_error_beside_the_guidance(tmp_path):
 
 @pytest.mark.slow
 def test_reinit_keeps_the_closed_loop_estimate_bounded_under_missed_thrusts():
-    """Table 3 low level with missed thrusts (p = 0.05 per guidance interval: a 100 % execution error
-    the filter's covariance does not cover): 10 runs of the reduced loop (CW truth, no eclipse, same
-    seeds) on the filter without and with re-initialisation. Without it some filter collapses for
-    good (a run's p95 position error above 1 m, the gate rejecting what would correct it); with it
-    every run's p95 position error stays below 5 cm (sensor 1.9 cm per axis at r_AS) and the
-    collapses show up as nav-reinit events."""
+    """Table 3 high level of execution errors with missed thrusts (p = 0.10 per guidance interval: a
+    100 % execution error the filter's covariance does not cover): 10 runs of the reduced loop (CW
+    truth, no eclipse, same seeds) on the filter without and with re-initialisation. Without it some
+    filter collapses for good (a run's p95 position error above 1 m, the gate rejecting what would
+    correct it; measured 6.7 m and 11.7 m in 2 of 10); with it every run's p95 position error stays
+    below 5 cm (sensor 1.9 cm per axis at r_AS; measured <= 1.1 cm) and the collapses show up as
+    nav-reinit events. (At the low level no filter of these 10 seeds collapses any more since CP_g's
+    plume rows are linearised about its own solution: fewer, smaller corrections; worst p95 0.10 m.)"""
     from proxops.analysis.campaign import run_campaign
 
     def campaign(k):
         return run_campaign("cortex-low-mc-ekf", n_runs=10, workers=1, seed=1, progress=False,
-                            overrides=REDUCED + [f"navigation.reinit_after_rejections={k}"]).table
+                            overrides=REDUCED + TABLE3_HIGH + [f"navigation.reinit_after_rejections={k}"]).table
 
     off, on = campaign(0), campaign(5)
     assert off["metric.nav_position_error_m.p95"].max() > 1.0
