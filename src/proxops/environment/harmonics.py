@@ -114,7 +114,7 @@ def recursion_coefficients(nmax: int, C: np.ndarray, S: np.ndarray) -> np.ndarra
     return K
 
 
-@njit(cache=True, fastmath=True)
+@njit(cache=True, fastmath=False)  # IEEE on purpose (determinism), see the docstring
 def accel_harmonics(
     x: float, y: float, z: float, gm: float, re: float, C: np.ndarray, S: np.ndarray, nmax: int, mmax: int,
     nmin: int, K: np.ndarray, V: np.ndarray, W: np.ndarray,
@@ -129,8 +129,16 @@ def accel_harmonics(
     Loop order (for speed, same recursion): degree-outer, order-inner, so that the
     inner loops run over contiguous rows with no dependency between orders (SIMD), and
     the terms of degree n are summed as soon as row n + 1 of V, W exists (in cache).
-    ``fastmath``: the sums are reassociated (round-off ~1e-15 of the total; the tests
-    compare with finite differences of the potential and the closed-form J2, J3)."""
+    Strict IEEE arithmetic (``fastmath=False``), on purpose: with fastmath LLVM reassociated
+    and fused (FMA) the sums differently in each compiled copy of this kernel (standalone, and
+    inlined into every caller's object: _harmonics_eci, the truth integrators), so the same
+    input gave results differing by ~1e-15 relative between a freshly compiled and a
+    disk-cached caller, and within one process by which copy was loaded first. That made
+    campaign runs depend on the worker's history (cortex-high-mc seed 2 run 9 recomputed in
+    some executions only). Measured cost (load ~2): 1.09x (degree 100) to 1.17x (degree 20)
+    the fastmath time per standalone call, ~1.36x on one orbit of the default "fast" truth
+    (100x100, best of 7: 12.3 ms against 9.0 ms; the inlined fastmath sums vectorised).
+    tests/test_determinism.py checks the bits."""
     r2 = x * x + y * y + z * z
     rho = re * re / r2
     x0 = x * re / r2
