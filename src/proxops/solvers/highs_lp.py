@@ -245,18 +245,6 @@ class HighsLP:
         except Exception as exc:
             self._solver_error = error_message(exc)
 
-    def basis_status(self) -> tuple[np.ndarray, np.ndarray] | None:
-        """HiGHS basis of the last solve as int arrays (columns (n,), rows (m,)) of HighsBasisStatus
-        codes (0 lower, 1 basic, 2 upper, 3 zero, 4 nonbasic), or None without a valid basis."""
-        try:
-            basis = self._h.getBasis()
-            if not basis.valid:
-                return None
-            return (np.fromiter(map(int, basis.col_status), np.int64, self.n),
-                    np.fromiter(map(int, basis.row_status), np.int64, self.m))
-        except Exception:
-            return None
-
     # ------------------------------------------------------------------ solve
     def solve(self) -> SolverResult:
         """Run HiGHS (hot-started when a basis is available) and return a :class:`SolverResult`."""
