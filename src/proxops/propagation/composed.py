@@ -21,9 +21,10 @@ on the same RHS, with pymsis called at both spacecraft on every evaluation). The
 two-body truths stay in RelativeTruth (the fastest path, unchanged).
 
 Multistep vs DOP853 (benchmarks/bench_truth.py; 100x100 + drag + Sun/Moon, A/m 0.004 /
-0.015 m^2/kg, relative position vs numba DOP853 at rtol 1e-13; 2026-11-23, load ~6 on 2
-cores): one orbit at 2 km 0.011 mm, 620 evaluations of the 100x100 field, 27 ms, against
-DOP853 at the default rtol 0.007 mm, 3122 evaluations, 116 ms; two orbits 0.005 mm at 2 km
+0.015 m^2/kg, relative position vs numba DOP853 at rtol 1e-13; 2026-11-23, load ~1 on 2
+cores, harmonics in strict IEEE arithmetic): one orbit at 2 km 0.011 mm, 620 evaluations of
+the 100x100 field, 18 ms, against DOP853 at the default rtol 0.007 mm, 3122 evaluations,
+82 ms; two orbits 0.005 mm at 2 km
 and 0.065 mm at 20 km (DOP853 default: 0.007 and 0.29 mm). With 25 s steps: 508
 evaluations, 0.046 mm at 2 km after one orbit, but 1.4 mm at 20 km after two (the 57 s
 degree-100 terms are then sampled at 2.3 points per period), so 20 s is the default.
