@@ -51,7 +51,8 @@ def mc(
         from proxops.exec.backends import default_workers, prestart_pool
 
         n_workers = workers if workers is not None else default_workers()
-        prestart_pool(min(n_workers, runs) if runs is not None else n_workers, WORKER_MODULES)
+        prestart_pool(min(n_workers, runs) if runs is not None else n_workers,
+                      WORKER_MODULES + _system_module(scenario))
     from proxops.analysis.campaign import CampaignInterrupted, run_campaign, write_report
     from proxops.cli_common import Interrupted
 
@@ -80,6 +81,24 @@ def mc(
         typer.echo(f"error: all {summary['runs']} runs failed (first error: {_first_error(result)}); "
                    "exit code 3", err=True)
         raise typer.Exit(3)
+
+
+def _system_module(scenario: str) -> tuple[str, ...]:
+    """The module of the scenario's system (for the workers to import up front), read from its TOML
+    without validating it (the campaign does that); () when it cannot be told (the run imports it)."""
+    try:
+        import tomllib
+        from pathlib import Path as _Path
+
+        from proxops.scenarios.registry import SYSTEM_MODULES
+
+        path = _Path(scenario)
+        if not path.is_file():
+            path = _Path(__file__).parent / "scenarios" / "builtin" / f"{scenario}.toml"
+        module = SYSTEM_MODULES.get(tomllib.loads(path.read_text()).get("system"))
+        return (module,) if module else ()
+    except Exception:  # noqa: BLE001 - a bad scenario is reported by the campaign's own check
+        return ()
 
 
 def _first_error(result) -> str:

@@ -25,7 +25,12 @@ from typing import Any, Callable, Iterable, Sequence
 
 from proxops.errors import ProxopsError, ProxopsInputError
 
-START_METHOD = "spawn"  # spawn-safe everywhere; nothing is inherited from the parent
+# forkserver (POSIX): workers are forked from a server process started once per parent, which
+# imports the modules given to :func:`prestart_pool` first, so each worker starts with them loaded
+# (a spawned worker imports them itself: ~0.5 s of CPU per worker, measured). Nothing is inherited
+# from the parent but the environment (no threads, no locks: the server is a fresh interpreter).
+# Elsewhere spawn.
+START_METHOD = "forkserver" if "forkserver" in multiprocessing.get_all_start_methods() else "spawn"
 MAX_POOL_RESTARTS = 10
 
 
@@ -260,9 +265,14 @@ def _restore_env(saved: dict) -> None:
         os.environ.pop(key, None)
 
 
-def _new_pool(workers: int) -> ProcessPoolExecutor:
-    return ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context(START_METHOD),
-                               initializer=_init_worker)
+def _new_pool(workers: int, preload: Sequence[str] = ()) -> ProcessPoolExecutor:
+    """A pool of ``workers`` processes. With forkserver, ``preload`` (module names) is what the
+    server imports before it forks any worker -- effective only when this call starts the server
+    (the first pool of this process); later pools fork from the same server."""
+    ctx = multiprocessing.get_context(START_METHOD)
+    if START_METHOD == "forkserver" and preload:
+        ctx.set_forkserver_preload(list(preload))  # a server already running keeps its imports
+    return ProcessPoolExecutor(max_workers=workers, mp_context=ctx, initializer=_init_worker)
 
 
 def prestart_pool(workers: int, modules: Sequence[str] = ()) -> None:
@@ -275,8 +285,8 @@ def prestart_pool(workers: int, modules: Sequence[str] = ()) -> None:
         return
     saved = _single_thread_env()  # the workers are spawned (inherit the environment) in submit
     try:
-        pool = _POOLS[workers] = _new_pool(workers)
-        with _sigint_blocked():
+        pool = _POOLS[workers] = _new_pool(workers, modules)
+        with _sigint_blocked():  # the fork server and the workers start with SIGINT blocked
             for _ in range(workers):
                 pool.submit(_import_modules, tuple(modules))
     finally:
