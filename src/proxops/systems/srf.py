@@ -480,7 +480,8 @@ def summarize_result(sc: SrfScenario, result) -> dict:
     hop_start_times = [0.0] + list(hop_nodes)[:-1]
     abort = passive_abort(sc, result)
     min_range_fine = hermite_min_range(result.t, result.x_true, np.zeros(3))
-    koz_fine = hermite_min_range(result.t, result.x_true, koz.center_m) - koz.radius_m
+    koz_fine = (min_range_fine if not np.any(koz.center_m)
+                else hermite_min_range(result.t, result.x_true, koz.center_m)) - koz.radius_m
     period = float(result.meta.get("period_s", 1.0))
     out = {
         "approach_deg": sc.approach.angle_deg,
