@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import json
 import math
+import os
 import sys
 from pathlib import Path
 from typing import Annotated, Optional
@@ -48,11 +49,21 @@ def mc(
     if seed is not None and not 0 <= seed < 2**63:
         raise ProxopsInputError(f"--seed {seed}: give a whole number from 0 to 2^63 - 1")
     if scheduler is None:  # local workers start now: their imports overlap this process's
-        from proxops.exec.backends import default_workers, prestart_pool
+        from proxops.exec.backends import START_METHOD, default_workers, prestart_pool
 
         n_workers = workers if workers is not None else default_workers()
-        prestart_pool(min(n_workers, runs) if runs is not None else n_workers,
-                      WORKER_MODULES + _system_module(scenario))
+        modules = WORKER_MODULES + _system_module(scenario)
+        if START_METHOD != "forkserver":
+            prestart_pool(min(n_workers, runs) if runs is not None else n_workers, modules)
+        else:  # the fork server also builds the scenario once, for every worker it forks
+            from proxops.analysis.worker_warmup import ENV
+
+            os.environ[ENV] = json.dumps({"scenario": scenario, "overrides": list(set_)})
+            try:
+                prestart_pool(min(n_workers, runs) if runs is not None else n_workers,
+                              modules + ("proxops.analysis.worker_warmup",))
+            finally:
+                os.environ.pop(ENV, None)
     from proxops.analysis.campaign import CampaignInterrupted, run_campaign, write_report
     from proxops.cli_common import Interrupted
 
