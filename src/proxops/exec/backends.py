@@ -286,11 +286,33 @@ def prestart_pool(workers: int, modules: Sequence[str] = ()) -> None:
     saved = _single_thread_env()  # the workers are spawned (inherit the environment) in submit
     try:
         pool = _POOLS[workers] = _new_pool(workers, modules)
-        with _sigint_blocked():  # the fork server and the workers start with SIGINT blocked
-            for _ in range(workers):
-                pool.submit(_import_modules, tuple(modules))
+        if START_METHOD == "forkserver":
+            # The server starts now, with this environment and SIGINT blocked; its first fork waits
+            # for its imports, so the submits that fork the workers wait in a thread while this
+            # process goes on with its own imports (a submit of this process waits for them).
+            from multiprocessing import forkserver
+
+            with _sigint_blocked():
+                forkserver.ensure_running()
+            import threading
+
+            threading.Thread(target=_submit_imports, args=(pool, workers, tuple(modules)), daemon=True,
+                             name="proxops-prestart").start()
+        else:
+            _submit_imports(pool, workers, tuple(modules))
     finally:
         _restore_env(saved)
+
+
+def _submit_imports(pool: ProcessPoolExecutor, workers: int, modules: tuple[str, ...]) -> None:
+    """One :func:`_import_modules` task per worker (starting them); a failure here (a broken pool)
+    is left to the campaign's own submit, which reports or repairs it."""
+    try:
+        with _sigint_blocked():  # the workers start with SIGINT blocked
+            for _ in range(workers):
+                pool.submit(_import_modules, modules)
+    except Exception:  # noqa: BLE001
+        pass
 
 
 def _import_modules(modules: tuple[str, ...]) -> None:
