@@ -192,9 +192,9 @@ class _SerialBackend:
 
 
 class _PoolBackend:
-    """Local ProcessPoolExecutor (spawn). The pool is kept for later campaigns and sweeps of
-    this process (workers keep their imports, JIT caches and prepared scenarios); the context
-    travels with each batch (a few kB)."""
+    """Local ProcessPoolExecutor (``START_METHOD``: forkserver on POSIX, else spawn). The pool is
+    kept for later campaigns and sweeps of this process (workers keep their imports, JIT caches and
+    prepared scenarios); the context travels with each batch (a few kB)."""
 
     name = "local"
     suspects_alone = True  # a dying worker breaks the whole pool: run suspects alone
