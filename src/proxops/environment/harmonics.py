@@ -46,7 +46,11 @@ from functools import lru_cache
 from importlib import resources
 
 import numpy as np
-from numba import njit
+from llvmlite import ir
+from numba import njit, types
+from numba.core import cgutils
+from numba.core.errors import TypingError
+from numba.extending import intrinsic
 
 from proxops.errors import input_error
 
@@ -200,6 +204,219 @@ def accel_harmonics(
         az += sz
     k = gm / (re * re)
     return k * ax, k * ay, k * az
+
+
+# ----------------------------------------------------------------------------- two points per pass
+# The truth integrators always need the field at the target and the chaser together.
+# accel_harmonics_pair runs the recursion and the sums of accel_harmonics once for both
+# points, the two points in the lanes of SIMD registers: per lane, exactly the scalar
+# kernel's IEEE operations in its order (no fusion, no reassociation), so each point's
+# result equals a single-point call bit for bit (tests/test_harmonics.py). LLVM does not
+# vectorise the strict-IEEE sums by itself (the serial sums over m are loop-carried
+# reductions), so the two inner loops are written as LLVM vector IR (numba intrinsics).
+#
+# Work array ``VW`` (>= nmax + 2 rows, >= 4 (nmax + 2) columns, C order): row n holds, for
+# each order m, (V_nm at a, V_nm at b, W_nm at a, W_nm at b) at columns 4 m .. 4 m + 3.
+_F64 = ir.DoubleType()
+_I32 = ir.IntType(32)
+_I64 = ir.IntType(64)
+_VEC2 = ir.VectorType(_F64, 2)
+_VEC4 = ir.VectorType(_F64, 4)
+
+
+def _item_ptr(context, builder, ary_type, ary_value, indices):
+    """double* to ary[indices] (C-contiguous array, no bounds check)."""
+    ary = context.make_array(ary_type)(context, builder, ary_value)
+    shape = cgutils.unpack_tuple(builder, ary.shape, ary_type.ndim)
+    strides = cgutils.unpack_tuple(builder, ary.strides, ary_type.ndim)
+    return cgutils.get_item_pointer2(context, builder, ary.data, shape, strides, ary_type.layout, indices)
+
+
+def _load_vec(builder, base, index, vec_type):
+    """vec_type (<k x double>) at base[index .. index + k - 1] (align 8: rows are not 16-byte aligned)."""
+    return builder.load(builder.bitcast(builder.gep(base, [index]), vec_type.as_pointer()), align=8)
+
+
+def _splat(builder, value, vec_type):
+    lanes = vec_type.count
+    vec = builder.insert_element(ir.Constant(vec_type, ir.Undefined), value, ir.Constant(_I32, 0))
+    return builder.shuffle_vector(vec, ir.Constant(vec_type, ir.Undefined), ir.Constant(ir.VectorType(_I32, lanes), [0] * lanes))
+
+
+def _i64(builder, value):
+    return value if value.type == _I64 else builder.sext(value, _I64)
+
+
+def _check_c_arrays(*arrays):
+    for a in arrays:
+        if not (isinstance(a, types.Array) and a.dtype == types.float64 and a.layout == "C"):
+            raise TypingError(f"C-contiguous float64 array expected, got {a}")
+
+
+@intrinsic
+def _pair_row(typingctx, VW, K, n, m_end, za, zb, rhoa, rhob):
+    """Orders m = 0 .. m_end - 1 of row n of ``VW`` (both lanes, V and W): (a_nm z') X_{n-1,m}
+    - (b_nm rho'^2) X_{n-2,m}, as in :func:`accel_harmonics`, one <4 x double> per order."""
+    _check_c_arrays(VW, K)
+    sig = types.void(VW, K, n, m_end, za, zb, rhoa, rhob)
+
+    def codegen(context, builder, signature, args):
+        vw_t, k_t = signature.args[0], signature.args[1]
+        n_ = _i64(builder, args[2])
+        one = ir.Constant(_I64, 1)
+        zero = ir.Constant(_I64, 0)
+        out = _item_ptr(context, builder, vw_t, args[0], [n_, zero])
+        row1 = _item_ptr(context, builder, vw_t, args[0], [builder.sub(n_, one), zero])
+        row2 = _item_ptr(context, builder, vw_t, args[0], [builder.sub(n_, ir.Constant(_I64, 2)), zero])
+        ka = _item_ptr(context, builder, k_t, args[1], [zero, n_, zero])
+        kb = _item_ptr(context, builder, k_t, args[1], [one, n_, zero])
+        zz = ir.Constant(_VEC4, ir.Undefined)
+        rr = ir.Constant(_VEC4, ir.Undefined)
+        for lane in range(4):  # lanes (V a, V b, W a, W b)
+            zz = builder.insert_element(zz, args[4 + lane % 2], ir.Constant(_I32, lane))
+            rr = builder.insert_element(rr, args[6 + lane % 2], ir.Constant(_I32, lane))
+        with cgutils.for_range(builder, _i64(builder, args[3])) as loop:
+            m = loop.index
+            j = builder.mul(m, ir.Constant(_I64, 4))
+            a = builder.fmul(_splat(builder, builder.load(builder.gep(ka, [m])), _VEC4), zz)
+            b = builder.fmul(_splat(builder, builder.load(builder.gep(kb, [m])), _VEC4), rr)
+            value = builder.fsub(builder.fmul(a, _load_vec(builder, row1, j, _VEC4)),
+                                 builder.fmul(b, _load_vec(builder, row2, j, _VEC4)))  # fmt: skip
+            builder.store(value, builder.bitcast(builder.gep(out, [j]), _VEC4.as_pointer()), align=8)
+        return context.get_dummy_value()
+
+    return sig, codegen
+
+
+@intrinsic
+def _pair_order_sums(typingctx, VW, K, d, m_last):
+    """(sx_a, sx_b, sy_a, sy_b, sz_a, sz_b): the sums over m = 1 .. m_last of degree d in
+    :func:`accel_harmonics` (from row d + 1 of ``VW``), per lane in the scalar order, as
+    <2 x double> (lanes a, b); V, W at m - 1 and m are carried from the previous order."""
+    _check_c_arrays(VW, K)
+    sig = types.UniTuple(types.float64, 6)(VW, K, d, m_last)
+
+    def codegen(context, builder, signature, args):
+        vw_t, k_t = signature.args[0], signature.args[1]
+        d_ = _i64(builder, args[2])
+        zero = ir.Constant(_I64, 0)
+        row = _item_ptr(context, builder, vw_t, args[0], [builder.add(d_, ir.Constant(_I64, 1)), zero])
+        k1c, k1s, k2c, k2s, k3c, k3s = (
+            _item_ptr(context, builder, k_t, args[1], [ir.Constant(_I64, i), d_, zero]) for i in range(2, 8)
+        )
+        vzero = ir.Constant(_VEC2, [0.0, 0.0])
+        sx, sy, sz = (cgutils.alloca_once_value(builder, vzero) for _ in range(3))
+        carried = [cgutils.alloca_once_value(builder, _load_vec(builder, row, ir.Constant(_I64, i), _VEC2))
+                   for i in (0, 2, 4, 6)]  # V, W at m - 1 = 0 and m = 1  # fmt: skip
+        with cgutils.for_range(builder, _i64(builder, args[3])) as loop:
+            m = builder.add(loop.index, ir.Constant(_I64, 1))
+            nxt = builder.mul(builder.add(m, ir.Constant(_I64, 1)), ir.Constant(_I64, 4))
+            vm1, wm1, v0, w0 = (builder.load(c) for c in carried)
+            vp1 = _load_vec(builder, row, nxt, _VEC2)
+            wp1 = _load_vec(builder, row, builder.add(nxt, ir.Constant(_I64, 2)), _VEC2)
+            a1c, a1s, a2c, a2s, a3c, a3s = (
+                _splat(builder, builder.load(builder.gep(k, [m])), _VEC2) for k in (k1c, k1s, k2c, k2s, k3c, k3s)
+            )
+            fmul, fadd, fsub = builder.fmul, builder.fadd, builder.fsub
+            # sz -= c3c V_m + c3s W_m
+            builder.store(fsub(builder.load(sz), fadd(fmul(a3c, v0), fmul(a3s, w0))), sz)
+            # sx += c2c V_{m-1} + c2s W_{m-1} - c1c V_{m+1} - c1s W_{m+1}
+            tx = fsub(fsub(fadd(fmul(a2c, vm1), fmul(a2s, wm1)), fmul(a1c, vp1)), fmul(a1s, wp1))
+            builder.store(fadd(builder.load(sx), tx), sx)
+            # sy += c2s V_{m-1} - c2c W_{m-1} + c1s V_{m+1} - c1c W_{m+1}
+            ty = fsub(fadd(fsub(fmul(a2s, vm1), fmul(a2c, wm1)), fmul(a1s, vp1)), fmul(a1c, wp1))
+            builder.store(fadd(builder.load(sy), ty), sy)
+            for slot, value in zip(carried, (v0, w0, vp1, wp1)):
+                builder.store(value, slot)
+        out = []
+        for acc in (sx, sy, sz):
+            vec = builder.load(acc)
+            out += [builder.extract_element(vec, ir.Constant(_I32, lane)) for lane in (0, 1)]
+        return context.make_tuple(builder, signature.return_type, out)
+
+    return sig, codegen
+
+
+@njit(cache=True)
+def pair_work_fits(VW: np.ndarray, nmax: int) -> bool:
+    """True if ``VW`` can hold the pair layout to degree ``nmax`` (see :func:`accel_harmonics_pair`)."""
+    return VW.shape[0] >= nmax + 2 and VW.shape[1] >= 4 * (nmax + 2)
+
+
+@njit(cache=True, fastmath=False)  # IEEE on purpose (determinism), see accel_harmonics
+def accel_harmonics_pair(
+    xa: float, ya: float, za: float, xb: float, yb: float, zb: float, gm: float, re: float, nmax: int, mmax: int,
+    nmin: int, K: np.ndarray, VW: np.ndarray,
+):  # fmt: skip
+    """(ax_a, ay_a, az_a, ax_b, ay_b, az_b): :func:`accel_harmonics` (m/s^2, Earth-fixed) at
+    the two Earth-fixed points a and b (m) in one pass, bit-identical to two single-point
+    calls (same recursion and sums, per lane the same IEEE operations in the same order; see
+    the section comment). ``VW``: work array in the pair layout (:func:`pair_work_fits`;
+    not checked here: the caller checks, an undersized array is written out of bounds)."""
+    r2a = xa * xa + ya * ya + za * za
+    r2b = xb * xb + yb * yb + zb * zb
+    rhoa = re * re / r2a
+    rhob = re * re / r2b
+    xa0 = xa * re / r2a
+    xb0 = xb * re / r2b
+    ya0 = ya * re / r2a
+    yb0 = yb * re / r2b
+    za0 = za * re / r2a
+    zb0 = zb * re / r2b
+    mtop = min(mmax + 1, nmax + 1)
+    VW[0, 0] = re / math.sqrt(r2a)
+    VW[0, 1] = re / math.sqrt(r2b)
+    VW[0, 2] = 0.0
+    VW[0, 3] = 0.0
+    axa = 0.0
+    axb = 0.0
+    aya = 0.0
+    ayb = 0.0
+    aza = 0.0
+    azb = 0.0
+    for n in range(1, nmax + 2):
+        if n >= 2:  # orders m <= n - 2 (two-term recursion in n)
+            _pair_row(VW, K, n, min(n - 1, mtop + 1), za0, zb0, rhoa, rhob)
+        if n - 1 <= mtop:  # sub-diagonal
+            a = K[0, n, n - 1]
+            aa = a * za0
+            ab = a * zb0
+            j = 4 * (n - 1)
+            VW[n, j] = aa * VW[n - 1, j]
+            VW[n, j + 1] = ab * VW[n - 1, j + 1]
+            VW[n, j + 2] = aa * VW[n - 1, j + 2]
+            VW[n, j + 3] = ab * VW[n - 1, j + 3]
+        if n <= mtop:  # diagonal
+            f = 1.7320508075688772 if n == 1 else math.sqrt((2.0 * n + 1.0) / (2.0 * n))
+            j = 4 * (n - 1)
+            vpa = VW[n - 1, j]
+            vpb = VW[n - 1, j + 1]
+            wpa = VW[n - 1, j + 2]
+            wpb = VW[n - 1, j + 3]
+            VW[n, j + 4] = f * (xa0 * vpa - ya0 * wpa)
+            VW[n, j + 5] = f * (xb0 * vpb - yb0 * wpb)
+            VW[n, j + 6] = f * (xa0 * wpa + ya0 * vpa)
+            VW[n, j + 7] = f * (xb0 * wpb + yb0 * vpb)
+        d = n - 1  # the terms of degree d need row d + 1 = n only
+        if d < nmin:
+            continue
+        c1c0 = K[2, d, 0]
+        c3c0 = K[6, d, 0]
+        aza -= c3c0 * VW[n, 0]
+        azb -= c3c0 * VW[n, 1]
+        axa -= c1c0 * VW[n, 4]
+        axb -= c1c0 * VW[n, 5]
+        aya -= c1c0 * VW[n, 6]
+        ayb -= c1c0 * VW[n, 7]
+        sxa, sxb, sya, syb, sza, szb = _pair_order_sums(VW, K, d, min(d, mmax))
+        axa += 0.5 * sxa
+        axb += 0.5 * sxb
+        aya += 0.5 * sya
+        ayb += 0.5 * syb
+        aza += sza
+        azb += szb
+    k = gm / (re * re)
+    return k * axa, k * aya, k * aza, k * axb, k * ayb, k * azb
 
 
 @njit(cache=True, fastmath=False)

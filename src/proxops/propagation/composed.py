@@ -209,7 +209,8 @@ class ComposedTruth(PlantBase):
             self._C = self._S = np.zeros((1, 1))
             self._K = np.zeros((8, 3, 3))
             n = 0
-        self._V = np.zeros((n + 3, n + 3))
+        # V: wide enough for the two-point layout of accel_harmonics_pair (4 values per order)
+        self._V = np.zeros((n + 3, 4 * (n + 3)))
         self._W = np.zeros((n + 3, n + 3))
         p[kf.I_DRAG] = float(m.drag)
         p[kf.I_BC_T], p[kf.I_BC_C] = m.target.ballistic, m.chaser.ballistic
