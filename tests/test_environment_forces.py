@@ -128,7 +128,7 @@ def test_pair_kernel_is_bit_identical_to_two_single_point_calls():
     gm, re, C, S, K = field.gm, field.re, field.C, field.S, field.K  # K to degree 120 serves every lower degree
     n = SHIPPED_DEGREE
     V, W = np.zeros((n + 3, n + 3)), np.zeros((n + 3, n + 3))
-    VW = np.full((n + 2, 4 * (n + 2)), np.nan)  # the minimum size; stale NaNs would show if read
+    VW = np.full((3, 4 * (n + 2)), np.nan)  # the minimum size (a ring of three rows); never-written NaNs would show
     rng = np.random.default_rng(13)
     specials = [(np.array([0.0, 0.0, 6.9e6]), np.array([0.0, 0.0, -7.1e6])),
                 (np.array([7.0e6, 0.0, 0.0]), np.array([0.0, -6.6e6, 0.0]))]  # fmt: skip

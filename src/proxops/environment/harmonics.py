@@ -215,8 +215,11 @@ def accel_harmonics(
 # vectorise the strict-IEEE sums by itself (the serial sums over m are loop-carried
 # reductions), so the two inner loops are written as LLVM vector IR (numba intrinsics).
 #
-# Work array ``VW`` (>= nmax + 2 rows, >= 4 (nmax + 2) columns, C order): row n holds, for
-# each order m, (V_nm at a, V_nm at b, W_nm at a, W_nm at b) at columns 4 m .. 4 m + 3.
+# Work array ``VW`` (>= 3 rows, >= 4 (nmax + 2) columns, C order): a ring of three rows (the
+# recursion needs rows n - 1 and n - 2, the sums of degree n - 1 row n only, and no caller
+# reads V, W afterwards), row n of V, W in VW[n % 3], holding for each order m
+# (V_nm at a, V_nm at b, W_nm at a, W_nm at b) at columns 4 m .. 4 m + 3: ~10 kB at degree
+# 100, in L1 (the full triangle of the single-point kernel is ~170 kB).
 _F64 = ir.DoubleType()
 _I32 = ir.IntType(32)
 _I64 = ir.IntType(64)
@@ -254,53 +257,77 @@ def _check_c_arrays(*arrays):
 
 
 @intrinsic
-def _pair_row(typingctx, VW, K, n, m_end, za, zb, rhoa, rhob):
-    """Orders m = 0 .. m_end - 1 of row n of ``VW`` (both lanes, V and W): (a_nm z') X_{n-1,m}
-    - (b_nm rho'^2) X_{n-2,m}, as in :func:`accel_harmonics`, one <4 x double> per order."""
+def _pair_row(typingctx, VW, K, n, rows, m_end, sub, diag, za, zb, rhoa, rhob, xa, xb, ya, yb, f):
+    """Row n of ``VW`` (both lanes, V and W; n >= 1), as in :func:`accel_harmonics`, one
+    <4 x double> per order: orders m = 0 .. m_end - 1 by (a_nm z') X_{n-1,m} - (b_nm rho'^2)
+    X_{n-2,m}; if ``sub`` the sub-diagonal (a_{n,n-1} z') X_{n-1,n-1}; if ``diag`` the diagonal
+    V_nn = f (x' V - y' W)_{n-1,n-1}, W_nn = f (x' W + y' V)_{n-1,n-1}. All stored as vectors,
+    so the next row's vector loads are forwarded from these stores."""
     _check_c_arrays(VW, K)
-    sig = types.void(VW, K, n, m_end, za, zb, rhoa, rhob)
+    sig = types.void(VW, K, n, rows, m_end, sub, diag, za, zb, rhoa, rhob, xa, xb, ya, yb, f)
 
     def codegen(context, builder, signature, args):
         vw_t, k_t = signature.args[0], signature.args[1]
         n_ = _i64(builder, args[2])
         one = ir.Constant(_I64, 1)
         zero = ir.Constant(_I64, 0)
-        out = _item_ptr(context, builder, vw_t, args[0], [n_, zero])
-        row1 = _item_ptr(context, builder, vw_t, args[0], [builder.sub(n_, one), zero])
-        row2 = _item_ptr(context, builder, vw_t, args[0], [builder.sub(n_, ir.Constant(_I64, 2)), zero])
+        four = ir.Constant(_I64, 4)
+        rows_ = cgutils.unpack_tuple(builder, args[3], 3)
+        out = _item_ptr(context, builder, vw_t, args[0], [_i64(builder, rows_[0]), zero])
+        row1 = _item_ptr(context, builder, vw_t, args[0], [_i64(builder, rows_[1]), zero])
+        row2 = _item_ptr(context, builder, vw_t, args[0], [_i64(builder, rows_[2]), zero])
         ka = _item_ptr(context, builder, k_t, args[1], [zero, n_, zero])
         kb = _item_ptr(context, builder, k_t, args[1], [one, n_, zero])
-        zz = ir.Constant(_VEC4, ir.Undefined)
-        rr = ir.Constant(_VEC4, ir.Undefined)
-        for lane in range(4):  # lanes (V a, V b, W a, W b)
-            zz = builder.insert_element(zz, args[4 + lane % 2], ir.Constant(_I32, lane))
-            rr = builder.insert_element(rr, args[6 + lane % 2], ir.Constant(_I32, lane))
-        with cgutils.for_range(builder, _i64(builder, args[3])) as loop:
+
+        def lanes(a, b):  # (a, b, a, b): the (V a, V b, W a, W b) lanes of one order
+            vec = ir.Constant(_VEC4, ir.Undefined)
+            for lane, value in enumerate((a, b, a, b)):
+                vec = builder.insert_element(vec, value, ir.Constant(_I32, lane))
+            return vec
+
+        def store(index, value):
+            builder.store(value, builder.bitcast(builder.gep(out, [index]), _VEC4.as_pointer()), align=8)
+
+        zz = lanes(args[7], args[8])
+        rr = lanes(args[9], args[10])
+        with cgutils.for_range(builder, _i64(builder, args[4])) as loop:
             m = loop.index
-            j = builder.mul(m, ir.Constant(_I64, 4))
+            j = builder.mul(m, four)
             a = builder.fmul(_splat(builder, builder.load(builder.gep(ka, [m])), _VEC4), zz)
             b = builder.fmul(_splat(builder, builder.load(builder.gep(kb, [m])), _VEC4), rr)
-            value = builder.fsub(builder.fmul(a, _load_vec(builder, row1, j, _VEC4)),
-                                 builder.fmul(b, _load_vec(builder, row2, j, _VEC4)))  # fmt: skip
-            builder.store(value, builder.bitcast(builder.gep(out, [j]), _VEC4.as_pointer()), align=8)
+            store(j, builder.fsub(builder.fmul(a, _load_vec(builder, row1, j, _VEC4)),
+                                  builder.fmul(b, _load_vec(builder, row2, j, _VEC4))))  # fmt: skip
+        j = builder.mul(builder.sub(n_, one), four)  # order n - 1
+        with builder.if_then(args[5]):
+            a = builder.fmul(_splat(builder, builder.load(builder.gep(ka, [builder.sub(n_, one)])), _VEC4), zz)
+            store(j, builder.fmul(a, _load_vec(builder, row1, j, _VEC4)))
+        with builder.if_then(args[6]):
+            p = _load_vec(builder, row1, j, _VEC4)  # (V a, V b, W a, W b) at (n - 1, n - 1)
+            q = builder.shuffle_vector(p, ir.Constant(_VEC4, ir.Undefined),
+                                       ir.Constant(ir.VectorType(_I32, 4), [2, 3, 0, 1]))  # (W a, W b, V a, V b)  # fmt: skip
+            t1 = builder.fmul(lanes(args[11], args[12]), p)  # x' V, x' W
+            t2 = builder.fmul(lanes(args[13], args[14]), q)  # y' W, y' V
+            value = builder.shuffle_vector(builder.fsub(t1, t2), builder.fadd(t1, t2),
+                                           ir.Constant(ir.VectorType(_I32, 4), [0, 1, 6, 7]))  # fmt: skip
+            store(builder.add(j, four), builder.fmul(_splat(builder, args[15], _VEC4), value))
         return context.get_dummy_value()
 
     return sig, codegen
 
 
 @intrinsic
-def _pair_order_sums(typingctx, VW, K, d, m_last):
+def _pair_order_sums(typingctx, VW, K, d, row, m_last):
     """(sx_a, sx_b, sy_a, sy_b, sz_a, sz_b): the sums over m = 1 .. m_last of degree d in
     :func:`accel_harmonics` (from row d + 1 of ``VW``), per lane in the scalar order, as
     <2 x double> (lanes a, b); V, W at m - 1 and m are carried from the previous order."""
     _check_c_arrays(VW, K)
-    sig = types.UniTuple(types.float64, 6)(VW, K, d, m_last)
+    sig = types.UniTuple(types.float64, 6)(VW, K, d, row, m_last)
 
     def codegen(context, builder, signature, args):
         vw_t, k_t = signature.args[0], signature.args[1]
         d_ = _i64(builder, args[2])
         zero = ir.Constant(_I64, 0)
-        row = _item_ptr(context, builder, vw_t, args[0], [builder.add(d_, ir.Constant(_I64, 1)), zero])
+        row = _item_ptr(context, builder, vw_t, args[0], [_i64(builder, args[3]), zero])
         k1c, k1s, k2c, k2s, k3c, k3s = (
             _item_ptr(context, builder, k_t, args[1], [ir.Constant(_I64, i), d_, zero]) for i in range(2, 8)
         )
@@ -308,7 +335,7 @@ def _pair_order_sums(typingctx, VW, K, d, m_last):
         sx, sy, sz = (cgutils.alloca_once_value(builder, vzero) for _ in range(3))
         carried = [cgutils.alloca_once_value(builder, _load_vec(builder, row, ir.Constant(_I64, i), _VEC2))
                    for i in (0, 2, 4, 6)]  # V, W at m - 1 = 0 and m = 1  # fmt: skip
-        with cgutils.for_range(builder, _i64(builder, args[3])) as loop:
+        with cgutils.for_range(builder, _i64(builder, args[4])) as loop:
             m = builder.add(loop.index, ir.Constant(_I64, 1))
             nxt = builder.mul(builder.add(m, ir.Constant(_I64, 1)), ir.Constant(_I64, 4))
             vm1, wm1, v0, w0 = (builder.load(c) for c in carried)
@@ -340,7 +367,7 @@ def _pair_order_sums(typingctx, VW, K, d, m_last):
 @njit(cache=True)
 def pair_work_fits(VW: np.ndarray, nmax: int) -> bool:
     """True if ``VW`` can hold the pair layout to degree ``nmax`` (see :func:`accel_harmonics_pair`)."""
-    return VW.shape[0] >= nmax + 2 and VW.shape[1] >= 4 * (nmax + 2)
+    return VW.shape[0] >= 3 and VW.shape[1] >= 4 * (nmax + 2)
 
 
 @njit(cache=True, fastmath=False)  # IEEE on purpose (determinism), see accel_harmonics
@@ -375,40 +402,24 @@ def accel_harmonics_pair(
     aza = 0.0
     azb = 0.0
     for n in range(1, nmax + 2):
-        if n >= 2:  # orders m <= n - 2 (two-term recursion in n)
-            _pair_row(VW, K, n, min(n - 1, mtop + 1), za0, zb0, rhoa, rhob)
-        if n - 1 <= mtop:  # sub-diagonal
-            a = K[0, n, n - 1]
-            aa = a * za0
-            ab = a * zb0
-            j = 4 * (n - 1)
-            VW[n, j] = aa * VW[n - 1, j]
-            VW[n, j + 1] = ab * VW[n - 1, j + 1]
-            VW[n, j + 2] = aa * VW[n - 1, j + 2]
-            VW[n, j + 3] = ab * VW[n - 1, j + 3]
-        if n <= mtop:  # diagonal
-            f = 1.7320508075688772 if n == 1 else math.sqrt((2.0 * n + 1.0) / (2.0 * n))
-            j = 4 * (n - 1)
-            vpa = VW[n - 1, j]
-            vpb = VW[n - 1, j + 1]
-            wpa = VW[n - 1, j + 2]
-            wpb = VW[n - 1, j + 3]
-            VW[n, j + 4] = f * (xa0 * vpa - ya0 * wpa)
-            VW[n, j + 5] = f * (xb0 * vpb - yb0 * wpb)
-            VW[n, j + 6] = f * (xa0 * wpa + ya0 * vpa)
-            VW[n, j + 7] = f * (xb0 * wpb + yb0 * vpb)
+        diag = n <= mtop
+        f = (1.7320508075688772 if n == 1 else math.sqrt((2.0 * n + 1.0) / (2.0 * n))) if diag else 0.0
+        rows = (n % 3, (n + 2) % 3, (n + 1) % 3)  # rows n, n - 1, n - 2 of the three-row ring
+        _pair_row(VW, K, n, rows, min(n - 1, mtop + 1), n - 1 <= mtop, diag, za0, zb0, rhoa, rhob, xa0, xb0, ya0, yb0,
+                  f)  # fmt: skip
         d = n - 1  # the terms of degree d need row d + 1 = n only
         if d < nmin:
             continue
         c1c0 = K[2, d, 0]
         c3c0 = K[6, d, 0]
-        aza -= c3c0 * VW[n, 0]
-        azb -= c3c0 * VW[n, 1]
-        axa -= c1c0 * VW[n, 4]
-        axb -= c1c0 * VW[n, 5]
-        aya -= c1c0 * VW[n, 6]
-        ayb -= c1c0 * VW[n, 7]
-        sxa, sxb, sya, syb, sza, szb = _pair_order_sums(VW, K, d, min(d, mmax))
+        row = rows[0]
+        aza -= c3c0 * VW[row, 0]
+        azb -= c3c0 * VW[row, 1]
+        axa -= c1c0 * VW[row, 4]
+        axb -= c1c0 * VW[row, 5]
+        aya -= c1c0 * VW[row, 6]
+        ayb -= c1c0 * VW[row, 7]
+        sxa, sxb, sya, syb, sza, szb = _pair_order_sums(VW, K, d, row, min(d, mmax))
         axa += 0.5 * sxa
         axb += 0.5 * sxb
         aya += 0.5 * sya
