@@ -91,11 +91,13 @@ def _shipped() -> tuple[np.ndarray, np.ndarray, float, float]:
 
 
 def recursion_coefficients(nmax: int, C: np.ndarray, S: np.ndarray) -> np.ndarray:
-    """Precomputed factors K (8, nmax + 3, nmax + 3) so that the kernel takes no square root
+    """Precomputed factors K (16, nmax + 3, nmax + 3) so that the kernel takes no square root
     and does one fused multiply-add per term: K[0] = a_nm, K[1] = b_nm (recursion), and the
     products with the coefficients K[2] = c1 C (c0 C at m = 0), K[3] = c1 S, K[4] = c2 C,
-    K[5] = c2 S, K[6] = c3 C, K[7] = c3 S (module doc; C, S to degree ``nmax``)."""
-    K = np.zeros((8, nmax + 3, nmax + 3))
+    K[5] = c2 S, K[6] = c3 C, K[7] = c3 S (module doc; C, S to degree ``nmax``). K[8:16],
+    read as (nmax + 3, nmax + 3, 8), holds for each (n, m) the signed pairs (K4, K5), (K5, -K4),
+    (-K2, K3), (-K3, -K2) of :func:`accel_harmonics_pair` (adjacent in memory: one load each)."""
+    K = np.zeros((16, nmax + 3, nmax + 3))
     for n in range(0, nmax + 3):
         for m in range(0, n + 1):
             if n >= m + 1:
@@ -114,7 +116,12 @@ def recursion_coefficients(nmax: int, C: np.ndarray, S: np.ndarray) -> np.ndarra
                 c1 = math.sqrt(tn * (n + m + 1.0) * (n + m + 2.0) / tn3)
                 c2 = math.sqrt((2.0 if m == 1 else 1.0) * tn * (n - m + 1.0) * (n - m + 2.0) / tn3)
             c3 = math.sqrt(tn * (n + m + 1.0) * (n - m + 1.0) / tn3)
-            K[2:, n, m] = c1 * c, c1 * s, c2 * c, c2 * s, c3 * c, c3 * s
+            K[2:8, n, m] = c1 * c, c1 * s, c2 * c, c2 * s, c3 * c, c3 * s
+    # planes 8..15 read as (nmax + 3, nmax + 3, 8): per (n, m) the signed coefficient pairs of
+    # the two-point kernel's sums (see _pair_order_sums)
+    pairs = K[8:].reshape(nmax + 3, nmax + 3, 8)
+    for k, (plane, sign) in enumerate(((4, 1), (5, 1), (5, 1), (4, -1), (2, -1), (3, 1), (3, -1), (2, -1))):
+        pairs[:, :, k] = sign * K[plane]
     return K
 
 
@@ -318,8 +325,16 @@ def _pair_row(typingctx, VW, K, n, rows, m_end, sub, diag, za, zb, rhoa, rhob, x
 @intrinsic
 def _pair_order_sums(typingctx, VW, K, d, row, m_last):
     """(sx_a, sx_b, sy_a, sy_b, sz_a, sz_b): the sums over m = 1 .. m_last of degree d in
-    :func:`accel_harmonics` (from row d + 1 of ``VW``), per lane in the scalar order, as
-    <2 x double> (lanes a, b); V, W at m - 1 and m are carried from the previous order."""
+    :func:`accel_harmonics` (from row d + 1, ``VW[row]``), per lane in the scalar order.
+
+    sx and sy of both points share one <4 x double> (lanes sx_a, sy_a, sx_b, sy_b): the
+    scalar kernel's sx term c2c V + c2s W - c1c V' - c1s W' and sy term c2s V - c2c W + c1s V'
+    - c1c W' (V, W at m - 1, V', W' at m + 1) are the same chain of products and sums once
+    the subtractions are written as additions of the negated coefficient, which IEEE
+    arithmetic makes exact (a - b = a + (-b), (-c) x = -(c x)): four products of the
+    coefficient pairs (c2c, c2s), (c2s, -c2c), (-c1c, c1s), (-c1s, -c1c) (K planes 8..15,
+    :func:`recursion_coefficients`) with (V, V), (W, W), (V', V'), (W', W') of each point.
+    sz (lanes sz_a, sz_a, sz_b, sz_b) as in the scalar kernel."""
     _check_c_arrays(VW, K)
     sig = types.UniTuple(types.float64, 6)(VW, K, d, row, m_last)
 
@@ -327,38 +342,50 @@ def _pair_order_sums(typingctx, VW, K, d, row, m_last):
         vw_t, k_t = signature.args[0], signature.args[1]
         d_ = _i64(builder, args[2])
         zero = ir.Constant(_I64, 0)
+        four = ir.Constant(_I64, 4)
         row = _item_ptr(context, builder, vw_t, args[0], [_i64(builder, args[3]), zero])
-        k1c, k1s, k2c, k2s, k3c, k3s = (
-            _item_ptr(context, builder, k_t, args[1], [ir.Constant(_I64, i), d_, zero]) for i in range(2, 8)
-        )
-        vzero = ir.Constant(_VEC2, [0.0, 0.0])
-        sx, sy, sz = (cgutils.alloca_once_value(builder, vzero) for _ in range(3))
-        carried = [cgutils.alloca_once_value(builder, _load_vec(builder, row, ir.Constant(_I64, i), _VEC2))
-                   for i in (0, 2, 4, 6)]  # V, W at m - 1 = 0 and m = 1  # fmt: skip
+        k3c, k3s = (_item_ptr(context, builder, k_t, args[1], [ir.Constant(_I64, i), d_, zero]) for i in (6, 7))
+        width = cgutils.unpack_tuple(builder, context.make_array(k_t)(context, builder, args[1]).shape, 3)[2]
+        pairs = builder.gep(_item_ptr(context, builder, k_t, args[1], [ir.Constant(_I64, 8), zero, zero]),
+                            [builder.mul(d_, builder.mul(width, ir.Constant(_I64, 8)))])  # fmt: skip
+        undef4 = ir.Constant(_VEC4, ir.Undefined)
+
+        def spread(vec, lo, hi):  # (vec[lo], vec[lo], vec[hi], vec[hi])
+            return builder.shuffle_vector(vec, undef4, ir.Constant(ir.VectorType(_I32, 4), [lo, lo, hi, hi]))
+
+        def pair(index):  # (p0, p1, p0, p1) from pairs[index], pairs[index + 1]
+            vec = _load_vec(builder, pairs, index, _VEC2)
+            return builder.shuffle_vector(vec, ir.Constant(_VEC2, ir.Undefined),
+                                          ir.Constant(ir.VectorType(_I32, 4), [0, 1, 0, 1]))  # fmt: skip
+
+        vzero = ir.Constant(_VEC4, [0.0] * 4)
+        sxy, sz = (cgutils.alloca_once_value(builder, vzero) for _ in range(2))
+        first = _load_vec(builder, row, zero, _VEC4)
+        second = _load_vec(builder, row, four, _VEC4)
+        carried = [cgutils.alloca_once_value(builder, v) for v in
+                   (spread(first, 0, 1), spread(first, 2, 3), spread(second, 0, 1), spread(second, 2, 3))]  # fmt: skip
         with cgutils.for_range(builder, _i64(builder, args[4])) as loop:
             m = builder.add(loop.index, ir.Constant(_I64, 1))
-            nxt = builder.mul(builder.add(m, ir.Constant(_I64, 1)), ir.Constant(_I64, 4))
-            vm1, wm1, v0, w0 = (builder.load(c) for c in carried)
-            vp1 = _load_vec(builder, row, nxt, _VEC2)
-            wp1 = _load_vec(builder, row, builder.add(nxt, ir.Constant(_I64, 2)), _VEC2)
-            a1c, a1s, a2c, a2s, a3c, a3s = (
-                _splat(builder, builder.load(builder.gep(k, [m])), _VEC2) for k in (k1c, k1s, k2c, k2s, k3c, k3s)
-            )
+            nxt = _load_vec(builder, row, builder.mul(builder.add(m, ir.Constant(_I64, 1)), four), _VEC4)
+            vm1, wm1, v0, w0 = (builder.load(c) for c in carried)  # (V a, V a, V b, V b) etc.
+            vp1 = spread(nxt, 0, 1)
+            wp1 = spread(nxt, 2, 3)
+            base = builder.mul(m, ir.Constant(_I64, 8))
+            q1, q2, q3, q4 = (pair(builder.add(base, ir.Constant(_I64, 2 * k))) for k in range(4))
+            a3c = _splat(builder, builder.load(builder.gep(k3c, [m])), _VEC4)
+            a3s = _splat(builder, builder.load(builder.gep(k3s, [m])), _VEC4)
             fmul, fadd, fsub = builder.fmul, builder.fadd, builder.fsub
             # sz -= c3c V_m + c3s W_m
             builder.store(fsub(builder.load(sz), fadd(fmul(a3c, v0), fmul(a3s, w0))), sz)
-            # sx += c2c V_{m-1} + c2s W_{m-1} - c1c V_{m+1} - c1s W_{m+1}
-            tx = fsub(fsub(fadd(fmul(a2c, vm1), fmul(a2s, wm1)), fmul(a1c, vp1)), fmul(a1s, wp1))
-            builder.store(fadd(builder.load(sx), tx), sx)
-            # sy += c2s V_{m-1} - c2c W_{m-1} + c1s V_{m+1} - c1c W_{m+1}
-            ty = fsub(fadd(fsub(fmul(a2s, vm1), fmul(a2c, wm1)), fmul(a1s, vp1)), fmul(a1c, wp1))
-            builder.store(fadd(builder.load(sy), ty), sy)
+            # (sx, sy) += ((q1 V_{m-1} + q2 W_{m-1}) + q3 V_{m+1}) + q4 W_{m+1}
+            t = fadd(fadd(fadd(fmul(q1, vm1), fmul(q2, wm1)), fmul(q3, vp1)), fmul(q4, wp1))
+            builder.store(fadd(builder.load(sxy), t), sxy)
             for slot, value in zip(carried, (v0, w0, vp1, wp1)):
                 builder.store(value, slot)
-        out = []
-        for acc in (sx, sy, sz):
-            vec = builder.load(acc)
-            out += [builder.extract_element(vec, ir.Constant(_I32, lane)) for lane in (0, 1)]
+        a = builder.load(sxy)
+        z = builder.load(sz)
+        out = [builder.extract_element(vec, ir.Constant(_I32, lane)) for vec, lane in
+               ((a, 0), (a, 2), (a, 1), (a, 3), (z, 0), (z, 2))]  # fmt: skip
         return context.make_tuple(builder, signature.return_type, out)
 
     return sig, codegen
