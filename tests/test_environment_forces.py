@@ -165,7 +165,8 @@ def test_pair_in_the_truth_rhs_matches_two_single_calls_and_falls_back_on_small_
     W = np.zeros((33, 33))
     rng = np.random.default_rng(7)
     for V in (np.zeros((33, 4 * 33)), np.zeros((33, 33))):
-        assert kf.pair_work_fits(V, 30) == (V.shape[1] == 4 * 33)
+        assert kf.pair_arrays_fit(field.K, V, 30) == (V.shape[1] == 4 * 33)
+        assert not kf.pair_arrays_fit(field.K[:8], V, 30)  # a K without the pair planes
         for i, (a, b) in enumerate(zip(_random_points(rng, 5), _random_points(rng, 5))):
             t = 613.0 * i
             pair = kf._harmonics_eci_pair(t, *a, *b, p, npm, field.C, field.S, field.K, V, W)

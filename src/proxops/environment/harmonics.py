@@ -36,6 +36,12 @@ of normalisation factors):
 The recursion in Cartesian coordinates has no singularity at the poles. Tests check
 it against finite differences of an independent potential (scipy Legendre functions)
 and the closed-form J2, J3 accelerations.
+
+Two kernels, both strict IEEE: :func:`accel_harmonics` (one point; also fills V, W for
+:func:`potential_harmonics`) and :func:`accel_harmonics_pair` (two points in one pass, the
+points in SIMD lanes, each lane bit-identical to a single-point call; the truth integrators
+evaluate target and chaser with it). Measured (benchmarks/bench_truth.py, 100x100, 2 shared
+cores of an AMD EPYC with AVX2/AVX-512): see the README's truth section.
 """
 
 from __future__ import annotations
@@ -392,9 +398,10 @@ def _pair_order_sums(typingctx, VW, K, d, row, m_last):
 
 
 @njit(cache=True)
-def pair_work_fits(VW: np.ndarray, nmax: int) -> bool:
-    """True if ``VW`` can hold the pair layout to degree ``nmax`` (see :func:`accel_harmonics_pair`)."""
-    return VW.shape[0] >= 3 and VW.shape[1] >= 4 * (nmax + 2)
+def pair_arrays_fit(K: np.ndarray, VW: np.ndarray, nmax: int) -> bool:
+    """True if ``K`` has the pair planes (16 planes, :func:`recursion_coefficients`) and ``VW`` can
+    hold the pair layout to degree ``nmax`` (see :func:`accel_harmonics_pair`)."""
+    return K.shape[0] >= 16 and K.shape[1] >= nmax + 3 and VW.shape[0] >= 3 and VW.shape[1] >= 4 * (nmax + 2)
 
 
 @njit(cache=True, fastmath=False)  # IEEE on purpose (determinism), see accel_harmonics
@@ -405,7 +412,7 @@ def accel_harmonics_pair(
     """(ax_a, ay_a, az_a, ax_b, ay_b, az_b): :func:`accel_harmonics` (m/s^2, Earth-fixed) at
     the two Earth-fixed points a and b (m) in one pass, bit-identical to two single-point
     calls (same recursion and sums, per lane the same IEEE operations in the same order; see
-    the section comment). ``VW``: work array in the pair layout (:func:`pair_work_fits`;
+    the section comment). ``VW``: work array in the pair layout (:func:`pair_arrays_fit`;
     not checked here: the caller checks, an undersized array is written out of bounds)."""
     r2a = xa * xa + ya * ya + za * za
     r2b = xb * xb + yb * yb + zb * zb

@@ -17,7 +17,9 @@ separate copy so that the J2-only fast path is untouched (bit-identical, same sp
 
 Model arrays (built by :mod:`proxops.propagation.forces`): ``p`` (float parameters, indices
 below), ``C``, ``S``, ``K`` (harmonic coefficients and recursion factors), ``V``, ``W``
-(work arrays), ``dens`` (n, 5) density table along the target's path [ln rho, h, d ln rho/dh,
+(work arrays; ``V`` at least (3, 4 (nmax + 2)) wide is also the work array of the two-point
+kernel that evaluates the field at target and chaser in one pass, otherwise two single-point
+calls are made, with the same bits), ``dens`` (n, 5) density table along the target's path [ln rho, h, d ln rho/dh,
 d^2 ln rho/dh^2, d ln rho/dc] (c: cross-track, at constant height) on a uniform time grid, ``npm`` (3, 3) frozen precession-nutation.
 
 Density between the table nodes: Catmull-Rom cubic in time of the columns, then
@@ -42,7 +44,7 @@ from proxops.environment.earth import geodetic
 from proxops.environment.eclipse import shadow_factor
 from proxops.environment.ephemeris import moon_eci_kernel, sun_eci_kernel
 from proxops.environment.forces import accel_drag, accel_srp, accel_third_body
-from proxops.environment.harmonics import accel_harmonics, accel_harmonics_pair, pair_work_fits
+from proxops.environment.harmonics import accel_harmonics, accel_harmonics_pair, pair_arrays_fit
 from proxops.propagation.kernels import (
     SAFETY,
     A,
@@ -178,7 +180,7 @@ def _harmonics_eci_pair(t, xa, ya, za, xb, yb, zb, p, npm, C, S, K, V, W):
     :func:`accel_harmonics_pair` (bit-identical to two calls; ``V`` is its lane-interleaved
     work array when wide enough, else two single-point calls are made)."""
     nmax = int(p[I_NMAX])
-    if not pair_work_fits(V, nmax):
+    if not pair_arrays_fit(K, V, nmax):
         ta = _harmonics_eci(t, xa, ya, za, p, npm, C, S, K, V, W)
         tb = _harmonics_eci(t, xb, yb, zb, p, npm, C, S, K, V, W)
         return ta[0], ta[1], ta[2], tb[0], tb[1], tb[2]
