@@ -231,7 +231,7 @@ def accel_harmonics(
 # Work array ``VW`` (>= 3 rows, >= 4 (nmax + 2) columns, C order): a ring of three rows (the
 # recursion needs rows n - 1 and n - 2, the sums of degree n - 1 row n only, and no caller
 # reads V, W afterwards), row n of V, W in VW[n % 3], holding for each order m
-# (V_nm at a, V_nm at b, W_nm at a, W_nm at b) at columns 4 m .. 4 m + 3: ~10 kB at degree
+# (V_nm at a, W_nm at a, V_nm at b, W_nm at b) at columns 4 m .. 4 m + 3: ~10 kB at degree
 # 100, in L1 (the full triangle of the single-point kernel is ~170 kB).
 _F64 = ir.DoubleType()
 _I32 = ir.IntType(32)
@@ -292,9 +292,9 @@ def _pair_row(typingctx, VW, K, n, rows, m_end, sub, diag, za, zb, rhoa, rhob, x
         ka = _item_ptr(context, builder, k_t, args[1], [zero, n_, zero])
         kb = _item_ptr(context, builder, k_t, args[1], [one, n_, zero])
 
-        def lanes(a, b):  # (a, b, a, b): the (V a, V b, W a, W b) lanes of one order
+        def lanes(a, b):  # (a, a, b, b): the (V a, W a, V b, W b) lanes of one order
             vec = ir.Constant(_VEC4, ir.Undefined)
-            for lane, value in enumerate((a, b, a, b)):
+            for lane, value in enumerate((a, a, b, b)):
                 vec = builder.insert_element(vec, value, ir.Constant(_I32, lane))
             return vec
 
@@ -315,13 +315,13 @@ def _pair_row(typingctx, VW, K, n, rows, m_end, sub, diag, za, zb, rhoa, rhob, x
             a = builder.fmul(_splat(builder, builder.load(builder.gep(ka, [builder.sub(n_, one)])), _VEC4), zz)
             store(j, builder.fmul(a, _load_vec(builder, row1, j, _VEC4)))
         with builder.if_then(args[6]):
-            p = _load_vec(builder, row1, j, _VEC4)  # (V a, V b, W a, W b) at (n - 1, n - 1)
+            p = _load_vec(builder, row1, j, _VEC4)  # (V a, W a, V b, W b) at (n - 1, n - 1)
             q = builder.shuffle_vector(p, ir.Constant(_VEC4, ir.Undefined),
-                                       ir.Constant(ir.VectorType(_I32, 4), [2, 3, 0, 1]))  # (W a, W b, V a, V b)  # fmt: skip
+                                       ir.Constant(ir.VectorType(_I32, 4), [1, 0, 3, 2]))  # (W a, V a, W b, V b)  # fmt: skip
             t1 = builder.fmul(lanes(args[11], args[12]), p)  # x' V, x' W
             t2 = builder.fmul(lanes(args[13], args[14]), q)  # y' W, y' V
             value = builder.shuffle_vector(builder.fsub(t1, t2), builder.fadd(t1, t2),
-                                           ir.Constant(ir.VectorType(_I32, 4), [0, 1, 6, 7]))  # fmt: skip
+                                           ir.Constant(ir.VectorType(_I32, 4), [0, 5, 2, 7]))  # fmt: skip
             store(builder.add(j, four), builder.fmul(_splat(builder, args[15], _VEC4), value))
         return context.get_dummy_value()
 
@@ -356,7 +356,7 @@ def _pair_order_sums(typingctx, VW, K, d, row, m_last):
                             [builder.mul(d_, builder.mul(width, ir.Constant(_I64, 8)))])  # fmt: skip
         undef4 = ir.Constant(_VEC4, ir.Undefined)
 
-        def spread(vec, lo, hi):  # (vec[lo], vec[lo], vec[hi], vec[hi])
+        def spread(vec, lo, hi):  # (vec[lo], vec[lo], vec[hi], vec[hi]), in-lane
             return builder.shuffle_vector(vec, undef4, ir.Constant(ir.VectorType(_I32, 4), [lo, lo, hi, hi]))
 
         def pair(index):  # (p0, p1, p0, p1) from pairs[index], pairs[index + 1]
@@ -369,13 +369,13 @@ def _pair_order_sums(typingctx, VW, K, d, row, m_last):
         first = _load_vec(builder, row, zero, _VEC4)
         second = _load_vec(builder, row, four, _VEC4)
         carried = [cgutils.alloca_once_value(builder, v) for v in
-                   (spread(first, 0, 1), spread(first, 2, 3), spread(second, 0, 1), spread(second, 2, 3))]  # fmt: skip
+                   (spread(first, 0, 2), spread(first, 1, 3), spread(second, 0, 2), spread(second, 1, 3))]  # fmt: skip
         with cgutils.for_range(builder, _i64(builder, args[4])) as loop:
             m = builder.add(loop.index, ir.Constant(_I64, 1))
             nxt = _load_vec(builder, row, builder.mul(builder.add(m, ir.Constant(_I64, 1)), four), _VEC4)
             vm1, wm1, v0, w0 = (builder.load(c) for c in carried)  # (V a, V a, V b, V b) etc.
-            vp1 = spread(nxt, 0, 1)
-            wp1 = spread(nxt, 2, 3)
+            vp1 = spread(nxt, 0, 2)
+            wp1 = spread(nxt, 1, 3)
             base = builder.mul(m, ir.Constant(_I64, 8))
             q1, q2, q3, q4 = (pair(builder.add(base, ir.Constant(_I64, 2 * k))) for k in range(4))
             a3c = _splat(builder, builder.load(builder.gep(k3c, [m])), _VEC4)
@@ -426,8 +426,8 @@ def accel_harmonics_pair(
     zb0 = zb * re / r2b
     mtop = min(mmax + 1, nmax + 1)
     VW[0, 0] = re / math.sqrt(r2a)
-    VW[0, 1] = re / math.sqrt(r2b)
-    VW[0, 2] = 0.0
+    VW[0, 1] = 0.0
+    VW[0, 2] = re / math.sqrt(r2b)
     VW[0, 3] = 0.0
     axa = 0.0
     axb = 0.0
@@ -448,10 +448,10 @@ def accel_harmonics_pair(
         c3c0 = K[6, d, 0]
         row = rows[0]
         aza -= c3c0 * VW[row, 0]
-        azb -= c3c0 * VW[row, 1]
+        azb -= c3c0 * VW[row, 2]
         axa -= c1c0 * VW[row, 4]
-        axb -= c1c0 * VW[row, 5]
-        aya -= c1c0 * VW[row, 6]
+        axb -= c1c0 * VW[row, 6]
+        aya -= c1c0 * VW[row, 5]
         ayb -= c1c0 * VW[row, 7]
         sxa, sxb, sya, syb, sza, szb = _pair_order_sums(VW, K, d, row, min(d, mmax))
         axa += 0.5 * sxa
