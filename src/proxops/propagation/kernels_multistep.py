@@ -94,8 +94,9 @@ def _rhs_split(t, y, u, p, p_cheap, npm, C, S, K, V, W, dens, harm, new_harm, ou
     """Composed RHS (12,) with the harmonic accelerations (target, chaser; ECI, m/s^2) in
     ``harm`` (6,): evaluated at (t, y) when ``new_harm``, else re-used."""
     if new_harm:
-        harm[0], harm[1], harm[2] = kf._harmonics_eci(t, y[0], y[1], y[2], p, npm, C, S, K, V, W)
-        harm[3], harm[4], harm[5] = kf._harmonics_eci(t, y[0] + y[6], y[1] + y[7], y[2] + y[8], p, npm, C, S, K, V, W)
+        harm[0], harm[1], harm[2], harm[3], harm[4], harm[5] = kf._harmonics_eci_pair(
+            t, y[0], y[1], y[2], y[0] + y[6], y[1] + y[7], y[2] + y[8], p, npm, C, S, K, V, W
+        )
     kf.rhs_full(t, y, u, p_cheap, npm, C, S, K, V, W, dens, out)
     out[3] += harm[0]
     out[4] += harm[1]
