@@ -43,7 +43,9 @@ imports and numba caches are loaded; best of ``--repeats``):
   per direction; HiGHS alone 1.4 s / 4.5 s (1 deg/s, 0.1 m/s^2 / 3 deg/s, 0.05 m/s^2) against the
   warm simplex's 4.8 s / 10.9 s (load 4.0-4.4).
 * ``reach mc`` (``--reach-mc``): the 3 900-run §9 campaign on 2 workers, its wall time and the sum
-  of the runs' CPU times (halved: what two free cores would need for the runs);
+  of the runs' CPU times (halved: what two free cores would need for the runs), and the CPU used
+  meanwhile by this process, by the pool workers and by every other process of the machine
+  (/proc/stat): on the shared 2-core machine the wall time is mostly decided by the last;
 * CLI: ``python -m proxops.entry --version``, ``... run station-keeping --json`` and ``... run srf-vbar
   --json`` wall time (process start to exit), best of ``--repeats`` after one cached use; with the
   campaigns, ``proxops mc NAME --runs 50 --workers 2`` of each srf campaign from a fresh process
@@ -208,22 +210,48 @@ def _measure_support_lps(repeats: int) -> dict:
     return out
 
 
+def _machine_cpu_s() -> float | None:
+    """CPU-seconds the whole machine (every tenant, not only this process tree) has been busy
+    since boot, from /proc/stat (None where it does not exist)."""
+    try:
+        fields = [int(x) for x in Path("/proc/stat").read_text().split("\n", 1)[0].split()[1:]]
+    except (OSError, ValueError):
+        return None
+    return (sum(fields) - fields[3] - fields[4]) / os.sysconf("SC_CLK_TCK")  # all but idle and iowait
+
+
 def _measure_reach_mc() -> dict:
     """The 3 900-run §9 campaign on 2 workers (what ``proxops reach mc --workers 2`` runs): wall time,
     and the sum of the runs' CPU times (``cpu_s``; cpu_s / 2 is the wall time two free cores would
-    need for the runs alone, a figure less sensitive to the machine's load)."""
+    need for the runs alone, a figure less sensitive to the machine's load). Where the wall time
+    goes: this process's CPU (``parent_cpu_s``: dispatch, result collection, Parquet, progress),
+    the pool workers' CPU (``workers_cpu_s``, start-up included; the pool is shut down to read it)
+    and what every other process of the machine used meanwhile (``others_cpu_s``: the machine's
+    busy CPU-seconds from /proc/stat minus this tree's)."""
+    import resource
     import tempfile
 
     from proxops.analysis import feasibility_maps as F
-    from proxops.analysis.campaign import run_campaign
+    from proxops.analysis.campaign import run_campaign, shutdown_pools
 
+    shutdown_pools()  # a pool of an earlier part would hide its CPU from RUSAGE_CHILDREN
+    usage = lambda who: (lambda r: r.ru_utime + r.ru_stime)(resource.getrusage(who))  # noqa: E731
     with tempfile.TemporaryDirectory() as d:
+        self0, child0, machine0 = usage(resource.RUSAGE_SELF), usage(resource.RUSAGE_CHILDREN), _machine_cpu_s()
         t0 = time.perf_counter()
         res = run_campaign(F.mc_scenario(), workers=2, out=Path(d) / "mc", progress=False)
         wall = time.perf_counter() - t0
+        machine1 = _machine_cpu_s()
+        self1 = usage(resource.RUSAGE_SELF)
+        shutdown_pools()
+        workers = usage(resource.RUSAGE_CHILDREN) - child0
         cpu = float(res.table["run_cpu_s"].sum()) if "run_cpu_s" in res.table else float("nan")
-        return {"wall_s": wall, "runs": int(len(res.table)), "cpu_s": cpu,
-                "feasible": int(F.outcome_table(res.table)["feasible"].sum())}
+        out = {"wall_s": wall, "runs": int(len(res.table)), "cpu_s": cpu,
+               "feasible": int(F.outcome_table(res.table)["feasible"].sum()),
+               "parent_cpu_s": self1 - self0, "workers_cpu_s": workers}
+        if machine0 is not None and machine1 is not None:
+            out["others_cpu_s"] = max(0.0, machine1 - machine0 - (self1 - self0) - workers)
+        return out
 
 
 def worker(args: list[str]) -> None:
@@ -402,6 +430,12 @@ def report(new: dict, old: dict, old_label: str) -> None:
         print(f"reach mc ({n['runs']} runs, 2 workers): {n['wall_s']:.1f} s (base {o.get('wall_s', float('nan')):.1f} s)"
               f"  goal < 30 s; runs' CPU {n.get('cpu_s', float('nan')):.1f} s (/ 2 = "
               f"{n.get('cpu_s', float('nan')) / 2:.1f} s on two free cores), {n.get('feasible', '-')} feasible")
+        if "workers_cpu_s" in n:
+            others = n.get("others_cpu_s")
+            print(f"  CPU during it: this process {n['parent_cpu_s']:.1f} s, pool workers {n['workers_cpu_s']:.1f} s "
+                  f"(start-up included), other processes of the machine "
+                  f"{'n/a' if others is None else f'{others:.1f} s'} (2 cores x {n['wall_s']:.1f} s = "
+                  f"{2 * n['wall_s']:.1f} CPU-s available)")
     if "cli" in new:
         for key, _ in CLI_RUNS:
             n, o = new["cli"].get(key), old.get("cli", {}).get(key)

@@ -165,3 +165,28 @@ def test_feasibility_rule_of_section_9_is_shared():
     rows.loc[len(rows)] = {"outcome": "error", "metric.los_violations": 0, "metric.max_violation_m": 0.0,
                            "metric.qp_infeasible": False, "metric.outcome": "completed"}  # a run that raised
     np.testing.assert_array_equal(classify_rows(rows), [e for _, e in cases] + [False])
+
+
+def test_runs_of_one_target_share_its_setup_and_each_starts_at_its_own_body_position():
+    """build_setup memoises the target side (orbit, attitude, prediction model) per process: the runs
+    of a campaign that disperses the chaser share it, a different tumble rate does not. Each run's
+    start is checked independently: with theta0 = 0 the body axes at t = 0 are the Hill axes of the
+    target (frames.hill.hill_dcm), so r_B = hill_dcm(target) (r_chaser - r_target)."""
+    from proxops.frames.hill import hill_dcm
+    from proxops.systems.los import build_setup, default_scenario
+
+    def setup(rate, position):
+        return build_setup(default_scenario(target={"tumble_rate_deg_s": rate},
+                                            chaser={"initial_body_position_m": position,
+                                                    "initial_velocity_frame": "body",
+                                                    "initial_velocity_mps": [0.0, 0.0, 0.0]}))
+
+    first, second, other = setup(3.0, [5.0, 80.0, 0.0]), setup(3.0, [-20.0, 150.0, 4.0]), setup(2.0, [5.0, 80.0, 0.0])
+    assert first.plant.target is second.plant.target and first.controller.model is second.controller.model
+    assert other.plant.target is not first.plant.target
+    assert other.plant.target.tumble_rate_rad_s == pytest.approx(np.radians(2.0))
+    for s, position in ((first, [5.0, 80.0, 0.0]), (second, [-20.0, 150.0, 4.0]), (other, [5.0, 80.0, 0.0])):
+        y0 = s.plant.initial_state()
+        r_body = hill_dcm(y0[0:6]) @ y0[6:9]
+        np.testing.assert_allclose(r_body, position, rtol=0, atol=1e-9)
+        np.testing.assert_allclose(s.plant.relative_state(y0)[:3], position, rtol=0, atol=1e-9)

@@ -117,3 +117,31 @@ def test_tiny_closed_loop_campaign(tmp_path):
     assert bool(table.loc[0, "feasible"])
     again = F.read_outcomes(tmp_path / "mc")
     assert again["feasible"].tolist() == table["feasible"].tolist()
+
+
+def test_cached_sibson_coordinates_serve_any_values_and_the_hull_test():
+    """The Sibson coordinates are computed once per (sites, queries) and reused for other values (the
+    20 combinations of §9 share the IC sites): a second value set gives, bit for bit, what a fresh
+    computation gives; ``inside_hull`` agrees with an independent half-plane test of the convex hull
+    (scipy ConvexHull facets) away from its edges, and is all False without a 2-D hull."""
+    from scipy.spatial import ConvexHull
+
+    rng = np.random.default_rng(11)
+    sites = rng.uniform(-40, 40, (30, 2)) + [0.0, 100.0]
+    x, y = np.linspace(-60, 60, 121), np.linspace(40, 160, 101)
+    first = F.natural_neighbour_grid(sites, rng.uniform(0, 1, 30), x, y)
+    second_values = rng.uniform(0, 1, 30)
+    cached = F.natural_neighbour_grid(sites, second_values, x, y)
+    F._GEOMETRY_CACHE.clear()
+    fresh = F.natural_neighbour_grid(sites, second_values, x, y)
+    assert np.array_equal(cached, fresh) and not np.array_equal(first, fresh)
+    Xg, Yg = np.meshgrid(x, y)
+    q = np.column_stack([Xg.ravel(), Yg.ravel()])
+    eq = ConvexHull(sites).equations  # a x + b y + c <= 0 inside
+    dist = (q @ eq[:, :2].T + eq[:, 2]).max(axis=1)
+    inside = F.inside_hull(sites, q)
+    clear = np.abs(dist) > 1e-9
+    np.testing.assert_array_equal(inside[clear], dist[clear] < 0)
+    assert inside.any() and not inside.all()
+    collinear = np.column_stack([np.linspace(0, 10, 5), np.linspace(0, 20, 5)])
+    assert not F.inside_hull(collinear, q).any() and not F.inside_hull(sites[:2], q).any()

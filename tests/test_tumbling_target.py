@@ -140,3 +140,21 @@ def test_plant_quaternion_stays_on_eq_2_solution():
     for k in range(100):
         s = plant.propagate(float(k), s, np.zeros(3), 1.0)
     np.testing.assert_allclose(quat_to_dcm(s[12:16]), tgt.rotation_inertial_from_body(100.0), atol=1e-12)
+
+
+def test_initial_rotation_is_the_attitude_at_t0_and_read_only():
+    """The cached R_IB(0) (shared by every run of a campaign target) is R_IB(t = 0) bit for bit, equals
+    the Hill axes of the target for theta0 = 0 (frames.hill: body = Hill at t = 0), and cannot be
+    modified by a caller."""
+    from proxops.frames.hill import hill_dcm
+
+    eci = elements_to_eci(OrbitalElements(SMA, 0.001, np.radians(51.6), 0.3, 0.2, 0.1))
+    target = TumblingTarget.aligned_with_hill(W_T, eci, 0.0)
+    R0 = target.initial_rotation
+    assert np.array_equal(R0, target.rotation_inertial_from_body(0.0))
+    np.testing.assert_allclose(R0, hill_dcm(eci).T, rtol=0, atol=1e-15)
+    with pytest.raises(ValueError):
+        R0[0, 0] = 2.0
+    body = np.array([3.0, 70.0, -2.0, 0.01, -0.02, 0.0])
+    np.testing.assert_allclose(target.body_state_from_offset(0.0, target.offset_from_body_state(0.0, body)), body,
+                               rtol=0, atol=1e-12)

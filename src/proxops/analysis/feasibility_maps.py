@@ -29,6 +29,7 @@ import pandas as pd
 from scipy.spatial import Delaunay, cKDTree
 
 from proxops.analysis.reach import PAPER_A_MAX_MPS2, PAPER_OMEGAS_DEG_S, BodyGrid
+from proxops.core.memo import memo_get
 from proxops.errors import input_error
 
 MC_Y_RANGE_M = (20.0, 300.0)
@@ -179,10 +180,20 @@ def _circumcentre(ax, ay, bx, by, cx, cy):  # pragma: no cover - compiled
 
 
 @numba.njit(cache=True)
-def _sibson_kernel(pts, vals, simplices, neighbors, cc, r2, queries, start):  # pragma: no cover - compiled
-    """Sibson interpolation at queries inside the hull (start = containing simplex, >= 0)."""
+def _sibson_coordinates(pts, simplices, neighbors, cc, r2, queries, start):  # pragma: no cover - compiled
+    """Sibson coordinates of queries inside the hull (start = containing simplex, >= 0), as the area
+    each natural neighbour loses (unnormalised): for query iq, sites ``site[ptr[iq]:ptr[iq + 1]]`` with
+    areas ``area[...]`` in the order they are summed; ``hit[iq]`` >= 0 when q is on that data site,
+    ``first[iq]`` the first vertex of the containing simplex (the value when all areas vanish).
+    They do not depend on the values: :func:`_sibson_apply` interpolates any values with them."""
     n_q = queries.shape[0]
-    out = np.empty(n_q)
+    hit_out = np.full(n_q, -1, np.int64)
+    first = np.empty(n_q, np.int64)
+    ptr = np.zeros(n_q + 1, np.int64)
+    cap = 8 * n_q + 16
+    site = np.empty(cap, np.int64)
+    area_out = np.empty(cap)
+    nnz = 0
     stamp = np.zeros(simplices.shape[0], np.int64)
     stack = np.empty(simplices.shape[0], np.int64)
     conf = np.empty(simplices.shape[0], np.int64)
@@ -198,13 +209,15 @@ def _sibson_kernel(pts, vals, simplices, neighbors, cc, r2, queries, start):  # 
         qx, qy = queries[iq, 0], queries[iq, 1]
         # q on a data site: its value
         t0 = start[iq]
+        first[iq] = simplices[t0, 0]
         hit = -1
         for k in range(3):
             v = simplices[t0, k]
             if (pts[v, 0] - qx) ** 2 + (pts[v, 1] - qy) ** 2 <= 1e-18 * (1.0 + qx * qx + qy * qy):
                 hit = v
         if hit >= 0:
-            out[iq] = vals[hit]
+            hit_out[iq] = hit
+            ptr[iq + 1] = nnz
             continue
         # Bowyer-Watson cavity: triangles whose circumcircle contains q
         tag = iq + 1
@@ -238,10 +251,15 @@ def _sibson_kernel(pts, vals, simplices, neighbors, cc, r2, queries, start):  # 
                     eb[n_e] = b
                     ex[n_e], ey[n_e] = _circumcentre(qx, qy, pts[a, 0], pts[a, 1], pts[b, 0], pts[b, 1])
                     n_e += 1
+        if nnz + n_e > cap:  # grow the entry arrays
+            cap = 2 * (nnz + n_e)
+            site_new = np.empty(cap, np.int64)
+            area_new = np.empty(cap)
+            site_new[:nnz] = site[:nnz]
+            area_new[:nnz] = area_out[:nnz]
+            site, area_out = site_new, area_new
         # stolen area per natural neighbour v = area of the convex polygon V_q ∩ V_v, whose vertices
         # are the old circumcentres of the conflicting triangles around v and the two new ones on edges at v
-        num = 0.0
-        den = 0.0
         for i in range(n_e):
             v = ea[i]
             m = 0
@@ -271,11 +289,66 @@ def _sibson_kernel(pts, vals, simplices, neighbors, cc, r2, queries, start):  # 
                 a_i = order[j]
                 b_i = order[(j + 1) % m]
                 area += px[a_i] * py[b_i] - px[b_i] * py[a_i]
-            area = 0.5 * abs(area)
-            num += area * vals[v]
-            den += area
-        out[iq] = num / den if den > 0.0 else vals[simplices[t0, 0]]
+            site[nnz] = v
+            area_out[nnz] = 0.5 * abs(area)
+            nnz += 1
+        ptr[iq + 1] = nnz
+    return hit_out, first, ptr, site[:nnz].copy(), area_out[:nnz].copy()
+
+
+@numba.njit(cache=True)
+def _sibson_apply(vals, hit, first, ptr, site, area):  # pragma: no cover - compiled
+    """Sibson interpolation of ``vals`` (per site) with the coordinates of :func:`_sibson_coordinates`:
+    sum(area_v vals_v) / sum(area_v), summed in the coordinates' order."""
+    n_q = hit.shape[0]
+    out = np.empty(n_q)
+    for iq in range(n_q):
+        if hit[iq] >= 0:
+            out[iq] = vals[hit[iq]]
+            continue
+        num = 0.0
+        den = 0.0
+        for e in range(ptr[iq], ptr[iq + 1]):
+            num += area[e] * vals[site[e]]
+            den += area[e]
+        out[iq] = num / den if den > 0.0 else vals[first[iq]]
     return out
+
+
+_GEOMETRY_CACHE: dict = {}  # (sites, queries) -> nearest site per query, inside mask, Sibson coordinates
+
+
+def _interpolation_geometry(sites: np.ndarray, q: np.ndarray):
+    """What :func:`natural_neighbour` needs that does not depend on the values: the nearest site of
+    every query, the queries inside the hull of the sites and their Sibson coordinates (None when
+    there is no 2-D hull or no query inside it). Memoised: the §9 maps interpolate 20 combinations
+    on the same IC sites and grid (read-only arrays, shared)."""
+
+    def make():
+        _, idx = cKDTree(sites).query(q)
+        if sites.shape[0] < 3:
+            return idx, None, None
+        try:
+            tri = Delaunay(sites)
+        except Exception:  # collinear sites: no 2-D hull, nearest neighbour everywhere
+            return idx, None, None
+        start = tri.find_simplex(q)
+        inside = start >= 0
+        if not inside.any():
+            return idx, None, None
+        simp = tri.simplices.astype(np.int64)
+        P = tri.points
+        a, b, c = P[simp[:, 0]], P[simp[:, 1]], P[simp[:, 2]]
+        cc = np.empty((len(simp), 2))
+        for i in range(len(simp)):
+            cc[i] = _circumcentre(a[i, 0], a[i, 1], b[i, 0], b[i, 1], c[i, 0], c[i, 1])
+        r2 = np.sum((cc - a) ** 2, axis=1)
+        coords = _sibson_coordinates(np.ascontiguousarray(P), simp, tri.neighbors.astype(np.int64), cc, r2,
+                                     np.ascontiguousarray(q[inside]), start[inside].astype(np.int64))
+        return idx, inside, coords
+
+    key = (sites.shape, sites.tobytes(), q.shape, q.tobytes())
+    return memo_get(_GEOMETRY_CACHE, key, make, read_only=True, max_entries=4)
 
 
 def natural_neighbour(sites: np.ndarray, values: np.ndarray, queries: np.ndarray) -> np.ndarray:
@@ -283,34 +356,27 @@ def natural_neighbour(sites: np.ndarray, values: np.ndarray, queries: np.ndarray
 
     Exact Sibson coordinates (Sibson 1980): the area each site's Voronoi cell loses when the
     query is inserted, from the Bowyer-Watson cavity of the Delaunay triangulation (as in
-    Liang & Hale 2010 / MetPy), compiled with numba."""
-    sites = np.asarray(sites, float)[:, :2]
+    Liang & Hale 2010 / MetPy), compiled with numba. The coordinates depend on the sites and
+    queries only; they are computed once per (sites, queries) in this process."""
+    sites = np.ascontiguousarray(np.asarray(sites, float)[:, :2])
     values = np.asarray(values, float)
-    q = np.atleast_2d(np.asarray(queries, float))[:, :2]
+    q = np.ascontiguousarray(np.atleast_2d(np.asarray(queries, float))[:, :2])
     if sites.shape[0] != values.shape[0] or sites.shape[0] < 1:
         raise input_error("sites", sites.shape, f"need one value per site (got {values.shape[0]} values)")
-    _, idx = cKDTree(sites).query(q)
+    idx, inside, coords = _interpolation_geometry(sites, q)
     out = values[idx].astype(float)
-    if sites.shape[0] < 3:
-        return out
-    try:
-        tri = Delaunay(sites)
-    except Exception:  # collinear sites: no 2-D hull, nearest neighbour everywhere
-        return out
-    start = tri.find_simplex(q)
-    inside = start >= 0
-    if not inside.any():
-        return out
-    simp = tri.simplices.astype(np.int64)
-    P = tri.points
-    a, b, c = P[simp[:, 0]], P[simp[:, 1]], P[simp[:, 2]]
-    cc = np.empty((len(simp), 2))
-    for i in range(len(simp)):
-        cc[i] = _circumcentre(a[i, 0], a[i, 1], b[i, 0], b[i, 1], c[i, 0], c[i, 1])
-    r2 = np.sum((cc - a) ** 2, axis=1)
-    out[inside] = _sibson_kernel(np.ascontiguousarray(P), values, simp, tri.neighbors.astype(np.int64), cc, r2,
-                                 np.ascontiguousarray(q[inside]), start[inside].astype(np.int64))
+    if inside is not None:
+        out[inside] = _sibson_apply(np.ascontiguousarray(values), *coords)
     return out
+
+
+def inside_hull(sites: np.ndarray, queries: np.ndarray) -> np.ndarray:
+    """(q,) True where a query (x, y) lies in the convex hull of the sites (``Delaunay.find_simplex``
+    >= 0), where :func:`natural_neighbour` interpolates; all False without a 2-D hull."""
+    sites = np.ascontiguousarray(np.asarray(sites, float)[:, :2])
+    q = np.ascontiguousarray(np.atleast_2d(np.asarray(queries, float))[:, :2])
+    _, inside, _ = _interpolation_geometry(sites, q)
+    return np.zeros(len(q), bool) if inside is None else inside.copy()
 
 
 def natural_neighbour_grid(sites: np.ndarray, values: np.ndarray, x: np.ndarray, y: np.ndarray) -> np.ndarray:
@@ -357,10 +423,7 @@ def certification_check(fmap: FeasibilityMap, grid: BodyGrid, nominal: np.ndarra
     cert = nominal & grid.inside
     n_cert = int(cert.sum())
     bad_grid = int(np.count_nonzero(cert & ~fmap.mask))
-    try:  # inside the hull of the ICs the map is interpolated, outside it is extrapolated
-        in_hull = Delaunay(fmap.sites).find_simplex(grid.points[:, :2]) >= 0
-    except Exception:
-        in_hull = np.zeros(len(grid.points), bool)
+    in_hull = inside_hull(fmap.sites, grid.points)  # there the map is interpolated, outside it is extrapolated
     n_cert_hull = int(np.count_nonzero(cert & in_hull))
     bad_hull = int(np.count_nonzero(cert & in_hull & ~fmap.mask))
     n_sites_cert = int(np.count_nonzero(sites_nominal))

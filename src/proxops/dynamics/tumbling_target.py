@@ -90,9 +90,16 @@ class TumblingTarget:
         (eqs. 7-8)."""
         return body_state_from_offset(self.rotation_inertial_from_body(t), self.omega_body, eci_offset)
 
+    @cached_property
+    def initial_rotation(self) -> np.ndarray:
+        """R_IB(0) (read-only), computed once per target: every run sharing the target starts with it."""
+        R = self.rotation_inertial_from_body(0.0)
+        R.flags.writeable = False
+        return R
+
     def offset_from_body_state(self, t: float, body_state: np.ndarray) -> np.ndarray:
         """Inverse of :meth:`body_state_from_offset`: ECI offset [dr, dv] (m, m/s)."""
-        R = self.rotation_inertial_from_body(t)
+        R = self.initial_rotation if t == 0.0 else self.rotation_inertial_from_body(t)
         x = np.asarray(body_state, float)
         r_B, v_B = x[:3], x[3:6]
         return np.concatenate([R @ r_B, R @ (v_B + cross3(self.omega_body, r_B))])

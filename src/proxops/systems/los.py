@@ -139,6 +139,9 @@ def default_scenario(**sections) -> LosScenario:
     return LosScenario.model_validate(data)
 
 
+_TARGET_CACHE: dict = {}  # orbit, tumble rate, initial angle, dt -> (elements, TumblingTarget, BodyFrameModel)
+
+
 def build_setup(sc: LosScenario) -> Setup:
     """Plant (J2 truth + tumbling target), controller, corridor check for one scenario."""
     from proxops.constraints.los_corridor import LosCorridor
@@ -149,17 +152,24 @@ def build_setup(sc: LosScenario) -> Setup:
     from proxops.errors import input_error
     from proxops.propagation.truth import RelativeTruth
     from proxops.systems.common import actuator_model, navigation_model
+    from proxops.core.memo import memo_get
 
     o = sc.orbit
-    elements = OrbitalElements(o.sma_m, o.ecc, np.radians(o.inc_deg), np.radians(o.raan_deg),
-                               np.radians(o.argp_deg), np.radians(o.nu_deg))
     dt = sc.sim.dt_s or 1.0
-    w_t = np.radians(sc.target.tumble_rate_deg_s)
-    theta0 = np.radians(sc.target.initial_angle_deg)
-    target_eci = elements_to_eci(elements)
-    target = TumblingTarget.aligned_with_hill(w_t, target_eci, theta0)
-    n = mean_motion(o.sma_m)
-    model = BodyFrameModel(n, w_t, dt, theta0)
+
+    def target_side():
+        """Orbit, target attitude and prediction model: the same for every run of a campaign that
+        disperses only the chaser (objects nothing modifies, shared by those runs of a worker)."""
+        elements = OrbitalElements(o.sma_m, o.ecc, np.radians(o.inc_deg), np.radians(o.raan_deg),
+                                   np.radians(o.argp_deg), np.radians(o.nu_deg))
+        w_t = np.radians(sc.target.tumble_rate_deg_s)
+        theta0 = np.radians(sc.target.initial_angle_deg)
+        target = TumblingTarget.aligned_with_hill(w_t, elements_to_eci(elements), theta0)
+        return elements, target, BodyFrameModel(mean_motion(o.sma_m), w_t, dt, theta0)
+
+    key = (o.sma_m, o.ecc, o.inc_deg, o.raan_deg, o.argp_deg, o.nu_deg, sc.target.tumble_rate_deg_s,
+           sc.target.initial_angle_deg, dt)
+    elements, target, model = memo_get(_TARGET_CACHE, key, target_side)
     x0_body = np.array(sc.chaser.initial_body_position_m + sc.chaser.initial_velocity_mps, float)
     if sc.chaser.initial_velocity_frame == "lvlh":
         x_hill = model.hill_from_body(0.0, np.concatenate([x0_body[:3], np.zeros(3)]))
