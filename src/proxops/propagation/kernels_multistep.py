@@ -99,11 +99,17 @@ def adams_coefficients(order: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, 
 @njit(cache=True)
 def _rhs_split(t, y, u, p, p_cheap, npm, C, S, K, V, W, dens, harm, new_harm, out) -> None:
     """Composed RHS (12,) with the harmonic accelerations (target, chaser; ECI, m/s^2) in
-    ``harm`` (6,): evaluated at (t, y) when ``new_harm``, else re-used."""
+    ``harm[:6]`` and the Sun and Moon (m) in ``harm[6:]`` (12,): evaluated at (t, y) when
+    ``new_harm``, else re-used (the Sun and Moon depend on t only: re-used at the same t)."""
     if new_harm:
         harm[0], harm[1], harm[2] = kf._harmonics_eci(t, y[0], y[1], y[2], p, npm, C, S, K, V, W)
         harm[3], harm[4], harm[5] = kf._harmonics_eci(t, y[0] + y[6], y[1] + y[7], y[2] + y[8], p, npm, C, S, K, V, W)
-    kf.rhs_full(t, y, u, p_cheap, npm, C, S, K, V, W, dens, out)
+        sun, moon = kf.third_bodies(t, p)
+        harm[6], harm[7], harm[8] = sun
+        harm[9], harm[10], harm[11] = moon
+    sun = (harm[6], harm[7], harm[8])
+    moon = (harm[9], harm[10], harm[11])
+    kf.rhs_full_sun_moon(t, y, u, p_cheap, npm, C, S, K, V, W, dens, sun, moon, out)
     out[3] += harm[0]
     out[4] += harm[1]
     out[5] += harm[2]
@@ -156,7 +162,7 @@ def integrate_multistep(y0, times, u, p, npm, C, S, K, V, W, dens, h, beta_ab, b
         return status, n_dop, n_rhs, 2 * n_rhs if p[kf.I_GRAV] == 2.0 else 0
     p_cheap = p.copy()
     p_cheap[kf.I_GRAV] = 0.0
-    harm = np.zeros(6)
+    harm = np.zeros(12)
     # history: F[j] = f at t_n - j h (ring buffer: row (head + j) % (k + 1)); Y: state at t_n
     F = np.empty((k + 1, n))
     t0 = times[0]
@@ -175,7 +181,7 @@ def integrate_multistep(y0, times, u, p, npm, C, S, K, V, W, dens, h, beta_ab, b
     if status != STATUS_OK:
         return status, 0, 0, 0
     Fs = np.empty((k, n))
-    Hs = np.zeros((k, 6))  # harmonic accelerations at each node (split)
+    Hs = np.zeros((k, 12))  # harmonic accelerations, Sun and Moon at each node (split)
     for j in range(k):
         _rhs(grid[j], ys[j], u, p, p_cheap, split, npm, C, S, K, V, W, dens, Hs[j], True, Fs[j])
     n_full = k  # evaluations with the full field (the guess's truncated ones are counted in n_rhs only)
