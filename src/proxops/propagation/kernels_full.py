@@ -38,7 +38,7 @@ import numpy as np
 from numba import njit
 
 from proxops.core.twobody import accel_differential, accel_j2, accel_twobody
-from proxops.environment.earth import geodetic
+from proxops.environment.earth import geodetic_height
 from proxops.environment.eclipse import shadow_factor
 from proxops.environment.ephemeris import moon_eci_kernel, sun_eci_kernel
 from proxops.environment.forces import accel_drag, accel_srp, accel_third_body
@@ -141,8 +141,7 @@ def density_at(t: float, rx: float, ry: float, rz: float, cross: float, p: np.nd
     off the target's orbit plane (along its normal)."""
     ln_rho, h_tab, d1, d2, dc = _interp_row(dens, p, t)
     ex, ey, ez = _to_ecef(t, rx, ry, rz, p, npm)
-    h = geodetic(ex, ey, ez)[2]
-    dh = h - h_tab
+    dh = geodetic_height(ex, ey, ez) - h_tab
     return math.exp(ln_rho + dh * d1 + 0.5 * dh * dh * d2 + cross * dc)
 
 
