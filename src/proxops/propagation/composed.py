@@ -12,19 +12,20 @@ since the epoch (s), because the forces depend on absolute time.
 
 Integrators (density from a NRLMSISE-00 table along the target's predicted path on the numba
 paths): ``"dop853"`` (numba adaptive DOP853), ``"multistep"`` (numba fixed-step
-Adams-Bashforth-Moulton PECE, order 12 / 13, 12 s steps, harmonics once per step;
-:mod:`proxops.propagation.kernels_multistep`, whose doc has the order/step measurement), ``"fast"`` (the default: multistep with
-spherical harmonics and without SRP on spans of at least MIN_STEPS * order steps (432 s),
+Adams-Bashforth-Moulton PECE, order 6 / 7, 18 s steps, harmonics once per step with a
+look-ahead quadrature; :mod:`proxops.propagation.kernels_multistep`, whose doc has the
+order/step measurement), ``"fast"`` (the default: multistep with
+spherical harmonics and without SRP on spans of at least MIN_STEPS * order steps (324 s),
 DOP853 otherwise: for point mass / J2, which stay bit-identical to RelativeTruth, and with
 SRP, whose shadow boundary the fixed step cannot follow) and ``"reference"`` (scipy DOP853
 on the same RHS, with pymsis called at both spacecraft on every evaluation). The J2-only and
 two-body truths stay in RelativeTruth (the fastest path, unchanged).
 
 Multistep vs DOP853 (benchmarks/bench_truth.py; 100x100 + drag + Sun/Moon, A/m 0.004 /
-0.015 m^2/kg, relative position vs numba DOP853 at rtol 1e-13): the default order 12 at
-12 s takes 972 evaluations of the 100x100 field per orbit against DOP853's 3122 at the
-default rtol, and stays below 0.11 mm at 20 km over two orbits in 15 geometries; the former
-default (order 6, 20 s, 580 evaluations) reached 17.5 mm there (0.06 mm at the bench's
+0.015 m^2/kg, relative position vs numba DOP853 at rtol 1e-13): the default (order 6, 18 s,
+look-ahead) takes 764 evaluations of the 100x100 field per orbit against DOP853's 3122 at the
+default rtol, and stays below 0.13 mm at 20 km over two orbits in 15 geometries; the former
+default (order 6, 20 s, no look-ahead, 580 evaluations) reached 17.5 mm there (0.06 mm at the bench's
 geometry); timings in the README and kernels_multistep's doc.
 
 Measured (tests/test_propagation_composed.py, benchmarks/bench_truth.py; 500 km, 51.6 deg,
@@ -143,6 +144,7 @@ class ComposedTruth(PlantBase):
         atol: float = REFERENCE_ATOL,
         step_s: float = km.DEFAULT_STEP_S,
         order: int = km.DEFAULT_ORDER,
+        lookahead: tuple[int, int] = km.DEFAULT_LOOKAHEAD,
     ) -> None:
         if integrator not in INTEGRATORS:
             raise input_error("truth.integrator", integrator, "must be 'fast', 'dop853', 'multistep' or 'reference'")
@@ -167,7 +169,7 @@ class ComposedTruth(PlantBase):
         self.integrator = integrator
         self.step_s = float(step_s)
         self.order = int(order)
-        self.adams = km.adams_coefficients(self.order)
+        self.adams = km.adams_coefficients(self.order) + km.lookahead_coefficients(self.order, *lookahead)
         self.rtol = float(rtol)
         self.atol = float(atol)
         self.mu = float(mu)
