@@ -70,11 +70,11 @@ collocation polynomial would alias g the same way, so with look-ahead the first 
 from the DOP853 loop with the full field (~130 field evaluations, once per propagation).
 Same 15 geometries, 20 km, worst of one and two orbits (order 6):
 
-    h (s)  field evaluations / orbit   median    worst (mm)
-    18      764                        0.034     0.13   (default)
-    20      ~700                       0.077     0.45
-    22                                 0.15      0.68
-    24                                 0.22      0.95
+    h (s)  field evaluations / orbit   median    90 %     worst (mm)
+    18      764                        0.032     0.10      0.13   (default)
+    20      700                        0.082     0.15      0.45
+    22      650                        0.15      0.25      0.68
+    24      606                        0.23      0.58      0.95
 
 Coefficients: w_j(theta) = int_0^theta L_j(s) ds for the Lagrange basis L_j on the nodes
 s_j (units of h from t_n; AB: 0, -1, ..., -(k-1); AM: 1, 0, ..., -(k-1)), computed exactly
