@@ -40,10 +40,17 @@ V, W = np.zeros((23, 23)), np.zeros((23, 23))
 rng = np.random.default_rng(5)
 pts = rng.standard_normal((60, 3))
 pts *= 7.0e6 / np.linalg.norm(pts, axis=1)[:, None]
-inlined, composed = [], []
+inlined, composed, paired = [], [], []
 for i, r in enumerate(pts):
     t = 97.0 * i
     inlined.append(kf._harmonics_eci(t, r[0], r[1], r[2], p, npm, field.C, field.S, field.K, V, W))
+VW = np.zeros((23, 92))  # the two-point kernel (target and chaser in one pass): points i and 59 - i
+for i, r in enumerate(pts[:30]):
+    q = pts[59 - i]
+    paired.append(kf._harmonics_eci_pair(97.0 * i, r[0], r[1], r[2], q[0], q[1], q[2], p, npm, field.C, field.S,
+                                         field.K, VW, W)[:3])
+    paired.append(kf._harmonics_eci_pair(97.0 * i, q[0], q[1], q[2], r[0], r[1], r[2], p, npm, field.C, field.S,
+                                         field.K, VW, W)[3:])
 for i, r in enumerate(pts):
     t = 97.0 * i
     ex, ey, ez = kf._to_ecef(t, r[0], r[1], r[2], p, npm)
@@ -53,7 +60,8 @@ for i, r in enumerate(pts):
     qx, qy, qz = ct * bx - st * by, st * bx + ct * by, bz
     composed.append(tuple(npm[0, k] * qx + npm[1, k] * qy + npm[2, k] * qz for k in range(3)))
 print(json.dumps({"inlined": [[v.hex() for v in a] for a in inlined],
-                  "composed": [[v.hex() for v in a] for a in composed]}))
+                  "composed": [[v.hex() for v in a] for a in composed],
+                  "paired": [[v.hex() for v in a] for a in paired]}))
 """
 
 
@@ -70,13 +78,19 @@ def _run_fresh_cache_dir(cache: Path) -> dict:
 def test_harmonics_kernel_bits_same_compiled_and_cached(tmp_path):
     """First process compiles everything into an empty cache; the second loads it. The inlined
     kernel equals the Python composition of the top-level kernels bit for bit in both, and the
-    two processes agree (before the fix: 20-40 % of the points differed by a few ulps once cached)."""
+    two processes agree (before the fix: 20-40 % of the points differed by a few ulps once cached);
+    so does the two-point kernel (each point in either lane against its single-point value)."""
     compiled = _run_fresh_cache_dir(tmp_path)
     assert any(tmp_path.rglob("*.nbc")), "the first process should have written the numba cache"
     cached = _run_fresh_cache_dir(tmp_path)
     assert compiled["inlined"] == compiled["composed"]
     assert cached["inlined"] == cached["composed"]
     assert cached["inlined"] == compiled["inlined"]
+    # the two-point kernel: point i (at t_i) in lane a, then in lane b, against its single-point value
+    for run in (compiled, cached):
+        assert run["paired"][0::2] == run["inlined"][:30]
+        assert run["paired"][1::2] == run["inlined"][:30]
+    assert cached["paired"] == compiled["paired"]
 
 
 _RUN_SCRIPT = r"""

@@ -27,7 +27,14 @@ from proxops.environment.forces import (
     accel_srp,
     accel_third_body,
 )
-from proxops.environment.harmonics import SHIPPED_DEGREE, SphericalHarmonics, _shipped, read_gfc
+from proxops.environment.harmonics import (
+    SHIPPED_DEGREE,
+    SphericalHarmonics,
+    _shipped,
+    accel_harmonics,
+    accel_harmonics_pair,
+    read_gfc,
+)
 from proxops.errors import ProxopsInputError
 
 
@@ -103,6 +110,70 @@ def test_central_term_is_point_mass():
     J2 = -field.C[2, 0] * math.sqrt(5.0)
     expected = -field.gm / 7.0e6**2 * np.array([1, 0, 0]) + np.array(accel_j2(7.0e6, 0, 0, field.gm, J2, field.re))
     assert np.allclose(a, expected, rtol=1e-14)
+
+
+def _random_points(rng, k):
+    """k Earth-fixed points (m) in random directions from the surface to beyond GEO."""
+    r = rng.normal(size=(k, 3))
+    return r * (rng.uniform(6.36e6, 4.5e7, size=k) / np.linalg.norm(r, axis=1))[:, None]
+
+
+def test_pair_kernel_is_bit_identical_to_two_single_point_calls():
+    """accel_harmonics_pair (both points in SIMD lanes) against two accel_harmonics calls, bit
+    for bit: every degree 2..120 (the shipped maximum), orders 0, 1, a random one and the
+    degree, with (nmin 0) and without (nmin 2) the central term; points in random directions,
+    pairs 2 km apart (target and chaser) and unrelated, on the pole axis and on the equator
+    (x' = y' = 0 and z' = 0 in the recursion), and the two points equal."""
+    field = SphericalHarmonics(SHIPPED_DEGREE, SHIPPED_DEGREE, include_central=True)
+    gm, re, C, S, K = field.gm, field.re, field.C, field.S, field.K  # K to degree 120 serves every lower degree
+    n = SHIPPED_DEGREE
+    V, W = np.zeros((n + 3, n + 3)), np.zeros((n + 3, n + 3))
+    VW = np.full((3, 4 * (n + 2)), np.nan)  # the minimum size (a ring of three rows); never-written NaNs would show
+    rng = np.random.default_rng(13)
+    specials = [(np.array([0.0, 0.0, 6.9e6]), np.array([0.0, 0.0, -7.1e6])),
+                (np.array([7.0e6, 0.0, 0.0]), np.array([0.0, -6.6e6, 0.0]))]  # fmt: skip
+    checked = 0
+    for degree in range(2, n + 1):
+        for order in sorted({0, 1, int(rng.integers(0, degree + 1)), degree}):
+            for nmin in (0, 2):
+                a_pts = _random_points(rng, 2)
+                pairs = [(a_pts[0], a_pts[0] + rng.normal(size=3) * 2e3), (a_pts[0], a_pts[1]), (a_pts[1], a_pts[1])]
+                if degree in (2, 3, 57, n):
+                    pairs += specials
+                for a, b in pairs:
+                    single = accel_harmonics(*a, gm, re, C, S, degree, order, nmin, K, V, W) + accel_harmonics(
+                        *b, gm, re, C, S, degree, order, nmin, K, V, W
+                    )
+                    pair = accel_harmonics_pair(*a, *b, gm, re, degree, order, nmin, K, VW)
+                    assert [v.hex() for v in pair] == [v.hex() for v in single], (degree, order, nmin, a, b)
+                    checked += 1
+    assert checked > 2000
+
+
+def test_pair_in_the_truth_rhs_matches_two_single_calls_and_falls_back_on_small_work_arrays():
+    """kernels_full._harmonics_eci_pair (ECI in and out, frame rotation per point) equals two
+    _harmonics_eci calls bit for bit, with the pair layout and with work arrays too small for it
+    (then it makes the two single-point calls itself)."""
+    from proxops.propagation import kernels_full as kf
+
+    field = SphericalHarmonics(30, 25)
+    p = np.zeros(kf.N_P)
+    p[kf.I_GM_H], p[kf.I_RE_H], p[kf.I_NMAX], p[kf.I_MMAX] = field.gm, field.re, 30, 25
+    p[kf.I_THETA0], p[kf.I_OMEGA] = 1.1, 7.292115e-5
+    c, s = math.cos(0.02), math.sin(0.02)
+    npm = np.ascontiguousarray([[c, 0.0, -s], [0.0, 1.0, 0.0], [s, 0.0, c]])
+    W = np.zeros((33, 33))
+    rng = np.random.default_rng(7)
+    for V in (np.zeros((33, 4 * 33)), np.zeros((33, 33))):
+        assert kf.pair_arrays_fit(field.K, V, 30) == (V.shape[1] == 4 * 33)
+        assert not kf.pair_arrays_fit(field.K[:8], V, 30)  # a K without the pair planes
+        for i, (a, b) in enumerate(zip(_random_points(rng, 5), _random_points(rng, 5))):
+            t = 613.0 * i
+            pair = kf._harmonics_eci_pair(t, *a, *b, p, npm, field.C, field.S, field.K, V, W)
+            single = kf._harmonics_eci(t, *a, p, npm, field.C, field.S, field.K, V, W) + kf._harmonics_eci(
+                t, *b, p, npm, field.C, field.S, field.K, V, W
+            )
+            assert [v.hex() for v in pair] == [v.hex() for v in single]
 
 
 def test_shipped_coefficients_metadata_and_source():

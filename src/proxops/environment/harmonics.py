@@ -36,6 +36,12 @@ of normalisation factors):
 The recursion in Cartesian coordinates has no singularity at the poles. Tests check
 it against finite differences of an independent potential (scipy Legendre functions)
 and the closed-form J2, J3 accelerations.
+
+Two kernels, both strict IEEE: :func:`accel_harmonics` (one point; also fills V, W for
+:func:`potential_harmonics`) and :func:`accel_harmonics_pair` (two points in one pass, the
+points in SIMD lanes, each lane bit-identical to a single-point call; the truth integrators
+evaluate target and chaser with it). Measured (benchmarks/bench_truth.py, 100x100, 2 shared
+cores of an AMD EPYC with AVX2/AVX-512): see the README's truth section.
 """
 
 from __future__ import annotations
@@ -46,7 +52,11 @@ from functools import lru_cache
 from importlib import resources
 
 import numpy as np
-from numba import njit
+from llvmlite import ir
+from numba import njit, types
+from numba.core import cgutils
+from numba.core.errors import TypingError
+from numba.extending import intrinsic
 
 from proxops.errors import input_error
 
@@ -87,11 +97,13 @@ def _shipped() -> tuple[np.ndarray, np.ndarray, float, float]:
 
 
 def recursion_coefficients(nmax: int, C: np.ndarray, S: np.ndarray) -> np.ndarray:
-    """Precomputed factors K (8, nmax + 3, nmax + 3) so that the kernel takes no square root
+    """Precomputed factors K (16, nmax + 3, nmax + 3) so that the kernel takes no square root
     and does one fused multiply-add per term: K[0] = a_nm, K[1] = b_nm (recursion), and the
     products with the coefficients K[2] = c1 C (c0 C at m = 0), K[3] = c1 S, K[4] = c2 C,
-    K[5] = c2 S, K[6] = c3 C, K[7] = c3 S (module doc; C, S to degree ``nmax``)."""
-    K = np.zeros((8, nmax + 3, nmax + 3))
+    K[5] = c2 S, K[6] = c3 C, K[7] = c3 S (module doc; C, S to degree ``nmax``). K[8:16],
+    read as (nmax + 3, nmax + 3, 8), holds for each (n, m) the signed pairs (K4, K5), (K5, -K4),
+    (-K2, K3), (-K3, -K2) of :func:`accel_harmonics_pair` (adjacent in memory: one load each)."""
+    K = np.zeros((16, nmax + 3, nmax + 3))
     for n in range(0, nmax + 3):
         for m in range(0, n + 1):
             if n >= m + 1:
@@ -110,7 +122,12 @@ def recursion_coefficients(nmax: int, C: np.ndarray, S: np.ndarray) -> np.ndarra
                 c1 = math.sqrt(tn * (n + m + 1.0) * (n + m + 2.0) / tn3)
                 c2 = math.sqrt((2.0 if m == 1 else 1.0) * tn * (n - m + 1.0) * (n - m + 2.0) / tn3)
             c3 = math.sqrt(tn * (n + m + 1.0) * (n - m + 1.0) / tn3)
-            K[2:, n, m] = c1 * c, c1 * s, c2 * c, c2 * s, c3 * c, c3 * s
+            K[2:8, n, m] = c1 * c, c1 * s, c2 * c, c2 * s, c3 * c, c3 * s
+    # planes 8..15 read as (nmax + 3, nmax + 3, 8): per (n, m) the signed coefficient pairs of
+    # the two-point kernel's sums (see _pair_order_sums)
+    pairs = K[8:].reshape(nmax + 3, nmax + 3, 8)
+    for k, (plane, sign) in enumerate(((4, 1), (5, 1), (5, 1), (4, -1), (2, -1), (3, 1), (3, -1), (2, -1))):
+        pairs[:, :, k] = sign * K[plane]
     return K
 
 
@@ -200,6 +217,251 @@ def accel_harmonics(
         az += sz
     k = gm / (re * re)
     return k * ax, k * ay, k * az
+
+
+# ----------------------------------------------------------------------------- two points per pass
+# The truth integrators always need the field at the target and the chaser together.
+# accel_harmonics_pair runs the recursion and the sums of accel_harmonics once for both
+# points, the two points in the lanes of SIMD registers: per lane, exactly the scalar
+# kernel's IEEE operations in its order (no fusion, no reassociation), so each point's
+# result equals a single-point call bit for bit (tests/test_harmonics.py). LLVM does not
+# vectorise the strict-IEEE sums by itself (the serial sums over m are loop-carried
+# reductions), so the two inner loops are written as LLVM vector IR (numba intrinsics).
+#
+# Work array ``VW`` (>= 3 rows, >= 4 (nmax + 2) columns, C order): a ring of three rows (the
+# recursion needs rows n - 1 and n - 2, the sums of degree n - 1 row n only, and no caller
+# reads V, W afterwards), row n of V, W in VW[n % 3], holding for each order m
+# (V_nm at a, W_nm at a, V_nm at b, W_nm at b) at columns 4 m .. 4 m + 3: ~10 kB at degree
+# 100, in L1 (the full triangle of the single-point kernel is ~170 kB).
+_F64 = ir.DoubleType()
+_I32 = ir.IntType(32)
+_I64 = ir.IntType(64)
+_VEC2 = ir.VectorType(_F64, 2)
+_VEC4 = ir.VectorType(_F64, 4)
+
+
+def _item_ptr(context, builder, ary_type, ary_value, indices):
+    """double* to ary[indices] (C-contiguous array, no bounds check)."""
+    ary = context.make_array(ary_type)(context, builder, ary_value)
+    shape = cgutils.unpack_tuple(builder, ary.shape, ary_type.ndim)
+    strides = cgutils.unpack_tuple(builder, ary.strides, ary_type.ndim)
+    return cgutils.get_item_pointer2(context, builder, ary.data, shape, strides, ary_type.layout, indices)
+
+
+def _load_vec(builder, base, index, vec_type):
+    """vec_type (<k x double>) at base[index .. index + k - 1] (align 8: rows are not 16-byte aligned)."""
+    return builder.load(builder.bitcast(builder.gep(base, [index]), vec_type.as_pointer()), align=8)
+
+
+def _splat(builder, value, vec_type):
+    lanes = vec_type.count
+    vec = builder.insert_element(ir.Constant(vec_type, ir.Undefined), value, ir.Constant(_I32, 0))
+    return builder.shuffle_vector(vec, ir.Constant(vec_type, ir.Undefined), ir.Constant(ir.VectorType(_I32, lanes), [0] * lanes))
+
+
+def _i64(builder, value):
+    return value if value.type == _I64 else builder.sext(value, _I64)
+
+
+def _check_c_arrays(*arrays):
+    for a in arrays:
+        if not (isinstance(a, types.Array) and a.dtype == types.float64 and a.layout == "C"):
+            raise TypingError(f"C-contiguous float64 array expected, got {a}")
+
+
+@intrinsic
+def _pair_row(typingctx, VW, K, n, rows, m_end, sub, diag, za, zb, rhoa, rhob, xa, xb, ya, yb, f):
+    """Row n of ``VW`` (both lanes, V and W; n >= 1), as in :func:`accel_harmonics`, one
+    <4 x double> per order: orders m = 0 .. m_end - 1 by (a_nm z') X_{n-1,m} - (b_nm rho'^2)
+    X_{n-2,m}; if ``sub`` the sub-diagonal (a_{n,n-1} z') X_{n-1,n-1}; if ``diag`` the diagonal
+    V_nn = f (x' V - y' W)_{n-1,n-1}, W_nn = f (x' W + y' V)_{n-1,n-1}. All stored as vectors,
+    so the next row's vector loads are forwarded from these stores."""
+    _check_c_arrays(VW, K)
+    sig = types.void(VW, K, n, rows, m_end, sub, diag, za, zb, rhoa, rhob, xa, xb, ya, yb, f)
+
+    def codegen(context, builder, signature, args):
+        vw_t, k_t = signature.args[0], signature.args[1]
+        n_ = _i64(builder, args[2])
+        one = ir.Constant(_I64, 1)
+        zero = ir.Constant(_I64, 0)
+        four = ir.Constant(_I64, 4)
+        rows_ = cgutils.unpack_tuple(builder, args[3], 3)
+        out = _item_ptr(context, builder, vw_t, args[0], [_i64(builder, rows_[0]), zero])
+        row1 = _item_ptr(context, builder, vw_t, args[0], [_i64(builder, rows_[1]), zero])
+        row2 = _item_ptr(context, builder, vw_t, args[0], [_i64(builder, rows_[2]), zero])
+        ka = _item_ptr(context, builder, k_t, args[1], [zero, n_, zero])
+        kb = _item_ptr(context, builder, k_t, args[1], [one, n_, zero])
+
+        def lanes(a, b):  # (a, a, b, b): the (V a, W a, V b, W b) lanes of one order
+            vec = ir.Constant(_VEC4, ir.Undefined)
+            for lane, value in enumerate((a, a, b, b)):
+                vec = builder.insert_element(vec, value, ir.Constant(_I32, lane))
+            return vec
+
+        def store(index, value):
+            builder.store(value, builder.bitcast(builder.gep(out, [index]), _VEC4.as_pointer()), align=8)
+
+        zz = lanes(args[7], args[8])
+        rr = lanes(args[9], args[10])
+        with cgutils.for_range(builder, _i64(builder, args[4])) as loop:
+            m = loop.index
+            j = builder.mul(m, four)
+            a = builder.fmul(_splat(builder, builder.load(builder.gep(ka, [m])), _VEC4), zz)
+            b = builder.fmul(_splat(builder, builder.load(builder.gep(kb, [m])), _VEC4), rr)
+            store(j, builder.fsub(builder.fmul(a, _load_vec(builder, row1, j, _VEC4)),
+                                  builder.fmul(b, _load_vec(builder, row2, j, _VEC4))))  # fmt: skip
+        j = builder.mul(builder.sub(n_, one), four)  # order n - 1
+        with builder.if_then(args[5]):
+            a = builder.fmul(_splat(builder, builder.load(builder.gep(ka, [builder.sub(n_, one)])), _VEC4), zz)
+            store(j, builder.fmul(a, _load_vec(builder, row1, j, _VEC4)))
+        with builder.if_then(args[6]):
+            p = _load_vec(builder, row1, j, _VEC4)  # (V a, W a, V b, W b) at (n - 1, n - 1)
+            q = builder.shuffle_vector(p, ir.Constant(_VEC4, ir.Undefined),
+                                       ir.Constant(ir.VectorType(_I32, 4), [1, 0, 3, 2]))  # (W a, V a, W b, V b)  # fmt: skip
+            t1 = builder.fmul(lanes(args[11], args[12]), p)  # x' V, x' W
+            t2 = builder.fmul(lanes(args[13], args[14]), q)  # y' W, y' V
+            value = builder.shuffle_vector(builder.fsub(t1, t2), builder.fadd(t1, t2),
+                                           ir.Constant(ir.VectorType(_I32, 4), [0, 5, 2, 7]))  # fmt: skip
+            store(builder.add(j, four), builder.fmul(_splat(builder, args[15], _VEC4), value))
+        return context.get_dummy_value()
+
+    return sig, codegen
+
+
+@intrinsic
+def _pair_order_sums(typingctx, VW, K, d, row, m_last):
+    """(sx_a, sx_b, sy_a, sy_b, sz_a, sz_b): the sums over m = 1 .. m_last of degree d in
+    :func:`accel_harmonics` (from row d + 1, ``VW[row]``), per lane in the scalar order.
+
+    sx and sy of both points share one <4 x double> (lanes sx_a, sy_a, sx_b, sy_b): the
+    scalar kernel's sx term c2c V + c2s W - c1c V' - c1s W' and sy term c2s V - c2c W + c1s V'
+    - c1c W' (V, W at m - 1, V', W' at m + 1) are the same chain of products and sums once
+    the subtractions are written as additions of the negated coefficient, which IEEE
+    arithmetic makes exact (a - b = a + (-b), (-c) x = -(c x)): four products of the
+    coefficient pairs (c2c, c2s), (c2s, -c2c), (-c1c, c1s), (-c1s, -c1c) (K planes 8..15,
+    :func:`recursion_coefficients`) with (V, V), (W, W), (V', V'), (W', W') of each point.
+    sz (lanes sz_a, sz_a, sz_b, sz_b) as in the scalar kernel."""
+    _check_c_arrays(VW, K)
+    sig = types.UniTuple(types.float64, 6)(VW, K, d, row, m_last)
+
+    def codegen(context, builder, signature, args):
+        vw_t, k_t = signature.args[0], signature.args[1]
+        d_ = _i64(builder, args[2])
+        zero = ir.Constant(_I64, 0)
+        four = ir.Constant(_I64, 4)
+        row = _item_ptr(context, builder, vw_t, args[0], [_i64(builder, args[3]), zero])
+        k3c, k3s = (_item_ptr(context, builder, k_t, args[1], [ir.Constant(_I64, i), d_, zero]) for i in (6, 7))
+        width = cgutils.unpack_tuple(builder, context.make_array(k_t)(context, builder, args[1]).shape, 3)[2]
+        pairs = builder.gep(_item_ptr(context, builder, k_t, args[1], [ir.Constant(_I64, 8), zero, zero]),
+                            [builder.mul(d_, builder.mul(width, ir.Constant(_I64, 8)))])  # fmt: skip
+        undef4 = ir.Constant(_VEC4, ir.Undefined)
+
+        def spread(vec, lo, hi):  # (vec[lo], vec[lo], vec[hi], vec[hi]), in-lane
+            return builder.shuffle_vector(vec, undef4, ir.Constant(ir.VectorType(_I32, 4), [lo, lo, hi, hi]))
+
+        def pair(index):  # (p0, p1, p0, p1) from pairs[index], pairs[index + 1]
+            vec = _load_vec(builder, pairs, index, _VEC2)
+            return builder.shuffle_vector(vec, ir.Constant(_VEC2, ir.Undefined),
+                                          ir.Constant(ir.VectorType(_I32, 4), [0, 1, 0, 1]))  # fmt: skip
+
+        vzero = ir.Constant(_VEC4, [0.0] * 4)
+        sxy, sz = (cgutils.alloca_once_value(builder, vzero) for _ in range(2))
+        first = _load_vec(builder, row, zero, _VEC4)
+        second = _load_vec(builder, row, four, _VEC4)
+        carried = [cgutils.alloca_once_value(builder, v) for v in
+                   (spread(first, 0, 2), spread(first, 1, 3), spread(second, 0, 2), spread(second, 1, 3))]  # fmt: skip
+        with cgutils.for_range(builder, _i64(builder, args[4])) as loop:
+            m = builder.add(loop.index, ir.Constant(_I64, 1))
+            nxt = _load_vec(builder, row, builder.mul(builder.add(m, ir.Constant(_I64, 1)), four), _VEC4)
+            vm1, wm1, v0, w0 = (builder.load(c) for c in carried)  # (V a, V a, V b, V b) etc.
+            vp1 = spread(nxt, 0, 2)
+            wp1 = spread(nxt, 1, 3)
+            base = builder.mul(m, ir.Constant(_I64, 8))
+            q1, q2, q3, q4 = (pair(builder.add(base, ir.Constant(_I64, 2 * k))) for k in range(4))
+            a3c = _splat(builder, builder.load(builder.gep(k3c, [m])), _VEC4)
+            a3s = _splat(builder, builder.load(builder.gep(k3s, [m])), _VEC4)
+            fmul, fadd, fsub = builder.fmul, builder.fadd, builder.fsub
+            # sz -= c3c V_m + c3s W_m
+            builder.store(fsub(builder.load(sz), fadd(fmul(a3c, v0), fmul(a3s, w0))), sz)
+            # (sx, sy) += ((q1 V_{m-1} + q2 W_{m-1}) + q3 V_{m+1}) + q4 W_{m+1}
+            t = fadd(fadd(fadd(fmul(q1, vm1), fmul(q2, wm1)), fmul(q3, vp1)), fmul(q4, wp1))
+            builder.store(fadd(builder.load(sxy), t), sxy)
+            for slot, value in zip(carried, (v0, w0, vp1, wp1)):
+                builder.store(value, slot)
+        a = builder.load(sxy)
+        z = builder.load(sz)
+        out = [builder.extract_element(vec, ir.Constant(_I32, lane)) for vec, lane in
+               ((a, 0), (a, 2), (a, 1), (a, 3), (z, 0), (z, 2))]  # fmt: skip
+        return context.make_tuple(builder, signature.return_type, out)
+
+    return sig, codegen
+
+
+@njit(cache=True)
+def pair_arrays_fit(K: np.ndarray, VW: np.ndarray, nmax: int) -> bool:
+    """True if ``K`` has the pair planes (16 planes, :func:`recursion_coefficients`) and ``VW`` can
+    hold the pair layout to degree ``nmax`` (see :func:`accel_harmonics_pair`)."""
+    return K.shape[0] >= 16 and K.shape[1] >= nmax + 3 and VW.shape[0] >= 3 and VW.shape[1] >= 4 * (nmax + 2)
+
+
+@njit(cache=True, fastmath=False)  # IEEE on purpose (determinism), see accel_harmonics
+def accel_harmonics_pair(
+    xa: float, ya: float, za: float, xb: float, yb: float, zb: float, gm: float, re: float, nmax: int, mmax: int,
+    nmin: int, K: np.ndarray, VW: np.ndarray,
+):  # fmt: skip
+    """(ax_a, ay_a, az_a, ax_b, ay_b, az_b): :func:`accel_harmonics` (m/s^2, Earth-fixed) at
+    the two Earth-fixed points a and b (m) in one pass, bit-identical to two single-point
+    calls (same recursion and sums, per lane the same IEEE operations in the same order; see
+    the section comment). ``VW``: work array in the pair layout (:func:`pair_arrays_fit`;
+    not checked here: the caller checks, an undersized array is written out of bounds)."""
+    r2a = xa * xa + ya * ya + za * za
+    r2b = xb * xb + yb * yb + zb * zb
+    rhoa = re * re / r2a
+    rhob = re * re / r2b
+    xa0 = xa * re / r2a
+    xb0 = xb * re / r2b
+    ya0 = ya * re / r2a
+    yb0 = yb * re / r2b
+    za0 = za * re / r2a
+    zb0 = zb * re / r2b
+    mtop = min(mmax + 1, nmax + 1)
+    VW[0, 0] = re / math.sqrt(r2a)
+    VW[0, 1] = 0.0
+    VW[0, 2] = re / math.sqrt(r2b)
+    VW[0, 3] = 0.0
+    axa = 0.0
+    axb = 0.0
+    aya = 0.0
+    ayb = 0.0
+    aza = 0.0
+    azb = 0.0
+    for n in range(1, nmax + 2):
+        diag = n <= mtop
+        f = (1.7320508075688772 if n == 1 else math.sqrt((2.0 * n + 1.0) / (2.0 * n))) if diag else 0.0
+        rows = (n % 3, (n + 2) % 3, (n + 1) % 3)  # rows n, n - 1, n - 2 of the three-row ring
+        _pair_row(VW, K, n, rows, min(n - 1, mtop + 1), n - 1 <= mtop, diag, za0, zb0, rhoa, rhob, xa0, xb0, ya0, yb0,
+                  f)  # fmt: skip
+        d = n - 1  # the terms of degree d need row d + 1 = n only
+        if d < nmin:
+            continue
+        c1c0 = K[2, d, 0]
+        c3c0 = K[6, d, 0]
+        row = rows[0]
+        aza -= c3c0 * VW[row, 0]
+        azb -= c3c0 * VW[row, 2]
+        axa -= c1c0 * VW[row, 4]
+        axb -= c1c0 * VW[row, 6]
+        aya -= c1c0 * VW[row, 5]
+        ayb -= c1c0 * VW[row, 7]
+        sxa, sxb, sya, syb, sza, szb = _pair_order_sums(VW, K, d, row, min(d, mmax))
+        axa += 0.5 * sxa
+        axb += 0.5 * sxb
+        aya += 0.5 * sya
+        ayb += 0.5 * syb
+        aza += sza
+        azb += szb
+    k = gm / (re * re)
+    return k * axa, k * aya, k * aza, k * axb, k * ayb, k * azb
 
 
 @njit(cache=True, fastmath=False)

@@ -27,6 +27,10 @@ look-ahead) takes 764 evaluations of the 100x100 field per orbit against DOP853'
 default rtol, and stays below 0.13 mm at 20 km over two orbits in 15 geometries; the former
 default (order 6, 20 s, no look-ahead, 580 evaluations) reached 17.5 mm there (0.06 mm at the bench's
 geometry); timings in the README and kernels_multistep's doc.
+The field at target and chaser is one call of the two-point kernel (harmonics.py,
+accel_harmonics_pair; bit-identical results): measured 2026-11-23 at load 4.6-6.9 on 2 cores
+with the former default, one orbit 7.9-13.2 ms against 12.9-24.7 ms with one point per call
+(README).
 
 Measured (tests/test_propagation_composed.py, benchmarks/bench_truth.py; 500 km, 51.6 deg,
 2022-05-01, one orbit, default rtol 3e-11): fast path vs scipy DOP853 on both absolute
@@ -209,7 +213,8 @@ class ComposedTruth(PlantBase):
             self._C = self._S = np.zeros((1, 1))
             self._K = np.zeros((8, 3, 3))
             n = 0
-        self._V = np.zeros((n + 3, n + 3))
+        # V: wide enough for the two-point layout of accel_harmonics_pair (4 values per order)
+        self._V = np.zeros((n + 3, 4 * (n + 3)))
         self._W = np.zeros((n + 3, n + 3))
         p[kf.I_DRAG] = float(m.drag)
         p[kf.I_BC_T], p[kf.I_BC_C] = m.target.ballistic, m.chaser.ballistic

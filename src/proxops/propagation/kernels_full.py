@@ -17,7 +17,9 @@ separate copy so that the J2-only fast path is untouched (bit-identical, same sp
 
 Model arrays (built by :mod:`proxops.propagation.forces`): ``p`` (float parameters, indices
 below), ``C``, ``S``, ``K`` (harmonic coefficients and recursion factors), ``V``, ``W``
-(work arrays), ``dens`` (n, 5) density table along the target's path [ln rho, h, d ln rho/dh,
+(work arrays; ``V`` at least (3, 4 (nmax + 2)) wide is also the work array of the two-point
+kernel that evaluates the field at target and chaser in one pass, otherwise two single-point
+calls are made, with the same bits), ``dens`` (n, 5) density table along the target's path [ln rho, h, d ln rho/dh,
 d^2 ln rho/dh^2, d ln rho/dc] (c: cross-track, at constant height) on a uniform time grid, ``npm`` (3, 3) frozen precession-nutation.
 
 Density between the table nodes: Catmull-Rom cubic in time of the columns, then
@@ -42,7 +44,7 @@ from proxops.environment.earth import geodetic_height
 from proxops.environment.eclipse import shadow_factor
 from proxops.environment.ephemeris import moon_eci_kernel, sun_eci_kernel
 from proxops.environment.forces import accel_drag, accel_srp, accel_third_body
-from proxops.environment.harmonics import accel_harmonics
+from proxops.environment.harmonics import accel_harmonics, accel_harmonics_pair, pair_arrays_fit
 from proxops.propagation.kernels import (
     SAFETY,
     A,
@@ -175,6 +177,38 @@ def _harmonics_eci(t, x, y, z, p, npm, C, S, K, V, W):
 
 
 @njit(cache=True)
+def _harmonics_eci_pair(t, xa, ya, za, xb, yb, zb, p, npm, C, S, K, V, W):
+    """:func:`_harmonics_eci` at two ECI positions (m) in one pass of
+    :func:`accel_harmonics_pair` (bit-identical to two calls; ``V`` is its lane-interleaved
+    work array when wide enough, else two single-point calls are made)."""
+    nmax = int(p[I_NMAX])
+    if not pair_arrays_fit(K, V, nmax):
+        ta = _harmonics_eci(t, xa, ya, za, p, npm, C, S, K, V, W)
+        tb = _harmonics_eci(t, xb, yb, zb, p, npm, C, S, K, V, W)
+        return ta[0], ta[1], ta[2], tb[0], tb[1], tb[2]
+    exa, eya, eza = _to_ecef(t, xa, ya, za, p, npm)
+    exb, eyb, ezb = _to_ecef(t, xb, yb, zb, p, npm)
+    bxa, bya, bza, bxb, byb, bzb = accel_harmonics_pair(exa, eya, eza, exb, eyb, ezb, p[I_GM_H], p[I_RE_H], nmax,
+                                                        int(p[I_MMAX]), 2, K, V)  # fmt: skip
+    th = p[I_THETA0] + p[I_OMEGA] * t
+    c = math.cos(th)
+    s = math.sin(th)
+    qxa = c * bxa - s * bya
+    qya = s * bxa + c * bya
+    qxb = c * bxb - s * byb
+    qyb = s * bxb + c * byb
+    # npm^T q, as _harmonics_eci
+    return (
+        npm[0, 0] * qxa + npm[1, 0] * qya + npm[2, 0] * bza,
+        npm[0, 1] * qxa + npm[1, 1] * qya + npm[2, 1] * bza,
+        npm[0, 2] * qxa + npm[1, 2] * qya + npm[2, 2] * bza,
+        npm[0, 0] * qxb + npm[1, 0] * qyb + npm[2, 0] * bzb,
+        npm[0, 1] * qxb + npm[1, 1] * qyb + npm[2, 1] * bzb,
+        npm[0, 2] * qxb + npm[1, 2] * qyb + npm[2, 2] * bzb,
+    )
+
+
+@njit(cache=True)
 def accel_perturbations(t, rx, ry, rz, vx, vy, vz, chaser, rho, sun, moon, p, npm, C, S, K, V, W):
     """Sum of the enabled perturbations (m/s^2, ECI) on one spacecraft; ``rho`` its density
     (kg/m^3), ``sun``/``moon`` geocentric positions (m, 3-tuples)."""
@@ -186,6 +220,12 @@ def accel_perturbations(t, rx, ry, rz, vx, vy, vz, chaser, rho, sun, moon, p, np
         ax, ay, az = accel_j2(rx, ry, rz, p[I_MU], p[I_J2], p[I_RE])
     elif grav == 2.0:
         ax, ay, az = _harmonics_eci(t, rx, ry, rz, p, npm, C, S, K, V, W)
+    return _add_non_gravity(ax, ay, az, rx, ry, rz, vx, vy, vz, chaser, rho, sun, moon, p)
+
+
+@njit(cache=True)
+def _add_non_gravity(ax, ay, az, rx, ry, rz, vx, vy, vz, chaser, rho, sun, moon, p):
+    """(ax, ay, az) (the gravity perturbation, m/s^2) plus drag, Sun, Moon and SRP, in that order."""
     if p[I_DRAG] != 0.0:
         bc = p[I_BC_C] if chaser else p[I_BC_T]
         dx, dy, dz = accel_drag(rx, ry, rz, vx, vy, vz, rho, bc, p[I_WX], p[I_WY], p[I_WZ])
@@ -241,10 +281,19 @@ def rhs_full_env(t, y, u, p, npm, C, S, K, V, W, rho_t, rho_c, sun, moon, out) -
     rtx, rty, rtz = y[0], y[1], y[2]
     rcx, rcy, rcz = rtx + y[6], rty + y[7], rtz + y[8]
     ax, ay, az = accel_twobody(rtx, rty, rtz, p[I_MU])
-    ptx, pty, ptz = accel_perturbations(t, rtx, rty, rtz, y[3], y[4], y[5], False, rho_t, sun, moon, p, npm, C, S, K, V, W)
-    pcx, pcy, pcz = accel_perturbations(
-        t, rcx, rcy, rcz, y[3] + y[9], y[4] + y[10], y[5] + y[11], True, rho_c, sun, moon, p, npm, C, S, K, V, W
-    )
+    if p[I_GRAV] == 2.0:  # the field at both spacecraft in one pass (same bits as two calls)
+        gtx, gty, gtz, gcx, gcy, gcz = _harmonics_eci_pair(t, rtx, rty, rtz, rcx, rcy, rcz, p, npm, C, S, K, V, W)
+        ptx, pty, ptz = _add_non_gravity(gtx, gty, gtz, rtx, rty, rtz, y[3], y[4], y[5], False, rho_t, sun, moon, p)
+        pcx, pcy, pcz = _add_non_gravity(
+            gcx, gcy, gcz, rcx, rcy, rcz, y[3] + y[9], y[4] + y[10], y[5] + y[11], True, rho_c, sun, moon, p
+        )
+    else:
+        ptx, pty, ptz = accel_perturbations(
+            t, rtx, rty, rtz, y[3], y[4], y[5], False, rho_t, sun, moon, p, npm, C, S, K, V, W
+        )
+        pcx, pcy, pcz = accel_perturbations(
+            t, rcx, rcy, rcz, y[3] + y[9], y[4] + y[10], y[5] + y[11], True, rho_c, sun, moon, p, npm, C, S, K, V, W
+        )
     dax, day, daz = accel_differential(rtx, rty, rtz, y[6], y[7], y[8], p[I_MU], 0.0, 1.0)
     dax += pcx - ptx
     day += pcy - pty

@@ -169,8 +169,9 @@ def _rhs_split(t, y, u, p, p_cheap, npm, C, S, K, V, W, dens, harm, new_harm, ou
     ``harm[:6]`` and the Sun and Moon (m) in ``harm[6:]`` (12,): evaluated at (t, y) when
     ``new_harm``, else re-used (the Sun and Moon depend on t only: re-used at the same t)."""
     if new_harm:
-        harm[0], harm[1], harm[2] = kf._harmonics_eci(t, y[0], y[1], y[2], p, npm, C, S, K, V, W)
-        harm[3], harm[4], harm[5] = kf._harmonics_eci(t, y[0] + y[6], y[1] + y[7], y[2] + y[8], p, npm, C, S, K, V, W)
+        harm[0], harm[1], harm[2], harm[3], harm[4], harm[5] = kf._harmonics_eci_pair(
+            t, y[0], y[1], y[2], y[0] + y[6], y[1] + y[7], y[2] + y[8], p, npm, C, S, K, V, W
+        )
         sun, moon = kf.third_bodies(t, p)
         harm[6], harm[7], harm[8] = sun
         harm[9], harm[10], harm[11] = moon
@@ -483,8 +484,8 @@ def _lookahead_g(node_index, s_ahead, y, F, head, wext, G, Q_ab, h, t0, p, npm, 
         dy += h * wext[j] * F[row, 7]
         dz += h * wext[j] * F[row, 8]
     t = t0 + node_index * h
-    gtx, gty, gtz = kf._harmonics_eci(t, rx, ry, rz, p, npm, C, S, K, V, W)
-    gcx, gcy, gcz = kf._harmonics_eci(t, rx + dx, ry + dy, rz + dz, p, npm, C, S, K, V, W)
+    gtx, gty, gtz, gcx, gcy, gcz = kf._harmonics_eci_pair(t, rx, ry, rz, rx + dx, ry + dy, rz + dz, p, npm, C, S, K, V,
+                                                          W)  # fmt: skip
     G[node_index, 0] = gtx
     G[node_index, 1] = gty
     G[node_index, 2] = gtz
