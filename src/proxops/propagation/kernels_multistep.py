@@ -16,8 +16,9 @@ accelerations of P. P and the corrected state differ by the local truncation err
 changes the stored derivative by < 3e-15 m/s^2: two 100x100 evaluations per step instead
 of four (measured effect on the relative state: tests/test_propagation_multistep.py).
 
-Start: the first k nodes t_0 + j h (j < k) as one implicit block (collocation: the state at
-each node is y_0 plus h times the integral of the degree k - 1 polynomial through the k
+Start (without look-ahead; with it, DOP853, see below): the first k nodes t_0 + j h (j < k)
+as one implicit block (collocation: the state at each node is y_0 plus h times the integral
+of the degree k - 1 polynomial through the k
 derivatives), solved by fixed-point iteration from a DOP853 guess with the field truncated
 to 20x20 (replaces k - 1 DOP853 steps of 12). Converged when the last change of the
 positions and of (k - 1) h times the velocities is below START_TOL_* (a velocity change
