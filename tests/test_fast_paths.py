@@ -180,3 +180,23 @@ def test_prestarted_pool_is_the_one_the_campaign_uses(workers):
     assert da.drop(columns=[c for c in da if c.startswith("metric.wall")]).equals(
         db.drop(columns=[c for c in db if c.startswith("metric.wall")]))
     backends.shutdown_pools()
+
+
+def test_fork_server_warm_up_builds_the_scenario_once_and_ignores_bad_input():
+    """Importing proxops.analysis.worker_warmup with PROXOPS_WARM_SCENARIO set (what the fork server
+    of ``proxops mc`` does) builds that scenario: the srf per-process caches hold one plan and one
+    ephemeris afterwards, and the variable is gone (forked workers do not repeat it); a scenario that
+    does not load or build is skipped without an exception (the workers' check reports it)."""
+    code = (
+        "import json, os\n"
+        "os.environ['PROXOPS_WARM_SCENARIO'] = json.dumps({'scenario': 'srf-vbar-mc', 'overrides': ['sim.seed=3']})\n"
+        "import proxops.analysis.worker_warmup as w\n"
+        "import proxops.systems.srf as srf\n"
+        "assert 'PROXOPS_WARM_SCENARIO' not in os.environ\n"
+        "assert len(srf._PLAN_CACHE) == 1 and len(srf._EPHEMERIS_CACHE) == 1\n"
+        "assert w.warm_up('no-such-scenario') is False\n"
+        "assert w.warm_up('srf-vbar', ['approach.end_m=5000']) is False\n"  # end beyond start: an input error
+        "print('ok')\n"
+    )
+    proc = _run(["-c", code])
+    assert proc.returncode == 0 and proc.stdout.strip() == "ok", proc.stderr

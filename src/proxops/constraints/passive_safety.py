@@ -19,43 +19,96 @@ _H00, _H10 = 2 * _S**3 - 3 * _S**2 + 1, _S**3 - 2 * _S**2 + _S  # cubic Hermite 
 _H01, _H11 = -2 * _S**3 + 3 * _S**2, _S**3 - _S**2
 
 
+# |h10|, |h11| <= 4/27 on [0, 1]: with h00 + h01 = 1, p(s) - p_k = h01 (p_k+1 - p_k) + dt (h10 v_k + h11 v_k+1),
+# so every point of segment k is within D_k = |p_k+1 - p_k| + 4/27 dt (|v_k| + |v_k+1|) of both ends and
+# its distance to the centre is at least max(|p_k|, |p_k+1|) - D_k (the segment's lower bound).
+_H_BOUND = 4.0 / 27.0
+# a segment is skipped only when its lower bound exceeds the threshold by this relative margin (the
+# rounding of its 19 points is ~1e-15 relative): skipping never changes a result
+_SKIP_MARGIN = 1e-9
+
+
 @njit(cache=True)
-def _segment_min_kernel(t, p, v, h00, h10, h01, h11):
+def _segment_min(t, p, v, k, h00, h10, h01, h11) -> float:
+    """Minimum |p| over samples k, k+1 and the 19 interior points of their cubic Hermite interpolant."""
+    a = math.sqrt(p[k, 0] * p[k, 0] + p[k, 1] * p[k, 1] + p[k, 2] * p[k, 2])
+    b = math.sqrt(p[k + 1, 0] * p[k + 1, 0] + p[k + 1, 1] * p[k + 1, 1] + p[k + 1, 2] * p[k + 1, 2])
+    best = min(a, b)
+    dt = t[k + 1] - t[k]
+    for j in range(h00.size):
+        c10, c11 = h10[j] * dt, h11[j] * dt
+        x = h00[j] * p[k, 0] + c10 * v[k, 0] + h01[j] * p[k + 1, 0] + c11 * v[k + 1, 0]
+        y = h00[j] * p[k, 1] + c10 * v[k, 1] + h01[j] * p[k + 1, 1] + c11 * v[k + 1, 1]
+        z = h00[j] * p[k, 2] + c10 * v[k, 2] + h01[j] * p[k + 1, 2] + c11 * v[k + 1, 2]
+        d = math.sqrt(x * x + y * y + z * z)
+        if d < best:
+            best = d
+    return best
+
+
+@njit(cache=True)
+def _segment_lower_bound(t, p, v, k) -> float:
+    """A lower bound of :func:`_segment_min` of segment k from its two samples (see _H_BOUND)."""
+    a = math.sqrt(p[k, 0] * p[k, 0] + p[k, 1] * p[k, 1] + p[k, 2] * p[k, 2])
+    b = math.sqrt(p[k + 1, 0] * p[k + 1, 0] + p[k + 1, 1] * p[k + 1, 1] + p[k + 1, 2] * p[k + 1, 2])
+    dx, dy, dz = p[k + 1, 0] - p[k, 0], p[k + 1, 1] - p[k, 1], p[k + 1, 2] - p[k, 2]
+    va = math.sqrt(v[k, 0] * v[k, 0] + v[k, 1] * v[k, 1] + v[k, 2] * v[k, 2])
+    vb = math.sqrt(v[k + 1, 0] * v[k + 1, 0] + v[k + 1, 1] * v[k + 1, 1] + v[k + 1, 2] * v[k + 1, 2])
+    reach = math.sqrt(dx * dx + dy * dy + dz * dz) + _H_BOUND * (t[k + 1] - t[k]) * (va + vb)
+    return max(a, b) - reach
+
+
+@njit(cache=True)
+def _min_range_kernel(t, p, v, h00, h10, h01, h11) -> float:
+    """Minimum of :func:`_segment_min` over all segments: first the two segments at the closest
+    sample, then only the segments whose lower bound does not clear the minimum so far."""
     n = p.shape[0]
-    out = np.empty(n - 1)
+    k_near = 0
+    r_near = math.inf
+    for k in range(n):
+        r = math.sqrt(p[k, 0] * p[k, 0] + p[k, 1] * p[k, 1] + p[k, 2] * p[k, 2])
+        if r < r_near:
+            r_near, k_near = r, k
+    best = math.inf
+    for k in (k_near - 1, k_near):
+        if 0 <= k < n - 1:
+            best = min(best, _segment_min(t, p, v, k, h00, h10, h01, h11))
     for k in range(n - 1):
-        a = math.sqrt(p[k, 0] * p[k, 0] + p[k, 1] * p[k, 1] + p[k, 2] * p[k, 2])
-        b = math.sqrt(p[k + 1, 0] * p[k + 1, 0] + p[k + 1, 1] * p[k + 1, 1] + p[k + 1, 2] * p[k + 1, 2])
-        best = min(a, b)
-        dt = t[k + 1] - t[k]
-        for j in range(h00.size):
-            c10, c11 = h10[j] * dt, h11[j] * dt
-            x = h00[j] * p[k, 0] + c10 * v[k, 0] + h01[j] * p[k + 1, 0] + c11 * v[k + 1, 0]
-            y = h00[j] * p[k, 1] + c10 * v[k, 1] + h01[j] * p[k + 1, 1] + c11 * v[k + 1, 1]
-            z = h00[j] * p[k, 2] + c10 * v[k, 2] + h01[j] * p[k + 1, 2] + c11 * v[k + 1, 2]
-            d = math.sqrt(x * x + y * y + z * z)
-            if d < best:
-                best = d
-        out[k] = best
-    return out
+        if _segment_lower_bound(t, p, v, k) > best * (1.0 + _SKIP_MARGIN) + _SKIP_MARGIN:
+            continue
+        d = _segment_min(t, p, v, k, h00, h10, h01, h11)
+        if d < best:
+            best = d
+    return best
 
 
-def _segment_min_ranges(t, x, center) -> np.ndarray:
-    """Per segment k (between samples k and k+1): minimum |p - c| over both samples and 19
-    interior points of the cubic Hermite interpolant (positions + velocities), shape (n - 1,);
-    one jitted pass (no (19, n, 3) temporaries)."""
+@njit(cache=True)
+def _first_dip_kernel(t, p, v, radius, h00, h10, h01, h11) -> int:
+    """First segment whose :func:`_segment_min` is below ``radius`` (-1 if none); segments whose
+    lower bound clears the radius are not evaluated."""
+    for k in range(p.shape[0] - 1):
+        if _segment_lower_bound(t, p, v, k) > radius * (1.0 + _SKIP_MARGIN) + _SKIP_MARGIN:
+            continue
+        if _segment_min(t, p, v, k, h00, h10, h01, h11) < radius:
+            return k
+    return -1
+
+
+def _relative(t, x, center):
     t = np.ascontiguousarray(t, dtype=float)
     p = np.ascontiguousarray(x[:, :3] - center, dtype=float)
     v = np.ascontiguousarray(x[:, 3:6], dtype=float)
-    return _segment_min_kernel(t, p, v, _H00, _H10, _H01, _H11)
+    return t, p, v
 
 
 def hermite_min_range(t, x, center) -> float:
-    """Minimum |p - c| along cubic Hermite interpolants between samples (positions + velocities)."""
+    """Minimum |p - c| along cubic Hermite interpolants between samples (positions + velocities):
+    per segment the two samples and 19 interior points; one jitted pass that skips the segments
+    a bound from their samples shows cannot hold the minimum (the result is the same)."""
     x = np.asarray(x, dtype=float)
     if len(x) < 2:
         return float(np.min(np.linalg.norm(x[:, :3] - center, axis=1)))
-    return float(np.min(_segment_min_ranges(t, x, center)))
+    return float(_min_range_kernel(*_relative(t, x, center), _H00, _H10, _H01, _H11))
 
 
 def drift_safety(times, drift, koz: KeepOutSphere) -> dict:
@@ -63,21 +116,23 @@ def drift_safety(times, drift, koz: KeepOutSphere) -> dict:
     surface, negative inside) along cubic Hermite interpolants of the samples, and ``safe``
     (the drift never enters the sphere)."""
     rng = hermite_min_range(times, drift, np.zeros(3))
-    koz_d = hermite_min_range(times, drift, koz.center_m) - koz.radius_m
+    centred = not np.any(koz.center_m)  # a KOZ about the origin: the same minimum
+    koz_d = (rng if centred else hermite_min_range(times, drift, koz.center_m)) - koz.radius_m
     return {"min_range_m": rng, "min_koz_distance_m": koz_d, "safe": bool(koz_d > 0.0)}
 
 
 def first_entry_time(t, x, center, radius) -> float:
     """First sample time (s) of the segment where the drift enters the sphere (its Hermite
     interpolant dips inside; also a sample inside); inf if it never does. Segments up to the
-    first sample inside are checked, all at once."""
+    first sample inside are checked, in one jitted pass."""
     x = np.asarray(x, dtype=float)
     p = np.linalg.norm(x[:, :3] - center, axis=1)
     inside = np.nonzero(p < radius)[0]
     k_in = int(inside[0]) if inside.size else None
     last = len(t) - 1 if k_in is None else k_in  # segments ending at samples 1..last
     if last >= 1:
-        hit = np.nonzero(_segment_min_ranges(np.asarray(t)[:last + 1], x[:last + 1], center) < radius)[0]
-        if hit.size:
-            return float(t[hit[0]])
+        tt, pp, vv = _relative(np.asarray(t)[:last + 1], x[:last + 1], center)
+        hit = _first_dip_kernel(tt, pp, vv, float(radius), _H00, _H10, _H01, _H11)
+        if hit >= 0:
+            return float(t[hit])
     return float(t[k_in]) if k_in is not None else np.inf

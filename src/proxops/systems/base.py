@@ -10,8 +10,6 @@ systems never import plotting.
 
 from __future__ import annotations
 
-from proxops.sim.engine import simulate
-
 FAILED_STATUSES = ("failed", "failure", "error")  # run summary "status" prefixes counted as failures
 
 
@@ -28,6 +26,8 @@ class SystemBase:
 
     def run(self, sc, seed: int = 0, progress: bool = False) -> tuple[dict, dict]:
         """One closed loop: ``(summarize(sc, result), {"run": result})``."""
+        from proxops.sim.engine import simulate  # here: validating a scenario needs no engine (nor numba)
+
         result = simulate(self.build(sc), seed=seed, progress=progress)
         return self.summarize(sc, result), {"run": result}
 

@@ -39,20 +39,23 @@ the time to the first KOZ entry within the window.
 from __future__ import annotations
 
 import math
-from typing import Annotated, Literal
+from typing import TYPE_CHECKING, Annotated, Literal
 
 import numpy as np
 from pydantic import Field, model_validator
 
-from proxops.constraints.passive_safety import drift_safety, first_entry_time, hermite_min_range
 from proxops.core.cw import cw_stm, mean_motion
 from proxops.core.memo import memo_get
 from proxops.errors import ProxopsInputError, input_error
 from proxops.scenarios.registry import register_system
 from proxops.systems.base import SystemBase
 from proxops.scenarios.schema import InitialSection, OrbitSection, ScenarioBase, Section, TruthSection, Vector3
-from proxops.sim.engine import Setup
 from proxops.solvers.stats import solve_time_stats
+
+# The engine and the numba kernels (passive safety) are imported where a run needs them: a campaign's
+# parent process validates the scenario with this module and never runs it (numba: 0.2 s of its start-up).
+if TYPE_CHECKING:
+    from proxops.sim.engine import Setup
 
 ENGINE_STEPS_PER_ORBIT = 720
 
@@ -329,6 +332,7 @@ def build_controller(sc: SrfScenario, cbf: bool | None = None):
 
 
 def build_setup(sc: SrfScenario, cbf: bool | None = None) -> Setup:
+    from proxops.sim.engine import Setup
     from proxops.systems.common import actuator_model, navigation_model, translational_plant
 
     ctrl, plan, sched = build_controller(sc, cbf)
@@ -381,6 +385,7 @@ def passive_abort(sc: SrfScenario, result) -> list[dict]:
     of those divided by its number of orbits); ``hop_t_s``; with a trim also ``trim_dv_mps`` and the
     drift from the hop impulse alone (an abort between hop impulse and trim): ``untrimmed_safe_window_orbits``,
     ``untrimmed_min_koz_distance_m``, ``untrimmed_return_miss_per_orbit_m``."""
+    from proxops.constraints.passive_safety import drift_safety, first_entry_time
     from proxops.propagation.truth import CWPlant, RelativeTruth
     from proxops.systems.common import translational_plant
 
@@ -458,6 +463,7 @@ def _check_vbar_hop_lengths(ap, m) -> None:
 
 def summarize_result(sc: SrfScenario, result) -> dict:
     """Extra JSON keys of an srf run: arrival, hops, dv per LVLH axis, KOZ and passive-abort safety."""
+    from proxops.constraints.passive_safety import hermite_min_range
     from proxops.frames.lvlh import hill_vector_to_lvlh
 
     theta = math.radians(sc.approach.angle_deg)
@@ -480,7 +486,8 @@ def summarize_result(sc: SrfScenario, result) -> dict:
     hop_start_times = [0.0] + list(hop_nodes)[:-1]
     abort = passive_abort(sc, result)
     min_range_fine = hermite_min_range(result.t, result.x_true, np.zeros(3))
-    koz_fine = hermite_min_range(result.t, result.x_true, koz.center_m) - koz.radius_m
+    koz_fine = (min_range_fine if not np.any(koz.center_m)
+                else hermite_min_range(result.t, result.x_true, koz.center_m)) - koz.radius_m
     period = float(result.meta.get("period_s", 1.0))
     out = {
         "approach_deg": sc.approach.angle_deg,
