@@ -33,6 +33,23 @@ def hill0(sep: float) -> np.ndarray:
     return np.array([0.2 * sep, sep, 0.1 * sep, 0.0, -2.2e-4 * sep, 0.0])
 
 
+def test_lookahead_quadrature_weights():
+    """The look-ahead weights (nodes -4..5 around the step [0, 1]) integrate s^p exactly for
+    p < 10 (int_0^1 s^p ds = 1 / (p + 1)), and a sinusoid of omega h = 1 with a relative error
+    < 2e-4 (closed form (e^(i w) - 1) / (i w)), where the one-sided order 7 Adams-Moulton
+    corrector of order 6 errs by 9.3e-3."""
+    _, c, Q_g, before = km.lookahead_coefficients(6, 4, 5)
+    nodes = np.arange(-4, 6, dtype=float)
+    assert before == 4 and c.size == 10 and np.allclose(Q_g.sum(axis=1), c, rtol=0, atol=1e-14)
+    for power in range(10):
+        assert abs(c @ nodes**power - 1.0 / (power + 1)) < 1e-12
+    exact = (np.exp(1j) - 1.0) / 1j
+    err_lookahead = abs((c @ np.exp(1j * nodes)) / exact - 1.0)
+    _, am, *_ = km.adams_coefficients(6)
+    err_adams = abs((am @ np.exp(1j * (1.0 - np.arange(7)))) / exact - 1.0)
+    assert err_lookahead < 2e-4 and 8e-3 < err_adams < 1.1e-2
+
+
 def test_adams_coefficients_are_the_classical_ones():
     ab, am, Q, Q0, G0 = km.adams_coefficients(4)
     assert np.allclose(ab, np.array([55.0, -59.0, 37.0, -9.0]) / 24.0, rtol=0, atol=1e-15)
@@ -50,15 +67,14 @@ def test_adams_coefficients_are_the_classical_ones():
             assert np.allclose(Q0 @ (float(j) ** np.arange(1, k + 1)), G0[j], rtol=0, atol=1e-6)  # dense output
 
 
-@pytest.mark.parametrize("sep, tol_mm", [(100.0, 0.01), (2000.0, 0.03), (20000.0, 0.3)])
+@pytest.mark.parametrize("sep, tol_mm", [(100.0, 0.01), (2000.0, 0.03), (20000.0, 0.03)])
 def test_multistep_against_dop853_two_orbits(sep, tol_mm):
     """Two orbits, 30x30 + drag (different A/m) + Sun/Moon, 500 km, 51.6 deg: the multistep path
-    (order 6, 20 s, harmonics once per step) against DOP853 at rtol 1e-13. Stated tolerance
-    0.01 / 0.03 / 0.3 mm at 100 m / 2 km / 20 km (the 20 km one is the default DOP853's with
-    100x100, 0.29 mm). Measured (2026-11-23): 0.0002-0.0034 / 0.012 / 0.15 mm (the spread:
-    round-off differences between a fresh numba compilation and the cached one, amplified
-    over two orbits; the reference itself moves by 0.0035 mm between them); the default DOP853
-    (rtol 3e-11) it replaces: 0.005-0.07 / 0.029 / 0.030 mm."""
+    (default: order 6, 18 s, harmonics once per step with the look-ahead quadrature) against
+    DOP853 at rtol 1e-13. Stated tolerance 0.01 / 0.03 / 0.03 mm at 100 m / 2 km / 20 km.
+    Measured (2026-11-23): 0.0059 / 0.0031 / 0.013 mm (at 100 m the floor is not the step: the
+    default DOP853 (rtol 3e-11) gives 0.0084 mm; at 2 km / 20 km 0.029 / 0.030 mm). The worst
+    case over geometries with 100x100 is benchmarks/bench_truth_steps.py's."""
     duration = 2.0 * PERIOD
     ref = ComposedTruth(ORBIT, hill0(sep), MODELS, integrator="dop853", rtol=1e-13, horizon_s=duration)
     ms = ComposedTruth(ORBIT, hill0(sep), MODELS, integrator="multistep", horizon_s=duration)
@@ -71,25 +87,51 @@ def test_multistep_against_dop853_two_orbits(sep, tol_mm):
     assert np.linalg.norm(a[:3] - hill0(sep)[:3]) > 1e4 * tol_mm * 1e-3
 
 
+@pytest.mark.parametrize("order", [6, 7, 8])
+def test_start_up_block_converges(order):
+    """The start-up block (collocation on the first k nodes, from a 20x20 DOP853 guess: ~0.4 mm
+    off in relative position at 20 km for 30x30) against DOP853 at rtol 1e-13 at its nodes:
+    < 1e-8 m in relative position at h = 10 s, where the collocation's own error is
+    1e-9 m (measured 1.1e-9 / 1.9e-10 / 2.7e-10 m for k = 6 / 7 / 8); a convergence test on the
+    positions alone stopped after one iteration for k = 7 and 8 (4e-4 m)."""
+    from proxops.propagation import kernels_full as kf
+
+    h = 10.0
+    tr = ComposedTruth(ORBIT, hill0(20000.0), MODELS, integrator="multistep", order=order, step_s=h, horizon_s=600.0,
+                       lookahead=(0, 0))  # fmt: skip
+    y0 = tr.initial_state()[:12].copy()
+    grid = np.arange(order) * h
+    out, ref = np.empty((order, 12)), np.empty((order, 12))
+    status, *_ = km.integrate_multistep(y0, grid, np.zeros(3), tr.p, *tr._arrays(), tr._dens, h, *tr.adams, True,
+                                        tr.rtol, tr.atol, out)  # fmt: skip
+    kf.integrate_full(y0, grid, np.zeros(3), tr.p, *tr._arrays(), tr._dens, 1e-13, tr.atol, ref)
+    assert status == 0
+    assert np.abs(out[:, 6:9] - ref[:, 6:9]).max() < 1e-8
+    assert np.abs(out[:, :3] - ref[:, :3]).max() < 1e-5  # target (m); measured <= 8e-8
+
+
 def test_dense_output_between_steps_and_during_start_up():
-    """Samples every 7 s (not on the 20 s step grid; the first ones inside the DOP853 start-up)
-    over one orbit agree with DOP853 at rtol 1e-13 at every sample."""
+    """Samples every 7 s (not on the 18 s step grid; the first ones inside the start-up block)
+    over one orbit agree with DOP853 at rtol 1e-13 at every sample (measured 3.7e-7 m; 2.7e-7 m
+    at order 12, 12 s without look-ahead)."""
     times = np.arange(0.0, PERIOD, 7.0)
     ref = ComposedTruth(ORBIT, hill0(2000.0), MODELS, integrator="dop853", rtol=1e-13, horizon_s=PERIOD)
     ms = ComposedTruth(ORBIT, hill0(2000.0), MODELS, integrator="multistep", horizon_s=PERIOD)
     a = ref.free_drift(ref.initial_state(), times)
     b = ms.free_drift(ms.initial_state(), times)
     err = np.linalg.norm(a[:, :3] - b[:, :3], axis=1)
-    assert err.max() < 2e-5  # m
+    assert err.max() < 2e-6  # m
     assert np.linalg.norm(a[-1, :3] - a[0, :3]) > 10.0  # it moved
 
 
 def test_harmonics_once_per_step_matches_full_pece():
-    """The rate split (harmonics at the predicted state only) against PECE with the full
-    right-hand side at both evaluations: the same to < 3e-5 mm after one orbit at 20 km
-    (measured 8e-6 mm, against 0.15 mm integration error); and
+    """Without look-ahead (order 12, 12 s): the rate split (harmonics at the predicted state
+    only) against PECE with the full right-hand side at both evaluations: the same to < 3e-5
+    mm after one orbit at 20 km
+    (measured 8.9e-7 mm at order 12, 12 s; 8e-6 mm at order 6, 20 s); and
     the split costs 2 field evaluations per step (target, chaser), full PECE 4."""
-    tr = ComposedTruth(ORBIT, hill0(20000.0), MODELS, integrator="multistep", horizon_s=PERIOD + 400.0)
+    tr = ComposedTruth(ORBIT, hill0(20000.0), MODELS, integrator="multistep", horizon_s=PERIOD + 400.0, order=12,
+                       step_s=12.0, lookahead=(0, 0))  # fmt: skip
     y0 = tr.initial_state()[:12].copy()
     ends, fields = {}, {}
     for split in (True, False):
@@ -103,6 +145,15 @@ def test_harmonics_once_per_step_matches_full_pece():
             ends[split, extra], fields[split, extra] = out[-1], n_field
     assert np.linalg.norm(ends[True, 0][6:9] - ends[False, 0][6:9]) < 3e-8
     assert fields[True, 10] - fields[True, 0] == 20 and fields[False, 10] - fields[False, 0] == 40
+    # the look-ahead default also evaluates the field once per step per spacecraft
+    la = ComposedTruth(ORBIT, hill0(20000.0), MODELS, integrator="multistep", horizon_s=PERIOD + 400.0)
+    counts = []
+    for extra in (0, 10):
+        out = np.empty((2, 12))
+        counts.append(km.integrate_multistep(y0, np.array([0.0, PERIOD + extra * la.step_s]), np.zeros(3), la.p,
+                                             *la._arrays(), la._dens, la.step_s, *la.adams, True, la.rtol, la.atol,
+                                             out)[3])  # fmt: skip
+    assert counts[1] - counts[0] == 20
 
 
 def test_fast_selects_multistep_only_where_it_is_measured():

@@ -12,25 +12,25 @@ since the epoch (s), because the forces depend on absolute time.
 
 Integrators (density from a NRLMSISE-00 table along the target's predicted path on the numba
 paths): ``"dop853"`` (numba adaptive DOP853), ``"multistep"`` (numba fixed-step
-Adams-Bashforth-Moulton PECE, order 6 / 7, 20 s steps, harmonics once per step;
-:mod:`proxops.propagation.kernels_multistep`), ``"fast"`` (the default: multistep with
-spherical harmonics and without SRP on spans of at least MIN_STEPS * order steps (360 s),
+Adams-Bashforth-Moulton PECE, order 6 / 7, 18 s steps, harmonics once per step with a
+look-ahead quadrature; :mod:`proxops.propagation.kernels_multistep`, whose doc has the
+order/step measurement), ``"fast"`` (the default: multistep with
+spherical harmonics and without SRP on spans of at least MIN_STEPS * order steps (324 s),
 DOP853 otherwise: for point mass / J2, which stay bit-identical to RelativeTruth, and with
 SRP, whose shadow boundary the fixed step cannot follow) and ``"reference"`` (scipy DOP853
 on the same RHS, with pymsis called at both spacecraft on every evaluation). The J2-only and
 two-body truths stay in RelativeTruth (the fastest path, unchanged).
 
 Multistep vs DOP853 (benchmarks/bench_truth.py; 100x100 + drag + Sun/Moon, A/m 0.004 /
-0.015 m^2/kg, relative position vs numba DOP853 at rtol 1e-13; 2026-11-23, load ~1 on 2
-cores, harmonics in strict IEEE arithmetic): one orbit at 2 km 0.011 mm, 620 evaluations of
-the 100x100 field, 18 ms, against DOP853 at the default rtol 0.007 mm, 3122 evaluations,
-82 ms; two orbits 0.005 mm at 2 km
-and 0.065 mm at 20 km (DOP853 default: 0.007 and 0.29 mm). With 25 s steps: 508
-evaluations, 0.046 mm at 2 km after one orbit, but 1.4 mm at 20 km after two (the 57 s
-degree-100 terms are then sampled at 2.3 points per period), so 20 s is the default.
+0.015 m^2/kg, relative position vs numba DOP853 at rtol 1e-13): the default (order 6, 18 s,
+look-ahead) takes 764 evaluations of the 100x100 field per orbit against DOP853's 3122 at the
+default rtol, and stays below 0.13 mm at 20 km over two orbits in 15 geometries; the former
+default (order 6, 20 s, no look-ahead, 580 evaluations) reached 17.5 mm there (0.06 mm at the bench's
+geometry); timings in the README and kernels_multistep's doc.
 The field at target and chaser is one call of the two-point kernel (harmonics.py,
-accel_harmonics_pair; bit-identical results): measured 2026-11-23 at load 4.6-6.9 on 2 cores,
-one orbit 7.9-13.2 ms against 12.9-24.7 ms with one point per call (README).
+accel_harmonics_pair; bit-identical results): measured 2026-11-23 at load 4.6-6.9 on 2 cores
+with the former default, one orbit 7.9-13.2 ms against 12.9-24.7 ms with one point per call
+(README).
 
 Measured (tests/test_propagation_composed.py, benchmarks/bench_truth.py; 500 km, 51.6 deg,
 2022-05-01, one orbit, default rtol 3e-11): fast path vs scipy DOP853 on both absolute
@@ -148,6 +148,7 @@ class ComposedTruth(PlantBase):
         atol: float = REFERENCE_ATOL,
         step_s: float = km.DEFAULT_STEP_S,
         order: int = km.DEFAULT_ORDER,
+        lookahead: tuple[int, int] = km.DEFAULT_LOOKAHEAD,
     ) -> None:
         if integrator not in INTEGRATORS:
             raise input_error("truth.integrator", integrator, "must be 'fast', 'dop853', 'multistep' or 'reference'")
@@ -172,7 +173,7 @@ class ComposedTruth(PlantBase):
         self.integrator = integrator
         self.step_s = float(step_s)
         self.order = int(order)
-        self.adams = km.adams_coefficients(self.order)
+        self.adams = km.adams_coefficients(self.order) + km.lookahead_coefficients(self.order, *lookahead)
         self.rtol = float(rtol)
         self.atol = float(atol)
         self.mu = float(mu)

@@ -40,7 +40,7 @@ import numpy as np
 from numba import njit
 
 from proxops.core.twobody import accel_differential, accel_j2, accel_twobody
-from proxops.environment.earth import geodetic
+from proxops.environment.earth import geodetic_height
 from proxops.environment.eclipse import shadow_factor
 from proxops.environment.ephemeris import moon_eci_kernel, sun_eci_kernel
 from proxops.environment.forces import accel_drag, accel_srp, accel_third_body
@@ -107,29 +107,33 @@ SAFETY_HARMONICS = 0.8
 
 
 @njit(cache=True)
-def _interp_row(dens: np.ndarray, p: np.ndarray, t: float, out: np.ndarray) -> None:
-    """Catmull-Rom cubic interpolation of the table rows at time t (held constant outside)."""
+def _catmull_rom(dens: np.ndarray, i: int, j: int, f: float, f2: float, f3: float) -> float:
+    """Column j of the table between rows i and i + 1 at fraction f (f2 = f^2, f3 = f^3)."""
+    n = dens.shape[0]
+    p1 = dens[i, j]
+    p2 = dens[i + 1, j]
+    # end segments: quadratic-extrapolated ghost nodes (needs n >= 3)
+    p0 = dens[i - 1, j] if i > 0 else 3.0 * p1 - 3.0 * p2 + dens[i + 2, j]
+    p3 = dens[i + 2, j] if i + 2 < n else 3.0 * p2 - 3.0 * p1 + dens[i - 1, j]
+    return 0.5 * (2.0 * p1 + (-p0 + p2) * f + (2.0 * p0 - 5.0 * p1 + 4.0 * p2 - p3) * f2 + (-p0 + 3.0 * p1 - 3.0 * p2 + p3) * f3)
+
+
+@njit(cache=True)
+def _interp_row(dens: np.ndarray, p: np.ndarray, t: float):
+    """Catmull-Rom cubic interpolation of the 5 table columns at time t (held constant
+    outside), as a 5-tuple (no allocation: called twice per right-hand side)."""
     n = dens.shape[0]
     s = (t - p[I_DENS_T0]) / p[I_DENS_DT]
     if s <= 0.0:
-        for j in range(dens.shape[1]):
-            out[j] = dens[0, j]
-        return
+        return dens[0, 0], dens[0, 1], dens[0, 2], dens[0, 3], dens[0, 4]
     if s >= n - 1:
-        for j in range(dens.shape[1]):
-            out[j] = dens[n - 1, j]
-        return
+        return dens[n - 1, 0], dens[n - 1, 1], dens[n - 1, 2], dens[n - 1, 3], dens[n - 1, 4]
     i = int(s)
     f = s - i
     f2 = f * f
     f3 = f2 * f
-    for j in range(dens.shape[1]):
-        p1 = dens[i, j]
-        p2 = dens[i + 1, j]
-        # end segments: quadratic-extrapolated ghost nodes (needs n >= 3)
-        p0 = dens[i - 1, j] if i > 0 else 3.0 * p1 - 3.0 * p2 + dens[i + 2, j]
-        p3 = dens[i + 2, j] if i + 2 < n else 3.0 * p2 - 3.0 * p1 + dens[i - 1, j]
-        out[j] = 0.5 * (2.0 * p1 + (-p0 + p2) * f + (2.0 * p0 - 5.0 * p1 + 4.0 * p2 - p3) * f2 + (-p0 + 3.0 * p1 - 3.0 * p2 + p3) * f3)
+    return (_catmull_rom(dens, i, 0, f, f2, f3), _catmull_rom(dens, i, 1, f, f2, f3), _catmull_rom(dens, i, 2, f, f2, f3),
+            _catmull_rom(dens, i, 3, f, f2, f3), _catmull_rom(dens, i, 4, f, f2, f3))  # fmt: skip
 
 
 @njit(cache=True)
@@ -137,12 +141,10 @@ def density_at(t: float, rx: float, ry: float, rz: float, cross: float, p: np.nd
                dens: np.ndarray) -> float:  # fmt: skip
     """Tabulated NRLMSISE-00 density (kg/m^3) at ECI position r (m), time t (s), ``cross`` m
     off the target's orbit plane (along its normal)."""
-    row = np.empty(5)
-    _interp_row(dens, p, t, row)
+    ln_rho, h_tab, d1, d2, dc = _interp_row(dens, p, t)
     ex, ey, ez = _to_ecef(t, rx, ry, rz, p, npm)
-    h = geodetic(ex, ey, ez)[2]
-    dh = h - row[1]
-    return math.exp(row[0] + dh * row[2] + 0.5 * dh * dh * row[3] + cross * row[4])
+    dh = geodetic_height(ex, ey, ez) - h_tab
+    return math.exp(ln_rho + dh * d1 + 0.5 * dh * dh * d2 + cross * dc)
 
 
 @njit(cache=True)
@@ -252,8 +254,9 @@ def _add_non_gravity(ax, ay, az, rx, ry, rz, vx, vy, vz, chaser, rho, sun, moon,
 
 
 @njit(cache=True)
-def rhs_full_rho(t, y, u, p, npm, C, S, K, V, W, rho_t, rho_c, out) -> None:
-    """Composed Encke RHS (12,) with given densities at target and chaser (kg/m^3)."""
+def third_bodies(t: float, p: np.ndarray):
+    """Geocentric Sun and Moon (m, 3-tuples; zeros when no enabled model needs them) at t s
+    after the epoch: one evaluation per time, shared by target and chaser."""
     d = p[I_D0] + t / 86400.0
     sun = (0.0, 0.0, 0.0)
     moon = (0.0, 0.0, 0.0)
@@ -261,6 +264,20 @@ def rhs_full_rho(t, y, u, p, npm, C, S, K, V, W, rho_t, rho_c, out) -> None:
         sun = sun_eci_kernel(d)
     if p[I_MOON] != 0.0:
         moon = moon_eci_kernel(d)
+    return sun, moon
+
+
+@njit(cache=True)
+def rhs_full_rho(t, y, u, p, npm, C, S, K, V, W, rho_t, rho_c, out) -> None:
+    """Composed Encke RHS (12,) with given densities at target and chaser (kg/m^3)."""
+    sun, moon = third_bodies(t, p)
+    rhs_full_env(t, y, u, p, npm, C, S, K, V, W, rho_t, rho_c, sun, moon, out)
+
+
+@njit(cache=True)
+def rhs_full_env(t, y, u, p, npm, C, S, K, V, W, rho_t, rho_c, sun, moon, out) -> None:
+    """Composed Encke RHS (12,) with given densities (kg/m^3) and Sun and Moon positions
+    (m, from :func:`third_bodies` at the same t)."""
     rtx, rty, rtz = y[0], y[1], y[2]
     rcx, rcy, rcz = rtx + y[6], rty + y[7], rtz + y[8]
     ax, ay, az = accel_twobody(rtx, rty, rtz, p[I_MU])
@@ -300,9 +317,11 @@ def rhs_full_rho(t, y, u, p, npm, C, S, K, V, W, rho_t, rho_c, out) -> None:
     out[11] = daz
 
 
+
+
 @njit(cache=True)
-def rhs_full(t, y, u, p, npm, C, S, K, V, W, dens, out) -> None:
-    """Composed Encke RHS (12,) with the density from the table (see module doc)."""
+def densities(t, y, p, npm, dens):
+    """Tabulated densities (kg/m^3) at target and chaser (0 without drag; module doc)."""
     rho_t = 0.0
     rho_c = 0.0
     if p[I_DRAG] != 0.0:
@@ -314,7 +333,21 @@ def rhs_full(t, y, u, p, npm, C, S, K, V, W, dens, out) -> None:
         hz = y[0] * y[4] - y[1] * y[3]
         cross = (y[6] * hx + y[7] * hy + y[8] * hz) / math.sqrt(hx * hx + hy * hy + hz * hz)
         rho_c = density_at(t + lead, y[0] + y[6], y[1] + y[7], y[2] + y[8], cross, p, npm, dens)
+    return rho_t, rho_c
+
+
+@njit(cache=True)
+def rhs_full(t, y, u, p, npm, C, S, K, V, W, dens, out) -> None:
+    """Composed Encke RHS (12,) with the density from the table (see module doc)."""
+    rho_t, rho_c = densities(t, y, p, npm, dens)
     rhs_full_rho(t, y, u, p, npm, C, S, K, V, W, rho_t, rho_c, out)
+
+
+@njit(cache=True)
+def rhs_full_sun_moon(t, y, u, p, npm, C, S, K, V, W, dens, sun, moon, out) -> None:
+    """:func:`rhs_full` with the Sun and Moon given (from :func:`third_bodies` at the same t)."""
+    rho_t, rho_c = densities(t, y, p, npm, dens)
+    rhs_full_env(t, y, u, p, npm, C, S, K, V, W, rho_t, rho_c, sun, moon, out)
 
 
 @njit(cache=True)

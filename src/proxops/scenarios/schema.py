@@ -175,9 +175,9 @@ class TruthSection(Section):
     model: Literal["j2", "two-body", "cw", "full"] = Field(
         "j2", description="truth dynamics: two-body + J2 (Encke), two-body, linear CW, or full (composed force models)")
     integrator: Literal["fast", "dop853", "multistep", "reference"] = Field(
-        "fast", description="fast: the fastest numba path (full without srp: multistep on spans >= 360 s, else "
+        "fast", description="fast: the fastest numba path (full without srp: multistep on spans >= 324 s, else "
         "DOP853); dop853: numba adaptive DOP853; multistep (full without srp): fixed-step Adams-Bashforth-Moulton, "
-        "order 6, 20 s; reference: scipy solve_ivp (slower, for checks)")
+        "order 6, 18 s, look-ahead harmonics; reference: scipy solve_ivp (slower, for checks)")
     gravity_degree: int = Field(20, description="full: EGM96 spherical-harmonic degree (2 to 120, shipped offline)")
     gravity_order: int | None = Field(None, description="full: harmonic order, 0 to gravity_degree "
                                       "(none: gravity_degree)")
