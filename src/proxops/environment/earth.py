@@ -117,22 +117,28 @@ def earth_rotation(epoch: Epoch | str) -> EarthRotation:
 
 
 @njit(cache=True, fastmath=False)
-def geodetic(x: float, y: float, z: float):
-    """WGS-84 geodetic (latitude rad, longitude rad, height m) of an Earth-fixed position:
-    fixed-point iteration lat = atan2(z + e^2 N sin(lat), p) (contraction ~e^2 per pass,
-    6 passes: < 1e-12 rad), then h = p cos(lat) + z sin(lat) - a sqrt(1 - e^2 sin^2(lat))."""
+def _latitude_height(x: float, y: float, z: float, passes: int):
+    """WGS-84 geodetic (latitude rad, height m) by ``passes`` of the fixed-point iteration
+    lat = atan2(z + e^2 N sin(lat), p) (contraction ~e^2 per pass), then
+    h = p cos(lat) + z sin(lat) - a sqrt(1 - e^2 sin^2(lat))."""
     a = WGS84_A
     e2 = WGS84_F * (2.0 - WGS84_F)
     p = math.sqrt(x * x + y * y)
-    lon = math.atan2(y, x)
     lat = math.atan2(z, p * (1.0 - e2))
-    for _ in range(6):
+    for _ in range(passes):
         s = math.sin(lat)
         N = a / math.sqrt(1.0 - e2 * s * s)
         lat = math.atan2(z + e2 * N * s, p)
     s = math.sin(lat)
-    h = p * math.cos(lat) + z * s - a * math.sqrt(1.0 - e2 * s * s)
-    return lat, lon, h
+    return lat, p * math.cos(lat) + z * s - a * math.sqrt(1.0 - e2 * s * s)
+
+
+@njit(cache=True, fastmath=False)
+def geodetic(x: float, y: float, z: float):
+    """WGS-84 geodetic (latitude rad, longitude rad, height m) of an Earth-fixed position:
+    6 passes of the latitude iteration (< 1e-12 rad)."""
+    lat, h = _latitude_height(x, y, z, 6)
+    return lat, math.atan2(y, x), h
 
 
 @njit(cache=True, fastmath=False)
@@ -142,16 +148,7 @@ def geodetic_height(x: float, y: float, z: float) -> float:
     side). The height is stationary in the latitude (it is the distance along the normal), so
     its error is ~ r dlat^2 / 2: after 2 passes (dlat ~ e^4 * 3e-4 rad at 500 km) < 1e-8 m
     from 0 to 2000 km height (tests/test_environment_forces.py)."""
-    a = WGS84_A
-    e2 = WGS84_F * (2.0 - WGS84_F)
-    p = math.sqrt(x * x + y * y)
-    lat = math.atan2(z, p * (1.0 - e2))
-    for _ in range(2):
-        s = math.sin(lat)
-        N = a / math.sqrt(1.0 - e2 * s * s)
-        lat = math.atan2(z + e2 * N * s, p)
-    s = math.sin(lat)
-    return p * math.cos(lat) + z * s - a * math.sqrt(1.0 - e2 * s * s)
+    return _latitude_height(x, y, z, 2)[1]
 
 
 def geodetic_many(r_ecef: np.ndarray) -> np.ndarray:

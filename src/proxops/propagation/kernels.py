@@ -445,6 +445,41 @@ def dop853_error_norm(y, y_new, K, h, rtol, atol) -> float:
 
 
 @njit(cache=True)
+def _accepted_step(y, f0, t, h_abs, t_end, u, p, rtol, atol, K, work, y_new, n_done, keep_proposal) -> tuple:
+    """One accepted DOP853 step from ``t`` (s) starting with the proposal ``h_abs`` (s), shortened
+    to end on ``t_end`` if it would pass it; the step is left in ``y_new`` and ``K``. ``n_done``:
+    steps and rejections so far (against MAX_STEPS). ``keep_proposal``: after a shortened step the
+    next proposal is the larger of the controller's and the current one (sample landing of
+    :func:`integrate_grid`). Returns (status, h, clipped, next proposal, rejections in this call)."""
+    rejected = False
+    n_rej = 0
+    while True:
+        if n_done + n_rej >= MAX_STEPS:
+            return STATUS_TOO_MANY_STEPS, 0.0, False, h_abs, n_rej
+        min_step = 10.0 * (np.nextafter(abs(t), np.inf) - abs(t))
+        if h_abs < min_step:
+            return STATUS_STEP_TOO_SMALL, 0.0, False, h_abs, n_rej
+        clipped = t + h_abs >= t_end
+        h = t_end - t if clipped else h_abs
+        dop853_step(y, f0, h, u, p, K, work, y_new)
+        err = dop853_error_norm(y, y_new, K, h, rtol, atol)
+        if not math.isfinite(err):
+            return STATUS_NOT_FINITE, h, clipped, h_abs, n_rej
+        if err < 1.0:
+            if err == 0.0:
+                factor = MAX_FACTOR
+            else:
+                factor = min(MAX_FACTOR, SAFETY * err**ERROR_EXPONENT)
+            if rejected:
+                factor = min(1.0, factor)
+            h_next = max(h * factor, h_abs) if clipped and keep_proposal else h * factor
+            return STATUS_OK, h, clipped, h_next, n_rej
+        h_abs = h * max(MIN_FACTOR, SAFETY * err**ERROR_EXPONENT)
+        rejected = True
+        n_rej += 1
+
+
+@njit(cache=True)
 def integrate_grid(y0, times, u, p, rtol, atol, out) -> tuple:
     """Integrate the relative problem through increasing ``times`` (times[0] is the
     start), storing the state at each time in ``out`` (len(times), 12).
@@ -476,32 +511,12 @@ def integrate_grid(y0, times, u, p, rtol, atol, out) -> tuple:
     for k in range(1, m):
         t_end = times[k]
         while t < t_end:
-            rejected = False
-            while True:
-                if n_steps + n_rej >= MAX_STEPS:
-                    return STATUS_TOO_MANY_STEPS, n_steps, n_rej
-                min_step = 10.0 * (np.nextafter(abs(t), np.inf) - abs(t))
-                if h_abs < min_step:
-                    return STATUS_STEP_TOO_SMALL, n_steps, n_rej
-                clipped = t + h_abs >= t_end
-                h = t_end - t if clipped else h_abs
-                dop853_step(y, f0, h, u, p, K, work, y_new)
-                err = dop853_error_norm(y, y_new, K, h, rtol, atol)
-                if not math.isfinite(err):
-                    return STATUS_NOT_FINITE, n_steps, n_rej
-                if err < 1.0:
-                    if err == 0.0:
-                        factor = MAX_FACTOR
-                    else:
-                        factor = min(MAX_FACTOR, SAFETY * err**ERROR_EXPONENT)
-                    if rejected:
-                        factor = min(1.0, factor)
-                    # a step shortened to hit a sample time keeps the current proposal
-                    h_abs = max(h * factor, h_abs) if clipped else h * factor
-                    break
-                h_abs = h * max(MIN_FACTOR, SAFETY * err**ERROR_EXPONENT)
-                rejected = True
-                n_rej += 1
+            # a step shortened to hit a sample time keeps the current proposal
+            status, h, clipped, h_abs, rej = _accepted_step(y, f0, t, h_abs, t_end, u, p, rtol, atol, K, work, y_new,
+                                                            n_steps + n_rej, True)  # fmt: skip
+            n_rej += rej
+            if status != STATUS_OK:
+                return status, n_steps, n_rej
             n_steps += 1
             t = t_end if clipped else t + h
             for i in range(n):
@@ -613,31 +628,11 @@ def integrate_dense(y0, times, u, p, rtol, atol, out) -> tuple:
     n_steps = 0
     n_rej = 0
     while k < m:
-        rejected = False
-        while True:
-            if n_steps + n_rej >= MAX_STEPS:
-                return STATUS_TOO_MANY_STEPS, n_steps, n_rej
-            min_step = 10.0 * (np.nextafter(abs(t), np.inf) - abs(t))
-            if h_abs < min_step:
-                return STATUS_STEP_TOO_SMALL, n_steps, n_rej
-            clipped = t + h_abs >= t_final
-            h = t_final - t if clipped else h_abs
-            dop853_step(y, f0, h, u, p, K, work, y_new)
-            err = dop853_error_norm(y, y_new, K, h, rtol, atol)
-            if not math.isfinite(err):
-                return STATUS_NOT_FINITE, n_steps, n_rej
-            if err < 1.0:
-                if err == 0.0:
-                    factor = MAX_FACTOR
-                else:
-                    factor = min(MAX_FACTOR, SAFETY * err**ERROR_EXPONENT)
-                if rejected:
-                    factor = min(1.0, factor)
-                h_abs = h * factor
-                break
-            h_abs = h * max(MIN_FACTOR, SAFETY * err**ERROR_EXPONENT)
-            rejected = True
-            n_rej += 1
+        status, h, clipped, h_abs, rej = _accepted_step(y, f0, t, h_abs, t_final, u, p, rtol, atol, K, work, y_new,
+                                                        n_steps + n_rej, False)  # fmt: skip
+        n_rej += rej
+        if status != STATUS_OK:
+            return status, n_steps, n_rej
         n_steps += 1
         t_new = t_final if clipped else t + h
         if k < m and (times[k] <= t_new or clipped):
