@@ -45,7 +45,6 @@ from functools import lru_cache
 import numpy as np
 
 EPOCH = "2022-05-01T00:00:00Z"
-EPOCH_YMD = (2022, 5, 1)
 
 _STATE: dict = {}
 
@@ -216,10 +215,32 @@ def _orekit_integrator(setting, orbit):
 
 def pair(y0: np.ndarray, duration: float, models, *, earth_frame: str = "ITRF", integrator=("luther", 4.0),
          mean_solar_time: bool = True, weather: str = "constant") -> tuple[np.ndarray, np.ndarray]:  # fmt: skip
-    """Target ECI state (6,) and chaser - target offset (6,) after ``duration`` s from Orekit.
+    """Target ECI state (6,) and chaser - target offset (6,) after ``duration`` s from Orekit
+    (:func:`pair_states` at one time)."""
+    target, offset = pair_states(y0, [duration], models, earth_frame=earth_frame, integrator=integrator,
+                                 mean_solar_time=mean_solar_time, weather=weather)  # fmt: skip
+    return target[0], offset[0]
+
+
+def _utc_date(epoch: str):
+    """Orekit AbsoluteDate of an ISO 8601 UTC string ("2022-05-01T00:00:00Z")."""
+    from datetime import datetime
+
+    from org.orekit.time import AbsoluteDate, TimeScalesFactory
+
+    t = datetime.fromisoformat(epoch.replace("Z", "+00:00"))
+    return AbsoluteDate(t.year, t.month, t.day, t.hour, t.minute, t.second + t.microsecond * 1e-6,
+                        TimeScalesFactory.getUTC())  # fmt: skip
+
+
+def pair_states(y0: np.ndarray, durations, models, *, earth_frame: str = "ITRF", integrator=("luther", 4.0),
+                mean_solar_time: bool = True, weather: str = "constant") -> tuple[np.ndarray, np.ndarray]:  # fmt: skip
+    """Target ECI states (n, 6) and chaser - target offsets (n, 6) from Orekit at the
+    increasing times ``durations`` (s after the epoch; each spacecraft's propagator is
+    called once per time, continuing from the previous one).
 
     ``y0``: proxops' 12-state [r_t, v_t, dr, dv] (m, m/s, GCRF axes) at ``models.epoch``
-    (must be EPOCH); ``models``: :class:`proxops.propagation.composed.ForceModels` (gravity
+    (any ISO 8601 UTC epoch); ``models``: :class:`proxops.propagation.composed.ForceModels` (gravity
     "point" or "harmonics"); ``integrator``: a setting of :func:`_orekit_integrator`.
     ``weather``: "constant" (the scenario's F10.7, F10.7a, Ap through a Python implementation
     of NRLMSISE00InputParameters, as proxops; every density evaluation then calls back into
@@ -237,7 +258,6 @@ def pair(y0: np.ndarray, duration: float, models, *, earth_frame: str = "ITRF", 
     from org.orekit.orbits import CartesianOrbit, OrbitType
     from org.orekit.propagation import SpacecraftState
     from org.orekit.propagation.numerical import NumericalPropagator
-    from org.orekit.time import AbsoluteDate, TimeScalesFactory
     from org.orekit.utils import Constants, IERSConventions, PVCoordinates
 
     from proxops.core.constants import MU_EARTH, R_EARTH
@@ -246,8 +266,6 @@ def pair(y0: np.ndarray, duration: float, models, *, earth_frame: str = "ITRF", 
 
     if models.gravity == "j2":
         raise ValueError("use gravity='harmonics' with degree 2, order 0 (Orekit's J2 is about the pole of date)")
-    if models.epoch != EPOCH:
-        raise ValueError(f"epoch must be {EPOCH}")
     setup()
     ConstantWeather, MeanSun, EarthFrameAtmosphere = _proxies()
     gcrf = FramesFactory.getGCRF()
@@ -255,7 +273,7 @@ def pair(y0: np.ndarray, duration: float, models, *, earth_frame: str = "ITRF", 
         efix = FramesFactory.getITRF(IERSConventions.IERS_2010, False)
     else:  # Greenwich true of date, IAU-76/80 without polar motion: proxops' model family
         efix = FramesFactory.getGTOD(IERSConventions.IERS_1996, True)
-    date = AbsoluteDate(*EPOCH_YMD, 0, 0, 0.0, TimeScalesFactory.getUTC())
+    date = _utc_date(models.epoch)
     wgs84 = OneAxisEllipsoid(Constants.WGS84_EARTH_EQUATORIAL_RADIUS, Constants.WGS84_EARTH_FLATTENING, efix)
     sphere = OneAxisEllipsoid(R_EARTH, 0.0, efix)
     sun = CelestialBodyFactory.getSun()
@@ -295,9 +313,12 @@ def pair(y0: np.ndarray, duration: float, models, *, earth_frame: str = "ITRF", 
                 raise ValueError("Orekit's SRP shadow is conical")
             craft_srp = IsotropicRadiationSingleCoefficient(float(craft.area_m2), float(craft.cr))
             prop.addForceModel(SolarRadiationPressure(AU, P_SUN, sun, sphere, craft_srp))
-        end = prop.propagate(date.shiftedBy(float(duration))).getPVCoordinates(gcrf)
-        p, v = end.getPosition(), end.getVelocity()
-        out.append(np.array([p.getX(), p.getY(), p.getZ(), v.getX(), v.getY(), v.getZ()]))
+        states = []
+        for duration in durations:
+            end = prop.propagate(date.shiftedBy(float(duration))).getPVCoordinates(gcrf)
+            p, v = end.getPosition(), end.getVelocity()
+            states.append([p.getX(), p.getY(), p.getZ(), v.getX(), v.getY(), v.getZ()])
+        out.append(np.array(states))
     return out[0], out[1] - out[0]
 
 
