@@ -72,7 +72,7 @@ def test_multistep_against_dop853_two_orbits(sep, tol_mm):
     """Two orbits, 30x30 + drag (different A/m) + Sun/Moon, 500 km, 51.6 deg: the multistep path
     (default: order 6, 18 s, harmonics once per step with the look-ahead quadrature) against
     DOP853 at rtol 1e-13. Stated tolerance 0.01 / 0.03 / 0.03 mm at 100 m / 2 km / 20 km.
-    Measured (2026-11-23): 0.0059 / 0.0031 / 0.013 mm (at 100 m the floor is not the step: the
+    Measured (2026-11-23): 0.0060 / 0.0034 / 0.014 mm (at 100 m the floor is not the step: the
     default DOP853 (rtol 3e-11) gives 0.0084 mm; at 2 km / 20 km 0.029 / 0.030 mm). The worst
     case over geometries with 100x100 is benchmarks/bench_truth_steps.py's."""
     duration = 2.0 * PERIOD
@@ -110,10 +110,39 @@ def test_start_up_block_converges(order):
     assert np.abs(out[:, :3] - ref[:, :3]).max() < 1e-5  # target (m); measured <= 8e-8
 
 
+def test_lookahead_start_up_block_against_fine_dop853():
+    """The look-ahead default's start-up block (derivatives without the harmonics by collocation,
+    the harmonics by the centred quadrature; kernels_multistep doc) at its nodes 0 .. 5 (18 s)
+    against DOP853 at rtol 1e-13 sampled every 0.5 s (steps < 0.5 s, so its own error on the
+    degree-30 terms is negligible), 20 km, 30x30: < 2e-7 m / 1e-10 m/s on the relative state and
+    < 1e-5 m on the target (measured 5.1e-8 m, 1.3e-11 m/s, 6.3e-7 m; the 20x20 guess it starts
+    from is 9e-4 m off in relative position, the former start's dense output between its DOP853
+    nodes 1.1e-9 m/s). Field evaluations (target and chaser apart): 2 x 14 nodes (-4 .. 9) at the
+    guess, 2 x 9 (1 .. 9) again at the converged block, 2 for node 10 ahead: 48, against ~144 for
+    the former DOP853 start with the full field."""
+    from proxops.propagation import kernels_full as kf
+
+    tr = ComposedTruth(ORBIT, hill0(20000.0), MODELS, integrator="multistep", horizon_s=600.0)
+    k, h = tr.order, tr.step_s
+    y0 = tr.initial_state()[:12].copy()
+    grid = np.arange(k) * h
+    fine = np.arange(0.0, grid[-1] + 0.25, 0.5)
+    out, ref = np.empty((k, 12)), np.empty((fine.size, 12))
+    status, _, _, n_field = km.integrate_multistep(y0, grid, np.zeros(3), tr.p, *tr._arrays(), tr._dens, h, *tr.adams,
+                                                   True, tr.rtol, tr.atol, out)  # fmt: skip
+    kf.integrate_full(y0, fine, np.zeros(3), tr.p, *tr._arrays(), tr._dens, 1e-13, tr.atol, ref)
+    ref = ref[:: int(round(h / 0.5))]
+    assert status == 0 and ref.shape == out.shape
+    assert np.abs(out[:, 6:9] - ref[:, 6:9]).max() < 2e-7
+    assert np.abs(out[:, 9:12] - ref[:, 9:12]).max() < 1e-10
+    assert np.abs(out[:, :3] - ref[:, :3]).max() < 1e-5
+    assert n_field == 48
+
+
 def test_dense_output_between_steps_and_during_start_up():
     """Samples every 7 s (not on the 18 s step grid; the first ones inside the start-up block)
-    over one orbit agree with DOP853 at rtol 1e-13 at every sample (measured 3.7e-7 m; 2.7e-7 m
-    at order 12, 12 s without look-ahead)."""
+    over one orbit agree with DOP853 at rtol 1e-13 at every sample (measured 2.7e-7 m, 6.7e-9 m
+    in the start-up block; 2.7e-7 m at order 12, 12 s without look-ahead)."""
     times = np.arange(0.0, PERIOD, 7.0)
     ref = ComposedTruth(ORBIT, hill0(2000.0), MODELS, integrator="dop853", rtol=1e-13, horizon_s=PERIOD)
     ms = ComposedTruth(ORBIT, hill0(2000.0), MODELS, integrator="multistep", horizon_s=PERIOD)

@@ -23,8 +23,8 @@ two-body truths stay in RelativeTruth (the fastest path, unchanged).
 
 Multistep vs DOP853 (benchmarks/bench_truth.py; 100x100 + drag + Sun/Moon, A/m 0.004 /
 0.015 m^2/kg, relative position vs numba DOP853 at rtol 1e-13): the default (order 6, 18 s,
-look-ahead) takes 764 evaluations of the 100x100 field per orbit against DOP853's 3122 at the
-default rtol, and stays below 0.13 mm at 20 km over two orbits in 15 geometries; the former
+look-ahead) takes 668 evaluations of the 100x100 field per orbit against DOP853's 3122 at the
+default rtol, and stays below 0.08 mm at 20 km over two orbits in 15 geometries; the former
 default (order 6, 20 s, no look-ahead, 580 evaluations) reached 17.5 mm there (0.06 mm at the bench's
 geometry); timings in the README and kernels_multistep's doc.
 The field at target and chaser is one call of the two-point kernel (harmonics.py,

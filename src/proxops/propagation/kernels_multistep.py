@@ -16,7 +16,7 @@ accelerations of P. P and the corrected state differ by the local truncation err
 changes the stored derivative by < 3e-15 m/s^2: two 100x100 evaluations per step instead
 of four (measured effect on the relative state: tests/test_propagation_multistep.py).
 
-Start (without look-ahead; with it, DOP853, see below): the first k nodes t_0 + j h (j < k)
+Start (without look-ahead; with it, see below): the first k nodes t_0 + j h (j < k)
 as one implicit block (collocation: the state at each node is y_0 plus h times the integral
 of the degree k - 1 polynomial through the k
 derivatives), solved by fixed-point iteration from a DOP853 guess with the field truncated
@@ -66,19 +66,44 @@ the target, which moves g by < 1e-11 m/s^2 and the differenced g far less), and 
 increment over [t_n, t_n+1] integrates g with the 10 nodes n - 4 .. n + 5 (centred on the
 step), the rest of the RHS by ABM PECE as above. A centred quadrature's relative error on a
 sinusoid is far smaller than the one-sided Adams corrector's (at omega h = 1: 1.2e-4 against
-9.3e-3 for order 6; at omega h = 1.5: 4.8e-3 against 0.12). The start-up block's
-collocation polynomial would alias g the same way, so with look-ahead the first k nodes come
-from the DOP853 loop with the full field (~130 field evaluations, once per propagation).
-Same 15 geometries, 20 km, worst of one and two orbits (order 6):
+9.3e-3 for order 6; at omega h = 1.5: 4.8e-3 against 0.12). Same 15 geometries, 20 km,
+worst of one and two orbits (order 6; measured with the former DOP853 start below):
 
     h (s)  field evaluations / orbit   median    90 %     worst (mm)
-    18      764                        0.032     0.10      0.13   (default)
+    18      764                        0.032     0.10      0.13   (default, DOP853 start)
     20      700                        0.082     0.15      0.45
     22      650                        0.15      0.25      0.68
     24      606                        0.23      0.58      0.95
 
-The default's worst over the 15 geometries at 1 m / 100 m / 2 km / 20 km: 0.013 / 0.013 /
-0.027 / 0.13 mm (two orbits).
+Start with look-ahead (:func:`_start_lookahead`): a collocation polynomial through the full
+derivatives would alias g as the Adams corrector does, so the block splits them as the march
+does: the derivatives without g by the collocation above, g by the same centred quadrature
+(the step j -> j + 1 on the nodes j - 4 .. j + 5, so nodes before t_0 too). g is evaluated
+(pass 1) at positions from a guess: DOP853 with the field truncated to 20x20 on the nodes
+0 .. k - 1 (~1 cm off for the target, ~1 mm in relative position at 20 km), the nodes
+outside the block by the guess's velocity polynomial integrated; the block is iterated to
+convergence; then (pass 2) g again at the converged nodes 1 .. k - 1 and at the nodes
+k .. k + 3 extrapolated from the block as in the march, and the block iterated again.
+Pass 2 is needed: with pass 1 alone (g at the guess's cm-off positions) the 20 km errors
+below changed by up to 0.03 mm in single geometries (worst 0.088 mm); refreshing the four
+nodes before t_0 as well changed nothing at 1e-7 mm (their weights are small and they only
+enter the block's steps). Cost: 2 x (14 + 9 + 1) = 48 field evaluations (the first node
+ahead of the march included) and 5 DOP853 steps (one per node interval) of the 20x20 field,
+against 144 for the former start (DOP853 with the full field on the first k nodes). At the block's nodes (18 s,
+100x100, 20 km, against DOP853 at rtol 1e-13 sampled every 0.5 s) it is 4.2e-7 m / 1.4e-9
+m/s off in the relative state: the quadrature's error on the degree 40-100 terms, as in any
+5 steps of the march (the former start's nodes were exact to 2e-11 m, its dense output
+between them aliased: 2.4e-8 m/s); a velocity error of 1e-9 m/s is an along-track drift of
+~0.03 mm after two orbits, so the per-geometry errors at 20 km changed by up to 0.06 mm
+either way. Default (order 6, 18 s, look-ahead (4, 5)), worst of one and two orbits over the
+15 geometries (benchmarks/bench_truth_steps.py ``--default``; 2026-11-23):
+
+    separation   former start (DOP853, 764 field evaluations / orbit)   this start (668)
+                 median    90 %     worst (mm)                          median    90 %     worst (mm)
+    20 km        0.032     0.10     0.13                                0.022     0.069    0.078
+    2 km         0.0046    0.012    0.027                               0.0044    0.010    0.029
+    100 m        0.0025    0.0098   0.013                               0.0027    0.010    0.013
+    1 m          0.0012    0.0042   0.013                               0.0011    0.0039   0.013
 
 Coefficients: w_j(theta) = int_0^theta L_j(s) ds for the Lagrange basis L_j on the nodes
 s_j (units of h from t_n; AB: 0, -1, ..., -(k-1); AM: 1, 0, ..., -(k-1)), computed exactly
@@ -107,6 +132,7 @@ MAX_START_ITERATIONS = 12
 START_TOL_TARGET_M = 1e-6  # start-up iteration: last change of the target position (m) ...
 START_TOL_RELATIVE_M = 1e-10  # ... and of the chaser offset (m)
 STATUS_START_NOT_CONVERGED = 4
+START_PASSES_LOOKAHEAD = 2  # evaluations of g at the start-up block's nodes (module doc)
 
 
 def _lagrange_integrals(nodes: list[int]) -> list[list[Fraction]]:
@@ -252,10 +278,10 @@ def integrate_multistep(y0, times, u, p, npm, C, S, K, V, W, dens, h, beta_ab, b
         p_guess[kf.I_MMAX] = min(p[kf.I_MMAX], GUESS_DEGREE)
     ys = np.empty((k, n))
     lookahead = split and p[kf.I_GRAV] == 2.0 and c_g.size > 0
-    if lookahead:  # the start-up block's collocation polynomial would alias g: DOP853 with the full field
-        status, n_guess, n_guess_rej = kf.integrate_full(y0, grid, u, p, npm, C, S, K, V, W, dens, rtol, atol, ys)
-    else:
-        status, n_guess, n_guess_rej = kf.integrate_full(y0, grid, u, p_guess, npm, C, S, K, V, W, dens, rtol, atol, ys)
+    if lookahead:  # the start-up block's collocation polynomial would alias g: start with the quadrature of g too
+        return _start_lookahead(y0, times, out, u, p, p_cheap, p_guess, npm, C, S, K, V, W, dens, h, beta_ab, beta_am,
+                                Q, Q0, G, Q_ab, c_g, Q_g, before, rtol, atol)  # fmt: skip
+    status, n_guess, n_guess_rej = kf.integrate_full(y0, grid, u, p_guess, npm, C, S, K, V, W, dens, rtol, atol, ys)
     if status != STATUS_OK:
         return status, 0, 0, 0
     Fs = np.empty((k, n))
@@ -266,7 +292,7 @@ def integrate_multistep(y0, times, u, p, npm, C, S, K, V, W, dens, h, beta_ab, b
     n_cheap = 0
     span = (k - 1) * h
     # split: pass 0 with the harmonics at the guess, pass 1 with them at pass 0's nodes (module doc)
-    for start_pass in range(0 if lookahead else (2 if split else 1)):
+    for start_pass in range(2 if split else 1):
         if start_pass == 1:
             for j in range(1, k):
                 _rhs(grid[j], ys[j], u, p, p_cheap, split, npm, C, S, K, V, W, dens, Hs[j], True, Fs[j])
@@ -299,7 +325,6 @@ def integrate_multistep(y0, times, u, p, npm, C, S, K, V, W, dens, h, beta_ab, b
                 break
         if not converged:
             return STATUS_START_NOT_CONVERGED, 0, n_full + n_cheap, 0
-    n_start_field = 12 * (n_guess + n_guess_rej) + 1 if lookahead else 0  # the DOP853 start's full-field RHS
     wts0 = np.empty(k)
     idx = 1
     while idx < m and times[idx] <= grid[k - 1]:  # samples inside the start-up block
@@ -316,11 +341,8 @@ def integrate_multistep(y0, times, u, p, npm, C, S, K, V, W, dens, h, beta_ab, b
             F[j, i] = Fs[k - 1 - j, i]
     n_rhs = n_full + n_cheap + 12 * (n_guess + n_guess_rej) + 1
     harmonics = p[kf.I_GRAV] == 2.0
-    n_field = 2 * (n_full + n_start_field) if harmonics else 0
+    n_field = 2 * n_full if harmonics else 0
     field_per_step = 0 if not harmonics else (2 if split else 4)
-    if split and harmonics and c_g.size > 0:
-        return _march_lookahead(times, idx, out, u, p, p_cheap, npm, C, S, K, V, W, dens, h, t0, beta_ab, beta_am, Q,
-                                Fs, Hs, ys[k - 1], Q_ab, c_g, Q_g, before, n_rhs, n_field)  # fmt: skip
     t_n = grid[k - 1]
     y = ys[k - 1].copy()
     yp = np.empty(n)
@@ -367,37 +389,34 @@ def integrate_multistep(y0, times, u, p, npm, C, S, K, V, W, dens, h, beta_ab, b
 
 
 @njit(cache=True)
-def _march_lookahead(times, idx, out, u, p, p_cheap, npm, C, S, K, V, W, dens, h, t0, beta_ab, beta_am, Q, Fs, Hs,
+def _march_lookahead(times, idx, out, u, p, p_cheap, npm, C, S, K, V, W, dens, h, t0, beta_ab, beta_am, Q, Fc, G_start,
                      y_start, Q_ab, c_g, Q_g, before, n_rhs, n_field) -> tuple:  # fmt: skip
     """Main loop with the harmonic forcing g (target; chaser - target) integrated by the
     look-ahead quadrature on nodes n - before .. n + 1 + ahead (module doc), the rest of the
     RHS by ABM PECE as in :func:`integrate_multistep`; g at node n + 1 + ahead is evaluated
-    at positions extrapolated from the derivative history (Q_ab at s = ahead + 1)."""
+    at positions extrapolated from the derivative history (Q_ab at s = ahead + 1). From the
+    start (:func:`_start_lookahead`): ``Fc`` (k, 12) the derivatives without g at the nodes
+    0 .. k - 1, ``G_start`` g at the nodes 0 .. k + ahead - 1 (rows: node; [g_t, g_c - g_t])."""
     n = 12
     k = beta_ab.size
     m = c_g.size
     ahead = m - before - 2
     m_last = times.size - 1
     n_nodes = int(math.ceil((times[m_last] - t0) / h)) + ahead + 3
-    G = np.zeros((n_nodes, 6))  # g at node j: [g_t, g_c - g_t] (m/s^2)
+    G = np.zeros((max(n_nodes, G_start.shape[0] + 1), 6))  # g at node j: [g_t, g_c - g_t] (m/s^2)
     F = np.empty((k + 1, n))  # cheap derivatives (velocities, accelerations without g), newest first
+    for j in range(G_start.shape[0]):
+        for i in range(6):
+            G[j, i] = G_start[j, i]
     for j in range(k):
-        for i in range(3):
-            G[j, i] = Hs[j, i]
-            G[j, 3 + i] = Hs[j, 3 + i] - Hs[j, i]
-    for j in range(k):
-        node = k - 1 - j
         for i in range(n):
-            F[j, i] = Fs[node, i]
-        for i in range(3):
-            F[j, 3 + i] -= G[node, i]
-            F[j, 9 + i] -= G[node, 3 + i]
+            F[j, i] = Fc[k - 1 - j, i]
     head = 0
     y = y_start.copy()
     wext = np.empty(k)
 
-    for node in range(k, k + ahead + 1):  # the nodes ahead of the start-up block
-        _lookahead_g(node, float(node - (k - 1)), y, F, head, wext, G, Q_ab, h, t0, p, npm, C, S, K, V, W)
+    for node in range(G_start.shape[0], k + ahead + 1):  # the nodes ahead of the start-up block
+        _lookahead_g(node, float(node - (k - 1)), y, F, head, wext, G, node, Q_ab, h, t0, p, npm, C, S, K, V, W)
         n_field += 2
     yp = np.empty(n)
     yc = np.empty(n)
@@ -409,7 +428,8 @@ def _march_lookahead(times, idx, out, u, p, p_cheap, npm, C, S, K, V, W, dens, h
     n_steps = k - 1
     while idx < m_last + 1:
         if nn >= k:
-            _lookahead_g(nn + 1 + ahead, float(ahead + 1), y, F, head, wext, G, Q_ab, h, t0, p, npm, C, S, K, V, W)
+            _lookahead_g(nn + 1 + ahead, float(ahead + 1), y, F, head, wext, G, nn + 1 + ahead, Q_ab, h, t0, p, npm, C,
+                         S, K, V, W)  # fmt: skip
             n_field += 2
         for i in range(6):
             acc = 0.0
@@ -468,9 +488,10 @@ def _march_lookahead(times, idx, out, u, p, p_cheap, npm, C, S, K, V, W, dens, h
     return STATUS_OK, n_steps, n_rhs, n_field
 
 @njit(cache=True)
-def _lookahead_g(node_index, s_ahead, y, F, head, wext, G, Q_ab, h, t0, p, npm, C, S, K, V, W) -> None:
-    """G[node_index] = g at the positions extrapolated s_ahead steps from the state y at t_n
-    with the derivative history F (ring, newest at ``head``): [g_t, g_c - g_t] (m/s^2)."""
+def _lookahead_g(node_index, s_ahead, y, F, head, wext, G, row, Q_ab, h, t0, p, npm, C, S, K, V, W) -> None:
+    """G[row] = g at node ``node_index`` (t0 + node_index h), at the positions extrapolated
+    s_ahead steps from the state y at t_n with the derivative history F (ring, newest at
+    ``head``): [g_t, g_c - g_t] (m/s^2)."""
     k = Q_ab.shape[0]
     _poly_weights(Q_ab, s_ahead, wext)
     rx = y[0]
@@ -480,19 +501,158 @@ def _lookahead_g(node_index, s_ahead, y, F, head, wext, G, Q_ab, h, t0, p, npm, 
     dy = y[7]
     dz = y[8]
     for j in range(k):
-        row = (head + j) % (k + 1)
-        rx += h * wext[j] * F[row, 0]
-        ry += h * wext[j] * F[row, 1]
-        rz += h * wext[j] * F[row, 2]
-        dx += h * wext[j] * F[row, 6]
-        dy += h * wext[j] * F[row, 7]
-        dz += h * wext[j] * F[row, 8]
-    t = t0 + node_index * h
+        r = (head + j) % (k + 1)
+        rx += h * wext[j] * F[r, 0]
+        ry += h * wext[j] * F[r, 1]
+        rz += h * wext[j] * F[r, 2]
+        dx += h * wext[j] * F[r, 6]
+        dy += h * wext[j] * F[r, 7]
+        dz += h * wext[j] * F[r, 8]
+    _harmonic_forcing(t0 + node_index * h, rx, ry, rz, dx, dy, dz, p, npm, C, S, K, V, W, G, row)
+
+
+@njit(cache=True)
+def _harmonic_forcing(t, rx, ry, rz, dx, dy, dz, p, npm, C, S, K, V, W, G, row) -> None:
+    """G[row] = [g_t, g_c - g_t] (m/s^2): the harmonic accelerations at the target position
+    (rx, ry, rz) and the chaser at offset (dx, dy, dz) (ECI, m) at t s after the epoch."""
     gtx, gty, gtz, gcx, gcy, gcz = kf._harmonics_eci_pair(t, rx, ry, rz, rx + dx, ry + dy, rz + dz, p, npm, C, S, K, V,
                                                           W)  # fmt: skip
-    G[node_index, 0] = gtx
-    G[node_index, 1] = gty
-    G[node_index, 2] = gtz
-    G[node_index, 3] = gcx - gtx
-    G[node_index, 4] = gcy - gty
-    G[node_index, 5] = gcz - gtz
+    G[row, 0] = gtx
+    G[row, 1] = gty
+    G[row, 2] = gtz
+    G[row, 3] = gcx - gtx
+    G[row, 4] = gcy - gty
+    G[row, 5] = gcz - gtz
+
+
+@njit(cache=True)
+def _start_lookahead(y0, times, out, u, p, p_cheap, p_guess, npm, C, S, K, V, W, dens, h, beta_ab, beta_am, Q, Q0, G0,
+                     Q_ab, c_g, Q_g, before, rtol, atol) -> tuple:  # fmt: skip
+    """Start-up with the look-ahead quadrature (module doc), then :func:`_march_lookahead`.
+    The first k nodes as one block: the derivatives without g by collocation (G0, as the
+    start without look-ahead), g by the centred quadrature of the march (c_g on nodes
+    j - before .. j + after for the step j -> j + 1, nodes before t_0 included). g is
+    evaluated at positions from a guess (DOP853 with the field truncated to GUESS_DEGREE on
+    the nodes 0 .. k - 1; the nodes -before .. -1 and k .. k - 2 + after by the velocity
+    polynomial through the guess's nodes integrated), then (START_PASSES_LOOKAHEAD = 2) again at the block's
+    converged nodes 1 .. k - 1 and at the nodes after them extrapolated from the block as in
+    the march. Returns as :func:`integrate_multistep`."""
+    n = 12
+    k = beta_ab.size
+    m = c_g.size
+    after = m - before - 1
+    t0 = times[0]
+    last = k - 2 + after  # the last node the block's steps need
+    n_g = before + last + 1  # g at the nodes -before .. last: row node + before
+    grid = np.empty(last + 1)
+    for j in range(last + 1):
+        grid[j] = t0 + j * h
+    yg = np.empty((k, n))
+    status, n_dop, n_rej = kf.integrate_full(y0, grid[:k], u, p_guess, npm, C, S, K, V, W, dens, rtol, atol, yg)
+    if status != STATUS_OK:
+        return status, 0, 0, 0
+    n_rhs = 12 * (n_dop + n_rej) + 1
+    Gn = np.empty((n_g, 6))
+    w0 = np.empty(k)
+    for r in range(n_g):
+        node = r - before
+        if 0 <= node < k:
+            _harmonic_forcing(grid[node], yg[node, 0], yg[node, 1], yg[node, 2], yg[node, 6], yg[node, 7], yg[node, 8],
+                              p, npm, C, S, K, V, W, Gn, r)  # fmt: skip
+        else:  # outside the block: the velocity polynomial through the guess's nodes 0 .. k - 1 integrated
+            _poly_weights(Q0, float(node), w0)
+            pos = np.empty(6)
+            for i in range(3):
+                a_t = y0[i]
+                a_r = y0[6 + i]
+                for q in range(k):
+                    a_t += h * w0[q] * yg[q, 3 + i]
+                    a_r += h * w0[q] * yg[q, 9 + i]
+                pos[i] = a_t
+                pos[3 + i] = a_r
+            _harmonic_forcing(t0 + node * h, pos[0], pos[1], pos[2], pos[3], pos[4], pos[5], p, npm, C, S, K, V, W, Gn,
+                              r)  # fmt: skip
+    n_field = 2 * n_g
+    ys = np.empty((k, n))
+    Fc = np.empty((k, n))  # derivatives without g at the block's nodes
+    sun_moon = np.empty((k, 6))
+    for j in range(k):
+        for i in range(n):
+            ys[j, i] = yg[j, i]
+        sun, moon = kf.third_bodies(grid[j], p)
+        sun_moon[j, 0], sun_moon[j, 1], sun_moon[j, 2] = sun
+        sun_moon[j, 3], sun_moon[j, 4], sun_moon[j, 5] = moon
+        kf.rhs_full_sun_moon(grid[j], ys[j], u, p_cheap, npm, C, S, K, V, W, dens, sun, moon, Fc[j])
+    n_rhs += k
+    dv = np.zeros((k, 6))  # velocity increments from g over [t_0, t_j] (target; chaser - target)
+    Fr = np.empty((k + 1, n))
+    wext = np.empty(k)
+    span = (k - 1) * h
+    for start_pass in range(START_PASSES_LOOKAHEAD):
+        if start_pass > 0:  # g at the converged nodes and extrapolated from them beyond
+            for j in range(1, k):
+                _harmonic_forcing(grid[j], ys[j, 0], ys[j, 1], ys[j, 2], ys[j, 6], ys[j, 7], ys[j, 8], p, npm, C, S, K,
+                                  V, W, Gn, before + j)  # fmt: skip
+            for j in range(k):
+                for i in range(n):
+                    Fr[j, i] = Fc[k - 1 - j, i]
+            for node in range(k, last + 1):
+                _lookahead_g(node, float(node - (k - 1)), ys[k - 1], Fr, 0, wext, Gn, before + node, Q_ab, h, t0, p,
+                             npm, C, S, K, V, W)  # fmt: skip
+            n_field += 2 * (last)
+        for j in range(1, k):
+            for i in range(6):
+                acc = 0.0
+                for q in range(m):
+                    acc += c_g[q] * Gn[j - 1 + q, i]  # nodes j - 1 - before .. j - 1 + after
+                dv[j, i] = dv[j - 1, i] + h * acc
+        converged = False
+        for _ in range(MAX_START_ITERATIONS):
+            change_t = 0.0
+            change_r = 0.0
+            for j in range(1, k):
+                for i in range(n):
+                    acc = 0.0
+                    for q in range(k):
+                        acc += G0[j, q] * Fc[q, i]
+                    val = y0[i] + h * acc
+                    if i % 6 >= 3:
+                        val += dv[j, (i // 6) * 3 + i % 6 - 3]
+                    change = abs(val - ys[j, i]) * (1.0 if (i % 6) < 3 else span)
+                    if i < 6:
+                        change_t = max(change_t, change)
+                    else:
+                        change_r = max(change_r, change)
+                    ys[j, i] = val
+            for j in range(1, k):
+                sun = (sun_moon[j, 0], sun_moon[j, 1], sun_moon[j, 2])
+                moon = (sun_moon[j, 3], sun_moon[j, 4], sun_moon[j, 5])
+                kf.rhs_full_sun_moon(grid[j], ys[j], u, p_cheap, npm, C, S, K, V, W, dens, sun, moon, Fc[j])
+            n_rhs += k - 1
+            if change_t < START_TOL_TARGET_M and change_r < START_TOL_RELATIVE_M:
+                converged = True
+                break
+        if not converged:
+            return STATUS_START_NOT_CONVERGED, 0, n_rhs, 0
+    # samples inside the block: collocation polynomial of the derivatives without g + the quadrature of g
+    wg = np.empty(m)
+    idx = 1
+    while idx < times.size and times[idx] <= grid[k - 1]:
+        s_ = (times[idx] - t0) / h
+        _poly_weights(Q0, s_, w0)
+        step = min(int(s_), k - 2)
+        _poly_weights(Q_g, s_ - step, wg)
+        for i in range(n):
+            acc = 0.0
+            for q in range(k):
+                acc += w0[q] * Fc[q, i]
+            out[idx, i] = y0[i] + h * acc
+        for i in range(6):
+            acc = 0.0
+            for q in range(m):
+                acc += wg[q] * Gn[step + q, i]
+            out[idx, 3 + (i // 3) * 6 + i % 3] += dv[step, i] + h * acc
+        idx += 1
+    G_start = Gn[before:, :].copy()  # nodes 0 .. last
+    return _march_lookahead(times, idx, out, u, p, p_cheap, npm, C, S, K, V, W, dens, h, t0, beta_ab, beta_am, Q, Fc,
+                            G_start, ys[k - 1], Q_ab, c_g, Q_g, before, n_rhs, n_field)  # fmt: skip
