@@ -48,7 +48,7 @@ the terms' phases depend on the geometry, so the error at 20 km over 15 geometri
    10   13       894                       0.050     0.15      0.28
    12   13       898                       0.052     0.31      0.47
    10   12      968                        0.030     0.067     0.22
-   12   12      972                        0.030     0.097     0.11   (default)
+   12   12      972                        0.030     0.097     0.11   (cheapest < 0.3 mm without look-ahead)
     6   11     1046                        0.024     0.076     0.16
     6   10     1148                        0.014     0.040     0.075
 
