@@ -96,7 +96,9 @@ def mc(
 
 def _system_module(scenario: str) -> tuple[str, ...]:
     """The module of the scenario's system (for the workers to import up front), read from its TOML
-    without validating it (the campaign does that); () when it cannot be told (the run imports it)."""
+    without validating it (the campaign does that); () when it cannot be told (the run imports it).
+    Resolves the name like ``scenarios.loader.resolve`` without importing the loader: it imports
+    pydantic (~0.5 s), and this runs before the pool starts, whose start it would delay."""
     try:
         import tomllib
         from pathlib import Path as _Path

@@ -235,6 +235,34 @@ def _poly_weights(Q, s, out) -> None:
 
 
 @njit(cache=True)
+def _block_sweep(y0, h, G, F, ys, dv, add_dv, span) -> tuple:
+    """One fixed-point sweep of the start-up block: ys[j] = y0 + h sum_q G[j, q] F[q] for the
+    nodes j = 1 .. k - 1 (plus, if ``add_dv``, the look-ahead velocity increments dv[j] (k, 6):
+    target velocity in columns 0-2, chaser offset velocity in 3-5). Returns the largest change
+    of the target and of the chaser offset, positions in m and velocities times ``span`` (s; a
+    velocity change moves the positions by up to span times it in the next sweep)."""
+    k = G.shape[0]
+    n = y0.size
+    change_t = 0.0
+    change_r = 0.0
+    for j in range(1, k):
+        for i in range(n):
+            acc = 0.0
+            for q in range(k):
+                acc += G[j, q] * F[q, i]
+            val = y0[i] + h * acc
+            if add_dv and i % 6 >= 3:
+                val += dv[j, (i // 6) * 3 + i % 6 - 3]
+            change = abs(val - ys[j, i]) * (1.0 if (i % 6) < 3 else span)
+            if i < 6:
+                change_t = max(change_t, change)
+            else:
+                change_r = max(change_r, change)
+            ys[j, i] = val
+    return change_t, change_r
+
+
+@njit(cache=True)
 def integrate_multistep(y0, times, u, p, npm, C, S, K, V, W, dens, h, beta_ab, beta_am, Q, Q0, G, Q_ab, c_g, Q_g,
                         before, split, rtol, atol, out) -> tuple:  # fmt: skip
     """Integrate through increasing absolute ``times`` (s after the epoch; times[0] = start)
@@ -299,21 +327,7 @@ def integrate_multistep(y0, times, u, p, npm, C, S, K, V, W, dens, h, beta_ab, b
             n_full += k - 1
         converged = False
         for _ in range(MAX_START_ITERATIONS):
-            change_t = 0.0
-            change_r = 0.0
-            for j in range(1, k):
-                for i in range(n):
-                    acc = 0.0
-                    for q in range(k):
-                        acc += G[j, q] * Fs[q, i]
-                    val = y0[i] + h * acc
-                    # a velocity change moves the positions by up to span * change in the next pass
-                    change = abs(val - ys[j, i]) * (1.0 if (i % 6) < 3 else span)
-                    if i < 6:
-                        change_t = max(change_t, change)
-                    else:
-                        change_r = max(change_r, change)
-                    ys[j, i] = val
+            change_t, change_r = _block_sweep(y0, h, G, Fs, ys, Fs, False, span)
             for j in range(1, k):
                 _rhs(grid[j], ys[j], u, p, p_cheap, split, npm, C, S, K, V, W, dens, Hs[j], not split, Fs[j])
             if split:
@@ -608,22 +622,7 @@ def _start_lookahead(y0, times, out, u, p, p_cheap, p_guess, npm, C, S, K, V, W,
                 dv[j, i] = dv[j - 1, i] + h * acc
         converged = False
         for _ in range(MAX_START_ITERATIONS):
-            change_t = 0.0
-            change_r = 0.0
-            for j in range(1, k):
-                for i in range(n):
-                    acc = 0.0
-                    for q in range(k):
-                        acc += G0[j, q] * Fc[q, i]
-                    val = y0[i] + h * acc
-                    if i % 6 >= 3:
-                        val += dv[j, (i // 6) * 3 + i % 6 - 3]
-                    change = abs(val - ys[j, i]) * (1.0 if (i % 6) < 3 else span)
-                    if i < 6:
-                        change_t = max(change_t, change)
-                    else:
-                        change_r = max(change_r, change)
-                    ys[j, i] = val
+            change_t, change_r = _block_sweep(y0, h, G0, Fc, ys, dv, True, span)
             for j in range(1, k):
                 sun = (sun_moon[j, 0], sun_moon[j, 1], sun_moon[j, 2])
                 moon = (sun_moon[j, 3], sun_moon[j, 4], sun_moon[j, 5])
