@@ -671,16 +671,23 @@ class SrfMpc:
         """CSC matrix of ``values`` on the fixed pattern ``entries`` = (rows, cols) (or a callable
         giving them), the same matrix as ``sp.csc_matrix((values, entries), shape)``: the entries
         are distinct, so the COO -> CSC conversion only permutes them; the permutation and the CSC
-        index arrays are computed once per pattern (``key``) and each build only gathers values."""
+        matrix are made once per pattern (``key``) and each build only gathers the values into that
+        matrix's data in place (no scipy construction per solve). The matrix is therefore shared by
+        every build of the pattern: a build's QP is used (solved, checked) before the next build."""
         tmpl = self._csc_patterns.get(key)
         if tmpl is None:
             rows, cols = entries() if callable(entries) else entries
             probe = sp.csc_matrix((np.arange(1.0, len(rows) + 1.0), (rows, cols)), shape=shape)
             if probe.nnz != len(rows):
                 raise AssertionError(f"{key}: repeated entries in a fixed QP pattern")
-            tmpl = self._csc_patterns[key] = (probe.data.astype(np.intp) - 1, probe.indices, probe.indptr)
-        perm, indices, indptr = tmpl
-        return sp.csc_matrix((values[perm], indices, indptr), shape=shape)
+            probe.has_sorted_indices = True
+            probe.has_canonical_format = True
+            probe.indices.flags.writeable = False  # the pattern is fixed: solver adapters may rely on it
+            probe.indptr.flags.writeable = False
+            tmpl = self._csc_patterns[key] = (probe.data.astype(np.intp) - 1, probe)
+        perm, mat = tmpl
+        np.take(values, perm, out=mat.data)
+        return mat
 
     def _rx_const(self, i: int, x: np.ndarray, j: int) -> float:
         """Constant part of a . p at node j: prediction from x_i (j > i) or the recorded value."""
@@ -699,7 +706,7 @@ class SrfMpc:
         wv[wc == 3 * i + axis] = -1.0
         wv[wc == nu + 3 * i + axis] = 1.0
         er, ec, ev = self._eq_coo
-        A_eq = self._csc("A_eq", (np.concatenate([er, wr]), np.concatenate([ec, wc])), (self._n_eq, nz),
+        A_eq = self._csc("A_eq", lambda: (np.concatenate([er, wr]), np.concatenate([ec, wc])), (self._n_eq, nz),
                          np.concatenate([ev, wv]))
         r_rhs = [self._rx_const(i, x, int(j)) / KM for j in self.sched.hop_nodes] if self._n_r else []
         b_eq = np.concatenate([(self.p_d - fN[:3]) / KM, r_rhs, np.zeros(3)])
