@@ -429,7 +429,8 @@ class SrfMpc:
         self.finished = False
         self.last_drift = None  # (tau, states) of the last accepted free drift
         self.solve_log: list[dict] = []
-        self._c_samples: list[tuple[float, float]] = []  # (t, c) navigation samples since the last impulse
+        self._c_times: list[float] = []  # navigation samples of c since the last impulse: times (s)
+        self._c_values: list[float] = []  # ... and values (m/s)
         self.trim_log: list[dict] = []  # per trim node: t, samples used, estimate of c, trim impulse
 
     def drift_estimate(self, t: float, x) -> tuple[float, int]:
@@ -440,7 +441,10 @@ class SrfMpc:
         its error is the single-sample error / sqrt(samples) for white navigation noise (0.5 m /
         0.5 mm/s per axis: 1.0 mm/s per sample). Without samples: the invariant of ``x``."""
         w = self.cfg.drift_estimator_window_s
-        vals = [c for (tc, c) in self._c_samples if w is None or tc >= t - w - 1e-9]
+        if w is None:
+            vals = self._c_values
+        else:
+            vals = [c for (tc, c) in zip(self._c_times, self._c_values) if tc >= t - w - 1e-9]
         if not vals:
             return self.drift_invariant(t, x), 1
         return float(np.mean(vals)), len(vals)
@@ -475,7 +479,8 @@ class SrfMpc:
     def step(self, t: float, x_est) -> Command:
         x = np.asarray(x_est, dtype=float)
         if self.cfg.drift_free_tol_mps is not None and x.size == 6 and np.all(np.isfinite(x)):
-            self._c_samples.append((float(t), self.drift_invariant(t, x)))
+            self._c_times.append(float(t))
+            self._c_values.append(self.drift_invariant(t, x))
         k = int(round(t / self.dt))
         N = self.sched.n
         if k > self.sched.steps[-1] or self.finished:
@@ -505,7 +510,7 @@ class SrfMpc:
                                   "samples": n_samples, "c_estimate_mps": c_hat, "u": u.copy()})
         self.used_l1 += float(np.abs(u).sum())
         if np.any(u) and float(np.linalg.norm(u)) >= self.cfg.min_impulse_mps:  # below the bit nothing fires
-            self._c_samples = []
+            self._c_times, self._c_values = [], []
         if node == N:
             self.finished = True
         info = {"solved": 1.0, "node": float(node), "relax": float(res.relax), "qp_iterations": float(res.iterations),
@@ -533,7 +538,8 @@ class SrfMpc:
             values = self.drift_model.invariants(times, xs[ok]).tolist()
         else:
             values = [float(x[4] + 2.0 * self.n_orb * x[0]) for x in xs[ok]]
-        self._c_samples.extend(zip(times.tolist(), values))
+        self._c_times.extend(times.tolist())
+        self._c_values.extend(values)
 
     def _lift_to_impulse_bit(self, node: int, x: np.ndarray, u: np.ndarray) -> np.ndarray:
         """A trim below the thrusters' minimum impulse bit would fire nothing and leave its drift (up
