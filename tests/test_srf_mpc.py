@@ -193,7 +193,8 @@ def test_without_drift_rows_the_hop_tolerance_leaves_drift(vbar_run):
 def test_fixed_pattern_qp_matrices_equal_a_fresh_coo_build(fixture, request, monkeypatch):
     """_build gathers the values onto a CSC pattern computed once (a permutation of the COO
     entries); its matrices must be exactly those scipy builds from the same (values, (rows, cols))
-    triplets, at first, middle and last nodes, with and without the CBF rows."""
+    triplets, at first, middle and last nodes, with and without the CBF rows. The matrices are
+    refilled in place by the next build of the same pattern, so each build's are copied here."""
     import scipy.sparse as sp
 
     res, ctrl, plan, sched, a = request.getfixturevalue(fixture)
@@ -201,17 +202,18 @@ def test_fixed_pattern_qp_matrices_equal_a_fresh_coo_build(fixture, request, mon
     fast = {}
     for i in (0, 1, sched.n // 2, sched.n):
         for with_cbf in (True, False):
-            fast[i, with_cbf] = ctrl._build(i, x, None, 0, with_cbf=with_cbf)
+            qp = ctrl._build(i, x, None, 0, with_cbf=with_cbf)
+            fast[i, with_cbf] = (qp.A_eq.copy(), qp.G.copy())
 
     def direct(key, entries, shape, values):
         rows, cols = entries() if callable(entries) else entries
         return sp.csc_matrix((values, (rows, cols)), shape=shape)
 
     monkeypatch.setattr(ctrl, "_csc", direct)
-    for (i, with_cbf), qp in fast.items():
+    for (i, with_cbf), (A_eq, G) in fast.items():
         ref = ctrl._build(i, x, None, 0, with_cbf=with_cbf)
-        for got, want in ((qp.A_eq, ref.A_eq), (qp.G, ref.G)):
+        for got, want in ((A_eq, ref.A_eq), (G, ref.G)):
             assert got.shape == want.shape
             assert np.array_equal(got.indptr, want.indptr) and np.array_equal(got.indices, want.indices)
             assert np.array_equal(got.data, want.data)  # explicit zeros of the pattern kept, same order
-    assert ctrl._n_cbf > 0 and fast[0, True].G.shape[0] > fast[0, False].G.shape[0]  # both patterns exercised
+    assert ctrl._n_cbf > 0 and fast[0, True][1].shape[0] > fast[0, False][1].shape[0]  # both patterns exercised

@@ -35,7 +35,7 @@ import importlib
 _HOME = {
     "ClarabelSOCP": "clarabel_socp", "DaqpQP": "daqp_qp", "PiqpQP": "piqp_qp", "HighsLP": "highs_lp",
     "HighsMILP": "highs_lp", "FeasibilityReport": "feasibility", "check_conic_feasibility": "feasibility",
-    "check_feasibility": "feasibility", "max_violation": "feasibility", "ConicProblem": "forms",
+    "check_feasibility": "feasibility", "farkas_margin": "feasibility", "max_violation": "feasibility", "ConicProblem": "forms",
     "LinearProgram": "forms", "QuadraticProgram": "forms", "build_conic_problem": "forms",
     "conic_from_program": "forms", "conic_from_qp": "forms", "soc_rows": "forms", "make_qp_solver": "front",
     "solve_qp": "front",
@@ -74,6 +74,7 @@ __all__ = [
     "build_conic_problem",
     "check_conic_feasibility",
     "check_feasibility",
+    "farkas_margin",
     "conic_from_program",
     "conic_from_qp",
     "make_qp_solver",

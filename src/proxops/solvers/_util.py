@@ -96,9 +96,17 @@ def refill_same_pattern(stored: sp.csc_matrix, value) -> sp.csc_matrix | None:
     in canonical form with exactly ``stored``'s shape and sparsity pattern (an in-place update of a
     fixed-pattern problem: the same entries :func:`csc_matrix` would give, without building a new
     matrix, 0.1-0.2 ms a call); None otherwise (the caller converts and checks ``value``)."""
-    if not (sp.issparse(value) and value.format == "csc" and value.dtype == np.float64
-            and value.has_canonical_format and same_pattern(value, stored)):
+    if not (sp.issparse(value) and value.format == "csc" and value.dtype == np.float64):
         return None
+    source = getattr(stored, "_pattern_source", None)  # read-only index arrays already found equal
+    if not (source is not None and source[0] is value.indices and source[1] is value.indptr
+            and value.shape == stored.shape):
+        if not (value.has_canonical_format and same_pattern(value, stored)):
+            return None
+        if not (value.indices.flags.writeable or value.indptr.flags.writeable):
+            # a fixed pattern the caller shares read-only between updates (it cannot change): the next
+            # update with these arrays skips the comparison (stored's own arrays are never written)
+            stored._pattern_source = (value.indices, value.indptr)
     stored.data[:] = value.data
     return stored
 
@@ -151,7 +159,7 @@ def unsolvable(adapter, crossed_raw_status: str = "crossed_bounds"):
     crossed bounds, a failed set-up), or None when the solver may run; solving before
     ``setup`` is a usage error. ``adapter`` has the
     ``name``, ``_bad``, ``_crossed`` and ``_solver_error`` attributes every adapter keeps."""
-    from proxops.solvers.result import SolverResult, SolveStatus
+    from proxops.solvers.result import SolverResult, SolveStatus, failed_result
 
     if adapter._data is None:
         raise input_error(f"{type(adapter).__name__}.solve", "called before setup", "call setup() first")

@@ -52,13 +52,31 @@ class PiqpQP:
 
     Settings: ``max_iter``, ``eps_abs``, ``eps_rel``, ``verbose``; ``settings`` passes
     native ``piqp.Settings`` attributes (e.g. ``preconditioner_iter``, ``kkt_solver``).
+
+    Infeasibility certificate (``certify_after`` iterations, ``certify_margin`` row units): PIQP 0.7
+    often runs to ``max_iter`` on an infeasible problem instead of reporting it (its iterate then
+    sits at a least-violation point with growing duals). With ``certify_after`` set, ``solve`` first
+    stops after that many iterations; when PIQP has not finished, its duals are checked as a Farkas
+    certificate (:func:`proxops.solvers.feasibility.farkas_margin`): if they prove that every x within
+    the bounds violates some row by more than ``certify_margin``, the result is INFEASIBLE
+    (``raw_status`` "farkas_certificate", ``info["infeasibility_margin"]``); otherwise PIQP solves
+    again with the full ``max_iter`` (PIQP restarts from its own initial point, so this solve is
+    bit-identical to one without the early stop) and its duals are checked once more if it still
+    does not finish. Solves that converge within ``certify_after`` iterations are unchanged.
     """
 
     name = "piqp"
 
     def __init__(self, *, max_iter: int | None = None, eps_abs: float | None = None,
-                 eps_rel: float | None = None, verbose: bool = False, settings: dict | None = None):
+                 eps_rel: float | None = None, verbose: bool = False, settings: dict | None = None,
+                 certify_after: int | None = None, certify_margin: float = 0.0):
         self._piqp = _util.import_solver("piqp", "piqp")
+        if certify_after is not None and not int(certify_after) >= 1:
+            raise input_error("certify_after", certify_after, "must be an iteration count >= 1 (or None)")
+        if not (certify_margin >= 0.0 and math.isfinite(certify_margin)):
+            raise input_error("certify_margin", certify_margin, "must be finite and >= 0 (row units)")
+        self._certify_after = None if certify_after is None else int(certify_after)
+        self._certify_margin = float(certify_margin)
         native = dict(settings or {})
         if max_iter is not None:
             native["max_iter"] = int(max_iter)
@@ -218,6 +236,43 @@ class PiqpQP:
             self._solver_error = error_message(exc)
 
     # ------------------------------------------------------------------ solve
+    def _solve_certified(self):
+        """PIQP's solve with the early Farkas check (class doc): (raw status, certified margin or
+        None, iterations spent in an abandoned first attempt)."""
+        solver = self._solver
+        first = self._certify_after
+        full = solver.settings.max_iter
+        if first is None or first >= full:
+            raw = solver.solve()
+            return raw, self._certified(raw), 0
+        solver.settings.max_iter = first
+        try:
+            raw = solver.solve()
+        finally:
+            solver.settings.max_iter = full
+        if getattr(raw, "name", "") != "PIQP_MAX_ITER_REACHED":
+            return raw, None, 0
+        margin = self._certified(raw)
+        if margin is not None:
+            return raw, margin, 0
+        spent = int(solver.result.info.iter)
+        raw = solver.solve()
+        return raw, self._certified(raw), spent
+
+    def _certified(self, raw) -> float | None:
+        """Farkas margin of PIQP's current duals when it ran out of iterations and they prove
+        infeasibility by more than ``certify_margin``; else None."""
+        if self._certify_after is None or getattr(raw, "name", "") != "PIQP_MAX_ITER_REACHED":
+            return None
+        from proxops.solvers.feasibility import farkas_margin
+
+        d, res = self._data, self._solver.result
+        margin = farkas_margin(d["A"] if self.p else None, d["b"] if self.p else None,
+                               d["G"] if self.m else None, d["h_l"] if self.m else None,
+                               d["h_u"] if self.m else None, d["x_lb"], d["x_ub"],
+                               np.array(res.y), np.array(res.z_l), np.array(res.z_u))
+        return margin if margin > self._certify_margin else None
+
     def solve(self) -> SolverResult:
         """Solve the current problem and return a :class:`SolverResult`."""
         blocked = _util.unsolvable(self, "crossed_bounds")
@@ -228,16 +283,21 @@ class PiqpQP:
         rebuilt, self._rebuilt = self._rebuilt, False
         try:
             t0 = time.perf_counter()
-            raw = self._solver.solve()
+            raw, margin, spent = self._solve_certified()
             wall = time.perf_counter() - t0
             res = self._solver.result
             info = res.info
             x = np.array(res.x, dtype=float)
             objective = float(info.primal_obj)
-            iterations = int(info.iter)
+            iterations = spent + int(info.iter)
             dual = {"y": np.array(res.y), "z_l": np.array(res.z_l), "z_u": np.array(res.z_u)}
         except Exception as exc:
             return failed_result(self.name, error_message(exc), rebuilt=rebuilt)
+        if margin is not None:
+            return SolverResult(SolveStatus.INFEASIBLE, None, math.nan, iterations, wall, self.name,
+                                {"raw_status": "farkas_certificate", "rebuilt": rebuilt, "dual": dual,
+                                 "infeasibility_margin": margin, "primal_res": float(info.primal_res),
+                                 "dual_res": float(info.dual_res)})
         raw_name = getattr(raw, "name", str(raw))
         status = STATUS_MAP.get(raw_name, SolveStatus.NUMERICAL_ERROR)
         has_x = status in (SolveStatus.OPTIMAL, SolveStatus.MAX_ITER) and bool(np.isfinite(x).all())
