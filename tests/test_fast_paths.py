@@ -235,9 +235,15 @@ def test_fork_server_registers_its_quick_exit_and_workers_inherit_only_the_pid()
     (["mc", "s", "--runs", "0"], None),           # invalid: mc reports it, nothing starts early
     (["mc", "s", "--workers", "two"], None),
     (["mc", "s", "--runs"], None),                # missing value
+    (["mc", "s", "--seed", "-1"], None),
+    (["mc", "s", "--seed", str(2**63)], None),
+    (["mc", "s", "--connect-timeout-s", "nan"], None),
+    (["mc", "s", "--connect-timeout-s", "0"], None),
+    (["mc", "s", "--seed", "0", "--connect-timeout-s", "0.5"], ("s", None, None, [])),
     (["mc", "s", "--help"], None),
     (["mc", "s", "--scheduler", "tcp://h:1"], None),  # Dask: no local pool
     (["mc", "s", "--frobnicate"], None),          # unknown option
+    (["mc", "s", "-n=5"], None),                  # click reads the value "=5": left to mc
     (["mc", "s", "t"], None),                     # two scenarios
     (["mc"], None),
     (["run", "mc"], None),                        # another command

@@ -16,6 +16,7 @@ heavy (the execution layer: multiprocessing, concurrent.futures).
 from __future__ import annotations
 
 import json
+import math
 import os
 from pathlib import Path
 from typing import Sequence
@@ -26,8 +27,8 @@ WORKER_MODULES = ("proxops.analysis.campaign_worker", "proxops.analysis.runs", "
 WARMUP_MODULE = "proxops.analysis.worker_warmup"  # imported last by the fork server: builds the scenario
 
 _VALUE_OPTIONS = {"--runs": "runs", "-n": "runs", "--workers": "workers", "-w": "workers",
-                  "--scheduler": "scheduler", "--seed": None, "--out": None, "--set": "set",
-                  "--connect-timeout-s": None}
+                  "--scheduler": "scheduler", "--seed": "seed", "--out": None, "--set": "set",
+                  "--connect-timeout-s": "timeout"}
 _FLAGS = {"--resume", "--series", "--no-series", "--report", "--no-report", "--progress", "--no-progress",
           "--json"}
 
@@ -88,8 +89,8 @@ def _read_mc_argv(argv: list[str]):
         name, eq, value = token.partition("=")
         if name in _FLAGS and not eq:
             continue
-        if name not in _VALUE_OPTIONS:
-            return None  # --help, a typo, an option added later: mc decides
+        if name not in _VALUE_OPTIONS or (eq and not name.startswith("--")):
+            return None  # --help, a typo, an option added later, -n=5: mc decides
         if not eq:
             if k >= len(rest):
                 return None
@@ -100,6 +101,18 @@ def _read_mc_argv(argv: list[str]):
             return None
         if field == "set":
             values["set"].append(value)
+        elif field == "seed":  # checked like mc does, so that its error is not preceded by a pool start
+            try:
+                if not 0 <= int(value) < 2**63:
+                    return None
+            except ValueError:
+                return None
+        elif field == "timeout":
+            try:
+                if not 0 < float(value) < math.inf:
+                    return None
+            except ValueError:
+                return None
         elif field is not None:
             try:
                 number = int(value)
