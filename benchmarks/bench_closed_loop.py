@@ -336,16 +336,43 @@ def cli_campaign_times(src: Path) -> dict:
             for n in runs + ["50"]:
                 folder = Path(tmp) / f"{name}-{n}"
                 cmd = [sys.executable, "-m", "proxops.entry", "mc", name, "--runs", n, "--workers", "2",
-                       "--seed", "1", "--out", str(folder), "--no-progress", "--json"]
-                t0 = time.perf_counter()
-                proc = subprocess.run(cmd, env=env, capture_output=True, text=True)
-                wall = time.perf_counter() - t0
-                if proc.returncode != 0:
-                    raise RuntimeError(f"{' '.join(cmd)} failed:\n{proc.stderr[-2000:]}")
+                       "--seed", "1", "--out", str(folder), "--progress", "--json"]
+                phases, stdout = mc_phases(cmd, env)
                 shutil.rmtree(folder, ignore_errors=True)
-            out[name] = {"wall_s": wall, "succeeded": json.loads(proc.stdout).get("succeeded")}
+            out[name] = {**phases, "succeeded": json.loads(stdout).get("succeeded")}
     out["load_after"] = os.getloadavg()[0]
     return out
+
+
+def mc_phases(cmd: list[str], env: dict) -> tuple[dict, str]:
+    """Run a ``proxops mc ... --progress`` command and time its phases from its stderr (the progress
+    bar): ``start_s`` launch to the bar's first output (imports, pool start, checks, manifest; the
+    bar appears just before the first run is sent), ``runs_s`` to its last output (the bar closed
+    after the last run), ``tail_s`` from there until the process has exited AND its stderr is closed
+    by every process holding it (Parquet compaction, statistics, printing, pool and fork server
+    exit: what ``proxops mc ... 2>&1 | tee`` waits for). ``wall_s`` is the sum."""
+    import threading
+
+    t0 = time.perf_counter()
+    proc = subprocess.Popen(cmd, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    chunks: list[bytes] = []
+    reader = threading.Thread(target=lambda: chunks.append(proc.stdout.read()), daemon=True)
+    reader.start()
+    first = last = None
+    errors = b""
+    while True:
+        chunk = proc.stderr.read1(4096)
+        if not chunk:
+            break
+        last = time.perf_counter() - t0
+        first = last if first is None else first
+        errors += chunk
+    proc.wait()
+    reader.join()
+    end = time.perf_counter() - t0
+    if proc.returncode != 0 or first is None:
+        raise RuntimeError(f"{' '.join(cmd)} failed:\n{errors.decode(errors='replace')[-2000:]}")
+    return {"wall_s": end, "start_s": first, "runs_s": last - first, "tail_s": end - last}, chunks[0].decode()
 
 
 def cold_compile(src: Path) -> dict:
@@ -449,6 +476,11 @@ def report(new: dict, old: dict, old_label: str) -> None:
             n, o = new["cli_mc"][name], old.get("cli_mc", {}).get(name, {})
             print(f"  {name:<22} {n['wall_s']:6.2f} s (base {o.get('wall_s', float('nan')):6.2f} s) "
                   f"{_ratio(o.get('wall_s'), n['wall_s'])}  goal < 5 s  ({n['succeeded']}/50 succeeded)")
+            if "start_s" in n:
+                nan = float("nan")
+                print(f"    start-up {n['start_s']:.2f} s (base {o.get('start_s', nan):.2f}), runs {n['runs_s']:.2f} s "
+                      f"(base {o.get('runs_s', nan):.2f}), tail {n['tail_s']:.2f} s (base {o.get('tail_s', nan):.2f}); "
+                      f"goal start-up + tail <= 0.6 s")
     print(f"\nload average: {new.get('load_before', float('nan')):.2f} -> {new.get('load_after', float('nan')):.2f} "
           f"(this tree), {old.get('load_before', float('nan')):.2f} -> {old.get('load_after', float('nan')):.2f} (baseline)")
 

@@ -200,3 +200,67 @@ def test_fork_server_warm_up_builds_the_scenario_once_and_ignores_bad_input():
     )
     proc = _run(["-c", code])
     assert proc.returncode == 0 and proc.stdout.strip() == "ok", proc.stderr
+
+
+# --------------------------------------------------------------------------- mc start-up and exit
+def test_fork_server_registers_its_quick_exit_and_workers_inherit_only_the_pid():
+    """The pool's fork server imports proxops.exec.forkserver_exit first: there it records its pid and
+    registers the os._exit handler; a worker forked from it sees the server's pid (its parent's), not
+    its own, so the handler's pid check keeps it inert in workers. Imported elsewhere it registers
+    nothing."""
+    from proxops.exec.backends import START_METHOD
+
+    if START_METHOD != "forkserver":
+        pytest.skip("no fork server on this platform")
+    code = (
+        "import os\n"
+        "from proxops.exec import backends, forkserver_exit\n"
+        "assert forkserver_exit.SERVER_PID is None\n"
+        "pool = backends._new_pool(2)\n"
+        "probe = \"__import__('proxops.exec.forkserver_exit', fromlist=['x']).SERVER_PID\"\n"
+        "print(pool.submit(eval, probe).result(), pool.submit(os.getppid).result(), pool.submit(os.getpid).result())\n"
+        "pool.shutdown()\n"
+    )
+    proc = _run(["-c", code])
+    assert proc.returncode == 0, proc.stderr
+    recorded, worker_parent, worker = (int(x) for x in proc.stdout.split())
+    assert recorded == worker_parent != worker
+
+
+@pytest.mark.parametrize("argv, expected", [
+    (["mc", "srf-vbar-mc", "--runs", "50", "--workers", "2", "--out", "o"], ("srf-vbar-mc", 50, 2, [])),
+    (["--debug", "mc", "-n", "3", "x.toml", "--set=sim.seed=4", "--set", "a.b=1", "--json"],
+     ("x.toml", 3, None, ["sim.seed=4", "a.b=1"])),
+    (["mc", "s", "--runs=1", "-w", "1", "--no-progress", "--resume"], ("s", 1, 1, [])),
+    (["mc", "s", "--runs", "0"], None),           # invalid: mc reports it, nothing starts early
+    (["mc", "s", "--workers", "two"], None),
+    (["mc", "s", "--runs"], None),                # missing value
+    (["mc", "s", "--seed", "-1"], None),
+    (["mc", "s", "--seed", str(2**63)], None),
+    (["mc", "s", "--connect-timeout-s", "nan"], None),
+    (["mc", "s", "--connect-timeout-s", "0"], None),
+    (["mc", "s", "--seed", "0", "--connect-timeout-s", "0.5"], ("s", None, None, [])),
+    (["mc", "s", "--help"], None),
+    (["mc", "s", "--scheduler", "tcp://h:1"], None),  # Dask: no local pool
+    (["mc", "s", "--frobnicate"], None),          # unknown option
+    (["mc", "s", "-n=5"], None),                  # click reads the value "=5": left to mc
+    (["mc", "s", "t"], None),                     # two scenarios
+    (["mc"], None),
+    (["run", "mc"], None),                        # another command
+])
+def test_early_prestart_reads_only_unambiguous_mc_command_lines(argv, expected):
+    from proxops.cli_prestart import _read_mc_argv
+
+    assert _read_mc_argv(argv) == expected
+
+
+def test_mc_bad_scenario_after_early_prestart_is_one_error_line_exit_2(tmp_path):
+    """proxops.entry starts the pool (and the fork server's warm-up of the scenario) before parsing;
+    a scenario that does not exist still ends with one ``error:`` line naming it, exit code 2, and
+    no folder written."""
+    proc = _run(["-m", "proxops.entry", "mc", "no-such-scenario", "--runs", "4", "--workers", "2",
+                 "--out", str(tmp_path / "o"), "--no-progress"])
+    lines = [line for line in proc.stderr.splitlines() if line.strip()]
+    assert proc.returncode == 2, proc.stderr
+    assert len(lines) == 1 and lines[0].startswith("error:") and "no-such-scenario" in lines[0], proc.stderr
+    assert not (tmp_path / "o").exists()

@@ -7,7 +7,6 @@ from __future__ import annotations
 
 import json
 import math
-import os
 import sys
 from pathlib import Path
 from typing import Annotated, Optional
@@ -15,11 +14,6 @@ from typing import Annotated, Optional
 import typer
 
 from proxops.errors import ProxopsError, ProxopsInputError
-
-
-# What every campaign worker imports (the system module comes with the first check)
-WORKER_MODULES = ("proxops.analysis.campaign_worker", "proxops.analysis.runs", "proxops.scenarios.loader",
-                  "proxops.systems.base")
 
 
 def mc(
@@ -48,22 +42,10 @@ def mc(
         raise ProxopsInputError(f"--connect-timeout-s {connect_timeout_s}: give a positive, finite number of seconds")
     if seed is not None and not 0 <= seed < 2**63:
         raise ProxopsInputError(f"--seed {seed}: give a whole number from 0 to 2^63 - 1")
-    if scheduler is None:  # local workers start now: their imports overlap this process's
-        from proxops.exec.backends import START_METHOD, default_workers, prestart_pool
+    if scheduler is None:  # local workers start now (if proxops.entry has not): their imports overlap ours
+        from proxops.cli_prestart import prestart
 
-        n_workers = workers if workers is not None else default_workers()
-        modules = WORKER_MODULES + _system_module(scenario)
-        if START_METHOD != "forkserver":
-            prestart_pool(min(n_workers, runs) if runs is not None else n_workers, modules)
-        else:  # the fork server also builds the scenario once, for every worker it forks
-            from proxops.analysis.worker_warmup import ENV
-
-            os.environ[ENV] = json.dumps({"scenario": scenario, "overrides": list(set_)})
-            try:
-                prestart_pool(min(n_workers, runs) if runs is not None else n_workers,
-                              modules + ("proxops.analysis.worker_warmup",))
-            finally:
-                os.environ.pop(ENV, None)
+        prestart(scenario, runs, workers, set_)
     from proxops.analysis.campaign import CampaignInterrupted, run_campaign, write_report
     from proxops.cli_common import Interrupted
 
@@ -92,26 +74,6 @@ def mc(
         typer.echo(f"error: all {summary['runs']} runs failed (first error: {_first_error(result)}); "
                    "exit code 3", err=True)
         raise typer.Exit(3)
-
-
-def _system_module(scenario: str) -> tuple[str, ...]:
-    """The module of the scenario's system (for the workers to import up front), read from its TOML
-    without validating it (the campaign does that); () when it cannot be told (the run imports it).
-    Resolves the name like ``scenarios.loader.resolve`` without importing the loader: it imports
-    pydantic (~0.5 s), and this runs before the pool starts, whose start it would delay."""
-    try:
-        import tomllib
-        from pathlib import Path as _Path
-
-        from proxops.scenarios.registry import SYSTEM_MODULES
-
-        path = _Path(scenario)
-        if not path.is_file():
-            path = _Path(__file__).parent / "scenarios" / "builtin" / f"{scenario}.toml"
-        module = SYSTEM_MODULES.get(tomllib.loads(path.read_text()).get("system"))
-        return (module,) if module else ()
-    except Exception:  # noqa: BLE001 - a bad scenario is reported by the campaign's own check
-        return ()
 
 
 def _first_error(result) -> str:

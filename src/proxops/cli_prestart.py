@@ -1,0 +1,145 @@
+"""Start the local worker pool of ``proxops mc`` before the command line is even parsed.
+
+The workers of a campaign cannot run before the pool's fork server has imported the worker modules
+and built the scenario once (:mod:`proxops.analysis.worker_warmup`): about 1.2 s of CPU for an srf
+campaign (numba's import and kernel cache load are most of it), the critical path of the start.
+:func:`proxops.entry.main` calls :func:`prestart_from_argv` first thing, so the server starts
+before this process imports the CLI (typer, click: 0.13-0.25 s, measured); ``mc`` then calls
+:func:`prestart` again with its parsed options, which does nothing when the same pool exists.
+
+The early read of the arguments is a best effort that never decides anything: anything it does not
+recognise (an unknown option, a missing value, ``--help``, a bad number, ``--scheduler``) leaves
+the start to ``mc``, which validates every option and reports bad input as usual. Imports nothing
+heavy (the execution layer: multiprocessing, concurrent.futures).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+from pathlib import Path
+from typing import Sequence
+
+# What every campaign worker imports (the system module comes with the first check)
+WORKER_MODULES = ("proxops.analysis.campaign_worker", "proxops.analysis.runs", "proxops.scenarios.loader",
+                  "proxops.systems.base")
+WARMUP_MODULE = "proxops.analysis.worker_warmup"  # imported last by the fork server: builds the scenario
+
+_VALUE_OPTIONS = {"--runs": "runs", "-n": "runs", "--workers": "workers", "-w": "workers",
+                  "--scheduler": "scheduler", "--seed": "seed", "--out": None, "--set": "set",
+                  "--connect-timeout-s": "timeout"}
+_FLAGS = {"--resume", "--series", "--no-series", "--report", "--no-report", "--progress", "--no-progress",
+          "--json"}
+
+
+def prestart(scenario: str, runs: int | None, workers: int | None, overrides: Sequence[str] = ()) -> None:
+    """Start the local pool a campaign of ``scenario`` with these options uses (no effect when it
+    exists or with fewer than 2 workers): its workers' start-up overlaps this process's work."""
+    from proxops.exec.backends import START_METHOD, default_workers, prestart_pool
+
+    n_workers = workers if workers is not None else default_workers()
+    if runs is not None:
+        n_workers = min(n_workers, runs)
+    modules = WORKER_MODULES + system_module(scenario)
+    if START_METHOD != "forkserver":
+        prestart_pool(n_workers, modules)
+        return
+    from proxops.analysis.worker_warmup import ENV
+
+    os.environ[ENV] = json.dumps({"scenario": scenario, "overrides": list(overrides)})
+    try:  # the fork server also builds the scenario once, for every worker it forks
+        prestart_pool(n_workers, modules + (WARMUP_MODULE,))
+    finally:
+        os.environ.pop(ENV, None)
+
+
+def prestart_from_argv(argv: Sequence[str]) -> None:
+    """:func:`prestart` for ``proxops [--debug] mc SCENARIO [options]`` when ``argv`` (without the
+    program name) reads unambiguously as that with valid numbers and no ``--scheduler``; otherwise
+    nothing."""
+    parsed = _read_mc_argv(list(argv))
+    if parsed is None:
+        return
+    try:
+        prestart(*parsed)
+    except Exception:  # noqa: BLE001 - mc's own call of prestart reports what went wrong
+        return
+
+
+def _read_mc_argv(argv: list[str]):
+    """(scenario, runs, workers, overrides) or None when in any doubt."""
+    while argv and argv[0] == "--debug":
+        argv = argv[1:]
+    if not argv or argv[0] != "mc":
+        return None
+    values: dict = {"runs": None, "workers": None, "set": []}
+    positional: list[str] = []
+    rest = argv[1:]
+    k = 0
+    while k < len(rest):
+        token = rest[k]
+        k += 1
+        if token == "--":
+            positional.extend(rest[k:])
+            break
+        if not token.startswith("-") or token == "-":
+            positional.append(token)
+            continue
+        name, eq, value = token.partition("=")
+        if name in _FLAGS and not eq:
+            continue
+        if name not in _VALUE_OPTIONS or (eq and not name.startswith("--")):
+            return None  # --help, a typo, an option added later, -n=5: mc decides
+        if not eq:
+            if k >= len(rest):
+                return None
+            value = rest[k]
+            k += 1
+        field = _VALUE_OPTIONS[name]
+        if field == "scheduler":
+            return None
+        if field == "set":
+            values["set"].append(value)
+        elif field == "seed":  # checked like mc does, so that its error is not preceded by a pool start
+            try:
+                if not 0 <= int(value) < 2**63:
+                    return None
+            except ValueError:
+                return None
+        elif field == "timeout":
+            try:
+                if not 0 < float(value) < math.inf:
+                    return None
+            except ValueError:
+                return None
+        elif field is not None:
+            try:
+                number = int(value)
+            except ValueError:
+                return None
+            if number < 1:
+                return None
+            values[field] = number
+    if len(positional) != 1:
+        return None
+    return positional[0], values["runs"], values["workers"], values["set"]
+
+
+def system_module(scenario: str) -> tuple[str, ...]:
+    """The module of the scenario's system (for the workers to import up front), read from its TOML
+    without validating it (the campaign does that); () when it cannot be told (the run imports it).
+    Resolves the name like ``scenarios.loader.resolve`` without importing the loader: it imports
+    pydantic (~0.5 s), and this runs before the pool starts, whose start it would delay."""
+    try:
+        import tomllib
+
+        from proxops.scenarios.registry import SYSTEM_MODULES
+
+        path = Path(scenario)
+        if not path.is_file():
+            path = Path(__file__).parent / "scenarios" / "builtin" / f"{scenario}.toml"
+        module = SYSTEM_MODULES.get(tomllib.loads(path.read_text()).get("system"))
+        return (module,) if module else ()
+    except Exception:  # noqa: BLE001 - a bad scenario is reported by the campaign's own check
+        return ()
