@@ -191,6 +191,48 @@ def _cert(R, F, fmap, g, res) -> dict:
 
 
 # --------------------------------------------------------------------------- mc
+class _AnalyticMaps:
+    """What the campaign's outcomes are not needed for, computed in a thread of this (otherwise
+    idle) process while the pool runs the campaign: the grid, the certified maps of every
+    combination (one field cache shared by all of them), the natural-neighbour geometry of the IC
+    sites on the grid (memoised in feasibility_maps) and the plotting import. Overlapped, this work
+    shares the two cores with the campaign instead of running alone on one core after it.
+    ``result()`` joins the thread and re-raises its error, if any."""
+
+    def __init__(self, omegas, amaxs, positions: np.ndarray, grid: int):
+        import threading
+
+        self._args = (omegas, amaxs, positions, grid)
+        self._value = self._error = None
+        self._thread = threading.Thread(target=self._run, name="reach-analytic-maps", daemon=True)
+        self._thread.start()
+
+    def _run(self) -> None:
+        try:
+            self._value = self._compute(*self._args)
+        except BaseException as exc:  # noqa: BLE001 - re-raised in result()
+            self._error = exc
+
+    @staticmethod
+    def _compute(omegas, amaxs, positions, grid):
+        from proxops.analysis import feasibility_maps as F
+        from proxops.analysis import reach as R
+
+        g = R.body_grid(n_points=grid)
+        cache: dict = {}
+        results = {(w, a): R.analyse_combo(g, w, a, backward=False, cache=cache) for w in omegas for a in amaxs}
+        F.prepare_grid_interpolation(positions, g)
+        import proxops.plotting.reach  # noqa: F401 (matplotlib: 0.4-0.6 s)
+
+        return g, results
+
+    def result(self):
+        self._thread.join()
+        if self._error is not None:
+            raise self._error
+        return self._value
+
+
 @reach_app.command("mc")
 @_friendly
 def mc(
@@ -226,15 +268,16 @@ def mc(
     _check_rates(omegas, amaxs)
     positions = F.mc_initial_positions(n_y=n_y, n_x=n_x)
     t0 = time.perf_counter()
+    analytic = _AnalyticMaps(omegas, amaxs, positions, grid)  # computed while the campaign runs
     outcomes, wall, new_runs = F.run_mc(out, omegas, amaxs, positions, duration_s, workers, scheduler, resume,
                                         progress)
-    g = R.body_grid(n_points=grid)
-    rows, maps, results = [], {}, {}
+    g, results = analytic.result()
+    rows, maps = [], {}
     for w in omegas:
         for a in amaxs:
-            res = R.analyse_combo(g, w, a, backward=False)
+            res = results[(w, a)]
             fmap = F.feasibility_map(outcomes, g, w, a)
-            maps[(w, a)], results[(w, a)] = fmap, res
+            maps[(w, a)] = fmap
             row = {"omega_deg_s": w, "a_max_mps2": a, "nominal_pct": res.pct["nominal"], **_cert(R, F, fmap, g, res)}
             if viability_check:
                 row.update(_viability(R, fmap, w, a, duration_s))
