@@ -191,6 +191,35 @@ def _cert(R, F, fmap, g, res) -> dict:
 
 
 # --------------------------------------------------------------------------- mc
+PAPER_OMEGAS_DEG_S = (1.0, 2.0, 3.0, 4.0, 5.0)  # = analysis.reach's, known here before importing it
+PAPER_A_MAX_MPS2 = (0.20, 0.10, 0.05, 0.02)
+
+
+def _prestart_workers(workers: Optional[int], n_runs: int, duration_s: float) -> None:
+    """Start the local pool now, as ``proxops mc`` does (exec.backends.prestart_pool): the workers'
+    start-up overlaps this process's imports. With the fork server, the server also builds the
+    §9 closed loop once (los-tumble in its Monte Carlo configuration; worker_warmup, best effort),
+    so each forked worker starts with the los modules imported and its kernels loaded."""
+    import json as _json
+    import os
+
+    from proxops.analysis.worker_warmup import ENV
+    from proxops.cli_campaign import WORKER_MODULES
+    from proxops.exec.backends import START_METHOD, default_workers, prestart_pool
+
+    n_workers = min(workers if workers is not None else default_workers(), n_runs)
+    modules = WORKER_MODULES + ("proxops.systems.los",)
+    if START_METHOD != "forkserver":
+        prestart_pool(n_workers, modules)
+        return
+    os.environ[ENV] = _json.dumps({"scenario": "los-tumble", "overrides": [
+        f"sim.duration_s={float(duration_s)!r}", "mpc.config=monte-carlo", "mpc.constraint_mode=hard"]})
+    try:
+        prestart_pool(n_workers, modules + ("proxops.analysis.worker_warmup",))
+    finally:
+        os.environ.pop(ENV, None)
+
+
 class _AnalyticMaps:
     """What the campaign's outcomes are not needed for, computed in a thread of this (otherwise
     idle) process while the pool runs the campaign: the grid, the certified maps of every
@@ -251,10 +280,6 @@ def mc(
     as_json: Annotated[bool, typer.Option("--json", help="Print one JSON object.")] = False,
 ):
     """§9 Monte Carlo feasibility sweep (20 x 195 closed-loop runs, J2 truth), maps and certification check."""
-    from proxops.analysis import feasibility_maps as F
-    from proxops.analysis import reach as R
-    from proxops.plotting import reach as P
-
     if workers is not None and workers < 1:
         raise ProxopsInputError(f"--workers = {workers}: give a whole number >= 1")
     if not (np.isfinite(duration_s) and duration_s > 0):
@@ -263,9 +288,15 @@ def mc(
     for name, n in (("--n-x", n_x), ("--n-y", n_y)):
         if not 1 <= n <= MAX_IC_AXIS:
             raise ProxopsInputError(f"{name} = {n}: give a whole number of initial conditions from 1 to {MAX_IC_AXIS}")
+    _check_rates(omega_deg or (), amax or ())
+    if scheduler is None and not resume:  # before this process's own imports (numba, pandas, scipy)
+        n_combos = len(omega_deg or PAPER_OMEGAS_DEG_S) * len(amax or PAPER_A_MAX_MPS2)
+        _prestart_workers(workers, n_combos * n_x * n_y, duration_s)
+    from proxops.analysis import feasibility_maps as F
+    from proxops.analysis import reach as R
+
     omegas = tuple(omega_deg) if omega_deg else R.PAPER_OMEGAS_DEG_S
     amaxs = tuple(amax) if amax else R.PAPER_A_MAX_MPS2
-    _check_rates(omegas, amaxs)
     positions = F.mc_initial_positions(n_y=n_y, n_x=n_x)
     t0 = time.perf_counter()
     analytic = _AnalyticMaps(omegas, amaxs, positions, grid)  # computed while the campaign runs
@@ -282,6 +313,8 @@ def mc(
             if viability_check:
                 row.update(_viability(R, fmap, w, a, duration_s))
             rows.append(row)
+    from proxops.plotting import reach as P  # imported by _AnalyticMaps' thread
+
     hull_cert = sum(r["nominal_grid_points_in_ic_hull"] for r in rows)
     hull_bad = sum(r["nominal_grid_points_in_ic_hull_mc_infeasible"] for r in rows)
     total_cert = sum(r["nominal_grid_points"] for r in rows)
