@@ -57,7 +57,7 @@ def test_bad_inputs_exit_2(tmp_path):
 def test_mc_command_small(tmp_path):
     """4 ICs x 2 combinations, 30 s: the campaign, maps, figures and summary JSON; every number of
     the certification check equal to a direct recomputation from the folder's outcomes (each map
-    on its own: no shared field cache, no interpolation geometry prepared during the campaign)."""
+    on its own, without the field cache the command shares between combinations)."""
     from proxops.analysis import feasibility_maps as F
 
     res = runner.invoke(reach_app, ["mc", "--out", str(tmp_path), "--workers", "1", "--duration-s", "30",

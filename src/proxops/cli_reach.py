@@ -200,7 +200,6 @@ def _prestart_workers(workers: Optional[int], n_runs: int, duration_s: float) ->
     start-up overlaps this process's imports. With the fork server, the server also builds the
     §9 closed loop once (los-tumble in its Monte Carlo configuration; worker_warmup, best effort),
     so each forked worker starts with the los modules imported and its kernels loaded."""
-    import json as _json
     import os
 
     from proxops.analysis.worker_warmup import ENV
@@ -212,54 +211,12 @@ def _prestart_workers(workers: Optional[int], n_runs: int, duration_s: float) ->
     if START_METHOD != "forkserver":
         prestart_pool(n_workers, modules)
         return
-    os.environ[ENV] = _json.dumps({"scenario": "los-tumble", "overrides": [
+    os.environ[ENV] = json.dumps({"scenario": "los-tumble", "overrides": [
         f"sim.duration_s={float(duration_s)!r}", "mpc.config=monte-carlo", "mpc.constraint_mode=hard"]})
     try:
         prestart_pool(n_workers, modules + ("proxops.analysis.worker_warmup",))
     finally:
         os.environ.pop(ENV, None)
-
-
-class _AnalyticMaps:
-    """What the campaign's outcomes are not needed for, computed in a thread of this (otherwise
-    idle) process while the pool runs the campaign: the grid, the certified maps of every
-    combination (one field cache shared by all of them), the natural-neighbour geometry of the IC
-    sites on the grid (memoised in feasibility_maps) and the plotting import. Overlapped, this work
-    shares the two cores with the campaign instead of running alone on one core after it.
-    ``result()`` joins the thread and re-raises its error, if any."""
-
-    def __init__(self, omegas, amaxs, positions: np.ndarray, grid: int):
-        import threading
-
-        self._args = (omegas, amaxs, positions, grid)
-        self._value = self._error = None
-        self._thread = threading.Thread(target=self._run, name="reach-analytic-maps", daemon=True)
-        self._thread.start()
-
-    def _run(self) -> None:
-        try:
-            self._value = self._compute(*self._args)
-        except BaseException as exc:  # noqa: BLE001 - re-raised in result()
-            self._error = exc
-
-    @staticmethod
-    def _compute(omegas, amaxs, positions, grid):
-        from proxops.analysis import feasibility_maps as F
-        from proxops.analysis import reach as R
-
-        g = R.body_grid(n_points=grid)
-        cache: dict = {}
-        results = {(w, a): R.analyse_combo(g, w, a, backward=False, cache=cache) for w in omegas for a in amaxs}
-        F.prepare_grid_interpolation(positions, g)
-        import proxops.plotting.reach  # noqa: F401 (matplotlib: 0.4-0.6 s)
-
-        return g, results
-
-    def result(self):
-        self._thread.join()
-        if self._error is not None:
-            raise self._error
-        return self._value
 
 
 @reach_app.command("mc")
@@ -294,27 +251,28 @@ def mc(
         _prestart_workers(workers, n_combos * n_x * n_y, duration_s)
     from proxops.analysis import feasibility_maps as F
     from proxops.analysis import reach as R
+    from proxops.plotting import reach as P  # now: it overlaps the workers' start-up (measured)
 
     omegas = tuple(omega_deg) if omega_deg else R.PAPER_OMEGAS_DEG_S
     amaxs = tuple(amax) if amax else R.PAPER_A_MAX_MPS2
     positions = F.mc_initial_positions(n_y=n_y, n_x=n_x)
     t0 = time.perf_counter()
-    analytic = _AnalyticMaps(omegas, amaxs, positions, grid)  # computed while the campaign runs
     outcomes, wall, new_runs = F.run_mc(out, omegas, amaxs, positions, duration_s, workers, scheduler, resume,
                                         progress)
-    g, results = analytic.result()
-    rows, maps = [], {}
+    # After the campaign, not overlapped with it: computed in a thread of this process while the pool
+    # ran, this work (1.2 s of CPU) slowed the campaign about as much as it saved (measured).
+    g = R.body_grid(n_points=grid)
+    fields: dict = {}  # the grid's ratio fields and per-rate tightenings, shared by the combinations
+    rows, maps, results = [], {}, {}
     for w in omegas:
         for a in amaxs:
-            res = results[(w, a)]
+            res = R.analyse_combo(g, w, a, backward=False, cache=fields)
             fmap = F.feasibility_map(outcomes, g, w, a)
-            maps[(w, a)] = fmap
+            maps[(w, a)], results[(w, a)] = fmap, res
             row = {"omega_deg_s": w, "a_max_mps2": a, "nominal_pct": res.pct["nominal"], **_cert(R, F, fmap, g, res)}
             if viability_check:
                 row.update(_viability(R, fmap, w, a, duration_s))
             rows.append(row)
-    from proxops.plotting import reach as P  # imported by _AnalyticMaps' thread
-
     hull_cert = sum(r["nominal_grid_points_in_ic_hull"] for r in rows)
     hull_bad = sum(r["nominal_grid_points_in_ic_hull_mc_infeasible"] for r in rows)
     total_cert = sum(r["nominal_grid_points"] for r in rows)

@@ -370,16 +370,6 @@ def natural_neighbour(sites: np.ndarray, values: np.ndarray, queries: np.ndarray
     return out
 
 
-def prepare_grid_interpolation(sites: np.ndarray, grid: BodyGrid) -> None:
-    """Compute (and memoise) the interpolation geometry of :func:`feasibility_map` for these IC
-    sites on this grid ahead of the outcomes, e.g. while the campaign runs; later maps of the same
-    sites (same order, as :func:`feasibility_map` selects them) only apply it."""
-    sites = np.ascontiguousarray(np.asarray(sites, float)[:, :2])
-    X, Y = np.meshgrid(np.asarray(grid.x_m, float), np.asarray(grid.y_m, float))
-    _interpolation_geometry(sites, np.ascontiguousarray(np.column_stack([X.ravel(), Y.ravel()])))
-    _interpolation_geometry(sites, np.ascontiguousarray(np.asarray(grid.points, float)[:, :2]))
-
-
 def inside_hull(sites: np.ndarray, queries: np.ndarray) -> np.ndarray:
     """(q,) True where a query (x, y) lies in the convex hull of the sites (``Delaunay.find_simplex``
     >= 0), where :func:`natural_neighbour` interpolates; all False without a 2-D hull."""
