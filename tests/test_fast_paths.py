@@ -200,3 +200,20 @@ def test_fork_server_warm_up_builds_the_scenario_once_and_ignores_bad_input():
     )
     proc = _run(["-c", code])
     assert proc.returncode == 0 and proc.stdout.strip() == "ok", proc.stderr
+
+
+def test_fork_server_exit_handler_acts_only_in_the_server_process():
+    """The warm-up registers, in the process that imports it with PROXOPS_WARM_SCENARIO set (the fork
+    server), an atexit handler ending that process without the module teardown; it is inherited by
+    the workers forked from the server, where it must do nothing (another pid). The server's own
+    output is flushed and it exits with code 0."""
+    code = (
+        "import atexit, json, os\n"
+        "os.environ['PROXOPS_WARM_SCENARIO'] = json.dumps({'scenario': 'no-such-scenario'})\n"
+        "import proxops.analysis.worker_warmup as w\n"
+        "assert w._exit_server_without_teardown(os.getpid() + 1) is None\n"  # a forked worker: no effect
+        "assert atexit._ncallbacks() >= 1\n"
+        "print('ok', end='')\n"  # no newline: flushed by the handler, not by the teardown
+    )
+    proc = _run(["-c", code])
+    assert proc.returncode == 0 and proc.stdout == "ok", proc.stderr

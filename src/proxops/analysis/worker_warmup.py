@@ -14,8 +14,10 @@ and nothing is printed. Without the variable (any other import) it does nothing.
 
 from __future__ import annotations
 
+import atexit
 import json
 import os
+import sys
 
 ENV = "PROXOPS_WARM_SCENARIO"
 
@@ -32,10 +34,27 @@ def warm_up(scenario: str, overrides=()) -> bool:
         return False
 
 
+def _exit_server_without_teardown(server_pid: int) -> None:
+    """atexit handler of the fork server: end it without the interpreter's teardown of the modules
+    it imported for the warm-up (0.3-0.5 s with numba's kernels loaded, measured), during which it
+    still holds the stdout/stderr it inherited, so a reader of the command's output (a pipe,
+    ``| jq``) waited that long after the command had exited. Workers forked from the server
+    inherit the handler and skip it (they end through ``exec.backends._worker_exit``)."""
+    if os.getpid() != server_pid:
+        return
+    for stream in (sys.stdout, sys.stderr):
+        try:
+            stream.flush()
+        except (OSError, ValueError):
+            pass
+    os._exit(0)
+
+
 def _from_environment() -> None:
     text = os.environ.pop(ENV, None)
     if not text:
         return
+    atexit.register(_exit_server_without_teardown, os.getpid())
     try:
         spec = json.loads(text)
         warm_up(str(spec["scenario"]), [str(o) for o in spec.get("overrides", ())])
