@@ -117,6 +117,17 @@ def test_stochastic_tightening_matches_monte_carlo_std():
     np.testing.assert_allclose(R.stochastic_tightening(CORRIDOR, w, dist, N_TABLE1), z * std, rtol=0.03)
 
 
+@pytest.mark.parametrize("alpha, n_rows", [(0.05, 9), (0.01, 9), (0.05, 1), (1e-6, 9), (0.5, 1)])
+def test_bonferroni_quantile_inverts_the_normal_cdf(alpha, n_rows):
+    """Phi(z) = 1 - alpha / n_c with Phi from math.erfc (independent of scipy's ndtri); the tail
+    probability is compared, so the check is relative even at alpha = 1e-6."""
+    import math
+
+    z = R.bonferroni_quantile(alpha, n_rows)
+    tail = 0.5 * math.erfc(z / math.sqrt(2.0))
+    assert tail == pytest.approx(alpha / n_rows, rel=1e-12)
+
+
 def test_robust_tightening_is_attained_and_never_exceeded():
     dist = R.Disturbance()
     w = np.radians(1.0)

@@ -55,13 +55,36 @@ def test_bad_inputs_exit_2(tmp_path):
 
 
 def test_mc_command_small(tmp_path):
-    """4 ICs x 1 combination, 30 s: the campaign, maps, figures and summary JSON."""
+    """4 ICs x 2 combinations, 30 s: the campaign, maps, figures and summary JSON; every number of
+    the certification check equal to a direct recomputation from the folder's outcomes (each map
+    on its own, without the field cache the command shares between combinations)."""
+    from proxops.analysis import feasibility_maps as F
+
     res = runner.invoke(reach_app, ["mc", "--out", str(tmp_path), "--workers", "1", "--duration-s", "30",
-                                    "--n-y", "2", "--n-x", "2", "--omega-deg", "2", "--amax", "0.1", "--grid", "40",
-                                    "--no-progress", "--json"])
+                                    "--n-y", "2", "--n-x", "3", "--omega-deg", "2", "--omega-deg", "1", "--amax",
+                                    "0.1", "--grid", "40", "--no-progress", "--json"])
     assert res.exit_code == 0, res.output
     out = json.loads(res.stdout.strip().splitlines()[-1])
-    assert out["runs"] == 4 and out["new_runs"] == 4 and out["errors"] == 0
-    assert len(out["combinations"]) == 1
+    assert out["runs"] == 12 and out["new_runs"] == 12 and out["errors"] == 0
+    assert len(out["combinations"]) == 2
     for name in ("fig2_mc_sweep.png", "fig3_overlay.png", "mc_summary.json"):
         assert (tmp_path / name).exists()
+    outcomes = F.read_outcomes(tmp_path)
+    for row in out["combinations"]:
+        F._GEOMETRY_CACHE.clear()
+        g = R.body_grid(n_points=40)
+        combo = R.analyse_combo(g, row["omega_deg_s"], row["a_max_mps2"], backward=False)
+        fmap = F.feasibility_map(outcomes, g, row["omega_deg_s"], row["a_max_mps2"])
+        sites = np.column_stack([fmap.sites, np.zeros(len(fmap.sites))])
+        sites_nom = R.certified_mask(R.LosCorridor(), sites, np.radians(row["omega_deg_s"]), row["a_max_mps2"])
+        expected = {"omega_deg_s": row["omega_deg_s"], "a_max_mps2": row["a_max_mps2"],
+                    "nominal_pct": combo.pct["nominal"], **F.certification_check(fmap, g, combo.nominal, sites_nom)}
+        assert row == expected
+
+
+def test_mc_paper_axes_known_before_the_analysis_import():
+    """cli_reach sizes the pool it starts early from its own copy of the paper's axes."""
+    from proxops import cli_reach
+
+    assert cli_reach.PAPER_OMEGAS_DEG_S == R.PAPER_OMEGAS_DEG_S
+    assert cli_reach.PAPER_A_MAX_MPS2 == R.PAPER_A_MAX_MPS2

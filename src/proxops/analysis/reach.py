@@ -63,7 +63,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from numba import njit
 from scipy.spatial import HalfspaceIntersection, QhullError
-from scipy.stats import norm
+from scipy.special import ndtri
 
 from proxops.constraints.los_corridor import LosCorridor
 from proxops.core.constants import MU_EARTH
@@ -305,8 +305,10 @@ def _position_responses(omega_rad_s: float, dist: Disturbance, n: float) -> list
 
 
 def bonferroni_quantile(alpha: float, n_constraints: int) -> float:
-    """z_{1 - alpha / n_c}: one-sided Gaussian quantile with the Bonferroni split."""
-    return float(norm.ppf(1.0 - alpha / n_constraints))
+    """z_{1 - alpha / n_c}: one-sided Gaussian quantile with the Bonferroni split (the inverse of the
+    standard normal CDF, scipy.special.ndtri: what scipy.stats.norm.ppf evaluates, without importing
+    scipy.stats, 0.5-1.2 s)."""
+    return float(ndtri(1.0 - alpha / n_constraints))
 
 
 def stochastic_tightening(

@@ -41,11 +41,12 @@ def plot_run(result, path: Path, title: str = "") -> Path:
     return path
 
 
-def save(fig, path: Path) -> Path:
-    """Save and close a figure."""
+def save(fig, path: Path, tight: bool = True) -> Path:
+    """Save and close a figure; ``tight`` crops to the drawn artists (``bbox_inches="tight"``, which
+    measures every text: a figure with fixed margins passes False)."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=110, bbox_inches="tight")
+    fig.savefig(path, dpi=110, bbox_inches="tight" if tight else None)
     plt.close(fig)
     return path
 
