@@ -91,6 +91,33 @@ def same_pattern(a: sp.csc_matrix, b: sp.csc_matrix) -> bool:
     )
 
 
+def keep_columns(M: sp.csc_matrix, columns: np.ndarray, rows: np.ndarray | None = None) -> sp.csc_matrix:
+    """The columns ``columns`` (increasing indices) of a canonical CSC matrix, and only its rows
+    ``rows`` (increasing) when given; canonical CSC."""
+    starts = M.indptr[columns]
+    lengths = M.indptr[columns + 1] - starts
+    ends = np.cumsum(lengths)
+    take = np.repeat(starts - (ends - lengths), lengths) + np.arange(ends[-1] if len(ends) else 0)
+    indices, n_rows = M.indices[take], M.shape[0]
+    if rows is not None:
+        new_row = np.full(n_rows, -1, dtype=M.indices.dtype)
+        new_row[rows] = np.arange(len(rows), dtype=M.indices.dtype)
+        indices = new_row[indices]
+        kept = indices >= 0
+        column = np.repeat(np.arange(len(columns)), lengths)
+        take, indices = take[kept], indices[kept]
+        lengths = np.bincount(column[kept], minlength=len(columns))
+        n_rows = len(rows)
+    indptr = np.zeros(len(columns) + 1, dtype=M.indptr.dtype)
+    np.cumsum(lengths, out=indptr[1:])
+    return sp.csc_matrix((M.data[take], indices, indptr), shape=(n_rows, len(columns)))
+
+
+def symmetric_upper_product(U: sp.csc_matrix, x: np.ndarray) -> np.ndarray:
+    """``P x`` for the symmetric P whose upper triangle (with the diagonal) is stored in ``U``."""
+    return U @ x + U.T @ x - U.diagonal() * x
+
+
 def refill_same_pattern(stored: sp.csc_matrix, value) -> sp.csc_matrix | None:
     """``stored`` with its entries overwritten by ``value``'s when ``value`` is a CSC float64 matrix
     in canonical form with exactly ``stored``'s shape and sparsity pattern (an in-place update of a

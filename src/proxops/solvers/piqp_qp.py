@@ -63,14 +63,26 @@ class PiqpQP:
     again with the full ``max_iter`` (PIQP restarts from its own initial point, so this solve is
     bit-identical to one without the early stop) and its duals are checked once more if it still
     does not finish. Solves that converge within ``certify_after`` iterations are unchanged.
+
+    Fixed variables (``drop_fixed``): PIQP 0.7 has no presolve, and a variable held by
+    ``x_lb == x_ub`` stays in its KKT system as a pair of active bounds (a shrinking-horizon MPC fixes
+    its past inputs this way). With ``drop_fixed`` those variables are removed from the problem PIQP
+    sees (their values moved into c, b, h_l, h_u) and put back in ``x``; the factorisation then has
+    only the free variables (srf-vbar: 0.74 ms instead of 2.9 ms per solve on average, and PIQP itself
+    reports the infeasible problems it otherwise runs to ``max_iter`` on). While the set of fixed
+    variables is unchanged, updates stay in place; a new set is a new set-up (``info["rebuilt"]``).
+    The objective is evaluated on the full ``x``; the row duals are PIQP's (the bound duals of
+    dropped variables are not computed).
     """
 
     name = "piqp"
 
     def __init__(self, *, max_iter: int | None = None, eps_abs: float | None = None,
                  eps_rel: float | None = None, verbose: bool = False, settings: dict | None = None,
-                 certify_after: int | None = None, certify_margin: float = 0.0):
+                 certify_after: int | None = None, certify_margin: float = 0.0, drop_fixed: bool = False):
         self._piqp = _util.import_solver("piqp", "piqp")
+        self._drop_fixed = bool(drop_fixed)
+        self._free = None  # indices of the variables PIQP sees (None: all of them)
         if certify_after is not None and not int(certify_after) >= 1:
             raise input_error("certify_after", certify_after, "must be an iteration count >= 1 (or None)")
         if not (certify_margin >= 0.0 and math.isfinite(certify_margin)):
@@ -161,17 +173,62 @@ class PiqpQP:
             solver = self._piqp.SparseSolver()
             for key, value in self._native.items():
                 setattr(solver.settings, key, value)
+            self._free = self._free_variables()
+            r = self._piqp_data(("P", "c", "A", "b", "G", "h_l", "h_u", "x_lb", "x_ub"))
             solver.setup(
-                d["P"], d["c"],
-                d["A"] if self.p else None, d["b"] if self.p else None,
-                d["G"] if self.m else None, d["h_l"] if self.m else None, d["h_u"] if self.m else None,
-                d["x_lb"], d["x_ub"],
+                r["P"], r["c"],
+                r["A"] if self.p else None, r["b"] if self.p else None,
+                r["G"] if self.m else None, r["h_l"] if self.m else None, r["h_u"] if self.m else None,
+                r["x_lb"], r["x_ub"],
             )
         except Exception as exc:
             self._solver = None
             self._solver_error = error_message(exc)
             return
         self._solver = solver
+
+    def _free_variables(self) -> np.ndarray | None:
+        """Indices of the variables that are not fixed by ``x_lb == x_ub`` (finite), with
+        ``drop_fixed``; None when every variable is free (or none is: PIQP needs one)."""
+        if not self._drop_fixed:
+            return None
+        d = self._data
+        fixed = (d["x_lb"] == d["x_ub"]) & np.isfinite(d["x_lb"])
+        if not fixed.any() or fixed.all():
+            return None
+        return np.flatnonzero(~fixed)
+
+    def _fixed_mask(self) -> np.ndarray:
+        mask = np.ones(self.n, dtype=bool)
+        mask[self._free] = False
+        return mask
+
+    def _piqp_data(self, keys) -> dict:
+        """The stored data named ``keys`` as PIQP gets them: without the fixed variables when
+        ``_free`` is set (their values moved to the right-hand sides: c += P_sym[:, fixed] x_fixed,
+        b -= A x_fixed, h -= G x_fixed)."""
+        d, free = self._data, self._free
+        if free is None:
+            return {k: d[k] for k in keys}
+        x_fixed = d["x_lb"].copy()
+        x_fixed[free] = 0.0
+        shifted = bool(np.any(x_fixed))
+        out = {}
+        for k in keys:
+            v = d[k]
+            if k == "P":
+                out[k] = _util.keep_columns(v, free, rows=free)
+            elif k in ("A", "G"):
+                out[k] = _util.keep_columns(v, free)
+            elif k == "c":
+                out[k] = (v + _util.symmetric_upper_product(d["P"], x_fixed))[free] if shifted else v[free]
+            elif k == "b":
+                out[k] = v - d["A"] @ x_fixed if shifted and self.p else v
+            elif k in ("h_l", "h_u"):
+                out[k] = v - d["G"] @ x_fixed if shifted and self.m else v
+            else:  # x_lb, x_ub
+                out[k] = v[free]
+        return out
 
     def _check_crossed(self) -> None:
         d = self._data
@@ -221,11 +278,18 @@ class PiqpQP:
         self._check_crossed()
         if self._bad.fields:
             return  # solve() reports NUMERICAL_ERROR; data are passed once they are finite again
+        if self._drop_fixed and ("x_lb" in changed or "x_ub" in changed):
+            free = self._free_variables()
+            if (free is None) != (self._free is None) or (free is not None and not np.array_equal(free, self._free)):
+                rebuild = True  # another set of fixed variables: another problem for PIQP
+            elif free is not None:
+                changed.update(dict.fromkeys(("c", "b", "h_l", "h_u"), None))  # the fixed values may have moved
         if rebuild or self._solver is None:
             self._build()
             return
         if not changed:
             return
+        changed = self._piqp_data(tuple(changed))
         kwargs = {k: v for k, v in changed.items() if not ((k in ("A", "b") and not self.p)
                                                             or (k in ("G", "h_l", "h_u") and not self.m))}
         # piqp's update names the bounds x_l / x_u (setup takes them positionally)
@@ -289,6 +353,13 @@ class PiqpQP:
             info = res.info
             x = np.array(res.x, dtype=float)
             objective = float(info.primal_obj)
+            if self._free is not None:  # put the dropped (fixed) variables back
+                x_full = self._data["x_lb"].copy()
+                x_full[self._free] = x
+                x = x_full
+                if np.any(self._data["x_lb"][self._fixed_mask()]):  # PIQP's objective lacks the fixed terms
+                    d = self._data
+                    objective = float(d["c"] @ x + 0.5 * x @ _util.symmetric_upper_product(d["P"], x))
             iterations = spent + int(info.iter)
             dual = {"y": np.array(res.y), "z_l": np.array(res.z_l), "z_u": np.array(res.z_u)}
         except Exception as exc:

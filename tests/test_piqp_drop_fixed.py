@@ -1,0 +1,100 @@
+"""PiqpQP(drop_fixed=True): variables fixed by x_lb == x_ub are removed from the problem PIQP
+factors and put back in x. Checked against the same adapter without it and against Clarabel (an
+independent interior-point solver) on random strictly convex QPs with fixed variables at zero and
+at other values, through set-up, in-place updates and a change of the fixed set."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import scipy.sparse as sp
+
+from proxops.solvers import QuadraticProgram, SolveStatus, make_qp_solver, solve_qp
+from proxops.solvers._util import keep_columns
+
+
+def _random_qp(rng, n=14, p=2, m=9, fixed_values=True):
+    L = rng.normal(size=(n, n))
+    P = L @ L.T + n * np.eye(n)
+    q = rng.normal(size=n)
+    x0 = rng.uniform(-0.5, 0.5, n)  # a point inside every row's band: the problem is feasible
+    A_eq = sp.random(p, n, density=0.6, random_state=rng.integers(1 << 30)).tocsc()
+    G = sp.random(m, n, density=0.5, random_state=rng.integers(1 << 30)).tocsc()
+    lb, ub = np.full(n, -1.0), np.full(n, 1.0)
+    fixed = rng.random(n) < 0.4
+    lb[fixed] = ub[fixed] = x0[fixed] if fixed_values else 0.0
+    if not fixed_values:
+        x0[fixed] = 0.0
+    gx = G @ x0
+    return QuadraticProgram(P=sp.csc_matrix(np.triu(P)), q=q, A_eq=A_eq, b_eq=A_eq @ x0, A=G,
+                            bl=gx - rng.uniform(0.0, 0.3, m), bu=gx + rng.uniform(0.0, 0.3, m), lb=lb, ub=ub)
+
+
+def _objective(pr, x):
+    P = pr.P.toarray()
+    P = P + np.triu(P, 1).T
+    return 0.5 * x @ P @ x + pr.q @ x
+
+
+@pytest.mark.parametrize("seed", range(6))
+@pytest.mark.parametrize("fixed_values", [False, True])
+def test_drop_fixed_solves_the_same_problem(seed, fixed_values):
+    pr = _random_qp(np.random.default_rng(seed), fixed_values=fixed_values)
+    dropped = make_qp_solver("piqp", drop_fixed=True)
+    dropped.setup(pr)
+    full = make_qp_solver("piqp")
+    full.setup(pr)
+    a, b = dropped.solve(), full.solve()
+    ref = solve_qp(pr, "clarabel")
+    assert a.status == b.status == ref.status == SolveStatus.OPTIMAL
+    fixed = pr.lb == pr.ub
+    assert np.array_equal(a.x[fixed], pr.lb[fixed])  # exactly the fixed values
+    np.testing.assert_allclose(a.x, ref.x, atol=1e-6)
+    np.testing.assert_allclose(a.x, b.x, atol=1e-6)
+    assert a.objective == pytest.approx(_objective(pr, a.x), rel=1e-12, abs=1e-12)
+    assert a.objective == pytest.approx(ref.objective, rel=1e-6, abs=1e-8)
+
+
+def test_drop_fixed_updates_in_place_and_rebuilds_for_a_new_fixed_set():
+    rng = np.random.default_rng(11)
+    pr = _random_qp(rng, fixed_values=False)
+    s = make_qp_solver("piqp", drop_fixed=True)
+    s.setup(pr)
+    assert s.solve().status == SolveStatus.OPTIMAL
+    # same fixed set, new right-hand sides: in place (no new set-up), same answer as Clarabel
+    bl, bu = pr.bl - 0.05, pr.bu + 0.05
+    s.update(bl=bl, bu=bu, q=-pr.q)
+    got = s.solve()
+    pr2 = QuadraticProgram(P=pr.P, q=-pr.q, A_eq=pr.A_eq, b_eq=pr.b_eq, A=pr.A, bl=bl, bu=bu, lb=pr.lb, ub=pr.ub)
+    assert got.info["rebuilt"] is False
+    np.testing.assert_allclose(got.x, solve_qp(pr2, "clarabel").x, atol=1e-6)
+    # free one fixed variable (its bounds open): a new problem for PIQP
+    lb, ub = pr.lb.copy(), pr.ub.copy()
+    k = int(np.flatnonzero(lb == ub)[0])
+    lb[k], ub[k] = -1.0, 1.0
+    s.update(lb=lb, ub=ub)
+    got = s.solve()
+    pr3 = QuadraticProgram(P=pr.P, q=-pr.q, A_eq=pr.A_eq, b_eq=pr.b_eq, A=pr.A, bl=bl, bu=bu, lb=lb, ub=ub)
+    assert got.info["rebuilt"] is True
+    np.testing.assert_allclose(got.x, solve_qp(pr3, "clarabel").x, atol=1e-6)
+
+
+def test_drop_fixed_reports_an_infeasible_problem():
+    """x0 + x1 >= 3 with x1 fixed at 0 and x0 <= 1: infeasible only through the fixed variable."""
+    pr = QuadraticProgram(P=sp.csc_matrix(np.eye(3)), q=np.zeros(3), A=sp.csc_matrix([[1.0, 1.0, 0.0]]),
+                          bl=np.array([3.0]), bu=np.array([np.inf]), lb=np.array([-1.0, 0.0, -1.0]),
+                          ub=np.array([1.0, 0.0, 1.0]))
+    s = make_qp_solver("piqp", drop_fixed=True)
+    s.setup(pr)
+    assert s.solve().status == SolveStatus.INFEASIBLE
+
+
+@pytest.mark.parametrize("seed", range(20))
+def test_keep_columns_and_rows_equal_dense_indexing(seed):
+    rng = np.random.default_rng(seed)
+    m, n = rng.integers(1, 25, size=2)
+    M = sp.random(m, n, density=rng.uniform(0.0, 1.0), random_state=seed, format="csc")
+    cols, rows = np.flatnonzero(rng.random(n) < 0.6), np.flatnonzero(rng.random(m) < 0.6)
+    assert np.array_equal(keep_columns(M, cols).toarray(), M.toarray()[:, cols])
+    sub = keep_columns(M, cols, rows=rows)
+    assert np.array_equal(sub.toarray(), M.toarray()[np.ix_(rows, cols)]) and sub.has_canonical_format
