@@ -83,12 +83,9 @@ def _worker_exit() -> None:
     every module (0.3-0.9 s with numba's kernels loaded, measured), which ``shutdown_pools`` would
     wait for. The worker has handed every result over the pool's synchronous result queue and run
     multiprocessing's exit functions by then."""
-    for stream in (sys.stdout, sys.stderr):
-        try:
-            stream.flush()
-        except (OSError, ValueError):
-            pass
-    os._exit(0)
+    from proxops.exec.forkserver_exit import exit_without_teardown
+
+    exit_without_teardown()
 
 
 class _sigint_blocked:

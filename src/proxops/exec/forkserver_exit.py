@@ -29,15 +29,21 @@ def _in_fork_server() -> bool:
     return False
 
 
-def _exit_now(pid: int) -> None:
-    if os.getpid() != pid:  # a process forked from the server (they end with os._exit anyway)
-        return
+def exit_without_teardown() -> None:
+    """Flush stdout/stderr and end this process with ``os._exit(0)``: no teardown of the modules
+    (the fork server's and the pool workers' last atexit handler)."""
     for stream in (sys.stdout, sys.stderr):
         try:
             stream.flush()
         except (OSError, ValueError):
             pass
     os._exit(0)
+
+
+def _exit_now(pid: int) -> None:
+    if os.getpid() != pid:  # a process forked from the server (they end with os._exit anyway)
+        return
+    exit_without_teardown()
 
 
 SERVER_PID: int | None = None  # the fork server's pid, in the server and the workers forked from it
