@@ -131,6 +131,14 @@ def recursion_coefficients(nmax: int, C: np.ndarray, S: np.ndarray) -> np.ndarra
     return K
 
 
+@njit(inline="always", fastmath=False)
+def _scaled_position(x, y, z, re):
+    """(r^2, (re/r)^2, x re/r^2, y re/r^2, z re/r^2) of an Earth-fixed position (m): the start of the
+    V/W recursion, shared by the single-point and the two-point kernels (the same IEEE operations)."""
+    r2 = x * x + y * y + z * z
+    return r2, re * re / r2, x * re / r2, y * re / r2, z * re / r2
+
+
 @njit(cache=True, fastmath=False)  # IEEE on purpose (determinism), see the docstring
 def accel_harmonics(
     x: float, y: float, z: float, gm: float, re: float, C: np.ndarray, S: np.ndarray, nmax: int, mmax: int,
@@ -156,11 +164,7 @@ def accel_harmonics(
     the fastmath time per standalone call, ~1.36x on one orbit of the default "fast" truth
     (100x100, best of 7: 12.3 ms against 9.0 ms; the inlined fastmath sums vectorised).
     tests/test_determinism.py checks the bits."""
-    r2 = x * x + y * y + z * z
-    rho = re * re / r2
-    x0 = x * re / r2
-    y0 = y * re / r2
-    z0 = z * re / r2
+    r2, rho, x0, y0, z0 = _scaled_position(x, y, z, re)
     mtop = min(mmax + 1, nmax + 1)
     V[0, 0] = re / math.sqrt(r2)
     W[0, 0] = 0.0
@@ -414,16 +418,8 @@ def accel_harmonics_pair(
     calls (same recursion and sums, per lane the same IEEE operations in the same order; see
     the section comment). ``VW``: work array in the pair layout (:func:`pair_arrays_fit`;
     not checked here: the caller checks, an undersized array is written out of bounds)."""
-    r2a = xa * xa + ya * ya + za * za
-    r2b = xb * xb + yb * yb + zb * zb
-    rhoa = re * re / r2a
-    rhob = re * re / r2b
-    xa0 = xa * re / r2a
-    xb0 = xb * re / r2b
-    ya0 = ya * re / r2a
-    yb0 = yb * re / r2b
-    za0 = za * re / r2a
-    zb0 = zb * re / r2b
+    r2a, rhoa, xa0, ya0, za0 = _scaled_position(xa, ya, za, re)
+    r2b, rhob, xb0, yb0, zb0 = _scaled_position(xb, yb, zb, re)
     mtop = min(mmax + 1, nmax + 1)
     VW[0, 0] = re / math.sqrt(r2a)
     VW[0, 1] = 0.0
