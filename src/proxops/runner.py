@@ -8,6 +8,8 @@ Otherwise the default is one ``simulate(system.build(sc))``.
 from __future__ import annotations
 
 import json
+import sys
+import time
 from pathlib import Path
 
 from proxops.scenarios.loader import load_scenario
@@ -47,10 +49,15 @@ def run_demo(out: Path) -> Path:
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     lines = ["# proxops demo report", ""]
-    for name in DEMO_SCENARIOS:
+    for k, name in enumerate(DEMO_SCENARIOS, start=1):
+        # one line per stage on stderr, also when it is a log file and not a terminal
+        first = " (includes the one-time compilation of the numba kernels)" if k == 1 else ""
+        _stage(f"[demo {k}/{len(DEMO_SCENARIOS)}] {name}: running{first}")
+        start = time.perf_counter()
         loaded = load_scenario(name)
         summary, results = execute(loaded, progress=True)
         figs = save_run(loaded, summary, results, out / name)
+        _stage(f"[demo {k}/{len(DEMO_SCENARIOS)}] {name}: {summary.get('status', '?')} in {time.perf_counter() - start:.1f} s")
         lines += [f"## {name}", "", loaded.scenario.description, ""] + summary_markdown(summary)
         lines.append("")
         lines += [f"![{p.stem}]({p.relative_to(out)})" for p in figs]
@@ -58,6 +65,11 @@ def run_demo(out: Path) -> Path:
     report = out / "report.md"
     report.write_text("\n".join(lines))
     return report
+
+
+def _stage(line: str) -> None:
+    """One progress line on stderr, flushed at once (a log reader sees each stage as it ends)."""
+    print(line, file=sys.stderr, flush=True)
 
 
 def summary_markdown(summary: dict) -> list[str]:
