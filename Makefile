@@ -26,10 +26,18 @@ $(STAMP): $(UV) uv.lock pyproject.toml
 	@touch $(STAMP)
 	@echo "[setup] done"
 
+# The browser test of the HTML report uses Debian's chromium + chromedriver (root installs them;
+# elsewhere install the two packages once by hand, or the browser test fails saying so)
+BROWSER := /usr/bin/chromedriver
+$(BROWSER):
+	@if [ "$$(id -u)" = 0 ]; then echo "[setup] installing Debian's chromium and chromium-driver (browser test)"; \
+	  apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq chromium chromium-driver >/dev/null; \
+	else echo "[setup] not root: install Debian's chromium and chromium-driver for the browser test"; fi
+
 demo: $(STAMP)
 	$(BIN)/proxops demo --out out
 
-test: $(STAMP)
+test: $(STAMP) $(BROWSER)
 	$(BIN)/lint-imports
 	$(BIN)/python -m pytest -q
 

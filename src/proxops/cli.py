@@ -107,24 +107,39 @@ def run(
 
 
 def format_summary(s: dict) -> str:
+    """The readable run summary: every number rounded to the resolution of its unit and shown
+    with it, nested blocks as ``key  sub value, sub value`` (``--json`` keeps full precision)."""
+    from proxops.analysis.formatting import format_quantity
+
+    def q(key: str) -> str:
+        return format_quantity(s[key], key)
+
+    solve = s.get("solve_time_ms") or {}
+    events = ", ".join(f"{kind} {count}" for kind, count in (s.get("events") or {}).items()) or "none"
     lines = [
         f"scenario      {s.get('scenario', '')} ({s.get('system', '')})",
         f"status        {s['status']}",
-        f"final range   {s['final_range_m']:.3f} m, speed {s['final_speed_mps']:.4f} m/s",
-        f"min range     {s['min_range_m']:.3f} m",
-        f"total dv      {s['total_dv_mps']:.4f} m/s",
-        f"sim time      {s['sim_time_s']:.1f} s in {s['wall_time_s']:.2f} s wall",
-        f"solve time    median {s['solve_time_ms']['median']:.3f} ms, p95 {s['solve_time_ms']['p95']:.3f} ms",
-        f"events        {s['events'] or 'none'}",
+        f"final range   {q('final_range_m')}, speed {q('final_speed_mps')}",
+        f"min range     {q('min_range_m')}",
+        f"total dv      {q('total_dv_mps')}",
+        f"sim time      {q('sim_time_s')} in {q('wall_time_s')} wall",
+        f"solve time    median {format_quantity(solve.get('median', 0.0), 'solve_time_ms')}, "
+        f"p95 {format_quantity(solve.get('p95', 0.0), 'solve_time_ms')}",
+        f"events        {events}",
     ]
     skip = {"scenario", "system", "status", "final_range_m", "final_speed_mps", "min_range_m", "total_dv_mps",
-            "sim_time_s", "wall_time_s", "solve_time_ms", "events", "steps", "solver_failures"}
-    from proxops.analysis.formatting import format_quantity
-
-    extra = [k for k, v in s.items() if k not in skip and not isinstance(v, (list, dict))]
+            "sim_time_s", "wall_time_s", "solve_time_ms", "events", "steps", "solver_failures", "out"}
+    extra = [k for k, v in s.items() if k not in skip and not isinstance(v, list)]
     width = max([13, *(len(k) for k in extra)])
     for key in extra:  # rounded to the resolution of its unit (--json keeps full precision)
-        lines.append(f"{key:<{width}} {format_quantity(s[key], key)}")
+        value = s[key]
+        if isinstance(value, dict):
+            parts = [f"{sub} {format_quantity(v, key if sub in ('median', 'p95', 'max', 'min', 'mean') else sub)}"
+                     for sub, v in value.items() if not isinstance(v, (dict, list))]
+            text = ", ".join(parts) or "-"
+        else:
+            text = format_quantity(value, key)
+        lines.append(f"{key:<{width}} {text}")
     if "out" in s:
         lines.append(f"written to    {s['out']}")
     return "\n".join(lines)

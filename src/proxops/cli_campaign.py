@@ -67,7 +67,7 @@ def mc(
     if as_json:
         sys.stdout.write(json.dumps(summary, default=str) + "\n")
     else:
-        typer.echo(format_campaign(summary, result.statistics()))
+        typer.echo(format_campaign(summary, result.headline_statistics()))
         if report_ and (Path(summary["report"]) / "paper_table.md").is_file():
             typer.echo("\n" + (Path(summary["report"]) / "paper_table.md").read_text())
     if summary["runs"] and not summary["succeeded"]:  # finished, but nothing worked: scripts must see it
@@ -103,7 +103,7 @@ def report(
     if as_json:
         sys.stdout.write(json.dumps(done, default=str) + "\n")
         return
-    text = format_campaign(done["summary"], result.statistics())
+    text = format_campaign(done["summary"], result.headline_statistics())
     typer.echo(text + f"\nreport written to {done['report_dir']} ({len(done['files'])} files)")
 
 
@@ -121,6 +121,8 @@ def format_campaign(summary: dict, stats) -> str:
         "",
         format_text_table(stats) if len(stats) else "(no completed runs)",
     ]
-    if summary.get("out"):
+    if summary.get("report"):
+        lines.append(f"\nreport written to {summary['report']} (report.html, report.md, figures)")
+    elif summary.get("out"):
         lines.append(f"\nresults in {summary['out']}; `proxops report {summary['out']}` draws tables and figures")
     return "\n".join(lines)
