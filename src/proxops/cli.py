@@ -21,7 +21,7 @@ from typing import Annotated, Optional
 import typer
 
 from proxops import __version__
-from proxops.cli_common import STATE, ProxopsGroup, emit, friendly_errors
+from proxops.cli_common import STATE, ProxopsGroup, configure_logging, emit, friendly_errors
 
 app = typer.Typer(
     name="proxops",
@@ -43,8 +43,11 @@ def _version(value: bool):
 def main(
     version: Annotated[Optional[bool], typer.Option("--version", callback=_version, is_eager=True, help="Print the version.")] = None,
     debug: Annotated[bool, typer.Option("--debug", help="Show tracebacks for errors.")] = False,
+    verbose: Annotated[bool, typer.Option("--verbose", "-v", help="More lines on stderr: every stage with its detail.")] = False,
+    quiet: Annotated[bool, typer.Option("--quiet", "-q", help="Only errors on stderr: no stage lines, no progress bars.")] = False,
 ):
     STATE["debug"] = debug
+    configure_logging(verbose=verbose, quiet=quiet)
 
 
 # --------------------------------------------------------------------------- scenarios
@@ -102,7 +105,7 @@ def run(
         raise input_error("--seed", seed, "allowed a whole number from 0 to 2^63 - 1")
     if out is not None:
         check_out_dir(out)
-    summary = run_scenario(scenario, overrides=set_, seed=seed, out=out, figures=figures, progress=not as_json)
+    summary = run_scenario(scenario, overrides=set_, seed=seed, out=out, figures=figures, progress=not as_json and not STATE["quiet"])
     emit(summary, as_json, format_summary(summary))
 
 

@@ -6,6 +6,7 @@ Mounted by :func:`proxops.cli._mount_optional` (input errors -> one line, exit c
 from __future__ import annotations
 
 import json
+import logging
 import math
 import sys
 from pathlib import Path
@@ -50,6 +51,9 @@ def mc(
     from proxops.cli_common import Interrupted
 
     out = out if out is not None else Path("out") / f"mc-{Path(scenario).stem}"
+    log = logging.getLogger("proxops.mc")
+    log.info("campaign %s: %s runs on %s, results in %s", scenario, runs if runs is not None else "all grid",
+             scheduler or f"{workers or 'all usable'} local worker(s)", out)
     try:
         result = run_campaign(scenario, n_runs=runs, workers=workers, scheduler=scheduler, seed=seed, out=out,
                               resume=resume, overrides=set_, progress=progress, keep_series=series,
@@ -61,6 +65,7 @@ def mc(
             raise
         typer.echo(f"error: {exc}", err=True)
         raise typer.Exit(1)
+    log.info("campaign %s: %d runs finished in %.1f s", scenario, len(result.table), result.wall_time_s)
     summary = result.summary()
     if report_:
         summary["report"] = write_report(result)["report_dir"]

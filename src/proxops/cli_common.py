@@ -25,7 +25,7 @@ from typer.core import TyperGroup
 
 from proxops.errors import ProxopsInputError
 
-STATE = {"debug": False}  # set by the top-level --debug option
+STATE = {"debug": False, "quiet": False}  # set by the top-level --debug and --quiet options
 
 EXIT_OK, EXIT_INTERNAL, EXIT_INPUT, EXIT_ALL_FAILED, EXIT_INTERRUPTED = 0, 1, 2, 3, 130
 
@@ -61,6 +61,28 @@ class ProxopsGroup(TyperGroup):
             return super().invoke(ctx)
         except KeyboardInterrupt as exc:
             raise _CarriedInterrupt(exc) from None
+
+
+def configure_logging(verbose: bool = False, quiet: bool = False) -> None:
+    """Stage lines on stderr through :mod:`logging` (logger ``proxops``): by default one line per
+    stage when stderr is not a terminal (a log file sees progress), none on a terminal (which
+    has the progress bars); ``--verbose`` adds the detail, ``--quiet`` leaves only errors and
+    turns the progress bars off."""
+    import logging
+
+    STATE["quiet"] = quiet
+    level = logging.DEBUG if verbose else logging.ERROR if quiet else \
+        logging.INFO if not sys.stderr.isatty() else logging.WARNING
+    logger = logging.getLogger("proxops")
+    logger.setLevel(level)
+    handler = next((h for h in logger.handlers if getattr(h, "_proxops", False)), None)
+    if handler is None:
+        handler = logging.StreamHandler(sys.stderr)
+        handler.setFormatter(logging.Formatter("proxops: %(message)s"))
+        handler._proxops = True
+        logger.addHandler(handler)
+        logger.propagate = False
+    handler.stream = sys.stderr  # this invocation's stderr (a test runner swaps it; setStream would flush the old one)
 
 
 def guarded(call) -> int:

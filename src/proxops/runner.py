@@ -8,6 +8,7 @@ Otherwise the default is one ``simulate(system.build(sc))``.
 from __future__ import annotations
 
 import json
+import logging
 import sys
 import time
 from pathlib import Path
@@ -16,15 +17,21 @@ from proxops.scenarios.loader import load_scenario
 from proxops.analysis.runs import check_scenario, execute  # noqa: F401 (re-exported)
 from proxops.sim.result import SimResult
 
+log = logging.getLogger("proxops.runner")
+
 
 def run_scenario(name_or_path: str, overrides=(), seed: int | None = None, out: Path | None = None,
                  figures: bool = True, progress: bool = False) -> dict:
     """Load, run and (with ``out``) save one scenario; returns the summary dict."""
     loaded = load_scenario(name_or_path, list(overrides))
+    log.info("%s: %s scenario loaded from %s", loaded.scenario.name, loaded.scenario.system, loaded.source)
+    start = time.perf_counter()
     summary, results = execute(loaded, seed=seed, progress=progress)
+    log.info("%s: ran in %.1f s, status %s", loaded.scenario.name, time.perf_counter() - start, summary.get("status"))
     if out is not None:
         save_run(loaded, summary, results, Path(out), figures=figures)
         summary["out"] = str(out)
+        log.info("%s: time series, summary%s written to %s", loaded.scenario.name, " and figures" if figures else "", out)
     return summary
 
 
