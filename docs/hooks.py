@@ -18,7 +18,10 @@ def _cli_reference() -> str:
 
     from proxops.cli import app
 
+    from proxops.cli_common import name_metavars
+
     root = typer.main.get_command(app)
+    name_metavars(root)  # the placeholders --help shows (DIR, KEY=VALUE, ...)
     lines = ["# Command line", "",
              "Generated from the command-line app at build time (`proxops COMMAND --help` prints the same).",
              "Every command prints a readable summary; `--json` prints exactly one JSON object on stdout.", ""]
