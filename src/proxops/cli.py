@@ -110,6 +110,10 @@ def run(
     emit(summary, as_json, format_summary(summary))
 
 
+RUN_LINE_KEYS = ("status", "docked", "steps", "dock_time_s", "final_range_m", "total_dv_mps", "value_function_increases",
+                 "mean_iterations", "controller_wall_time_s")
+
+
 def format_summary(s: dict) -> str:
     """The readable run summary: every number rounded to the resolution of its unit and shown
     with it, nested blocks as ``key  sub value, sub value`` (``--json`` keeps full precision)."""
@@ -137,6 +141,13 @@ def format_summary(s: dict) -> str:
     width = max([13, *(len(k) for k in extra)])
     for key in extra:  # rounded to the resolution of its unit (--json keeps full precision)
         value = s[key]
+        if isinstance(value, dict) and value and all(isinstance(v, dict) for v in value.values()):
+            # one closed loop per line (e.g. the general and averaged NMPC of underactuated-compare)
+            lines.append(f"{key}")
+            for label, sub in value.items():
+                shown = [k for k in RUN_LINE_KEYS if k in sub] or [k for k, v in sub.items() if not isinstance(v, (dict, list))][:6]
+                lines.append(f"  {label}: " + ", ".join(f"{k} {format_quantity(sub[k], k)}" for k in shown))
+            continue
         if isinstance(value, dict):
             parts = [f"{sub} {format_quantity(v, key if sub in ('median', 'p95', 'max', 'min', 'mean') else sub)}"
                      for sub, v in value.items() if not isinstance(v, (dict, list))]
