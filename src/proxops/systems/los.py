@@ -214,7 +214,14 @@ def summarize_result(sc: LosScenario, result) -> dict:
     r_sync = sync_range(sc.chaser.a_max_mps2, w) if w > 0 else float("inf")
     r0 = float(np.linalg.norm(sc.chaser.initial_body_position_m))
     max_viol = float(viol.max()) if viol.size else 0.0
-    return {
+    hint = {}
+    if qp_infeasible and sc.mpc.constraint_mode == "hard":
+        where = "beyond" if r0 > r_sync else "inside"
+        hint["hint"] = (f"the hard corridor rows became infeasible; the start ({r0:.1f} m) is {where} r_sync = "
+                        f"{r_sync:.1f} m, the range within which a_max can hold the rotating corridor "
+                        "(tumbling-target-reachability.md §7): start inside r_sync, raise chaser.a_max_mps2, or "
+                        "set mpc.constraint_mode = \"soft\" to fly with penalised violations")
+    return {**hint,
         "los_violations": n_viol,
         "max_violation_m": max_viol,
         "r_sync_m": float(r_sync),
