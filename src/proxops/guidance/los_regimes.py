@@ -121,6 +121,8 @@ class LosGuidanceController(Supervisor):
         if not a_max > 0:
             raise input_error("chaser.a_max_mps2", a_max, "must be > 0", "m/s^2")
         self.model = model
+        self._theta0_rad = model.theta0_rad
+        self.attitude_source = None  # estimated target attitude (frame_angle_error(), rad): see _regime_step
         self.dt = model.dt
         self.a_max = float(a_max)
         self.corridor = corridor or LosCorridor()
@@ -160,6 +162,8 @@ class LosGuidanceController(Supervisor):
 
     def _regime_step(self, mode: str, t: float, x_est: np.ndarray) -> Command:
         """The command of regime ``mode`` (reference, PD law, MPC safety filter)."""
+        if self.attitude_source is not None:  # the body frame as estimated: theta^ = theta(t) + psi
+            self.model.theta0_rad = self._theta0_rad + self.attitude_source.frame_angle_error()
         x = np.asarray(x_est, float)
         p, v = x[:3], x[3:6]
         r = math.sqrt(p @ p)

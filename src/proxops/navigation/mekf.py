@@ -387,3 +387,92 @@ def attitude_nees_band(n_runs: int, dof: int = 6, confidence: float = 0.95) -> t
     lo, hi = chi2.ppf([a, 1.0 - a], n_runs * dof) / n_runs
     return float(lo), float(hi)
 
+
+
+@dataclass
+class PoseAttitudeSensor:
+    """Simulated attitude part of a camera/LIDAR pose measurement (and an optional rate).
+
+    ``sigma_rad``: 1-sigma per axis of the body-frame small rotation of the measured attitude,
+    ``q_meas = q_true (x) exp(v / 2)``, ``v ~ N(0, sigma^2 I)``. ``rate_sigma_rad_s``: also a
+    rate measurement ``w_true + N(0, sigma^2 I)`` (None: none). Visibility: the line of sight
+    ``direction`` the caller gives (any frame) must lie within half of ``fov_rad`` (full cone
+    angle, (0, pi]) of ``boresight`` (the same frame; None: no cone), the measurement is lost
+    with ``outage_probability``, and ``illuminated(t)`` (callable, None: always lit) must be True.
+    Each call draws the same numbers whatever happens (one uniform, then 3 normals, then 3 more
+    with a rate sigma), so the navigation stream never shifts.
+    """
+
+    sigma_rad: float
+    rate_sigma_rad_s: float | None = None
+    fov_rad: float = math.pi
+    boresight: np.ndarray | None = None
+    outage_probability: float = 0.0
+    illuminated: object = None
+
+    def __post_init__(self):
+        if not (math.isfinite(self.sigma_rad) and self.sigma_rad > 0.0):
+            raise input_error("navigation.attitude_sigma_deg", math.degrees(self.sigma_rad), "must be > 0", "deg")
+        if self.rate_sigma_rad_s is not None and not (math.isfinite(self.rate_sigma_rad_s) and self.rate_sigma_rad_s > 0):
+            raise input_error("navigation.attitude_rate_sigma_deg_s", math.degrees(self.rate_sigma_rad_s),
+                              "must be > 0 (or none: no rate measurement)", "deg/s")
+        if not (0.0 < self.fov_rad <= math.pi + 1e-12):
+            raise input_error("navigation.attitude_fov_deg", math.degrees(self.fov_rad), "must be in (0, 180]", "deg")
+        if not (0.0 <= self.outage_probability <= 1.0):
+            raise input_error("navigation.outage_probability", self.outage_probability, "must be in [0, 1]")
+        if self.boresight is not None:
+            b = np.asarray(self.boresight, dtype=float)
+            if not np.linalg.norm(b) > 0.0:
+                raise input_error("attitude sensor boresight", b.tolist(), "must be a non-zero vector")
+            self.boresight = b / np.linalg.norm(b)
+
+    def visible(self, t: float, direction) -> bool:
+        """Line of sight ``direction`` within the cone (half-angle fov/2 about the boresight) and lit."""
+        if self.boresight is not None and self.fov_rad < math.pi:
+            d = np.asarray(direction, dtype=float)
+            r = math.sqrt(float(d @ d))
+            if r == 0.0 or float(d @ self.boresight) / r < math.cos(0.5 * self.fov_rad):
+                return False
+        return self.illuminated is None or bool(self.illuminated(t))
+
+    def draw(self, t: float, q_true, w_true, direction, rng: np.random.Generator):
+        """(q_meas or None, w_meas or None) of the truth (None: outage, out of view, eclipse)."""
+        u = rng.random()
+        v = rng.standard_normal(3)
+        e = rng.standard_normal(3) if self.rate_sigma_rad_s is not None else None
+        if u < self.outage_probability or not self.visible(t, direction):
+            return None, None
+        q = multiply_kernel(np.asarray(q_true, dtype=float), small_rotation(self.sigma_rad * v))
+        w = None if e is None else np.asarray(w_true, dtype=float) + self.rate_sigma_rad_s * e
+        return q / math.sqrt(float(q @ q)), w
+
+
+def attitude_summary(stats: dict, prefix: str = "att") -> dict:
+    """``att_*`` run-summary keys of an attitude filter's :attr:`proxops.navigation.target_attitude.TargetAttitudeNavigation.record`-like
+    dict: mean NEES, its per-epoch two-sided 95 % chi-square band (``nees_dof`` dof) and the fraction
+    of epochs inside it (0.95 expected of a consistent filter), the same for the NIS of the updates,
+    the attitude error (deg) and rate error (deg/s) (median, p95, max), updates and rejections."""
+    out: dict = {}
+    out.update(consistency_keys(stats.get("nees", []), stats.get("nees_dof", 6), f"{prefix}_nees"))
+    out.update(consistency_keys(stats.get("nis", []), stats.get("nis_dof", 3), f"{prefix}_nis"))
+    for key, name, scale in (("att_err_rad", "error_deg", 180.0 / math.pi),
+                             ("rate_err_rad_s", "rate_error_deg_s", 180.0 / math.pi)):
+        vals = np.asarray(stats.get(key, []), dtype=float) * scale
+        if vals.size:
+            out[f"{prefix}_{name}"] = {"median": float(np.median(vals)), "p95": float(np.percentile(vals, 95)),
+                                       "max": float(vals.max())}
+    out[f"{prefix}_updates"] = int(stats.get("updates", 0))
+    out[f"{prefix}_rejected"] = int(stats.get("rejected", 0))
+    return out
+
+
+def consistency_keys(values, dof: int, prefix: str) -> dict:
+    """``<prefix>_mean``, ``_band`` (two-sided 95 % chi-square band of one value of ``dof`` dof),
+    ``_inside_fraction`` (of the values inside it; 0.95 expected of a consistent filter) and ``_dof``."""
+    from scipy.stats import chi2
+
+    vals = np.asarray(values, dtype=float)
+    lo, hi = (float(v) for v in chi2.ppf([0.025, 0.975], dof))
+    return {f"{prefix}_mean": float(vals.mean()) if vals.size else None, f"{prefix}_band": [lo, hi],
+            f"{prefix}_inside_fraction": float(np.mean((vals >= lo) & (vals <= hi))) if vals.size else None,
+            f"{prefix}_dof": int(dof)}
