@@ -114,6 +114,11 @@ class LosGuidanceController(Supervisor):
     :class:`proxops.dynamics.tumbling_target.TumblingTargetTruth` reports) and returns an
     LVLH acceleration. ``info`` per step: range_m, r_ref_m, mpc_iterations,
     mpc_build_ms, u_body_0..2, slack_m.
+
+    ``attitude_source`` (None: the target attitude is known): a navigation that estimates the target
+    attitude (:class:`proxops.navigation.target_attitude.TargetAttitudeNavigation`); before each step
+    the model's frame angle becomes theta(t) + ``attitude_source.frame_angle_error()`` (the body frame
+    as estimated), so commands are rotated to LVLH and the corridor is predicted from the estimate.
     """
 
     def __init__(self, model: BodyFrameModel, a_max: float, corridor: LosCorridor | None = None,

@@ -94,7 +94,9 @@ class OrbitSection(Section):
 class NavigationSection(Section):
     """Navigation: ``noise`` (white Gaussian on the true state, per axis, 1-sigma) or ``ekf`` (an
     extended Kalman filter on the Hill state, CW process model, fed by a simulated sensor:
-    proxops.navigation.ekf). The ``ekf`` keys are ignored by ``noise`` and vice versa."""
+    proxops.navigation.ekf; los: the target's attitude and rate by a multiplicative EKF,
+    proxops.navigation.mekf; underactuated: the planar pose, proxops.navigation.planar_ekf). The ``ekf``
+    keys are ignored by ``noise`` and vice versa."""
 
     model: Literal["noise", "ekf"] = Field("noise", description="noise: Gaussian error on the true state; ekf: "
                                            "filter estimate from simulated sensor measurements")
