@@ -355,7 +355,10 @@ class ComposedTruth(PlantBase):
         return status, out
 
     def _integrate_reference(self, y0: np.ndarray, grid: np.ndarray, u: np.ndarray) -> np.ndarray:
-        """scipy DOP853 on the same RHS with NRLMSISE-00 called directly at both spacecraft."""
+        """scipy DOP853 on the same RHS with NRLMSISE-00 called directly at both spacecraft;
+        with SRP restarted at every shadow crossing, located by scipy's own event search
+        (its dense output and root finder) on the event functions of
+        :func:`proxops.environment.eclipse.shadow_boundaries`."""
         arrays = self._arrays()
         p = self.p
 
@@ -373,10 +376,64 @@ class ComposedTruth(PlantBase):
             return np.tile(y0, (grid.size, 1))
         from scipy.integrate import solve_ivp  # heavy (0.5 s): only on the reference path
 
-        sol = solve_ivp(fun, (grid[0], grid[-1]), y0, method="DOP853", t_eval=grid, rtol=self.rtol, atol=self.atol)
-        if not sol.success:
-            raise ProxopsError(f"reference propagation failed: {sol.message}")
-        return sol.y.T.copy()
+        events = self._shadow_events() if self.models.srp else []
+        side = [math.copysign(1.0, g(grid[0], y0)) for g in events]  # the side of each boundary now
+        out = np.empty((grid.size, 12))
+        out[0] = y0
+        t, y, idx = float(grid[0]), y0, 1
+
+        def run(t_a, t_b, y_a, samples, **kw):
+            sol = solve_ivp(fun, (t_a, t_b), y_a, method="DOP853", t_eval=samples, rtol=self.rtol, atol=self.atol,
+                            **kw)  # fmt: skip
+            if not sol.success:
+                raise ProxopsError(f"reference propagation failed: {sol.message}")
+            return sol, np.asarray(sol.y).reshape(12, -1).T  # (no sample: scipy gives empty lists)
+
+        while idx < grid.size:
+            for g, sgn in zip(events, side):
+                g.terminal, g.direction = True, -sgn  # the next crossing leaves the current side
+            sol, ys = run(t, float(grid[-1]), y, grid[idx:], events=events or None, dense_output=bool(events))
+            if sol.status != 1:
+                out[idx:] = ys
+                break
+            hit = [k for k, te in enumerate(sol.t_events) if te.size]
+            t_event = float(sol.t_events[hit[0]][0])
+            # scipy locates the crossing on the dense output of the step over it, whose stages
+            # straddle the kink: the samples after that step's start and the state at the
+            # crossing are redone from the step's start
+            ts = sol.sol.ts
+            t_a = float(ts[max(0, int(np.searchsorted(ts, t_event, side="left")) - 1)])
+            keep = int(np.count_nonzero(grid[idx:] <= t_a))
+            out[idx : idx + keep] = ys[:keep]
+            idx += keep
+            n_redo = int(np.count_nonzero(grid[idx:] <= t_event))
+            _, redo = run(t_a, t_event, sol.sol(t_a), np.append(grid[idx : idx + n_redo], t_event))
+            out[idx : idx + n_redo] = redo[:n_redo]
+            idx += n_redo
+            t, y = t_event, redo[-1]
+            for k in hit:  # (the cylindrical model's two functions of one spacecraft cross together)
+                if sol.t_events[k][0] == t_event:
+                    side[k] = -side[k]
+        return out
+
+    def _shadow_events(self) -> list:
+        """Event functions g(t, y) of the shadow boundaries (target and chaser; penumbra and
+        umbra, one for the cylindrical model) for scipy's solve_ivp."""
+        from proxops.environment.eclipse import shadow_boundaries
+        from proxops.environment.ephemeris import sun_eci_kernel
+
+        p = self.p
+        conical = self.models.shadow == "conical"
+
+        def make(body: int, which: int):
+            def g(t, y):
+                sx, sy, sz = sun_eci_kernel(p[kf.I_D0] + t / 86400.0)
+                r = y[:3] + y[6:9] if body else y[:3]
+                return shadow_boundaries(r[0], r[1], r[2], sx, sy, sz, p[kf.I_R_EARTH], p[kf.I_R_SUN], conical)[which]
+
+            return g
+
+        return [make(body, which) for body in (0, 1) for which in ((0, 1) if conical else (0,))]
 
     # ------------------------------------------------------------------ helpers
     def with_relative_state(self, state: np.ndarray, hill_state: np.ndarray) -> np.ndarray:
