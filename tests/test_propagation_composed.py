@@ -125,7 +125,10 @@ def test_default_tolerance_at_the_20km_boundary_with_100x100():
     """The default rtol (3e-11) and step safety (0.8) are set by the roughest forcing, the
     100x100 field (degree 100 varies on ~57 s along the track): at the boundary, 20 km, one
     orbit, 100x100 + Sun/Moon + SRP against scipy DOP853 on both absolute states (rtol
-    1e-13, whose own uncorrelated error is part of the difference). Measured 0.52 mm."""
+    1e-13, piecewise between the shadow crossings, whose own uncorrelated error is part of
+    the difference: 0.16 mm against rtol 3e-14). Measured 0.071 mm (2026-11-27; 2.19 mm when
+    neither integration stopped at the crossings, where a 1-ulp change of one initial
+    coordinate moved the result by 1-3 mm)."""
     models = ForceModels(epoch=EPOCH, gravity="harmonics", degree=100, order=100, sun=True, moon=True, srp=True)
     sep = 20000.0
     x0 = np.array([0.2 * sep, sep, 0.1 * sep, 0.0, -2.0 * 1.1e-3 * 0.2 * sep, 0.0])
@@ -154,7 +157,8 @@ def test_density_table_at_the_20km_boundary_full_model():
     reference path (NRLMSISE-00 called at both spacecraft at every evaluation) at the
     boundary of the stated range: 20 km along-track, 4 km radial, 2 km cross-track, drifting
     to ~70 km, different A/m (differential drag and SRP real), drag + Sun + Moon + SRP, one
-    orbit. Stated tolerance: < 1 mm. Measured 0.2 mm (without the curvature and cross-track
+    orbit. Stated tolerance: < 1 mm. Measured 0.045 mm (2026-11-27, both paths restarting at
+    the shadow crossings; 0.1-0.2 mm before) (without the curvature and cross-track
     terms: 5e-4 mean density error at the chaser, 16 mm here)."""
     from proxops.environment.forces import Spacecraft
 

@@ -21,6 +21,15 @@ SRP, whose shadow boundary the fixed step cannot follow) and ``"reference"`` (sc
 on the same RHS, with pymsis called at both spacecraft on every evaluation). The J2-only and
 two-body truths stay in RelativeTruth (the fastest path, unchanged).
 
+With SRP both DOP853 paths restart at every shadow crossing of either spacecraft (penumbra
+and umbra boundaries, :func:`proxops.environment.eclipse.shadow_boundaries`): the numba loop
+locates them on each step's Hermite interpolant (:mod:`proxops.propagation.kernels_full`),
+the reference path with scipy's event search, redoing the step over the crossing. Without
+it a step over a crossing made the result depend on where the steps fell (20 km, 20x20 +
+Sun/Moon + SRP, one orbit: 0.27-0.82 mm for rtol x 0.8-1.25 and the reference path 0.5-2.8 mm
+off the converged solution; now 1-2 um and 4-6 um). Cost with SRP: 877 instead of 553
+right-hand sides per orbit (20x20), 1801 instead of 1561 (100x100).
+
 Multistep vs DOP853 (benchmarks/bench_truth.py; 100x100 + drag + Sun/Moon, A/m 0.004 /
 0.015 m^2/kg, relative position vs numba DOP853 at rtol 1e-13): the default (order 6, 18 s,
 look-ahead) takes 668 evaluations of the 100x100 field per orbit against DOP853's 3122 at the
@@ -34,10 +43,12 @@ with the former default, one orbit 7.9-13.2 ms against 12.9-24.7 ms with one poi
 
 Measured (tests/test_propagation_composed.py, benchmarks/bench_truth.py; 500 km, 51.6 deg,
 2022-05-01, one orbit, default rtol 3e-11): fast path vs scipy DOP853 on both absolute
-states 0.008 mm at 100 m, 0.13 mm at 2 km, 0.52 mm at 20 km (100x100 + Sun/Moon + SRP;
-the absolute integration's own error is part of it); fast (density table) vs reference
-(direct NRLMSISE-00) with drag + Sun/Moon + SRP and different A/m: 0.05 mm at 2 km,
-0.13 mm at 20 km ahead + 4 km radial + 2 km cross-track. pymsis computes in single
+states 0.002 mm at 100 m, 0.006 mm at 2 km, 0.07 mm at 20 km (100x100 + Sun/Moon + SRP,
+the absolute integration piecewise between the shadow crossings at rtol 1e-13, whose own
+error is part of it: 0.16 mm at 20 km against rtol 3e-14; measured 2026-11-27); fast
+(density table) vs reference (direct NRLMSISE-00) with drag + Sun/Moon + SRP and different
+A/m: 0.035 mm at 2 km, 0.045 mm at 20 km ahead + 4 km radial + 2 km cross-track (2026-11-27,
+both paths restarting at the shadow crossings; 0.03 / 0.10 mm without). pymsis computes in single
 precision (float32, ~1e-6..1e-5 relative noise in density), which bounds the latter
 comparison. Against Orekit 13 with matching models, two orbits (tests/orekit_reference.py):
 <= 0.29 mm at 2 km, <= 3.1 mm at 20 km for every model set, mostly Earth orientation (README, "Validation against Orekit").
