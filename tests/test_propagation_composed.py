@@ -309,3 +309,16 @@ def test_located_shadow_crossings_match_the_geometry():
                       + _shadow_crossings(lambda t: sol.sol(t)[6:9], PERIOD))  # fmt: skip
     assert len(expected) == 8
     assert np.max(np.abs(np.sort(found[:8]) - expected)) < 1e-6
+
+
+def test_crossing_interpolant_is_exact_for_quintics():
+    """The crossing search interpolates positions with the quintic Hermite through values,
+    first and second derivatives at both step ends: exact (to rounding) for any polynomial
+    of degree <= 5, here x(t) = sum c_j t^j on a 90 s step."""
+    c = np.array([7.0e6, -3.0e3, 4.0, -2.0e-3, 5.0e-7, -3.0e-9])
+    poly = np.polynomial.Polynomial(c)
+    t0, h = 10.0, 90.0
+    ends = [(poly(t), poly.deriv(1)(t), poly.deriv(2)(t)) for t in (t0, t0 + h)]
+    for s in (0.0, 0.13, 0.5, 0.77, 1.0):
+        value = kf._hermite5(s, h, *ends[0], *ends[1])
+        assert value == pytest.approx(poly(t0 + s * h), rel=1e-14, abs=1e-6)
