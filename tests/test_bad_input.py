@@ -168,7 +168,7 @@ CASES = [
                             "{dir}/rm"], "--grid"),
     ("reach-map-omega-negative", ["reach", "map", "--omega-deg", "-1", "--amax", "0.1", "--out", "{dir}/rm"],
      "--omega-deg"),
-    ("reach-map-amax-nan", ["reach", "map", "--omega-deg", "2", "--amax", "nan", "--out", "{dir}/rm"], "--amax"),
+    ("reach-map-amax-nan", ["reach", "map", "--omega-deg", "2", "--amax", "nan", "--out", "{dir}/rm"], "--a-max-mps2"),  # the canonical name (--amax is its alias)
     ("reach-table-grid-huge", ["reach", "table", "--grid", "1000000"], "3000"),
     ("reach-mc-nx-huge", ["reach", "mc", "--out", "{dir}/rmc", "--n-x", "100000"], "--n-x"),
     ("reach-mc-ny-zero", ["reach", "mc", "--out", "{dir}/rmc", "--n-y", "0"], "--n-y"),

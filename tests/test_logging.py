@@ -14,7 +14,6 @@ def test_stage_lines_when_stderr_is_a_log():
     done = CliRunner().invoke(app, ARGS)
     assert done.exit_code == 0, done.output
     lines = [ln for ln in done.stderr.splitlines() if ln.startswith("proxops: ")]
-    assert any("station-keeping scenario loaded" in ln for ln in lines)
     assert any("ran in" in ln and "status completed" in ln for ln in lines)
     assert json.loads(done.stdout)["scenario"] == "station-keeping"
 
@@ -23,4 +22,9 @@ def test_quiet_leaves_stderr_empty_and_verbose_keeps_the_stages():
     quiet = CliRunner().invoke(app, ["--quiet", *ARGS])
     assert quiet.exit_code == 0 and quiet.stderr == ""
     verbose = CliRunner().invoke(app, ["--verbose", *ARGS])
-    assert verbose.exit_code == 0 and "ran in" in verbose.stderr
+    assert verbose.exit_code == 0 and "ran in" in verbose.stderr and "station-keeping scenario loaded" in verbose.stderr
+
+
+def test_a_failing_command_prints_only_its_error_line():
+    done = CliRunner().invoke(app, ["run", "station-keeping", "--set", "sim.duration_s=-1"])
+    assert done.exit_code == 2 and len(done.stderr.strip().splitlines()) == 1

@@ -52,7 +52,7 @@ def mc(
 
     out = out if out is not None else Path("out") / f"mc-{Path(scenario).stem}"
     log = logging.getLogger("proxops.mc")
-    log.info("campaign %s: %s runs on %s, results in %s", scenario, runs if runs is not None else "all grid",
+    log.debug("campaign %s: %s runs on %s, results in %s", scenario, runs if runs is not None else "all grid",
              scheduler or f"{workers or 'all usable'} local worker(s)", out)
     try:
         result = run_campaign(scenario, n_runs=runs, workers=workers, scheduler=scheduler, seed=seed, out=out,
@@ -65,8 +65,10 @@ def mc(
             raise
         typer.echo(f"error: {exc}", err=True)
         raise typer.Exit(1)
-    log.info("campaign %s: %d runs finished in %.1f s", scenario, len(result.table), result.wall_time_s)
     summary = result.summary()
+    if summary["succeeded"]:  # a campaign where every run failed ends on its one error line (exit 3)
+        log.info("campaign %s: %d runs finished in %.1f s, %d succeeded", scenario, summary["runs"],
+                 result.wall_time_s, summary["succeeded"])
     if report_:
         summary["report"] = write_report(result)["report_dir"]
     if as_json:

@@ -93,19 +93,20 @@ def name_metavars(command) -> None:
     """Give every option and argument of ``command`` and its subcommands a metavar by meaning
     (:func:`_metavar`) where none was set; idempotent."""
     for param in getattr(command, "params", []):
-        if param.metavar is None and (param.name or "") not in ("help", "version"):
-            param.metavar = _metavar(param)
         if getattr(param, "param_type_name", "") == "argument":  # typer adds "<str>" after an argument's name
             param.display_type_rich = lambda ctx=None: ""
+        elif param.metavar is None and (param.name or "") not in ("help", "version"):
+            param.metavar = _metavar(param)
     for sub in getattr(command, "commands", {}).values():
         name_metavars(sub)
 
 
 def configure_logging(verbose: bool = False, quiet: bool = False) -> None:
     """Stage lines on stderr through :mod:`logging` (logger ``proxops``): by default one line per
-    stage when stderr is not a terminal (a log file sees progress), none on a terminal (which
-    has the progress bars); ``--verbose`` adds the detail, ``--quiet`` leaves only errors and
-    turns the progress bars off."""
+    finished stage when stderr is not a terminal (a log file sees progress), none on a terminal
+    (which has the progress bars); ``--verbose`` adds the detail (also the start of each stage),
+    ``--quiet`` leaves only errors and turns the progress bars off. A failing command prints only
+    its one error line: no stage line is logged before the inputs are checked."""
     import logging
 
     STATE["quiet"] = quiet

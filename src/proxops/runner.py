@@ -24,7 +24,7 @@ def run_scenario(name_or_path: str, overrides=(), seed: int | None = None, out: 
                  figures: bool = True, progress: bool = False) -> dict:
     """Load, run and (with ``out``) save one scenario; returns the summary dict."""
     loaded = load_scenario(name_or_path, list(overrides))
-    log.info("%s: %s scenario loaded from %s", loaded.scenario.name, loaded.scenario.system, loaded.source)
+    log.debug("%s: %s scenario loaded from %s", loaded.scenario.name, loaded.scenario.system, loaded.source)
     start = time.perf_counter()
     summary, results = execute(loaded, seed=seed, progress=progress)
     log.info("%s: ran in %.1f s, status %s", loaded.scenario.name, time.perf_counter() - start, summary.get("status"))
