@@ -146,9 +146,13 @@ def certify_free_drift(times, drift, koz: KeepOutSphere, period_s: float, window
 
     Per whole orbit k of the window (phase-aligned samples at (k-1) T and k T): ``min_range_per_orbit_m``
     (to the KOZ centre, along cubic Hermite interpolants), ``return_miss_per_orbit_m`` (|r(kT) - r((k-1)T)|)
-    and ``along_track_drift_per_orbit_m`` = y(kT) - y((k-1)T) signed POSITIVE AWAY from the target:
-    times sign(y_c - c_y), y_c the orbit's mean along-track position relative to the KOZ centre c (CW: the
-    secular term of y is -3 (vy0 + 2 n x0) t, periodic terms return after T). ``first_koz_entry_s``
+    and ``along_track_drift_per_orbit_m``: the motion of the relative orbit's CENTRE, the change of the
+    orbit-mean along-track position y_c(k) - y_c(k-1) (trapezoid mean over each whole orbit: W - 1 values
+    for W whole orbits; one orbit: y(T) - y(0)), signed POSITIVE AWAY from the target (times sign(y_c - c_y),
+    c the KOZ centre). The CW secular term of y is -3 (vy0 + 2 n x0) t and its periodic terms average out
+    over T; unlike y(kT) - y((k-1)T) the centre does not confuse a phase shift of a large periodic motion
+    (J2 changes the relative-motion frequencies by ~1e-3: a 500 m hop ellipse returns metres off in phase
+    each orbit without moving) with a drift. ``first_koz_entry_s``
     (None if none in the window). Verdict: ``"enters KOZ at N orbits"`` (unsafe), else
     ``"indefinite: drift away from target"`` only when every orbit drifts away AND the whole last orbit
     lies on one side of the target along-track farther than the KOZ radius (|y - c_y| > r on every
@@ -168,13 +172,18 @@ def certify_free_drift(times, drift, koz: KeepOutSphere, period_s: float, window
     per_min, miss, along = [], [], []
     whole = int(math.floor(window + 1e-9))
     k_at = [int(np.argmin(np.abs(t - m * period))) for m in range(whole + 1)]
+    centre = []
     for m in range(1, whole + 1):
         a, b = k_at[m - 1], k_at[m]
         per_min.append(hermite_min_range(t[a:b + 1], x[a:b + 1], c))
         miss.append(float(np.linalg.norm(x[b, :3] - x[a, :3])))
-        y_c = float(np.mean(x[a:b + 1, 1])) - c[1]
-        side = 1.0 if y_c >= 0.0 else -1.0
-        along.append(side * float(x[b, 1] - x[a, 1]))
+        centre.append(float(np.trapezoid(x[a:b + 1, 1], t[a:b + 1]) / (t[b] - t[a])) - c[1])
+    # W whole orbits give W - 1 centre steps (orbit k against k - 1); a one-orbit window: y(T) - y(0)
+    if whole >= 2:
+        for m in range(1, whole):
+            along.append((1.0 if centre[m] >= 0.0 else -1.0) * (centre[m] - centre[m - 1]))
+    elif whole == 1:
+        along.append((1.0 if centre[0] >= 0.0 else -1.0) * float(x[k_at[1], 1] - x[k_at[0], 1]))
     safe = not math.isfinite(entry)
     indefinite = False
     if safe and along:

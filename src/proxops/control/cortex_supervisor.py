@@ -456,6 +456,8 @@ class CortexSupervisor:
         self.insertion_verified = None  # after an abort: the onboard insertion check passed (False: stopped at the cap)
         self.stop_reason = ""
         self.trim_queue: list[np.ndarray] = []
+        self._trim_drift = None  # predicted drift (m/orbit) that the last drift trim acted on
+        self._ineffective_trims = 0  # consecutive drift trims that left > 0.9 of the drift (dead thrusters)
         self._drift_stms = None
         self.suspended: set[str] = set()  # buffered conditions a regeneration started inside (re-armed on exit)
         self.verifying = False  # coasting to verify the safe-orbit insertion
@@ -745,12 +747,17 @@ class CortexSupervisor:
             drift = self.predicted_drift_m_per_orbit(x_bar)
             range_ok = rmin >= self.triggers.r_kos_m + self.s.passive_margin_m
             drift_ok = self.s.insertion_drift_tol_m is None or abs(drift) <= self.s.insertion_drift_tol_m
-            if not (range_ok and drift_ok) and self.insertion_extensions < self.s.insertion_max_intervals:
+            if self._trim_drift is not None:  # the last check was after a drift trim: did it act?
+                self._ineffective_trims = self._ineffective_trims + 1 if abs(drift) > 0.9 * abs(self._trim_drift) else 0
+                self._trim_drift = None
+            dead = self._ineffective_trims >= 2  # two drift trims in a row removed < 10 %: the thrusters do not act
+            if not (range_ok and drift_ok) and self.insertion_extensions < self.s.insertion_max_intervals and not dead:
                 self.insertion_extensions += 1
                 if not drift_ok:
                     c = float(x_bar[4] + 2.0 * self.n * x_bar[0])  # m/s: y_dot + 2 n x
                     k = max(1, int(math.ceil(abs(c) / self.dv_max - 1e-12)))
                     self.drift_trims += 1
+                    self._trim_drift = drift
                     events.append(("drift_trim", f"predicted drift {drift:+.2f} m/orbit: along-track trim "
                                    f"{-c * 1e3:+.3f} mm/s in {k} impulse(s)"))
                     self._start_coast(t, None, [np.array([0.0, -c / k, 0.0]) for _ in range(k)])
@@ -767,7 +774,8 @@ class CortexSupervisor:
             self.predicted_drift_m = drift
             self.insertion_verified = bool(range_ok and drift_ok)
             tol = "" if self.s.insertion_drift_tol_m is None else f" (tol {self.s.insertion_drift_tol_m:g})"
-            self.stop_reason = (f"{'verified' if self.insertion_verified else 'NOT verified (trim cap reached)'}: "
+            why = "two drift trims without effect (thrusters?)" if dead else "trim cap reached"
+            self.stop_reason = (f"{'verified' if self.insertion_verified else f'NOT verified ({why})'}: "
                                 f"predicted thrust-free min range {rmin:.2f} m over {self.s.passive_orbits:g} orbit(s) "
                                 f"(need {self.triggers.r_kos_m + self.s.passive_margin_m:g}), drift {drift:+.2f} m/orbit{tol}")
             events.append(("safe_orbit", f"on the safe circumnavigation orbit after {self.insertion_extensions} trim "
