@@ -205,5 +205,6 @@ def certify_free_drift(times, drift, koz: KeepOutSphere, period_s: float, window
         "first_koz_entry_orbits": float(entry / period) if not safe else None,
         "min_range_per_orbit_m": per_min, "return_miss_per_orbit_m": miss,
         "along_track_drift_per_orbit_m": along,
+        "centre_along_track_m": centre,  # orbit-mean y - c_y per whole orbit (m, Hill +y: the raw centre positions)
         "drift_median_m_per_orbit": float(np.median(along)) if along else math.nan,
     }

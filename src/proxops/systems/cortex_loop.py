@@ -141,6 +141,7 @@ def build_setup(sc):
                                   plume_weight=g.plume_weight, passive_orbits=g.passive_orbits,
                                   passive_margin_m=g.passive_margin_m, insertion_max_intervals=g.insertion_max_intervals,
                                   insertion_coast_s=g.insertion_coast_s, insertion_drift_tol_m=g.insertion_drift_tol_m,
+                                  **_j2_drift_term(sc),
                                   recompute_every=g.recompute_every,
                                   tracking_cone_margin_deg=g.tracking_cone_margin_deg,
                                   plume_linearization=g.plume_linearization,
@@ -154,6 +155,19 @@ def build_setup(sc):
     setup = Setup(plant=plant, controller=ctrl, duration_s=sc.sim.duration_s, navigation=navigation_of(sc, plant.layout),
                   actuator=actuator_of(sc), meta={"system": "cortex", "control": "impulse", "frame": "Hill/RTN"})
     return setup, ctrl, plan
+
+
+def _j2_drift_term(sc) -> dict:
+    """Settings of the J2 term of the insertion check's predicted drift (J2 or full truth; 0 on CW and
+    two-body): gain 9 pi J2 (Re / a)^2 sin^2 i (m/orbit per m of along-track offset, see
+    CortexSupervisor.predicted_drift_m_per_orbit) and the target's argument of latitude at t = 0."""
+    from proxops.core.constants import J2_EARTH, R_EARTH
+
+    if sc.truth.model not in ("j2", "full"):
+        return {"j2_drift_gain": 0.0, "u0_rad": 0.0}
+    o = sc.orbit
+    gain = 9.0 * math.pi * J2_EARTH * (R_EARTH / o.sma_m) ** 2 * math.sin(math.radians(o.inc_deg)) ** 2
+    return {"j2_drift_gain": gain, "u0_rad": math.radians(o.argp_deg + o.nu_deg)}  # the plant starts at orbit.epoch_utc
 
 
 def passive_safety(sc, plant, final_state) -> dict:
