@@ -80,9 +80,11 @@ def test_trim_nulls_the_drift_of_a_mispointed_hop_impulse_on_cw():
         assert abs(c_hop) == pytest.approx(np.linalg.norm(u_hop) * math.sin(math.radians(0.5)), rel=0.05, abs=TOL)
         assert abs(c_hop) > 1e-3  # the error the trim has to remove (> 20 m/orbit)
         c_trim, x = c_after(res, sched.times[t_node])
-        assert abs(c_trim) <= TOL + ROW_SLACK
+        # one-sided row (issue 26): the chaser sits at +y (V-bar ahead), and y's secular term is -3 c t, so the
+        # drift away from the target is c < 0: the trim puts c in [-2 tol, 0] (+ slack), never inward
+        assert -(2 * TOL + ROW_SLACK) <= c_trim <= ROW_SLACK
         miss = np.linalg.norm((cw_stm(N_ORB, T_ORB) @ x)[:3] - x[:3])
-        assert miss <= 3 * (TOL + ROW_SLACK) * T_ORB + 1e-6  # 1.3 m
+        assert miss <= 3 * (2 * TOL + ROW_SLACK) * T_ORB + 1e-6  # 2.4 m
     # the trim log: one entry per hop start, c estimated from the samples since the hop impulse
     assert [e["node"] for e in ctrl.trim_log] == [1, 7]
     assert all(e["samples"] == sched.steps[1] - sched.steps[0] for e in ctrl.trim_log)
@@ -100,9 +102,9 @@ def test_trim_below_the_impulse_bit_is_raised_out_of_plane():
     k1 = int(np.argmin(np.abs(res.t - sched.times[1])))
     u = res.u_applied[k1]
     assert np.linalg.norm(u) == pytest.approx(bit, rel=1e-3)
-    assert abs(u[1]) == pytest.approx(abs(c_hop), rel=0.05, abs=TOL)  # the y part is the trim
+    assert abs(u[1]) == pytest.approx(abs(c_hop), rel=0.05, abs=2 * TOL)  # the y part is the trim
     c_trim, x = c_after(res, sched.times[1])
-    assert abs(c_trim) <= TOL + ROW_SLACK
+    assert -(2 * TOL + ROW_SLACK) <= c_trim <= ROW_SLACK  # one-sided: outward (c < 0 at +y), see above
     z_amp = math.hypot(x[2], x[5] / N_ORB)
     assert z_amp <= bit / N_ORB + 1e-6
     # the bit unknown to the MPC: the sub-bit trim is dropped by the thrusters, c is left as it was
@@ -143,7 +145,8 @@ def test_trim_nulls_the_energy_invariant_on_nonlinear_truth(truth):
     from proxops.systems.srf import engine_dt, onboard_drift_model
 
     over = ["approach.hops=2", "sim.duration_s=7400", "navigation.position_sigma_m=0", f"truth.model={truth}",
-            "navigation.velocity_sigma_mps=0", "actuator.pointing_sigma_deg=1.0", "actuator.magnitude_sigma=0.01"]
+            "navigation.velocity_sigma_mps=0", "actuator.pointing_sigma_deg=1.0", "actuator.magnitude_sigma=0.01",
+            "mpc.drift_outward_mps=0", "safety.abort_orbits=3"]  # the trim mechanism alone: band [0, 2 tol], 3 orbits
     loaded = load_scenario("srf-vbar", over)
     summary, results = execute(loaded)
     res = results["run"]

@@ -136,3 +136,75 @@ def first_entry_time(t, x, center, radius) -> float:
         if hit >= 0:
             return float(t[hit])
     return float(t[k_in]) if k_in is not None else np.inf
+
+
+def certify_free_drift(times, drift, koz: KeepOutSphere, period_s: float, window_orbits: float) -> dict:
+    """The passive-safety certificate of one thrust-free drift (every system's abort or free-drift
+    phase: one block, one verdict). ``times`` (s from the drift start, from 0, covering the window),
+    ``drift`` (F, 6) Hill states (m, m/s) propagated by the caller with its truth, ``period_s`` the
+    target orbit's period, ``window_orbits`` the window the verdict names.
+
+    Per whole orbit k of the window (phase-aligned samples at (k-1) T and k T): ``min_range_per_orbit_m``
+    (to the KOZ centre, along cubic Hermite interpolants), ``return_miss_per_orbit_m`` (|r(kT) - r((k-1)T)|)
+    and ``along_track_drift_per_orbit_m``: the motion of the relative orbit's CENTRE, the change of the
+    orbit-mean along-track position y_c(k) - y_c(k-1) (trapezoid mean over each whole orbit: W - 1 values
+    for W whole orbits; one orbit: y(T) - y(0)), signed POSITIVE AWAY from the target (times sign(y_c - c_y),
+    c the KOZ centre). The CW secular term of y is -3 (vy0 + 2 n x0) t and its periodic terms average out
+    over T; unlike y(kT) - y((k-1)T) the centre does not confuse a phase shift of a large periodic motion
+    (J2 changes the relative-motion frequencies by ~1e-3: a 500 m hop ellipse returns metres off in phase
+    each orbit without moving) with a drift. ``first_koz_entry_s``
+    (None if none in the window). Verdict: ``"enters KOZ at N orbits"`` (unsafe), else
+    ``"indefinite: drift away from target"`` only when every orbit drifts away AND the whole last orbit
+    lies on one side of the target along-track farther than the KOZ radius (|y - c_y| > r on every
+    sample: with the CW periodic + secular motion moving away, |y| and so the range cannot fall below that
+    minimum later), else ``"safe over W orbits"``."""
+    t = np.asarray(times, dtype=float)
+    x = np.asarray(drift, dtype=float)
+    period = float(period_s)
+    window = float(window_orbits)
+    if t.size < 2 or t[-1] < window * period * (1 - 1e-9):
+        raise ValueError(f"free drift covers {t[-1] if t.size else 0.0:g} s, the window needs {window * period:g} s")
+    c = np.asarray(koz.center_m, dtype=float)
+    r_koz = float(koz.radius_m)
+    entry = first_entry_time(t, x, c, r_koz)
+    entry = entry if entry <= window * period * (1 + 1e-12) else np.inf
+    base = drift_safety(t, x, koz)
+    per_min, miss, along = [], [], []
+    whole = int(math.floor(window + 1e-9))
+    k_at = [int(np.argmin(np.abs(t - m * period))) for m in range(whole + 1)]
+    centre = []
+    for m in range(1, whole + 1):
+        a, b = k_at[m - 1], k_at[m]
+        per_min.append(hermite_min_range(t[a:b + 1], x[a:b + 1], c))
+        miss.append(float(np.linalg.norm(x[b, :3] - x[a, :3])))
+        centre.append(float(np.trapezoid(x[a:b + 1, 1], t[a:b + 1]) / (t[b] - t[a])) - c[1])
+    # W whole orbits give W - 1 centre steps (orbit k against k - 1); a one-orbit window: y(T) - y(0)
+    if whole >= 2:
+        for m in range(1, whole):
+            along.append((1.0 if centre[m] >= 0.0 else -1.0) * (centre[m] - centre[m - 1]))
+    elif whole == 1:
+        along.append((1.0 if centre[0] >= 0.0 else -1.0) * float(x[k_at[1], 1] - x[k_at[0], 1]))
+    safe = not math.isfinite(entry)
+    indefinite = False
+    if safe and along:
+        a, b = k_at[-2], k_at[-1]
+        dy = x[a:b + 1, 1] - c[1]
+        one_side = bool(np.all(dy > r_koz) or np.all(dy < -r_koz))
+        indefinite = one_side and all(d > 0.0 for d in along)
+    if not safe:
+        verdict = f"enters KOZ at {entry / period:.2f} orbits"
+    elif indefinite:
+        verdict = (f"indefinite: drift away from target ({float(np.median(along)):+.3g} m/orbit along-track, "
+                   f"whole orbit beyond {r_koz:g} m)")
+    else:
+        verdict = f"safe over {window:g} orbits"
+    return {
+        "window_orbits": window, "verdict": verdict, "safe": safe, "indefinite": indefinite,
+        "min_range_m": base["min_range_m"], "min_koz_distance_m": base["min_koz_distance_m"],
+        "first_koz_entry_s": float(entry) if not safe else None,
+        "first_koz_entry_orbits": float(entry / period) if not safe else None,
+        "min_range_per_orbit_m": per_min, "return_miss_per_orbit_m": miss,
+        "along_track_drift_per_orbit_m": along,
+        "centre_along_track_m": centre,  # orbit-mean y - c_y per whole orbit (m, Hill +y: the raw centre positions)
+        "drift_median_m_per_orbit": float(np.median(along)) if along else math.nan,
+    }

@@ -377,6 +377,10 @@ class SupervisorSettings:
     passive_orbits: float = 1.0  # safe-orbit insertion: thrust-free prediction checked over this many orbits
     passive_margin_m: float = 2.0  # ... and must stay this far outside r_KOS before the thrusters stop
     insertion_max_intervals: int = 20  # most extra guidance intervals spent trimming onto the safe orbit
+    insertion_coast_s: float | None = None  # thrust-free coast of each insertion check (None: one guidance interval)
+    insertion_drift_tol_m: float | None = None  # predicted |along-track drift| per orbit allowed (None: not checked)
+    j2_drift_gain: float = 0.0  # J2 short-period term of the predicted drift: gain sin(2 u) y m/orbit (0: CW only)
+    u0_rad: float = 0.0  # target argument of latitude at t = 0 (u = u0 + n t in that term)
     recompute_every: str = "guidance"  # "guidance": recompute conditions at the guidance steps (Alg. 2); "impulse"
     tracking_cone_margin_deg: float = 0.0  # CP_g tries (27g) at alpha_c minus this first (0: only the printed alpha_c)
     tracking_plume_margin_deg: float = 0.0  # CP_g plume rows at alpha_p_bar plus this ("solution" linearisation)
@@ -448,7 +452,14 @@ class CortexSupervisor:
         self.relaxed = None
         self.null_since = None
         self.insertion_extensions = 0
+        self.drift_trims = 0
         self.predicted_passive_min_m = None
+        self.predicted_drift_m = None  # m/orbit, CW prediction from the coast estimates at the stop
+        self.insertion_verified = None  # after an abort: the onboard insertion check passed (False: stopped at the cap)
+        self.stop_reason = ""
+        self.trim_queue: list[np.ndarray] = []
+        self._trim_drift = None  # predicted drift (m/orbit) that the last drift trim acted on
+        self._ineffective_trims = 0  # consecutive drift trims that left > 0.9 of the drift (dead thrusters)
         self._drift_stms = None
         self.suspended: set[str] = set()  # buffered conditions a regeneration started inside (re-armed on exit)
         self.verifying = False  # coasting to verify the safe-orbit insertion
@@ -477,7 +488,10 @@ class CortexSupervisor:
         if self.mode in TRACK_PHASES or self.mode == "retreat":
             if t >= self.timeline.t_end - 1e-9:
                 return self._finish(t, x_est, events)
-            if self.verifying:  # thrust-free coast of the insertion check: collect the estimates
+            if self.verifying:  # thrust-free coast of the insertion check (after its drift trim): collect the estimates
+                if self.trim_queue:
+                    return Command(u=self.trim_queue.pop(0), kind="impulse", mode=self.mode, events=events,
+                                   info={"phase": PHASE_INDEX[self.mode]})
                 self.verify_samples.append((t, np.asarray(x_est, float).copy()))
                 return Command(u=np.zeros(3), kind="impulse", mode=self.mode, info={"phase": PHASE_INDEX[self.mode]})
             seg = self.timeline.segment(t)
@@ -691,30 +705,79 @@ class CortexSupervisor:
         the white navigation noise of one sample shrinks by sqrt(samples)."""
         return np.mean([cw_stm(self.n, t - ti) @ xi for ti, xi in self.verify_samples], axis=0)
 
+    def _start_coast(self, t, x_est, trims) -> None:
+        """Start an insertion check: fire ``trims`` (one per step), then coast insertion_coast_s collecting
+        the estimates (``x_est``: the first sample, already after every impulse)."""
+        self.verifying = True
+        self.trim_queue = list(trims)
+        self.verify_samples = [] if x_est is None else [(t, np.asarray(x_est, float).copy())]
+        self.timeline = extend_on_safe_orbit(self.timeline, self.n, self._coast_s() + len(trims) * self.dt)
+        self.queue = []
+
+    def predicted_drift_m_per_orbit(self, x, t: float = 0.0) -> float:
+        """Along-track drift per orbit of the thrust-free motion from x at time t (m, signed, Hill y): the CW
+        secular term of y(t) is -3 (y_dot0 + 2 n x0) t, so -6 pi (2 x0 + y_dot0 / n) per orbit; plus, on a J2
+        (or full) truth, -``j2_drift_gain`` sin(2 u) y: an along-track offset y samples the J2 short-period
+        term of the semi-major axis, a_sp = (3 J2 Re^2 / 2 a) sin^2 i cos 2u (circular orbit), at u + y / a,
+        so the same osculating CW motion has a mean-a offset of (d a_sp / du) y / a and a drift of -3 pi times
+        it per orbit: -(9 pi J2 (Re / a)^2 sin^2 i) sin(2u) y (0.95 m/orbit at y = 37.5 m for the CSO of §5.1).
+        Measured on J2 truth (cortex-abort, no errors, centre drift dy of the 3-orbit thrust-free truth, Hill
+        +y): ground abort at 150 s, CW 0.13 - 0.95 = -0.82 against -1.02 m/orbit; at 450 s -0.10 - 0.81 = -0.90
+        against -0.99 m/orbit (CW alone: 0.13 / -0.10)."""
+        x = np.asarray(x, float)
+        cw = -6.0 * math.pi * (2.0 * x[0] + x[4] / self.n)
+        j2 = -self.s.j2_drift_gain * math.sin(2.0 * (self.s.u0_rad + self.n * t)) * x[1] if self.s.j2_drift_gain else 0.0
+        return float(cw + j2)
+
+    def _coast_s(self) -> float:
+        return self.s.insertion_coast_s if self.s.insertion_coast_s is not None else self.s.dt_g_s
+
     def _finish(self, t, x_est, events) -> Command:
         if self.mode == "retreat":
-            # verified insertion (§3.4 asks for a passively safe orbit). After the transfer the thrusters
-            # coast one guidance interval while the estimates are collected; their CW-mapped mean predicts
-            # the thrust-free motion. The thrusters stay off only when that prediction stays outside
-            # r_KOS + passive_margin_m for passive_orbits orbits; otherwise one CP_g interval (from the mean
-            # estimate) trims onto the safe orbit's own CW motion and the coast check repeats (at most
-            # insertion_max_intervals trims). Measured before: open-loop insertion with 20 % magnitude errors
-            # left 1-7 mm/s, and 1 mm/s drifts ~17 m along-track per orbit against a 3.75 m margin; a check
-            # on one high-level estimate misjudged the predicted range by 2.3 m.
+            # verified insertion (§3.4 asks for a passively safe orbit; the safe circumnavigation orbit is a CLOSED
+            # CW ellipse, so its drift 2 x + y_dot / n must vanish, not only its position error). After the
+            # transfer the thrusters coast insertion_coast_s while the estimates are collected; their CW-mapped
+            # mean x_bar predicts the thrust-free motion. The thrusters stay off only when (1) the predicted drift
+            # |6 pi (2 x + y_dot / n)| per orbit is within insertion_drift_tol_m and (2) the predicted motion stays
+            # outside r_KOS + passive_margin_m for passive_orbits orbits. Otherwise: (1) fails -> a drift trim
+            # (the along-track impulse -(y_dot + 2 n x) e_y that nulls the drift, in impulses of at most
+            # a_max delta_t_g, then the coast check again, so its execution errors are measured and trimmed in
+            # turn); (2) fails -> one CP_g interval (from x_bar) onto the safe orbit's own CW motion and the coast
+            # check again; at most insertion_max_intervals of both together. Measured before: open-loop insertion
+            # with 20 % magnitude errors left 1-7 mm/s, and 1 mm/s drifts ~17 m along-track per orbit against a
+            # 3.75 m margin; a position-only check over one orbit passed states drifting up to 12 m/orbit
+            # (issue 26: 12 of 21 high-error aborts re-entered r_KOS within 5 orbits).
             if not self.verifying:
-                self.verifying = True
-                self.verify_samples = [(t, np.asarray(x_est, float).copy())]
-                self.timeline = extend_on_safe_orbit(self.timeline, self.n, self.s.dt_g_s)
-                self.queue = []
+                self._start_coast(t, x_est, [])
                 return Command(u=np.zeros(3), kind="impulse", mode=self.mode, events=events,
                                info={"phase": PHASE_INDEX[self.mode]})
             self.verify_samples.append((t, np.asarray(x_est, float).copy()))
             x_bar = self._mean_estimate(t)
             self.verifying = False
             rmin = self.predicted_min_range(x_bar)
-            safe = rmin >= self.triggers.r_kos_m + self.s.passive_margin_m
-            if not safe and self.insertion_extensions < self.s.insertion_max_intervals:
+            drift = self.predicted_drift_m_per_orbit(x_bar, t)
+            range_ok = rmin >= self.triggers.r_kos_m + self.s.passive_margin_m
+            drift_ok = self.s.insertion_drift_tol_m is None or abs(drift) <= self.s.insertion_drift_tol_m
+            if self._trim_drift is not None:  # the last check was after a drift trim: did it act?
+                # ineffective: less than 10 % removed from a drift well above the noise of its estimate (4 tol)
+                tol = self.s.insertion_drift_tol_m if self.s.insertion_drift_tol_m is not None else 0.0
+                big = abs(self._trim_drift) > 4.0 * tol
+                self._ineffective_trims = self._ineffective_trims + 1 if (big and abs(drift) > 0.9 * abs(self._trim_drift)) else 0
+                self._trim_drift = None
+            dead = self._ineffective_trims >= 2  # two drift trims in a row removed < 10 %: the thrusters do not act
+            if not (range_ok and drift_ok) and self.insertion_extensions < self.s.insertion_max_intervals and not dead:
                 self.insertion_extensions += 1
+                if not drift_ok:
+                    dvy = self.n * drift / (6.0 * math.pi)  # m/s along y: the predicted drift -> 0 (CW: -(y_dot + 2 n x))
+                    k = max(1, int(math.ceil(abs(dvy) / self.dv_max - 1e-12)))
+                    self.drift_trims += 1
+                    self._trim_drift = drift
+                    events.append(("drift_trim", f"predicted drift {drift:+.2f} m/orbit: along-track trim "
+                                   f"{dvy * 1e3:+.3f} mm/s in {k} impulse(s)"))
+                    self._start_coast(t, None, [np.array([0.0, dvy / k, 0.0]) for _ in range(k)])
+                    dv = self.trim_queue.pop(0)
+                    return Command(u=dv, kind="impulse", mode=self.mode, events=events,
+                                   info={"phase": PHASE_INDEX[self.mode]})
                 self.timeline = extend_on_safe_orbit(self.timeline, self.n, self.s.dt_g_s)
                 self.queue = []
                 self.x_for_next_solve = x_bar
@@ -722,9 +785,15 @@ class CortexSupervisor:
                 return self._merge(cmd, events) if events else cmd
             self.final_target = self.timeline.final_state
             self.predicted_passive_min_m = rmin
+            self.predicted_drift_m = drift
+            self.insertion_verified = bool(range_ok and drift_ok)
+            tol = "" if self.s.insertion_drift_tol_m is None else f" (tol {self.s.insertion_drift_tol_m:g})"
+            why = "two drift trims without effect (thrusters?)" if dead else "trim cap reached"
+            self.stop_reason = (f"{'verified' if self.insertion_verified else f'NOT verified ({why})'}: "
+                                f"predicted thrust-free min range {rmin:.2f} m over {self.s.passive_orbits:g} orbit(s) "
+                                f"(need {self.triggers.r_kos_m + self.s.passive_margin_m:g}), drift {drift:+.2f} m/orbit{tol}")
             events.append(("safe_orbit", f"on the safe circumnavigation orbit after {self.insertion_extensions} trim "
-                           f"interval(s): predicted thrust-free min range {rmin:.2f} m over {self.s.passive_orbits:g} "
-                           f"orbit(s){'' if safe else ' (NOT above r_KOS + margin: trim cap reached)'}; thrusters off"))
+                           f"interval(s) ({self.drift_trims} drift trim(s)), {self.stop_reason}; thrusters off"))
             return Command(u=np.zeros(3), kind="impulse", mode="aborted", events=events, stop=True)
         self.final_target = self.x_f2
         events.append(("docked", "end of the final approach"))

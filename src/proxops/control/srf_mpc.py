@@ -147,6 +147,7 @@ class SrfMpcConfig:
     mid_hop_fuel_weight: float = 1.0  # R multiplier for impulses between hop instants (1 = paper)
     hop_distance_weight_per_m2: float = 0.0  # 1/2 w (a.p(J_m) - d_m)^2 towards Algorithm 1's distances (0 = paper)
     drift_free_tol_mps: float | None = None  # V-bar: |vy+ + 2 n x| <= tol after every hop-start impulse (None = off)
+    drift_outward_mps: float = 0.0  # V-bar: the drift rows ask s c in [b, b + 2 tol] (s: away from the target), b this
     drift_model: "EnergyDrift | None" = None  # J2-aware invariant from an onboard target ephemeris (None: CW's)
     drift_trim_delay_nodes: int | None = None  # V-bar: trim row this many nodes after every hop start (None = off)
     drift_hold_after_trim: bool = False  # with a trim: later impulses of the hop keep c as trimmed (design row)
@@ -543,6 +544,17 @@ class SrfMpc:
         self._c_times.extend(times.tolist())
         self._c_values.extend(values)
 
+    def drift_band(self) -> tuple[float, float]:
+        """Band (m/s) of the drift invariant c after a hop-start or trim impulse: ONE-SIDED, on the side of a
+        free drift away from the target (issue 26). The secular along-track motion is -3 c per unit time
+        (CW: y(t) has -3 (vy0 + 2 n x0) t), so the chaser at d a (d > 0 along the approach axis a) drifts away
+        when c a_y < 0: with s = -sign(a_y), s c in [b, b + 2 tol] (b = ``drift_outward_mps``, tol =
+        ``drift_free_tol_mps``; the same width as the two-sided |c| <= tol it replaces)."""
+        c = self.cfg
+        s = -1.0 if self.a[1] > 0 else 1.0
+        lo, hi = c.drift_outward_mps, c.drift_outward_mps + 2.0 * c.drift_free_tol_mps
+        return (lo, hi) if s > 0 else (-hi, -lo)
+
     def _lift_to_impulse_bit(self, node: int, x: np.ndarray, u: np.ndarray) -> np.ndarray:
         """A trim below the thrusters' minimum impulse bit would fire nothing and leave its drift (up
         to 3 bit t_orb of along-track drift per orbit, 22 m for 1 mm/s at a = 8100 km). Raise it to the
@@ -557,8 +569,10 @@ class SrfMpc:
         if bit <= 0.0 or norm == 0.0 or norm >= bit:
             return u
         k = self._drift_gains(node, x)[node]
-        if abs(float(k @ u)) <= self.cfg.drift_free_tol_mps:
-            return u
+        lo, hi = self.drift_band()
+        c_now = self.drift_estimate(float(self.sched.times[node]), x)[0]
+        if abs(float(k @ u)) <= self.cfg.drift_free_tol_mps and lo <= c_now <= hi:
+            return u  # firing nothing leaves c inside the (outward) band
         basis = []
         for v in (k, u):
             v = v - sum((v @ e) * e for e in basis)
@@ -758,7 +772,8 @@ class SrfMpc:
                 if drift_c is None:  # the same estimate for every drift row of this node
                     drift_c = self.drift_estimate(float(self.sched.times[i]), x)[0]
                 v = drift_c
-                lo.append(-c.drift_free_tol_mps - v); hi.append(c.drift_free_tol_mps - v)
+                c_lo, c_hi = self.drift_band()
+                lo.append(c_lo - v); hi.append(c_hi - v)
                 continue
             if tag == "hold":
                 if j < i or relax >= 1:  # a design row: relaxed first

@@ -152,3 +152,17 @@ class target_illumination:  # noqa: N801 (a picklable callable)
             sun = sun_position_eci(parse_epoch(self.orbit.epoch_utc), ts)
             lit = self._cache[t] = bool(illumination(r, np.atleast_2d(sun))[0] > 0.5)
         return lit
+
+
+def passive_safety_certificate(plant, state, koz, period_s: float, window_orbits: float,
+                               samples_per_orbit: int = 720) -> dict:
+    """The passive-safety certificate (:func:`proxops.constraints.passive_safety.certify_free_drift`)
+    of the thrust-free TRUTH from ``state`` (the plant's full state: what ``plant.free_drift`` takes)
+    over ``window_orbits`` orbits of ``period_s`` s, sampled ``samples_per_orbit`` times per orbit.
+    One block for every system with an abort or a free-drift phase (srf, cortex)."""
+    from proxops.constraints.passive_safety import certify_free_drift
+
+    times = np.linspace(0.0, window_orbits * period_s, int(round(window_orbits * samples_per_orbit)) + 1)
+    drift = plant.free_drift(np.asarray(state, dtype=float), times)
+    return {**certify_free_drift(times, drift, koz, period_s, window_orbits),
+            "truth": type(plant).__name__, "samples_per_orbit": int(samples_per_orbit)}

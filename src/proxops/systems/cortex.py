@@ -127,11 +127,13 @@ class GuidanceSection(Section):
     regen_cone_return_s: Annotated[float, Field(ge=0.0)] = Field(0.0, description="final-approach regeneration from outside alpha_c_bar: the planning cone, widened to pass the start, closes linearly back onto alpha_c_bar within this time (0: the widened cone throughout)")
     replan_candidates: Annotated[int, Field(ge=1)] = Field(30, description="regeneration: most phase durations tried from tau_lb (onboard time budget; none converged -> abort)")
     null_tol_mps: Annotated[float, Field(gt=0.0)] = Field(1e-3, description="velocity nulling before a re-plan / retreat ends below this speed")
-    passive_orbits: Annotated[float, Field(gt=0.0)] = Field(2.0, description="after an abort: orbits of thrust-free truth propagation checked outside the KOS")
+    passive_orbits: Annotated[float, Field(ge=1.0, le=50.0)] = Field(5.0, description="after an abort: window of the passive-safety certificate (orbits of thrust-free truth from the final state, issue 26) and of the onboard insertion check's CW prediction")
     passive_margin_m: Annotated[float, Field(ge=0.0)] = Field(2.0, description="safe-orbit insertion: the thrusters stop only when the thrust-free CW prediction from the estimate stays this far outside r_KOS for passive_orbits orbits")
     recompute_every: Literal["guidance", "impulse"] = Field("guidance", description="closed loop: evaluate the recompute conditions of Table 1 at every guidance step (Algorithm 2 lines 11-15, x_{k+1}) or at every impulse; the abort conditions are evaluated at every impulse either way")
     trace_step_s: Annotated[float, Field(ge=0.0)] = Field(10.0, description="closed loop: the run summary keeps the trajectory every this many seconds (campaign Figs. 13-14 without saved series; 0: none)")
     insertion_max_intervals: Annotated[int, Field(ge=0)] = Field(20, description="safe-orbit insertion: most extra guidance intervals spent trimming onto the safe orbit before the thrusters stop anyway")
+    insertion_coast_s: Annotated[float, Field(gt=0.0)] | None = Field(None, description="safe-orbit insertion: thrust-free coast of each insertion check, its estimates averaged (none: one guidance interval dt_g_s)")
+    insertion_drift_tol_m: Annotated[float, Field(gt=0.0)] | None = Field(0.5, description="safe-orbit insertion: the thrusters stop only when the predicted along-track drift |6 pi (2 x + y_dot / n)| per orbit is at most this, else an along-track drift trim (none: drift not checked, the position-only check before issue 26)")
 
 
 class ErrorsSection(Section):

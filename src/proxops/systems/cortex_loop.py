@@ -140,6 +140,8 @@ def build_setup(sc):
                                   r_as_m=cfg.r_as_m, plume_in_tracking=g.plume_in_tracking,
                                   plume_weight=g.plume_weight, passive_orbits=g.passive_orbits,
                                   passive_margin_m=g.passive_margin_m, insertion_max_intervals=g.insertion_max_intervals,
+                                  insertion_coast_s=g.insertion_coast_s, insertion_drift_tol_m=g.insertion_drift_tol_m,
+                                  **_j2_drift_term(sc),
                                   recompute_every=g.recompute_every,
                                   tracking_cone_margin_deg=g.tracking_cone_margin_deg,
                                   plume_linearization=g.plume_linearization,
@@ -155,13 +157,29 @@ def build_setup(sc):
     return setup, ctrl, plan
 
 
-def passive_safety(plant, final_state, n_rad_s: float, orbits: float, r_kos_m: float, samples_per_orbit: int = 400):
-    """Thrust-free truth from the final state for ``orbits`` orbits: (min range m, safe)."""
-    period = 2 * math.pi / n_rad_s
-    times = np.linspace(0.0, orbits * period, int(orbits * samples_per_orbit) + 1)
-    drift = plant.free_drift(np.asarray(final_state, float), times)
-    rmin = float(np.linalg.norm(drift[:, :3], axis=1).min())
-    return rmin, bool(rmin > r_kos_m)
+def _j2_drift_term(sc) -> dict:
+    """Settings of the J2 term of the insertion check's predicted drift (J2 or full truth; 0 on CW and
+    two-body): gain 9 pi J2 (Re / a)^2 sin^2 i (m/orbit per m of along-track offset, see
+    CortexSupervisor.predicted_drift_m_per_orbit) and the target's argument of latitude at t = 0."""
+    from proxops.core.constants import J2_EARTH, R_EARTH
+
+    if sc.truth.model not in ("j2", "full"):
+        return {"j2_drift_gain": 0.0, "u0_rad": 0.0}
+    o = sc.orbit
+    gain = 9.0 * math.pi * J2_EARTH * (R_EARTH / o.sma_m) ** 2 * math.sin(math.radians(o.inc_deg)) ** 2
+    return {"j2_drift_gain": gain, "u0_rad": math.radians(o.argp_deg + o.nu_deg)}  # the plant starts at orbit.epoch_utc
+
+
+def passive_safety(sc, plant, final_state) -> dict:
+    """The passive-safety certificate (:func:`proxops.systems.common.passive_safety_certificate`) of an
+    aborted run: thrust-free TRUTH from the final state over ``guidance.passive_orbits`` orbits, KOZ = r_KOS."""
+    from proxops.constraints.keep_out import KeepOutSphere
+    from proxops.systems.common import passive_safety_certificate
+    from proxops.systems.cortex import config_from_scenario
+
+    cfg = config_from_scenario(sc)
+    return passive_safety_certificate(plant, final_state, KeepOutSphere(cfg.r_kos_m, name="r_KOS"),
+                                      2 * math.pi / cfg.mean_motion_rad_s, sc.guidance.passive_orbits)
 
 
 def run_trace(result, step_s: float) -> dict:
@@ -259,11 +277,21 @@ def run_closed_loop(sc, seed: int = 0, progress: bool = False):
         summary.update(actuator_model="impulsive",
                        propellant_kg=float(propellant_mass_kg(summary["total_dv_mps"], sc.servicer.mass_kg, sc.actuator.isp_s)))
     if status == "aborted":
-        rmin, safe = passive_safety(setup.plant, result.meta["final_plant_state"], cfg.mean_motion_rad_s,
-                                    sc.guidance.passive_orbits, cfg.r_kos_m)
+        cert = passive_safety(sc, setup.plant, result.meta["final_plant_state"])
+        # safe only when the truth certificate holds AND the onboard insertion check passed: a retreat that could
+        # not be verified (trim cap reached) is never reported safe, whatever the truth did
+        verified = bool(ctrl.insertion_verified)
+        cert["truth_safe"] = cert["safe"]
+        cert["safe"] = bool(cert["safe"] and verified)
+        cert["stop_reason"] = ctrl.stop_reason
+        if not verified:
+            cert["verdict"] = f"not safe: retreat not verified onboard ({ctrl.stop_reason}); truth: {cert['verdict']}"
         summary.update(safe_orbit_error_m=dr, passive_orbits=sc.guidance.passive_orbits,
-                       passive_min_range_m=rmin, passive_safe=safe, insertion_trims=int(ctrl.insertion_extensions),
-                       predicted_passive_min_range_m=ctrl.predicted_passive_min_m)
+                       passive_min_range_m=cert["min_range_m"], passive_safe=cert["safe"],
+                       passive_safety=cert, insertion_trims=int(ctrl.insertion_extensions),
+                       drift_trims=int(ctrl.drift_trims), insertion_verified=verified,
+                       predicted_passive_min_range_m=ctrl.predicted_passive_min_m,
+                       predicted_drift_m_per_orbit=ctrl.predicted_drift_m)
     summary["trace"] = run_trace(result, sc.guidance.trace_step_s)
     result.meta["cortex_summary"] = {k: v for k, v in summary.items() if not isinstance(v, dict)}
     clean = {k: (None if isinstance(v, float) and not math.isfinite(v) else v) for k, v in summary.items()}
@@ -314,6 +342,12 @@ def table4(sc, table) -> str:
             out.append(f"Aborted runs passively safe over {sc.guidance.passive_orbits:g} orbits: "
                        f"{int(ps.astype(bool).sum())} of {len(ps)}; smallest range "
                        f"{done['metric.passive_min_range_m'].astype(float).min():.2f} m (r_KOS {sc.geometry.r_kos_m:g} m).")
+            col = "metric.passive_safety.drift_median_m_per_orbit"
+            if col in done:
+                d = done[col].astype(float).dropna()
+                if len(d):
+                    out.append(f"Along-track drift after the insertion (thrust-free truth, median over the orbits of each run, "
+                               f"+ = away from the target): median {d.median():+.3f} m/orbit, |max| {d.abs().max():.3f} m/orbit.")
     if "metric.solve_time_ms.median" in done:
         out.append(f"CP_g solve time: median of run medians {done['metric.solve_time_ms.median'].astype(float).median():.3f} ms "
                    f"(paper {PAPER_CPG_SOLVE_MS[0]} ± {PAPER_CPG_SOLVE_MS[1]} ms).")

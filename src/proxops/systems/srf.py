@@ -119,6 +119,10 @@ class SrfMpcSection(Section):
         "hop-start impulse, so the free drift returns to the hop start (not in the paper; its indefinite hold)")
     drift_free_tol_mps: Annotated[float, Field(gt=0.0)] = Field(
         5e-5, description="V-bar drift-free row tolerance (5e-5 m/s: 1.1 m of drift per orbit at a = 8100 km)")
+    drift_outward_mps: Annotated[float, Field(ge=0.0)] = Field(
+        0.0, description="V-bar drift rows: ONE-SIDED band, the invariant after a hop-start or trim impulse must give a "
+        "drift away from the target by at least this (m/s of c = vy + 2 n x; 3 c t_orb of along-track drift per orbit) "
+        "and at most this + 2 drift_free_tol_mps (issue 26: the two-sided row sat on its inward edge)")
     drift_trim: bool = Field(
         True, description="V-bar (with drift_free): a drift-free row also at a trim node after every hop start, so "
         "the MPC nulls the drift left by the hop impulse's execution errors and its single-sample estimate with a "
@@ -156,8 +160,9 @@ class SafetySection(Section):
 
     reference_tolerance_m: Annotated[float, Field(gt=0.0)] = Field(
         5.0, description="success: final distance to the reference point at most this")
-    abort_orbits: Annotated[float, Field(gt=0.0, le=10.0)] = Field(
-        3.0, description="passive-abort check on the truth: free drift from every hop state over this many orbits")
+    abort_orbits: Annotated[float, Field(ge=1.0, le=50.0)] = Field(
+        5.0, description="passive-abort check on the truth: free drift from every hop state over this many orbits "
+        "(the window of the passive-safety certificate, issue 26)")
     abort_samples_per_orbit: Annotated[int, Field(ge=10, le=100000)] = Field(
         720, description="samples per orbit of each passive-abort drift")
     abort_required_orbits: Annotated[float, Field(gt=0.0, le=10.0)] | None = Field(
@@ -314,6 +319,7 @@ def build_controller(sc: SrfScenario, cbf: bool | None = None):
         hop_distance_weight_per_m2=(m.hop_distance_weight_per_m2 if m.hop_distance_weight_per_m2 is not None
                                     else (1e-7 if vbar else 0.0)),
         drift_free_tol_mps=m.drift_free_tol_mps if (vbar and m.drift_free) else None,
+        drift_outward_mps=m.drift_outward_mps,
         drift_model=onboard_drift_model(sc, dt, mission_s) if (vbar and m.drift_free and sc.truth.model != "cw") else None,
         drift_trim_delay_nodes=m.drift_trim_delay_nodes if (vbar and m.drift_free and m.drift_trim) else None,
         drift_hold_after_trim=m.drift_hold_after_trim, drift_estimator_window_s=m.drift_estimator_window_s,
@@ -385,7 +391,7 @@ def passive_abort(sc: SrfScenario, result) -> list[dict]:
     of those divided by its number of orbits); ``hop_t_s``; with a trim also ``trim_dv_mps`` and the
     drift from the hop impulse alone (an abort between hop impulse and trim): ``untrimmed_safe_window_orbits``,
     ``untrimmed_min_koz_distance_m``, ``untrimmed_return_miss_per_orbit_m``."""
-    from proxops.constraints.passive_safety import drift_safety, first_entry_time
+    from proxops.constraints.passive_safety import certify_free_drift, drift_safety, first_entry_time
     from proxops.propagation.truth import CWPlant, RelativeTruth
     from proxops.systems.common import translational_plant
 
@@ -418,9 +424,12 @@ def passive_abort(sc: SrfScenario, result) -> list[dict]:
         entry = first_entry_time(times, drift, koz.center_m, koz.radius_m)
         misses = [float(np.linalg.norm(drift[int(np.argmin(np.abs(times - m * period))), :3] - x_post[:3]))
                   for m in whole]
+        cert = certify_free_drift(times, drift, koz, period, window)
+        cert.update(truth=type(plant).__name__, samples_per_orbit=int(sc.safety.abort_samples_per_orbit))
         return {**drift_safety(times, drift, koz), "safe_window_orbits": float(min(entry / period, window)),
                 "safe_required": bool(entry > required * period * (1 - 1e-9)), "return_miss_m": misses,
-                "return_miss_per_orbit_m": misses[-1] / len(misses) if misses else math.nan}
+                "return_miss_per_orbit_m": misses[-1] / len(misses) if misses else math.nan,
+                "passive_safety": cert}
 
     out = []
     for m, t_hop in enumerate(hop_starts):
@@ -438,7 +447,8 @@ def passive_abort(sc: SrfScenario, result) -> list[dict]:
                     "trim_dv_mps": float(np.linalg.norm(result.u_applied[k_trim])), **drift_from(k_trim),
                     "untrimmed_safe_window_orbits": hop["safe_window_orbits"],
                     "untrimmed_min_koz_distance_m": hop["min_koz_distance_m"],
-                    "untrimmed_return_miss_per_orbit_m": hop["return_miss_per_orbit_m"]}
+                    "untrimmed_return_miss_per_orbit_m": hop["return_miss_per_orbit_m"],
+                    "untrimmed_passive_safety": hop["passive_safety"]}
         out.append(item)
     return out
 
@@ -524,6 +534,16 @@ def summarize_result(sc: SrfScenario, result) -> dict:
         out["abort_required_orbits"] = required_abort_orbits(sc)
         out["abort_safe_window_orbits"] = float(min(item["safe_window_orbits"] for item in abort))
         out["abort_safe_required"] = bool(all(item["safe_required"] for item in abort))
+    if abort:  # the certificate block (one name for every system): the hop drift nearest the KOZ, and the drift signs
+        worst = min(abort, key=lambda item: item["passive_safety"]["min_koz_distance_m"])
+        out["passive_safety"] = {**worst["passive_safety"], "hop_t_s": worst["hop_t_s"],
+                                 "drift_median_m_per_orbit_by_hop": [i["passive_safety"]["drift_median_m_per_orbit"]
+                                                                     for i in abort],
+                                 "verdict_by_hop": [i["passive_safety"]["verdict"] for i in abort]}
+        untrimmed = [i["untrimmed_passive_safety"] for i in abort if "untrimmed_passive_safety" in i]
+        if untrimmed:
+            out["untrimmed_first_koz_entry_orbits"] = [u["first_koz_entry_orbits"] for u in untrimmed]
+            out["untrimmed_verdict_by_hop"] = [u["verdict"] for u in untrimmed]
     if abort and "return_miss_per_orbit_m" in abort[0]:
         out["abort_return_miss_per_orbit_max_m"] = float(max(item["return_miss_per_orbit_m"] for item in abort))
     mask = result.info.get("solved")
