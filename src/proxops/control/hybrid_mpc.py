@@ -234,10 +234,11 @@ class PostCaptureMPCConfig:
     kinematics_at_current_attitude: bool = True  # p_eta' = E(p) omega_c at the measured p (module doc)
     max_iter: int = 2000
     # Rate bound (not in the paper; issue 29): |omega_c_i| <= rate_max_deg_s per axis of the
-    # composite's tumble on every predicted stage (soft rows). 1 deg/s: 4 x the eq. 78 tumble
-    # (0.238 deg/s); without it the +-5 N m slew from p(0) (120 deg from q_I) spun the pair up to
+    # composite's tumble on every predicted stage (soft rows). 0.5 deg/s per axis (|omega_c| <= 0.87 deg/s,
+    # 3.6 x the eq. 78 tumble
+    # of 0.238 deg/s); without it the +-5 N m slew from p(0) (120 deg from q_I) spun the pair up to
     # 25.7 deg/s. None: no bound.
-    rate_max_deg_s: float | None = 1.0
+    rate_max_deg_s: float | None = 0.5
 
     def check(self) -> None:
         for name in ("horizon_s", "period_s", "Q_attitude", "Q_orbit", "R_input", "Q_terminal_attitude",

@@ -153,6 +153,27 @@ class TruthSection(Section):
         return self
 
 
+class EstimationSection(Section):
+    """What the MPCs see (proxops.navigation.hybrid.HybridNavigation). Sigmas are our choices
+    (the paper assumes the chief state 'can be accurately estimated'), 1-sigma per axis."""
+
+    model: str = Field("mekf", description="mekf: noisy relative pose + MEKF of the chief attitude and rate (both "
+                       "MPCs use it); exact: the true state ([navigation] noise only, default none)")
+    position_sigma_m: NonNegative = Field(2e-3, description="relative port position rho")
+    velocity_sigma_mps: NonNegative = Field(5e-4, description="relative port velocity rho_dot")
+    attitude_sigma_deg: NonNegative = Field(0.2, description="relative attitude q (small rotation)")
+    rate_sigma_deg_s: NonNegative = Field(0.02, description="relative rate omega")
+    chief_attitude_sigma_deg: Positive = Field(0.5, description="pose measurement of the chief attitude p (MEKF input)")
+    com_position_sigma_m: NonNegative = Field(1e-3, description="composite CoM rho_n")
+    com_velocity_sigma_mps: NonNegative = Field(1e-4, description="composite CoM velocity rho_n_dot")
+
+    @model_validator(mode="after")
+    def _known(self):
+        if self.model not in ("mekf", "exact"):
+            raise ValueError(f"estimation.model = {self.model!r}: allowed mekf, exact")
+        return self
+
+
 class SuccessSection(Section):
     """What a successful run is (judged at the END of the run) and when a run is stopped as
     diverging (checked at every sample on the true state). Our thresholds (not the paper's)."""
@@ -166,7 +187,7 @@ class SuccessSection(Section):
     divergence_rate_deg_s: Positive = Field(30.0, description="stop as diverged when the deputy's rate relative to "
                                             "the chief |omega| exceeds this (3 x the MPC rate bound)")
     divergence_chief_rate_deg_s: Positive | None = Field(None, description="stop as diverged when the chief tumble "
-                                                         "|omega_c| exceeds this (none: 2 x the initial + 2 deg/s; the post-capture MPC bound is 1 deg/s)")
+                                                         "|omega_c| exceeds this (none: 2 x the initial + 2 deg/s; the post-capture MPC bound is 0.5 deg/s per axis)")
 
 
 class HybridScenario(ScenarioBase):
@@ -184,6 +205,7 @@ class HybridScenario(ScenarioBase):
     reference: ReferenceSection = Field(ReferenceSection(), description="desired orbit of the pair's CoM")
     capture_mpc: CaptureMPCSection = Field(CaptureMPCSection(), description="capture MPC settings")
     truth: TruthSection = Field(TruthSection(), description="translational truth model")
+    estimation: EstimationSection = Field(EstimationSection(), description="navigation seen by both MPCs")
     success: SuccessSection = Field(SuccessSection(), description="success thresholds and divergence stop")
 
     @model_validator(mode="after")
@@ -275,6 +297,11 @@ def build_setup(sc: HybridScenario):
     from proxops.systems.common import navigation_model
 
     params, _, x0, envelope = model_objects(sc)
+    if sc.estimation.model == "mekf" and sc.navigation.model != "noise":
+        from proxops.errors import input_error
+
+        raise input_error("navigation.model", sc.navigation.model, "hybrid runs on [estimation] (model = mekf); "
+                          "set estimation.model = \"exact\" to use [navigation]")
     plant = HybridCapturePlant(params, x0, envelope, x_ref0=list(sc.reference.position_m) + list(sc.reference.velocity_mps),
                                snap_enabled=sc.latch.snap, max_substep_s=sc.contact.max_substep_s,
                                collision_gap_s=sc.contact.collision_gap_s, rearm_delay_s=sc.latch.rearm_delay_s,
@@ -286,7 +313,21 @@ def build_setup(sc: HybridScenario):
     post = PostCaptureMPC(params, _mpc_config(PostCaptureMPCConfig, period_s=cm.period_s))
     rule = HybridModeRule(envelope, sc.docking.release_distance_m, sc.docking.min_dwell_s)
     supervisor = HybridSupervisor(capture, post, rule)
-    navigation = navigation_model(sc.navigation, per_state_sigma=measured_sigma, system="hybrid")
+    if sc.estimation.model == "mekf":
+        from proxops.navigation.hybrid import HybridNavigation
+
+        e = sc.estimation
+        from proxops.dynamics.hybrid_relative import composite_inertia
+
+        x_dock = np.zeros(32)
+        x_dock[12] = x_dock[16] = 1.0
+        arm = params.mass_chief_kg / params.mass_total_kg * (params.P_c - params.P_d)
+        navigation = HybridNavigation(params.J_c, params.mean_motion_rad_s, composite_inertia(x_dock, params), arm,
+                                      e.position_sigma_m, e.velocity_sigma_mps,
+                                      e.attitude_sigma_deg, e.rate_sigma_deg_s, e.chief_attitude_sigma_deg,
+                                      e.com_position_sigma_m, e.com_velocity_sigma_mps)
+    else:
+        navigation = navigation_model(sc.navigation, per_state_sigma=measured_sigma, system="hybrid")
     return Setup(plant=plant, controller=supervisor, duration_s=sc.sim.duration_s, navigation=navigation,
                  stop_condition=Divergence.of(sc, plant.relative_state(plant.initial_state())),
                  meta={"system": "hybrid", "control": "thrust N + torque N m in D"})
@@ -367,8 +408,26 @@ def summarize_result(sc: HybridScenario, result) -> dict:
         "tracking_error_last_100s_max_m": float(err[last].max()),
         "chief_rate_initial_deg_s": float(np.degrees(wc[0])),
         "chief_rate_final_deg_s": float(np.degrees(wc[-1])),
+        "chief_rate_peak_deg_s": float(np.degrees(wc.max())),
+        "chief_rate_peak_time_s": float(t[int(np.argmax(wc))]),
         "solve_time_ms": solve_time_stats(solved),
     }
+    snaps = [tt for tt, k, m in result.events if k == "snap" and not m.startswith("skipped")]
+    if snaps:
+        end = summary["redock_time_s"] if redock else t[-1]
+        win = (t >= snaps[0]) & (t <= end)
+        summary["snap_time_s"] = float(snaps[0])
+        summary["max_separation_after_snap_m"] = float(np.linalg.norm(x[win, 0:3], axis=1).max())
+        free = win & (x[:, 33] < 0.5)
+        summary["unlatched_after_snap_s"] = float(free.sum() * (t[1] - t[0])) if len(t) > 1 else 0.0
+    xe = getattr(result, "x_est", None)
+    if xe is not None and len(xe) == len(t):
+        from proxops.navigation.mekf import attitude_error
+
+        att = np.array([np.degrees(np.linalg.norm(attitude_error(a, b))) for a, b in zip(xe[:, 13:17], x[:, 13:17])])
+        summary["chief_attitude_est_error_deg"] = {"final": float(att[-1]), "max_after_60s": float(
+            att[t >= 60.0].max()) if (t >= 60.0).any() else float(att.max())}
+        summary["chief_rate_est_error_deg_s_final"] = float(np.degrees(np.linalg.norm(xe[-1, 17:20] - x[-1, 17:20])))
     summary["sequence"] = sequence_text(contacts, changes, result.events)
     summary.update(final_verdict(sc, result, x, err, wc, docked, decoupled, bool(redock)))
     return summary
