@@ -3,7 +3,10 @@
 
 Scenarios (src/proxops/scenarios/builtin/hybrid-capture*.toml)::
 
-    proxops run hybrid-capture --json            # §VII: contact(s), dock, snap at 593 s, re-dock
+    proxops run hybrid-capture --json            # §VII: contact(s), dock, snap at 593 s, re-dock (MEKF + noise)
+    proxops run hybrid-capture-exact --json      # the same on exact states (labelled variant)
+    proxops run hybrid-redock --json             # a 5 N s snap that leaves the capture envelope, re-capture
+    proxops mc hybrid-envelope --workers 2 --report   # capture envelope grid (offset x tumble x thrust)
     proxops run hybrid-capture-no-snap --json    # §VII without the latch snap
     proxops run hybrid-capture-gentle --json     # a slower, aligned approach: no contact
     proxops mc hybrid-capture-mc --runs 50 --workers 2 --report
@@ -13,6 +16,18 @@ the target orbit frame, cuboid contacts with restitution, eq. 81 latch, latch sn
 Controller: :class:`proxops.control.hybrid_supervisor.HybridSupervisor` (Cases 1-4, eq. 17,
 dwell timer tau / T_1) over the capture MPC (Problem 2) and the post-capture MPC (Problem 3)
 of :mod:`proxops.control.hybrid_mpc`.
+
+Truth and navigation (issue 29): each CoM and the desired orbit move under exact two-body +
+J2 gravity ([truth]); both MPCs keep their CW models and see :class:`proxops.navigation.hybrid.HybridNavigation`
+(MEKF of the chief attitude and rate, noisy relative pose and composite CoM; [estimation]).
+
+Status (judged at the END of the run, [success]): ``docked`` / ``redocked`` only if the pair is
+latched with |rho|, |rho_dot| inside the capture envelope, the chief tumble |omega_c| below
+``chief_rate_max_deg_s`` and |rho_n - r_des| below ``tracking_error_max_m``; otherwise
+``failed: <reason>`` (not docked; separated after docking, not latched at the end; latched
+outside the envelope; spinning; tracking error). A run whose port range, relative rate or chief
+tumble passes its divergence bound is stopped there (:class:`Divergence`, stop reason
+``diverged: ...``, status ``failed: diverged: ... at t s``).
 
 Run summary keys (besides the engine's): ``docked``, ``dock_time_s``, ``contacts``
 ([{t_s, impulse_Ns}]), ``mode_changes`` ([{t_s, from, to}]), ``decoupled``,
@@ -495,8 +510,46 @@ class HybridSystem(SystemBase):
 
     def campaign_table(self, sc: HybridScenario, table) -> str:
         """Outcome table of a hybrid campaign: docked / re-docked / failed counts, contacts per
-        run and peak contact impulse."""
-        return outcome_table(table)
+        run and peak contact impulse; for the envelope grid (hybrid-envelope) also one row per cell."""
+        env = envelope_table(sc, table)
+        return outcome_table(table) + ("\n\n" + env if env else "")
+
+
+ENVELOPE_COLUMNS = ("disp.initial.rho0_m[1]", "disp.initial.omega_c_rad_s[2]", "disp.control.force_max_capture_N")
+
+
+def envelope_cells(sc: HybridScenario, table):
+    """Rows of the capture-envelope grid (hybrid-envelope): (offset of the deputy port from the
+    chief's port along the docking axis m, tumble deg/s, thrust bound N, status, thrust m_d omega^2 r
+    the deputy needs to stay on the turning docking axis at its CoM radius r (N)). None if the
+    campaign is not that grid."""
+    if not all(c in table.columns for c in ENVELOPE_COLUMNS):
+        return None
+    gap = 0.5 * (sc.chief.dims_m[1] + sc.deputy.dims_m[1])
+    status = table["metric.status"] if "metric.status" in table.columns else table["outcome"]
+    rows = []
+    for r_y, w, f, st in zip(table[ENVELOPE_COLUMNS[0]], table[ENVELOPE_COLUMNS[1]], table[ENVELOPE_COLUMNS[2]],
+                             status):
+        need = sc.deputy.mass_kg * float(w) ** 2 * float(r_y)
+        rows.append((float(r_y) - gap, math.degrees(float(w)), float(f), str(st), need))
+    return sorted(rows)
+
+
+def envelope_table(sc: HybridScenario, table) -> str:
+    """Markdown table of :func:`envelope_cells`, with the cells that cannot succeed for a physical
+    reason (thrust bound below m_d omega^2 r) named with the number, and the success region."""
+    cells = envelope_cells(sc, table)
+    if not cells:
+        return ""
+    lines = ["| port offset m | tumble deg/s | thrust bound N | status | m_d w^2 r N | physics |",
+             "| --- | --- | --- | --- | --- | --- |"]
+    for d, w, f, st, need in cells:
+        phys = f"cannot follow the port: needs {need:.3g} N > {f:g} N" if need > f else ""
+        lines.append(f"| {d:g} | {w:g} | {f:g} | {st} | {need:.3g} | {phys} |")
+    ok = [c for c in cells if not c[3].startswith("failed")]
+    lines += ["", f"success in {len(ok)} of {len(cells)} cells: "
+              + ("; ".join(f"({d:g} m, {w:g} deg/s, {f:g} N)" for d, w, f, _, _ in ok) or "none")]
+    return "\n".join(lines)
 
 
 def is_true_column(values) -> np.ndarray:
