@@ -18,6 +18,7 @@ plots need nothing but the saved series.
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 
 import numpy as np
@@ -252,9 +253,12 @@ def mc_table_figures(sc, table, out_dir: Path) -> list[Path]:
         d_max = max(c[0] for c in cells)
         dd = np.linspace(0.3, d_max * 1.1, 200)
         w_lim = np.degrees(np.sqrt(f / (sc.deputy.mass_kg * (dd + gap))))
-        ax.fill_between(dd, w_lim, 100.0, color="0.85", label="needs > bound (m_d w^2 r)")
-        for d, w, _, st, _ in sub:
-            good = not st.startswith("failed")
+        ax.fill_between(dd, w_lim, 100.0, color="0.9", label="start point not holdable (m_d w^2 r > F)")
+        r_dock = float(np.linalg.norm(np.array([0.0, gap, 0.0])))
+        w_dock = math.degrees(math.sqrt(f / (sc.deputy.mass_kg * r_dock)))
+        ax.axhspan(w_dock, 100.0, color="0.7", alpha=0.6, label="cannot dock (m_d w^2 r_dock > F)")
+        for d, w, _, st, _, _ in sub:
+            good = not st.startswith("fail")
             ax.plot(d, w, "o" if good else "x", color="tab:green" if good else "tab:red", ms=10, mew=2)
             if not good:
                 ax.annotate(st.removeprefix("failed: ")[:18], (d, w), fontsize=6, xytext=(3, 3),

@@ -520,35 +520,43 @@ ENVELOPE_COLUMNS = ("disp.initial.rho0_m[1]", "disp.initial.omega_c_rad_s[2]", "
 
 def envelope_cells(sc: HybridScenario, table):
     """Rows of the capture-envelope grid (hybrid-envelope): (offset of the deputy port from the
-    chief's port along the docking axis m, tumble deg/s, thrust bound N, status, thrust m_d omega^2 r
-    the deputy needs to stay on the turning docking axis at its CoM radius r (N)). None if the
-    campaign is not that grid."""
+    chief's port along the docking axis m, tumble deg/s, thrust bound N, status, thrust the deputy
+    needs to co-rotate on the docking axis at the docked CoM distance r_dock = |P_c - P_d|
+    (m_d omega^2 r_dock, N: necessary to dock at all), the same at its start distance (N)).
+    None if the campaign is not that grid."""
     if not all(c in table.columns for c in ENVELOPE_COLUMNS):
         return None
+    params = model_objects(sc)[0]
+    r_dock = float(np.linalg.norm(params.P_c - params.P_d))
     gap = 0.5 * (sc.chief.dims_m[1] + sc.deputy.dims_m[1])
-    status = table["metric.status"] if "metric.status" in table.columns else table["outcome"]
+    status = table["status"] if "status" in table.columns else table["outcome"]
     rows = []
     for r_y, w, f, st in zip(table[ENVELOPE_COLUMNS[0]], table[ENVELOPE_COLUMNS[1]], table[ENVELOPE_COLUMNS[2]],
                              status):
-        need = sc.deputy.mass_kg * float(w) ** 2 * float(r_y)
-        rows.append((float(r_y) - gap, math.degrees(float(w)), float(f), str(st), need))
+        m_w2 = sc.deputy.mass_kg * float(w) ** 2
+        rows.append((float(r_y) - gap, math.degrees(float(w)), float(f), str(st), m_w2 * r_dock, m_w2 * float(r_y)))
     return sorted(rows)
 
 
 def envelope_table(sc: HybridScenario, table) -> str:
-    """Markdown table of :func:`envelope_cells`, with the cells that cannot succeed for a physical
-    reason (thrust bound below m_d omega^2 r) named with the number, and the success region."""
+    """Markdown table of :func:`envelope_cells`: cells that cannot succeed for a physical reason
+    (thrust bound below m_d omega^2 r_dock) named with the number, and the success region."""
     cells = envelope_cells(sc, table)
     if not cells:
         return ""
-    lines = ["| port offset m | tumble deg/s | thrust bound N | status | m_d w^2 r N | physics |",
-             "| --- | --- | --- | --- | --- | --- |"]
-    for d, w, f, st, need in cells:
-        phys = f"cannot follow the port: needs {need:.3g} N > {f:g} N" if need > f else ""
-        lines.append(f"| {d:g} | {w:g} | {f:g} | {st} | {need:.3g} | {phys} |")
-    ok = [c for c in cells if not c[3].startswith("failed")]
+    lines = ["| port offset m | tumble deg/s | thrust bound N | status | m_d w^2 r_dock N | m_d w^2 r_start N | physics |",
+             "| --- | --- | --- | --- | --- | --- | --- |"]
+    for d, w, f, st, need, need0 in cells:
+        if need > f:
+            phys = f"cannot dock: co-rotating at the docked radius needs {need:.3g} N > {f:g} N"
+        elif need0 > f:
+            phys = f"cannot hold the start on the turning axis ({need0:.3g} N > {f:g} N)"
+        else:
+            phys = ""
+        lines.append(f"| {d:g} | {w:g} | {f:g} | {st} | {need:.3g} | {need0:.3g} | {phys} |")
+    ok = [c for c in cells if not c[3].startswith("fail")]
     lines += ["", f"success in {len(ok)} of {len(cells)} cells: "
-              + ("; ".join(f"({d:g} m, {w:g} deg/s, {f:g} N)" for d, w, f, _, _ in ok) or "none")]
+              + ("; ".join(f"({c[0]:g} m, {c[1]:g} deg/s, {c[2]:g} N)" for c in ok) or "none")]
     return "\n".join(lines)
 
 
