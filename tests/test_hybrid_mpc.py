@@ -407,22 +407,26 @@ def test_post_capture_from_eq78_chief_attitude_with_a_holding_latch():
     """The chief of eq. 78 (p 120 deg from q_I, 0.24 deg/s tumble) docked to the deputy, with a
     latch stiff enough to hold the pair under the ±5 N / ±5 N m bounds (K_T = 750 N/m,
     D_T = 520 N s/m, K_R = 550 N m/rad, D_R = 150 N m s/rad; eq. 81's 5 / 2 lets the deputy
-    swing 0.75 m / 0.9 rad away under those bounds): within 80 s the chief is aligned
-    (|p_eta| < 1e-3), the CoM tracks x_ref = 0 to < 1 mm and the latch stays within 2 cm."""
+    swing 0.75 m / 0.9 rad away under those bounds): within 220 s the chief is aligned
+    (|p_eta| < 1e-3), the CoM tracks x_ref = 0 to < 1 mm and the latch stays within 2 cm; the
+    slew never turns the pair faster than the MPC's rate bound (0.5 deg/s per axis, +10 % for the
+    linear model's error; issue 29 measured 25.7 deg/s without it): 120 deg at <= 0.87 deg/s."""
     params = HybridParams(latch_KT=750.0, latch_DT=520.0, latch_KR=550.0, latch_DR=150.0)
     mpc = PostCaptureMPC(params)
     x = np.zeros(32)
     x[S_Q] = [0.0, 0.0, 0.0, 1.0]
     x[S_P], x[S_OMC] = P_PAPER, OMC_PAPER
     mpc.reset(0.0, x)
-    max_rho = 0.0
-    for k in range(80):
+    max_rho = max_rate = 0.0
+    for k in range(220):
         cmd = mpc.step(float(k), x)
         assert cmd.status.ok
         x = solve_ivp(lambda t, xx: post_capture_rhs(xx, cmd.u, params), (0.0, 1.0), x, rtol=1e-7, atol=1e-10).y[:, -1]
         x[S_Q] /= np.linalg.norm(x[S_Q])
         x[S_P] /= np.linalg.norm(x[S_P])
         max_rho = max(max_rho, float(np.linalg.norm(x[S_RHO])))
+        max_rate = max(max_rate, float(np.abs(x[S_OMC]).max()))
+    assert np.degrees(max_rate) < 0.55
     assert np.linalg.norm(x[S_P][0:3]) < 1e-3
     assert np.linalg.norm(x[S_RN] - x[S_REF][0:3]) < 1e-3
     assert max_rho < 0.02

@@ -226,8 +226,9 @@ def test_cases_1_to_4_with_the_dwell_timer():
         x[M_CONTACTS] = 2
         modes[t] = sup.step(float(t), x).mode
     assert modes[11] == CAPTURE and modes[12] == POST_CAPTURE  # Case 2 at once (dwell of capture met)
-    # latch open at 30 s: tested only when tau reaches 0, i.e. 12 + 10 k s -> at 32 s (Case 4)
-    assert all(modes[t] == POST_CAPTURE for t in range(12, 32)) and modes[32] == CAPTURE
+    # latch open at 30 s: the latch sensor is acted on at once (Case 4; the dwell of post-capture,
+    # 18 s > T_1, is met), not when tau next reaches 0 at 32 s (issue 29)
+    assert all(modes[t] == POST_CAPTURE for t in range(12, 30)) and modes[30] == CAPTURE
     assert [(a, b) for _, a, b in sup.switch_log] == [(CAPTURE, POST_CAPTURE), (POST_CAPTURE, CAPTURE)]
     assert cap.counts and set(cap.counts) == {2}  # the contact count reaches the capture MPC
     assert post.resets >= 2 and cap.resets >= 2  # reset on entry
@@ -354,7 +355,10 @@ def test_collision_count_groups_contacts_closer_than_the_gap():
 # ------------------------------------------------------------------ end to end with the MPCs
 SHORT = ["sim.duration_s=40", "initial.rho0_m=[-0.94,0,0]", "initial.rho0_dot_mps=[0,-0.002256,-0.002256]",
          "initial.omega_c_rad_s=[-0.0024,0.0024,-0.0024]",
-         "latch.snap=true", "latch.snap_time_s=20", "docking.min_dwell_s=5", "latch.rearm_delay_s=5"]
+         "latch.snap=true", "latch.snap_time_s=20", "docking.min_dwell_s=5", "latch.rearm_delay_s=5",
+         # judged at the end of 40 s: the tumble cannot be damped to the default 0.05 deg/s that soon
+         # (success is an end-state verdict, issue 29); exact states keep this sequence test deterministic
+         "success.chief_rate_max_deg_s=2.0", "estimation.model=exact"]
 
 
 def test_short_sequence_end_to_end_with_the_mpcs():

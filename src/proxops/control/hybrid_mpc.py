@@ -183,6 +183,19 @@ class CaptureMPCConfig:
     safe_margin_m: float = 0.3  # waypoint radius = chief half-diagonal + deputy port's reach + this
     retreat_fraction: float = 0.9  # closer than this fraction of the waypoint radius: back off radially first
     max_iter: int = 2000  # DAQP active-set iteration cap
+    # Rate bound (not in the paper; issue 29): |omega_i| <= rate_max_deg_s per axis of the deputy's
+    # rate relative to the chief on every predicted stage, as soft rows (DAQP relaxes them at a
+    # penalty when the measured rate is already beyond). 10 deg/s: 1.6 x the eq. 78 start
+    # (|omega| = 6.2 deg/s), so the paper's case is untouched while the 10 m start, which spun
+    # the deputy to 65 deg/s, is held. None: no bound.
+    rate_max_deg_s: float | None = 10.0
+    # Far from the port the linear model's lever arm is wrong (failure analysis, issue 29): eq. 19
+    # makes the port move with the deputy's attitude (rho = R rho_0 + Q^T P_d - P_c); linearised,
+    # a constant rate moves the port without bound (omega x P_d t), while the true port only
+    # circles the deputy CoM within |P_d| = 0.35 m. At 10 m the plan spun the deputy up to
+    # "translate" the port. Beyond this port range (m) the translational rows of A do not see
+    # the deputy's rate and attitude (the port moves with the CoM). None: never.
+    decouple_beyond_m: float | None = 1.0
 
     def check(self) -> None:
         for name in ("horizon_s", "period_s", "Q_rho", "Q_rho_dot", "Q_omega", "Q_q", "R_force", "R_torque",
@@ -220,6 +233,12 @@ class PostCaptureMPCConfig:
     thrust_at_current_attitude: bool = True  # force block of B at the measured R^T Q^T (module doc)
     kinematics_at_current_attitude: bool = True  # p_eta' = E(p) omega_c at the measured p (module doc)
     max_iter: int = 2000
+    # Rate bound (not in the paper; issue 29): |omega_c_i| <= rate_max_deg_s per axis of the
+    # composite's tumble on every predicted stage (soft rows). 0.5 deg/s per axis (|omega_c| <= 0.87 deg/s,
+    # 3.6 x the eq. 78 tumble
+    # of 0.238 deg/s); without it the +-5 N m slew from p(0) (120 deg from q_I) spun the pair up to
+    # 25.7 deg/s. None: no bound.
+    rate_max_deg_s: float | None = 0.5
 
     def check(self) -> None:
         for name in ("horizon_s", "period_s", "Q_attitude", "Q_orbit", "R_input", "Q_terminal_attitude",
@@ -242,19 +261,35 @@ def _steps(prefix: str, horizon_s: float, period_s: float) -> int:
     return n
 
 
-def _solve_box_qp(solver, H, f, lb, ub, max_iter: int, kappa):
-    """Solve min 1/2 U'HU + f'U, lb <= U <= ub with DAQP, set up on the first call and updated
-    in place after (same structure every step). Returns (solver, result, info dict)."""
+def _solve_box_qp(solver, H, f, lb, ub, max_iter: int, kappa, A=None, bl=None, bu=None):
+    """Solve min 1/2 U'HU + f'U, lb <= U <= ub (and, given A, the soft rows bl <= A U <= bu:
+    the rate bounds, which DAQP may relax at a penalty) with DAQP, set up on the first call and
+    updated in place after (same structure every step). Returns (solver, result, info dict)."""
     t_solver = time.perf_counter()
     if solver is None:
         solver = DaqpQP(max_iter=max_iter)
-        solver.setup_native(H, f, None, lb=lb, ub=ub)
-    else:
+        if A is None:
+            solver.setup_native(H, f, None, lb=lb, ub=ub)
+        else:
+            solver.setup_native(H, f, A, bl, bu, lb=lb, ub=ub, soft_rows=np.ones(A.shape[0], bool))
+    elif A is None:
         solver.update(H=H, f=f, lb=lb, ub=ub)
+    else:
+        solver.update(H=H, f=f, A=A, bl=bl, bu=bu, lb=lb, ub=ub)
     res = solver.solve()
     out = {"status": res.status, "kappa": kappa, "iterations": res.iterations,
            "solver_time_s": time.perf_counter() - t_solver, "detail": str(res.info.get("raw_status", ""))}
     return solver, res, out
+
+
+def _rate_rows(G, free, N: int, first: int, rate_max_deg_s):
+    """(A, bl, bu) of the soft rate rows -w <= x_k[first:first+3] <= w, k = 1..N, on the
+    condensed prediction X = free + G U (all None without a bound)."""
+    if rate_max_deg_s is None:
+        return None, None, None
+    w = math.radians(rate_max_deg_s)
+    idx = (np.arange(N)[:, None] * N_DX + first + np.arange(3)[None, :]).ravel()
+    return G[idx], -w - free[idx], w - free[idx]
 
 
 def capture_weights(config: CaptureMPCConfig, collisions: int):
@@ -509,9 +544,14 @@ class CaptureMPC:
                         plan.get("detail", ""))
 
     # ---------------------------------------------------------------- model
-    def model(self, p, omega_c, q=None):
-        """(Ad, Bd, kappa^0 (D components), A, B) at (p, omega_c) for the configured period."""
+    def model(self, p, omega_c, q=None, decouple: bool = False):
+        """(Ad, Bd, kappa^0 (D components), A, B) at (p, omega_c) for the configured period;
+        ``decouple``: the translational rows do not see the deputy's rate and attitude (far from
+        the port, config ``decouple_beyond_m``)."""
         A, B, kappa, _ = self.linearization(p, omega_c)
+        if decouple:
+            A = A.copy()
+            A[0:6, 6:12] = 0.0
         if self.config.thrust_at_current_attitude and q is not None:
             Q = quat_to_dcm(np.asarray(q, float)).T  # C_{D<-C}
             B = B.copy()
@@ -566,7 +606,8 @@ class CaptureMPC:
         cfg, N, dt = self.config, self.N, self.dt
         x = np.asarray(x_rel, float)
         dx0 = reduced_capture_state(x)
-        Ad, Bd, kappa, _, _ = self.model(x[S_P], x[S_OMC], x[S_Q])
+        far = cfg.decouple_beyond_m is not None and float(np.linalg.norm(x[S_RHO])) > cfg.decouple_beyond_m
+        Ad, Bd, kappa, _, _ = self.model(x[S_P], x[S_OMC], x[S_Q], decouple=far)
         Phi, G = self._cond.build(Ad, Bd)
         Qd, Rd, Qf = capture_weights(cfg, self.collisions)
         W = np.tile(dt * Qd, N)
@@ -602,7 +643,8 @@ class CaptureMPC:
         f = (2.0 * scale) * f
         if not isinstance(self._solver, DaqpQP):
             self._solver = None
-        self._solver, res, out = _solve_box_qp(self._solver, H, f, lb, ub, cfg.max_iter, kappa)
+        rows = _rate_rows(G, free, N, 6, cfg.rate_max_deg_s)
+        self._solver, res, out = _solve_box_qp(self._solver, H, f, lb, ub, cfg.max_iter, kappa, *rows)
         if res.x is None or not res.ok:
             self._plan_rho = None
             return out
@@ -759,7 +801,8 @@ class PostCaptureMPC:
         f = (2.0 * self._scale) * (WG.T @ free)
         lb = np.tile(-self.u_max - kappa, N)
         ub = np.tile(self.u_max - kappa, N)
-        self._solver, res, out = _solve_box_qp(self._solver, H, f, lb, ub, self.config.max_iter, kappa)
+        rows = _rate_rows(G, free, N, 3, self.config.rate_max_deg_s)
+        self._solver, res, out = _solve_box_qp(self._solver, H, f, lb, ub, self.config.max_iter, kappa, *rows)
         if res.x is None or not res.ok:
             return out
         U = np.clip(res.x, lb, ub)

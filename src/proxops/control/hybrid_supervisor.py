@@ -13,8 +13,10 @@ mode's controller. Transition sets (the paper names them but gives no numbers; o
   than the envelope's position threshold: this gap is the hysteresis in rho.
 
 Dwell timer tau (eq. 16): set to T_1 on entry to post-capture; it runs down at rate 1 and
-only when it reaches 0 is x tested against T_{1->0} (then tau is reset to T_1, the
-smallest value eq. 16 allows). The generic supervisor's minimum dwell is also T_1, so every
+only when it reaches 0 is x tested against |rho| >= release distance of T_{1->0}. A latch
+sensor reading open is acted on at once (issue 29: waiting out tau left the post-capture MPC
+pushing +-5 N on a free deputy for up to 8 s after the §VII snap; with navigation noise that
+ground the deputy into the chief, 88 contacts and 38 deg/s). (When tau reaches 0, it is reset to T_1, the smallest value eq. 16 allows.) The generic supervisor's minimum dwell is also T_1, so every
 mode lasts at least T_1 s and the number of switches in a window of L s is at most
 floor(L / T_1) + 1, whatever the state does on the boundary (tests/test_hybrid_system.py).
 
@@ -96,6 +98,9 @@ class HybridModeRule:
                 self.next_check_s = t + self.min_dwell_s  # tau <- T_1
                 return POST_CAPTURE
             return CAPTURE  # Case 1
+        if x[M_LATCHED] < 0.5:  # the latch let go (a decoupling jump of the plant): capture at once
+            self.next_check_s = t + self.min_dwell_s
+            return CAPTURE
         if t + 1e-9 < self.next_check_s:  # tau > 0: flow, no test (eq. 16)
             return POST_CAPTURE
         self.next_check_s = t + self.min_dwell_s  # tau = 0: jump, tau <- T_1

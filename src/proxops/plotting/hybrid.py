@@ -18,6 +18,7 @@ plots need nothing but the saved series.
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 
 import numpy as np
@@ -233,3 +234,40 @@ def plot_model_agreement(ts, errors: dict, blocks, path: Path) -> Path:
     axes[0].set_ylabel("max |error| per block (SI units)")
     axes[1].legend(fontsize=7, loc="lower right")
     return save(fig, path)
+
+
+def mc_table_figures(sc, table, out_dir: Path) -> list[Path]:
+    """``hybrid_envelope.png`` of the capture-envelope grid (hybrid-envelope): one panel per
+    capture thrust bound, port offset x tumble, success (o) / failure (x, reason initial), and
+    the curve m_d omega^2 r = F above which no controller can stay on the turning docking axis."""
+    from proxops.systems.hybrid import envelope_cells
+
+    cells = envelope_cells(sc, table)
+    if not cells:
+        return []
+    forces = sorted({c[2] for c in cells})
+    gap = 0.5 * (sc.chief.dims_m[1] + sc.deputy.dims_m[1])
+    fig, axes = plt.subplots(1, len(forces), figsize=(4.2 * len(forces), 3.8), sharey=True, squeeze=False)
+    for ax, f in zip(axes[0], forces):
+        sub = [c for c in cells if c[2] == f]
+        d_max = max(c[0] for c in cells)
+        dd = np.linspace(0.3, d_max * 1.1, 200)
+        w_lim = np.degrees(np.sqrt(f / (sc.deputy.mass_kg * (dd + gap))))
+        ax.fill_between(dd, w_lim, 100.0, color="0.9", label="start point not holdable (m_d w^2 r > F)")
+        r_dock = float(np.linalg.norm(np.array([0.0, gap, 0.0])))
+        w_dock = math.degrees(math.sqrt(f / (sc.deputy.mass_kg * r_dock)))
+        ax.axhspan(w_dock, 100.0, color="0.7", alpha=0.6, label="cannot dock (m_d w^2 r_dock > F)")
+        for d, w, _, st, _, _ in sub:
+            good = not st.startswith("fail")
+            ax.plot(d, w, "o" if good else "x", color="tab:green" if good else "tab:red", ms=10, mew=2)
+            if not good:
+                ax.annotate(st.removeprefix("failed: ")[:18], (d, w), fontsize=6, xytext=(3, 3),
+                            textcoords="offset points")
+        ax.set_xscale("log")
+        ax.set_ylim(-0.3, max(c[1] for c in cells) * 1.2 + 0.1)
+        ax.set_title(f"capture thrust bound {f:g} N")
+        ax.set_xlabel("port offset along the docking axis (m)")
+    axes[0][0].set_ylabel("chief tumble (deg/s)")
+    axes[0][0].legend(loc="upper left", fontsize=7)
+    path = Path(out_dir) / "hybrid_envelope.png"
+    return [save(fig, path)]

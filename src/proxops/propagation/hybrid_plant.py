@@ -3,8 +3,17 @@ flight with cuboid contacts (jump map with restitution, eqs. 33-39 on the direct
 a spring-damper latch (eq. 81) while docked, and the scripted latch snap of §VII.
 
 Modes (``plant.mode``): ``"free"`` (two bodies, contacts active) and ``"latched"`` (the
-eq. 81 latch acts between the docking ports; contacts are not checked, as in the paper's
-h = 1 flow). Events returned by :meth:`HybridCapturePlant.propagate_events`:
+eq. 81 latch acts between the docking ports, and the docking faces' physical stop,
+:func:`latch_stop_kernel`, keeps them from passing through each other: a stiff unilateral
+spring-damper at every deputy corner that crosses the chief's docking-face plane, 62 um
+under the 5 N post-capture bound; issue 29 measured 10 mm overlaps without it).
+
+Translational truth (``gravity``, issue 29): ``"j2"`` (default of the scenarios) or
+``"twobody"``: each CoM and x_ref move under exact inertial point-mass (+ J2) gravity seen
+from T (:func:`gravity_correction_kernel`; T = the frame of the chief's initial circular
+orbit, uniformly turning at n0); ``"cw"``: the linear model itself (eq. 21). x_ref is then
+the natural motion of a point mass under the same gravity (the desired parking orbit is a
+natural orbit of the truth). The MPCs keep their CW models, so the mismatch is real. Events returned by :meth:`HybridCapturePlant.propagate_events`:
 
 * ``contact`` -- the cuboids touch while approaching (guard :func:`contact_guard` crosses 0,
   located by :func:`proxops.dynamics.plant.locate_guard` to ``tol_s``), the frictionless
@@ -22,9 +31,14 @@ released cannot grab again on the spot: without the delay the snapped pair, stil
 envelope at 0.56 mm/s, would re-latch within one substep); from then on the capture envelope
 is checked again (re-docking).
 
-Plant state (internal, 37): truth (26, :mod:`proxops.dynamics.two_rigid_bodies`), x_ref
-(6, natural CW motion, the paper's f_T), latched flag, collision count, snap done flag,
-time from which the latch is armed, time of the last contact.
+Plant state (internal, 38): truth (26, :mod:`proxops.dynamics.two_rigid_bodies`), x_ref
+(6, natural motion, the paper's f_T), latched flag, collision count, snap done flag,
+time from which the latch is armed, time of the last contact, the plant's clock (s).
+
+Contact location: the guard is tested at each substep end against 0 (apart) or, when the
+bodies already touch after a bounce, against the current gap less ``DEPTH_TOL_M`` (10 um),
+so a second crossing during a touch is located too (issue 29 measured contacts found only
+after 1.6 mm overlap); the event message gives the overlap at location.
 
 Measured state (``relative_state``, 34): the paper's relative state (32,
 :func:`relative_from_truth`, with x_ref) followed by the collision count (a contact sensor:
@@ -54,7 +68,9 @@ import numpy as np
 from numba import njit
 
 from proxops.core.layout import Block, StateLayout, make_control_layout
+from proxops.core.constants import J2_EARTH, MU_EARTH, R_EARTH
 from proxops.core.quaternion import dcm_kernel
+from proxops.core.twobody import accel_differential, accel_j2
 from proxops.dynamics.hybrid_relative import N_REL, relative_from_truth
 from proxops.dynamics.plant import PlantBase, locate_guard
 from proxops.dynamics.two_rigid_bodies import (
@@ -73,7 +89,9 @@ from proxops.errors import input_error
 I_REF = slice(N_TRUTH, N_TRUTH + 6)
 I_LATCHED, I_CONTACTS, I_SNAPPED, I_ARMED_FROM, I_LAST_CONTACT = (N_TRUTH + 6, N_TRUTH + 7, N_TRUTH + 8, N_TRUTH + 9,
                                                               N_TRUTH + 10)
-N_PLANT = N_TRUTH + 11
+I_TIME = N_TRUTH + 11  # the plant's clock (s): the gravity model needs the frame's inertial orientation
+N_PLANT = N_TRUTH + 12
+DEPTH_TOL_M = 1e-5  # a further overlap than this below the current (touching) gap is located as a new contact
 # measured-state indices beyond the paper's 32
 M_CONTACTS, M_LATCHED = N_REL, N_REL + 1
 N_MEASURED = N_REL + 2
@@ -128,9 +146,98 @@ def attitude_error_rad(q) -> float:
     return float(2.0 * math.atan2(math.sqrt(q[0] ** 2 + q[1] ** 2 + q[2] ** 2), abs(q[3])))
 
 
+GRAVITY_MODELS = ("cw", "twobody", "j2")  # truth translational gravity (module doc)
+
+
 @njit(cache=True)
-def _rhs(y, u, latched, m_c, m_d, J_c, J_c_inv, J_d, J_d_inv, n, P_c, P_d, KT, DT, KR, DR):
-    """d/dt of truth (26) + x_ref (6); the latch pair of two_rigid_bodies.latch_wrench when latched."""
+def gravity_correction_kernel(r, t, grav):
+    """a_true - a_CW (m/s^2, T components) for a point mass at T-position ``r`` (m) at time
+    ``t`` (s), without the Coriolis term (the same in both: T turns at the constant n0).
+
+    ``grav = (mode, n0, a0, cos i, sin i, j2, Re, mu)``; mode 0: CW (returns 0), 1: two-body,
+    2: two-body + J2 (:func:`proxops.core.twobody.accel_differential`, Encke/Battin form).
+    T is the frame of a circular orbit of radius a0 (n0^2 a0^3 = mu), inclination i, RAAN 0,
+    argument of latitude u = n0 t. Exact inertial motion seen from T:
+    r'' = [g(R0 + r) - g(R0)] + a_J2(R0) + n0^2 (x, y, 0) - 2 omega_t x r'  (R0 = a0 e_x),
+    and CW is r'' = (3 n0^2 x, 0, -n0^2 z) - 2 omega_t x r'."""
+    out = np.zeros(3)
+    mode = int(grav[0])
+    if mode == 0:
+        return out
+    n, a0, ci, si, j2, re, mu = grav[1], grav[2], grav[3], grav[4], grav[5], grav[6], grav[7]
+    if mode == 1:
+        j2 = 0.0
+    u = n * t
+    cu, su = math.cos(u), math.sin(u)
+    # columns of C_{I<-T}: e_x (radial), e_y (along-track), e_z (orbit normal)
+    ex0, ex1, ex2 = cu, ci * su, si * su
+    ey0, ey1, ey2 = -su, ci * cu, si * cu
+    ez0, ez1, ez2 = 0.0, -si, ci
+    dx = ex0 * r[0] + ey0 * r[1] + ez0 * r[2]
+    dy = ex1 * r[0] + ey1 * r[1] + ez1 * r[2]
+    dz = ex2 * r[0] + ey2 * r[1] + ez2 * r[2]
+    ax, ay, az = accel_differential(a0 * ex0, a0 * ex1, a0 * ex2, dx, dy, dz, mu, j2, re)
+    if j2 != 0.0:
+        bx, by, bz = accel_j2(a0 * ex0, a0 * ex1, a0 * ex2, mu, j2, re)
+        ax += bx
+        ay += by
+        az += bz
+    out[0] = ex0 * ax + ex1 * ay + ex2 * az - 2.0 * n * n * r[0]
+    out[1] = ey0 * ax + ey1 * ay + ey2 * az + n * n * r[1]
+    out[2] = ez0 * ax + ez1 * ay + ez2 * az + n * n * r[2]
+    return out
+
+
+STOP_K_N_PER_M = 2.0e4  # latch stop: stiffness per deputy corner (4 on the docking face: 8e4 N/m, 62 um under 5 N)
+STOP_C_NS_PER_M = 400.0  # and damping per corner (~0.3 of critical for the 90 kg reduced mass)
+
+
+@njit(cache=True)
+def latch_stop_kernel(x, corners_d, v_c, plane_c, k, c, omega_t):
+    """Physical stop of the docking faces while latched: every deputy cuboid corner that passes
+    the plane of the chief's docking face (normal v in C through P_c) is pushed back by a
+    unilateral spring-damper (k depth + c depth', never pulling) acting at that corner on the
+    deputy and its opposite on the chief (momentum conserving). Returns (F_T on the deputy's
+    CoM sum (N, T), tau_d (N m, D), tau_c (N m, C), deepest penetration m)."""
+    Rc = dcm_kernel(x[12:16])
+    Rd = dcm_kernel(x[19:23])
+    rho0 = x[6:9] - x[0:3]
+    vrel = x[9:12] - x[3:6] + _cross3(omega_t, rho0)
+    Wc = Rc @ x[16:19]
+    Wd = Rd @ x[23:26]
+    nT = Rc @ v_c
+    F_sum = np.zeros(3)
+    tau_d = np.zeros(3)
+    tau_c = np.zeros(3)
+    deepest = 0.0
+    for i in range(corners_d.shape[0]):
+        arm = Rd @ corners_d[i]
+        pT = rho0 + arm
+        depth = plane_c - nT @ pT
+        if depth <= 0.0:
+            continue
+        deepest = max(deepest, depth)
+        rate = -(nT @ (vrel + _cross3(Wd, arm) - _cross3(Wc, pT)))
+        f = k * depth + c * rate
+        if f <= 0.0:
+            continue
+        F = f * nT
+        F_sum += F
+        tau_d += Rd.T @ _cross3(arm, F)
+        tau_c += Rc.T @ _cross3(pT, -F)
+    return F_sum, tau_d, tau_c, deepest
+
+
+@njit(cache=True)
+def _cross3(a, b):
+    return np.array([a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]])
+
+
+@njit(cache=True)
+def _rhs(y, u, latched, t, grav, stop, corners_d, m_c, m_d, J_c, J_c_inv, J_d, J_d_inv, n, P_c, P_d, KT, DT, KR, DR):
+    """d/dt of truth (26) + x_ref (6) at time t (s); the latch pair of
+    two_rigid_bodies.latch_wrench when latched; the CW translation of truth_rhs_kernel
+    corrected to the ``grav`` model (:func:`gravity_correction_kernel`) for both CoMs and x_ref."""
     dy = np.zeros(32)
     x = y[0:26]
     dy[0:26] = truth_rhs_kernel(x, u, m_c, m_d, J_c, J_c_inv, J_d, J_d_inv, n)
@@ -140,23 +247,37 @@ def _rhs(y, u, latched, m_c, m_d, J_c, J_c_inv, J_d, J_d_inv, n, P_c, P_d, KT, D
         dy[3:6] -= F / m_c
         dy[23:26] += J_d_inv @ tau_d
         dy[16:19] += J_c_inv @ tau_c
-    # x_ref: natural CW motion (corrected G2 of eq. 21), hybrid_relative.reference_rhs
+        if stop[0] > 0.0:
+            F, tau_d, tau_c, _ = latch_stop_kernel(x, corners_d, stop[1:4], stop[4], stop[5], stop[6],
+                                                   np.array([0.0, 0.0, n]))
+            dy[9:12] += F / m_d
+            dy[3:6] -= F / m_c
+            dy[23:26] += J_d_inv @ tau_d
+            dy[16:19] += J_c_inv @ tau_c
+    # x_ref: natural motion of a point mass (CW: corrected G2 of eq. 21, hybrid_relative.reference_rhs)
     dy[26:29] = y[29:32]
     dy[29] = 3.0 * n * n * y[26] + 2.0 * n * y[30]
     dy[30] = -2.0 * n * y[29]
     dy[31] = -n * n * y[28]
+    if grav[0] > 0.5:
+        dy[3:6] += gravity_correction_kernel(y[0:3], t, grav)
+        dy[9:12] += gravity_correction_kernel(y[6:9], t, grav)
+        dy[29:32] += gravity_correction_kernel(y[26:29], t, grav)
     return dy
 
 
 @njit(cache=True)
-def _rk4(y, u, latched, h, n_steps, m_c, m_d, J_c, J_c_inv, J_d, J_d_inv, n, P_c, P_d, KT, DT, KR, DR):
-    """``n_steps`` classical RK4 steps of length h (s); quaternions renormalised after each."""
+def _rk4(y, u, latched, t0, grav, stop, corners_d, h, n_steps, m_c, m_d, J_c, J_c_inv, J_d, J_d_inv, n, P_c, P_d, KT, DT, KR, DR):
+    """``n_steps`` classical RK4 steps of length h (s) from time t0 (s); quaternions
+    renormalised after each."""
     y = y.copy()
-    for _ in range(n_steps):
-        k1 = _rhs(y, u, latched, m_c, m_d, J_c, J_c_inv, J_d, J_d_inv, n, P_c, P_d, KT, DT, KR, DR)
-        k2 = _rhs(y + 0.5 * h * k1, u, latched, m_c, m_d, J_c, J_c_inv, J_d, J_d_inv, n, P_c, P_d, KT, DT, KR, DR)
-        k3 = _rhs(y + 0.5 * h * k2, u, latched, m_c, m_d, J_c, J_c_inv, J_d, J_d_inv, n, P_c, P_d, KT, DT, KR, DR)
-        k4 = _rhs(y + h * k3, u, latched, m_c, m_d, J_c, J_c_inv, J_d, J_d_inv, n, P_c, P_d, KT, DT, KR, DR)
+    a = (m_c, m_d, J_c, J_c_inv, J_d, J_d_inv, n, P_c, P_d, KT, DT, KR, DR)
+    for i in range(n_steps):
+        t = t0 + i * h
+        k1 = _rhs(y, u, latched, t, grav, stop, corners_d, *a)
+        k2 = _rhs(y + 0.5 * h * k1, u, latched, t + 0.5 * h, grav, stop, corners_d, *a)
+        k3 = _rhs(y + 0.5 * h * k2, u, latched, t + 0.5 * h, grav, stop, corners_d, *a)
+        k4 = _rhs(y + h * k3, u, latched, t + h, grav, stop, corners_d, *a)
         y = y + h / 6.0 * (k1 + 2.0 * k2 + 2.0 * k3 + k4)
         y[12:16] /= np.sqrt(np.sum(y[12:16] ** 2))
         y[19:23] /= np.sqrt(np.sum(y[19:23] ** 2))
@@ -222,8 +343,18 @@ class HybridCapturePlant(PlantBase):
     def __init__(self, params: HybridParams, x0_truth, envelope: CaptureEnvelope = CaptureEnvelope(),
                  x_ref0=None, snap_enabled: bool = True, rearm_delay_s: float = 10.0,
                  max_substep_s: float = 0.05, tol_s: float = 1e-7, start_latched: bool = False,
-                 collision_gap_s: float = 1.0):
+                 collision_gap_s: float = 1.0, gravity: str = "cw", inclination_deg: float = 51.6,
+                 latch_stop: bool = True):
         self.params = params
+        if gravity not in GRAVITY_MODELS:
+            raise input_error("truth.gravity", gravity, "allowed: " + ", ".join(GRAVITY_MODELS))
+        if not (math.isfinite(inclination_deg) and 0.0 <= inclination_deg <= 180.0):
+            raise input_error("inclination_deg", inclination_deg, "must lie in [0, 180]", "deg")
+        self.gravity, self.latch_stop = gravity, bool(latch_stop)
+        n0 = params.mean_motion_rad_s
+        inc = math.radians(inclination_deg)
+        self._grav = np.array([float(GRAVITY_MODELS.index(gravity)), n0, (MU_EARTH / n0 ** 2) ** (1.0 / 3.0),
+                               math.cos(inc), math.sin(inc), J2_EARTH, R_EARTH, MU_EARTH])
         self.envelope = envelope
         self.snap_enabled = bool(snap_enabled)
         if not (math.isfinite(rearm_delay_s) and rearm_delay_s >= 0.0):
@@ -244,6 +375,10 @@ class HybridCapturePlant(PlantBase):
         self.y0 = y0
         p = params
         self._hc, self._hd = params.half_chief, params.half_deputy
+        v = params.P_c / np.linalg.norm(params.P_c)
+        self._corners = np.array([[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)], float) * self._hd
+        self._stop = np.array([1.0 if self.latch_stop else 0.0, *v, float(v @ params.P_c), STOP_K_N_PER_M,
+                               STOP_C_NS_PER_M])
         self._args = (p.mass_chief_kg, p.mass_deputy_kg, p.J_c, p.J_c_inv, p.J_d, p.J_d_inv, p.mean_motion_rad_s,
                       p.P_c, p.P_d, float(p.latch_KT), float(p.latch_DT), float(p.latch_KR), float(p.latch_DR))
 
@@ -279,7 +414,8 @@ class HybridCapturePlant(PlantBase):
             return y.copy()
         n_sub = max(1, int(math.ceil(tau / self.max_substep_s - 1e-9)))
         out = y.copy()
-        out[:32] = _rk4(y[:32], u, y[I_LATCHED] > 0.5, tau / n_sub, n_sub, *self._args)
+        out[:32] = _rk4(y[:32], u, y[I_LATCHED] > 0.5, y[I_TIME], self._grav, self._stop, self._corners, tau / n_sub, n_sub, *self._args)
+        out[I_TIME] = y[I_TIME] + tau
         return out
 
     def _guard(self, y: np.ndarray) -> float:
@@ -288,6 +424,7 @@ class HybridCapturePlant(PlantBase):
 
     def propagate_events(self, t: float, state: np.ndarray, u: np.ndarray, dt: float):
         y = np.asarray(state, dtype=float).copy()
+        y[I_TIME] = t
         u = np.asarray(u, dtype=float)
         events: list[tuple[float, str, str]] = []
         t_snap = self.params.snap_time_s
@@ -311,17 +448,22 @@ class HybridCapturePlant(PlantBase):
                 else:
                     events.append((t_snap, "snap", "skipped: not latched"))
                 continue
-            if y[I_LATCHED] > 0.5:
+            latched = y[I_LATCHED] > 0.5
+            if latched:  # the latch and its face stop (latch_stop_kernel) are in the flow
                 y = self.flow(y, u, step)
                 done += step
                 continue
-            # free flight: contacts (a contact already on, approaching: jump at once)
+            # free-flight contacts. A contact already on and approaching jumps at once; otherwise
+            # the step's end is tested against the current gap (0 when apart, the gap less
+            # DEPTH_TOL_M when touching) and the crossing located by bisection.
             if self._guard(y) <= 0.0 and contact_normal_velocity(y[:N_TRUTH], self.params) < 0.0:
                 self._contact(y, t_now, events)
             g0 = self._guard(y)
+            level = 0.0 if g0 > 0.0 else g0 - DEPTH_TOL_M
             y_next = self.flow(y, u, step)
-            if g0 > 0.0 and self._guard(y_next) <= 0.0:
-                tau, y_hit = locate_guard(lambda y0, s: self.flow(y0, u, s), self._guard, y, step, self.tol_s, n_scan=1)
+            if self._guard(y_next) <= level:
+                tau, y_hit = locate_guard(lambda y0, s: self.flow(y0, u, s), lambda yy: self._guard(yy) - level,
+                                          y, step, self.tol_s, n_scan=1)
                 y = y_hit
                 done += tau
                 self._contact(y, t + done, events)
@@ -332,7 +474,9 @@ class HybridCapturePlant(PlantBase):
         return y, events
 
     def _contact(self, y: np.ndarray, t_event: float, events: list) -> None:
-        """Apply the contact jump in place (if approaching) and record the event."""
+        """Apply the contact jump in place (if approaching) and record the event with the
+        overlap at which it was located (m)."""
+        depth = -self._guard(y)
         x_plus, gamma, r, n = contact_jump(y[:N_TRUTH], self.params)
         if gamma > 0.0:
             y[:N_TRUTH] = x_plus
@@ -340,7 +484,7 @@ class HybridCapturePlant(PlantBase):
                 y[I_CONTACTS] += 1.0  # a new collision; contacts closer than collision_gap_s belong to it
             y[I_LAST_CONTACT] = t_event
             events.append((t_event, "contact", f"impulse {gamma:.6g} N s, normal [{n[0]:.3f}, {n[1]:.3f}, {n[2]:.3f}], "
-                           f"e = {self.params.restitution:g}"))
+                           f"e = {self.params.restitution:g}, overlap {max(depth, 0.0):.3g} m"))
         return None
 
     def _latch_check(self, y: np.ndarray, t_event: float, events: list) -> None:
@@ -352,6 +496,20 @@ class HybridCapturePlant(PlantBase):
         if rho <= env.position_m and rhod <= env.velocity_mps and om <= env.rate_rad_s and angle <= env.angle_rad:
             y[I_LATCHED] = 1.0
             events.append((t_event, "latch", "free -> latched"))
+
+
+def overlap_from_relative(x_rel, params: HybridParams) -> float:
+    """Separating-axis gap (m) of the two cuboids from the relative pose of ``x_rel`` (rho in C,
+    q = D rel. C): positive apart, negative = overlap depth. The chief is placed at the origin
+    of C, the deputy CoM at rho + P_c - C_{C<-D} P_d."""
+    x = np.asarray(x_rel, float)
+    q = x[9:13] / np.linalg.norm(x[9:13])
+    Q_T = dcm_kernel(q)  # C_{C<-D}
+    xt = np.zeros(N_TRUTH)
+    xt[15] = 1.0
+    xt[6:9] = x[0:3] + params.P_c - Q_T @ params.P_d
+    xt[19:23] = q
+    return float(sat_gap_kernel(xt, params.half_chief, params.half_deputy))
 
 
 def contact_impulses(events) -> list[dict]:
