@@ -116,6 +116,25 @@ def earth_rotation(epoch: Epoch | str) -> EarthRotation:
     return EarthRotation(N @ precession_matrix(T), gast % (2.0 * math.pi))
 
 
+def teme_to_eci_matrix(epoch: Epoch | str) -> np.ndarray:
+    """Rotation (3, 3) from TEME of ``epoch`` (the frame of SGP4 states: true equator, mean
+    equinox of date) to this module's ECI, in the Earth model above:
+
+        r_eci = (N P)^T R3(-eqeq) r_teme,    eqeq = GAST - GMST = dpsi cos(eps)
+
+    (Vallado 4th ed. sec. 3.7.4, eq. 3-91, with this module's truncated N and P). It follows from
+    the two routes to the Earth-fixed frame, r_pef = R3(GMST) r_teme (the SGP4 convention,
+    Vallado eq. 3-90) and r_ecef = R3(GAST) N P r_eci (:func:`earth_rotation`): a TLE state keeps
+    its Earth-fixed position (and so its latitude, longitude and height) exactly, and its
+    orientation to the truth's equator. Against the full IAU-80 nutation the rotation differs
+    by the truncation of N (< 1.3 arcsec, ~40 m at 7000 km; tests/test_tle.py compares with
+    astropy's TEME -> GCRS). TEME is taken as inertial at the epoch: v_eci = M v_teme."""
+    epoch = parse_epoch(epoch)
+    rot = earth_rotation(epoch)
+    eqeq = rot.theta0 - gmst(epoch.days_ut1_since_j2000())
+    return rot.npm.T @ _r3(-eqeq)
+
+
 @njit(cache=True, fastmath=False)
 def _latitude_height(x: float, y: float, z: float, passes: int):
     """WGS-84 geodetic (latitude rad, height m) by ``passes`` of the fixed-point iteration
