@@ -92,6 +92,8 @@ def run(
     seed: Annotated[Optional[int], typer.Option("--seed", help="Random seed (default: sim.seed).")] = None,
     figures: Annotated[bool, typer.Option("--figures/--no-figures", help="Draw figures when --out is given.")] = True,
     as_json: Annotated[bool, typer.Option("--json", help="One JSON object on stdout.")] = False,
+    oem: Annotated[Optional[Path], typer.Option("--oem", help="CCSDS OEM of the chaser (+ -target, -hill files).")] = None,
+    mat: Annotated[Optional[Path], typer.Option("--mat", help="MATLAB .mat of the time series and summary.")] = None,
 ):
     """Run one closed-loop simulation and print its summary."""
     from proxops.cli_common import check_out_dir
@@ -102,7 +104,12 @@ def run(
         raise input_error("--seed", seed, "allowed a whole number from 0 to 2^63 - 1")
     if out is not None:
         check_out_dir(out)
-    summary = run_scenario(scenario, overrides=set_, seed=seed, out=out, figures=figures, progress=not as_json)
+    from proxops.cli_export import check_out_file
+
+    check_out_file(oem, "--oem")
+    check_out_file(mat, "--mat")
+    summary = run_scenario(scenario, overrides=set_, seed=seed, out=out, figures=figures, progress=not as_json,
+                           oem=oem, mat=mat)
     emit(summary, as_json, format_summary(summary))
 
 
@@ -127,6 +134,8 @@ def format_summary(s: dict) -> str:
         lines.append(f"{key:<{width}} {format_quantity(s[key], key)}")
     if "out" in s:
         lines.append(f"written to    {s['out']}")
+    for role, path in (s.get("export") or {}).items():
+        lines.append(f"{role:<13} {path}")
     return "\n".join(lines)
 
 
@@ -155,6 +164,7 @@ def _mount_optional() -> None:
         ("proxops.cli_keys", "keys", "keys", "command"),
         ("proxops.cli_propagate", "propagate", "propagate", "command"),
         ("proxops.cli_reproduce", "reproduce", "reproduce", "command"),
+        ("proxops.cli_export", "export", "export", "command"),
     ):
         try:
             mod = importlib.import_module(module)

@@ -16,13 +16,19 @@ from proxops.sim.result import SimResult
 
 
 def run_scenario(name_or_path: str, overrides=(), seed: int | None = None, out: Path | None = None,
-                 figures: bool = True, progress: bool = False) -> dict:
-    """Load, run and (with ``out``) save one scenario; returns the summary dict."""
+                 figures: bool = True, progress: bool = False, oem: Path | None = None,
+                 mat: Path | None = None) -> dict:
+    """Load, run and (with ``out``) save one scenario; returns the summary dict. ``oem``/``mat``:
+    also write CCSDS OEM / MATLAB files (:mod:`proxops.analysis.export`; summary key ``export``)."""
     loaded = load_scenario(name_or_path, list(overrides))
     summary, results = execute(loaded, seed=seed, progress=progress)
     if out is not None:
         save_run(loaded, summary, results, Path(out), figures=figures)
         summary["out"] = str(out)
+    if oem is not None or mat is not None:
+        from proxops.analysis.export import export_run
+
+        summary["export"] = export_run(loaded, summary, results, oem=oem, mat=mat)
     return summary
 
 
@@ -31,6 +37,7 @@ def save_run(loaded, summary: dict, results: dict[str, SimResult], out: Path, fi
     for label, result in results.items():
         result.save(out / label)
     (out / "summary.json").write_text(json.dumps(summary, indent=2, default=str))
+    (out / "scenario.json").write_text(json.dumps(loaded.scenario.model_dump(mode="json", exclude_none=True), indent=2))
     paths: list[Path] = []
     if figures:
         from proxops.plotting.systems import run_figures
