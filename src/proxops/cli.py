@@ -165,6 +165,7 @@ def _mount_optional() -> None:
         ("proxops.cli_propagate", "propagate", "propagate", "command"),
         ("proxops.cli_reproduce", "reproduce", "reproduce", "command"),
         ("proxops.cli_export", "export", "export", "command"),
+        ("proxops.cli_export", "data", "data", "command"),
     ):
         try:
             mod = importlib.import_module(module)

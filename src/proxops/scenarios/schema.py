@@ -297,6 +297,10 @@ class TruthSection(Section):
                                                              "previous day, sfu")
     f107a: Annotated[float, Field(ge=50.0, le=400.0)] = Field(150.0, description="full: 81-day mean F10.7, sfu")
     ap: Annotated[float, Field(ge=0.0, le=400.0)] = Field(15.0, description="full: daily geomagnetic Ap index")
+    space_weather: Literal["constant", "cssi"] = Field(
+        "constant", description="full: constant (f107, f107a, ap above) or cssi (the shipped CSSI history of the "
+        "epoch's day: observed F10.7 of the day before, its 81-day centred mean, daily Ap; held for the run; "
+        "`proxops data` shows the range)")
     target: SpacecraftSection = Field(SpacecraftSection(), description="target spacecraft properties (full)")
     chaser: SpacecraftSection = Field(SpacecraftSection(), description="chaser spacecraft properties (full)")
 

@@ -48,6 +48,12 @@ def force_models(orbit: OrbitSection, truth: TruthSection):
     from proxops.propagation.composed import ForceModels
 
     order = truth.gravity_degree if truth.gravity_order is None else truth.gravity_order
+    weather = SpaceWeather(truth.f107, truth.f107a, truth.ap)
+    if truth.space_weather == "cssi" and truth.drag:
+        from proxops.environment.spaceweather import space_weather_at
+
+        day = space_weather_at(orbit.epoch_utc)
+        weather = SpaceWeather(day.f107, day.f107a, day.ap)
     return ForceModels(
         epoch=orbit.epoch_utc,
         gravity="harmonics",
@@ -60,7 +66,7 @@ def force_models(orbit: OrbitSection, truth: TruthSection):
         shadow=truth.shadow,
         target=Spacecraft(**truth.target.model_dump(), name="truth.target"),
         chaser=Spacecraft(**truth.chaser.model_dump(), name="truth.chaser"),
-        weather=SpaceWeather(truth.f107, truth.f107a, truth.ap),
+        weather=weather,
     )
 
 
