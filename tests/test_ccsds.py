@@ -155,6 +155,7 @@ def test_export_errors(run_files, tmp_path):
     one_line_error(invoke("export", d / "run"), "give --oem FILE and/or --mat FILE")
     one_line_error(invoke("export", tmp_path, "--oem", tmp_path / "x.oem"), "no scenario.json")
     one_line_error(invoke("export", d / "run", "--oem", tmp_path), "is a folder")
+    one_line_error(invoke("run", "underactuated-case1", "--oem", tmp_path / "u.oem"), "has no [orbit] and [truth]")
 
 
 def test_campaign_run_export(tmp_path):

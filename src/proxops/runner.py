@@ -21,6 +21,10 @@ def run_scenario(name_or_path: str, overrides=(), seed: int | None = None, out: 
     """Load, run and (with ``out``) save one scenario; returns the summary dict. ``oem``/``mat``:
     also write CCSDS OEM / MATLAB files (:mod:`proxops.analysis.export`; summary key ``export``)."""
     loaded = load_scenario(name_or_path, list(overrides))
+    if oem is not None:
+        from proxops.analysis.export import check_exportable
+
+        check_exportable(loaded.scenario)  # before the run, not after it
     summary, results = execute(loaded, seed=seed, progress=progress)
     if out is not None:
         save_run(loaded, summary, results, Path(out), figures=figures)

@@ -41,10 +41,15 @@ class RunEphemeris:
     object_name: str
 
 
-def _require_orbit_run(sc, result) -> None:
+def check_exportable(sc) -> None:
+    """One-line error unless the scenario has a target orbit and a translational truth (before a run)."""
     if getattr(sc, "orbit", None) is None or getattr(sc, "truth", None) is None:
-        raise ProxopsInputError(f"export: the {sc.system} scenario '{sc.name}' has no [orbit] and [truth]: "
+        raise ProxopsInputError(f"--oem: the {sc.system} scenario '{sc.name}' has no [orbit] and [truth]: "
                                 "ephemerides need a target orbit (srf, station-keeping, cortex)")
+
+
+def _require_orbit_run(sc, result) -> None:
+    check_exportable(sc)
     if result.layout.to_dict() != HILL_LAYOUT.to_dict():
         raise ProxopsInputError(f"export: the {sc.system} run's state is not the Hill relative state "
                                 "[x, y, z, vx, vy, vz]: ephemerides need a translational run (srf, station-keeping, cortex)")
