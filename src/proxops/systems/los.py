@@ -10,7 +10,7 @@ Table 1 plus the target quaternion (eq. 2); the measured relative state is the
 body-frame state of eqs. (7)-(8). Controller: §7 regimes + eq.-(11) MPC
 (:class:`proxops.guidance.los_regimes.LosGuidanceController`).
 
-Programmatic use (Monte Carlo, issue 6)::
+Programmatic use (Monte Carlo)::
 
     from proxops.systems.los import run_case
     out = run_case(tumble_rate_deg_s=2, a_max_mps2=0.1, initial_body_position_m=[0, 80, 0],
@@ -23,7 +23,7 @@ termination.
 Table 3 sweep (§10.6): scenario ``los-sweep`` (grid dispersions, 15 combinations x hard/soft
 constraints) through the campaign engine; ``run_sweep()`` runs it and ``sweep_table()``
 prints the paper's layout with our columns next to the paper's. Standalone:
-``python -m proxops.systems.los sweep [--workers 2] [--out DIR] [--no-campaign]``.
+``python -m proxops.analysis.los_sweep sweep [--workers 2] [--out DIR] [--no-campaign]``.
 """
 
 from __future__ import annotations

@@ -1,5 +1,5 @@
 """System ``underactuated``: NMPC docking of a planar underactuated 6U CubeSat
-(underactuated-docking-nmpc.md, issue 7).
+(underactuated-docking-nmpc.md).
 
 Scenarios (src/proxops/scenarios/builtin/underactuated-*.toml)::
 
