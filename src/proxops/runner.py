@@ -21,9 +21,15 @@ log = logging.getLogger("proxops.runner")
 
 
 def run_scenario(name_or_path: str, overrides=(), seed: int | None = None, out: Path | None = None,
-                 figures: bool = True, progress: bool = False) -> dict:
-    """Load, run and (with ``out``) save one scenario; returns the summary dict."""
+                 figures: bool = True, progress: bool = False, oem: Path | None = None,
+                 mat: Path | None = None) -> dict:
+    """Load, run and (with ``out``) save one scenario; returns the summary dict. ``oem``/``mat``:
+    also write CCSDS OEM / MATLAB files (:mod:`proxops.analysis.export`; summary key ``export``)."""
     loaded = load_scenario(name_or_path, list(overrides))
+    if oem is not None:
+        from proxops.analysis.export import check_exportable
+
+        check_exportable(loaded.scenario)  # before the run, not after it
     log.debug("%s: %s scenario loaded from %s", loaded.scenario.name, loaded.scenario.system, loaded.source)
     start = time.perf_counter()
     summary, results = execute(loaded, seed=seed, progress=progress)
@@ -32,6 +38,10 @@ def run_scenario(name_or_path: str, overrides=(), seed: int | None = None, out: 
         save_run(loaded, summary, results, Path(out), figures=figures)
         summary["out"] = str(out)
         log.info("%s: time series, summary%s written to %s", loaded.scenario.name, " and figures" if figures else "", out)
+    if oem is not None or mat is not None:
+        from proxops.analysis.export import export_run
+
+        summary["export"] = export_run(loaded, summary, results, oem=oem, mat=mat)
     return summary
 
 
@@ -40,6 +50,7 @@ def save_run(loaded, summary: dict, results: dict[str, SimResult], out: Path, fi
     for label, result in results.items():
         result.save(out / label)
     (out / "summary.json").write_text(json.dumps(summary, indent=2, default=str))
+    (out / "scenario.json").write_text(json.dumps(loaded.scenario.model_dump(mode="json", exclude_none=True), indent=2))
     paths: list[Path] = []
     if figures:
         from proxops.plotting.systems import run_figures

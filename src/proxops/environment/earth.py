@@ -12,8 +12,9 @@ sec. 3.7, the IAU-76/FK5 reduction, truncated):
 * P and N are frozen at the epoch for a run (they drift by < 0.2" per day); the Earth
   turns at the mean sidereal rate w_sid = 1.00273781191135448 * 2 pi / 86400 rad/s about
   the frozen pole, so theta(t) equals GMST(t) + equation of equinoxes exactly.
-* Neglected: polar motion (< 0.5" = 2.4e-6 rad) and UT1 - UTC (< 0.9 s = 6.6e-5 rad about
-  the pole; it only moves tesseral terms, which are common to both spacecraft).
+* Neglected: polar motion (< 0.5" = 2.4e-6 rad); UT1 - UTC (< 0.9 s = 6.6e-5 rad about the
+  pole; it only moves tesseral terms and the atmosphere, common to both spacecraft) unless
+  given (``ut1_utc_s``; ``truth.earth_orientation = "iers"`` takes it from the shipped IERS table).
 
 Size of what is left out for the gravity field at LEO: a tilt of the pole by 2.4e-6 rad
 changes the J2 acceleration by ~4e-8 m/s^2 absolute and ~1e-11 m/s^2 between two
@@ -106,14 +107,35 @@ class EarthRotation:
         return np.stack([c * q[:, 0] + s * q[:, 1], -s * q[:, 0] + c * q[:, 1], q[:, 2]], axis=-1)
 
 
-def earth_rotation(epoch: Epoch | str) -> EarthRotation:
-    """Earth orientation at ``epoch`` (see module doc for the model and what it neglects)."""
+def earth_rotation(epoch: Epoch | str, ut1_utc_s: float = 0.0) -> EarthRotation:
+    """Earth orientation at ``epoch`` (see module doc for the model and what it neglects);
+    ``ut1_utc_s``: UT1 - UTC (s) at the epoch (0: UT1 = UTC; the IERS value from
+    :func:`proxops.environment.spaceweather.eop_at` with ``truth.earth_orientation = "iers"``)."""
     epoch = parse_epoch(epoch)
     T = epoch.days_tt_since_j2000() / 36525.0
     dpsi, deps, eps0 = nutation(T)
     N = _r1(-(eps0 + deps)) @ _r3(-dpsi) @ _r1(eps0)
-    gast = gmst(epoch.days_ut1_since_j2000()) + dpsi * math.cos(eps0 + deps)
+    gast = gmst(epoch.days_ut1_since_j2000() + float(ut1_utc_s) / 86400.0) + dpsi * math.cos(eps0 + deps)
     return EarthRotation(N @ precession_matrix(T), gast % (2.0 * math.pi))
+
+
+def teme_to_eci_matrix(epoch: Epoch | str) -> np.ndarray:
+    """Rotation (3, 3) from TEME of ``epoch`` (the frame of SGP4 states: true equator, mean
+    equinox of date) to this module's ECI, in the Earth model above:
+
+        r_eci = (N P)^T R3(-eqeq) r_teme,    eqeq = GAST - GMST = dpsi cos(eps)
+
+    (Vallado 4th ed. sec. 3.7.4, eq. 3-91, with this module's truncated N and P). It follows from
+    the two routes to the Earth-fixed frame, r_pef = R3(GMST) r_teme (the SGP4 convention,
+    Vallado eq. 3-90) and r_ecef = R3(GAST) N P r_eci (:func:`earth_rotation`): a TLE state keeps
+    its Earth-fixed position (and so its latitude, longitude and height) exactly, and its
+    orientation to the truth's equator. Against the full IAU-80 nutation the rotation differs
+    by the truncation of N (< 1.3 arcsec, ~40 m at 7000 km; tests/test_tle.py compares with
+    astropy's TEME -> GCRS). TEME is taken as inertial at the epoch: v_eci = M v_teme."""
+    epoch = parse_epoch(epoch)
+    rot = earth_rotation(epoch)
+    eqeq = rot.theta0 - gmst(epoch.days_ut1_since_j2000())
+    return rot.npm.T @ _r3(-eqeq)
 
 
 @njit(cache=True, fastmath=False)

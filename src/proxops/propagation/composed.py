@@ -108,6 +108,7 @@ class ForceModels:
     target: Spacecraft = field(default_factory=lambda: Spacecraft(name="truth.target"))
     chaser: Spacecraft = field(default_factory=lambda: Spacecraft(name="truth.chaser"))
     weather: SpaceWeather = field(default_factory=SpaceWeather)
+    ut1_utc_s: float = 0.0  # UT1 - UTC at the epoch (s), for the Earth rotation angle
 
     def __post_init__(self) -> None:
         parse_epoch(self.epoch, "orbit.epoch_utc")
@@ -192,7 +193,7 @@ class ComposedTruth(PlantBase):
         self.target_elements = elements
         self.mean_motion = math.sqrt(mu / elements.sma**3)
         self._target0 = target_state.copy()
-        self.rotation = earth_rotation(self.epoch)
+        self.rotation = earth_rotation(self.epoch, models.ut1_utc_s)
         self.atmosphere = Atmosphere(self.epoch, self.rotation, models.weather) if models.drag else None
         self._build_arrays()
         self._dens = np.zeros((2, 5))

@@ -145,6 +145,8 @@ def apply_override(data: dict, item: str, model: type[BaseModel]) -> None:
             raise ProxopsInputError(f"--set {key}: no key {part!r} in {where}; allowed: {', '.join(allowed) or '(none)'}")
         if depth == len(parts) - 1:
             node[part] = parse_value(text.strip())
+            for other in getattr(node_model, "keys_replaced_by", lambda _key: ())(part):  # e.g. orbit.tle
+                node.pop(other, None)
             return
         node = node.setdefault(part, {})
         if not isinstance(node, dict):

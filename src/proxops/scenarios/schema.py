@@ -9,7 +9,7 @@ and NaN/inf values are rejected.
 from __future__ import annotations
 
 import math
-from typing import Annotated, Any, Literal
+from typing import Annotated, Any, ClassVar, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, create_model, field_validator, model_validator
 
@@ -50,7 +50,17 @@ class SimSection(Section):
 
 class OrbitSection(Section):
     """Target orbit: give exactly one of ``sma_km`` or ``altitude_km`` (circular altitude
-    above the equatorial radius 6378.137 km)."""
+    above the equatorial radius 6378.137 km), or one source that sets the elements and the
+    epoch: ``tle`` (two lines, or three with the title first), ``tle_file`` or ``opm_file``
+    (CCSDS OPM, KVN). A source's state at its epoch (SGP4 output for a TLE, rotated from TEME)
+    becomes the osculating elements of the truth's inertial frame
+    (proxops.orbitdata); element keys given beside a source must equal what it sets
+    (``--set orbit.tle=[...]`` replaces the file's element keys). File paths are relative to
+    the working directory."""
+
+    SOURCE_KEYS: ClassVar[tuple[str, ...]] = ("tle", "tle_file", "opm_file")
+    DERIVED_KEYS: ClassVar[tuple[str, ...]] = ("sma_km", "altitude_km", "ecc", "inc_deg", "raan_deg", "argp_deg",
+                                               "nu_deg", "epoch_utc")
 
     sma_km: Positive | None = Field(None, description="target semi-major axis (give this or altitude_km; perigee above the Earth)")
     altitude_km: float | None = Field(None, description="circular altitude above 6378.137 km (give this or sma_km)")
@@ -60,6 +70,59 @@ class OrbitSection(Section):
     argp_deg: float = Field(0.0, description="argument of perigee")
     nu_deg: float = Field(0.0, description="true anomaly at t = 0")
     epoch_utc: str = Field("2026-01-01T00:00:00", description="UTC epoch of t = 0, ISO 8601 (for environment models)")
+    tle: list[str] | None = Field(None, description="target two-line element set [line 1, line 2] (or title "
+                                  "first): sets the elements and epoch_utc (SGP4 at the TLE epoch, TEME -> inertial)")
+    tle_file: str | None = Field(None, description="file holding the target TLE (2 or 3 lines), instead of tle")
+    opm_file: str | None = Field(None, description="CCSDS OPM (KVN) of the target: its state vector and epoch set the "
+                                 "orbit (REF_FRAME EME2000/GCRF/ICRF/TEME, CENTER_NAME EARTH)")
+
+    @classmethod
+    def keys_replaced_by(cls, key: str) -> tuple[str, ...]:
+        """Keys that ``--set orbit.<key>`` removes from the section: a source replaces the
+        file's elements, epoch and other source (proxops.scenarios.loader.apply_override)."""
+        if key in cls.SOURCE_KEYS:
+            return cls.DERIVED_KEYS + tuple(k for k in cls.SOURCE_KEYS if k != key)
+        return ()
+
+    @field_validator("tle")
+    @classmethod
+    def _valid_tle(cls, v):
+        if v is not None:
+            from proxops.orbitdata.tle import tle_orbit
+
+            tle_orbit(v)  # TleError is a ValueError: reported as orbit.tle = [...]: line k ...
+        return v
+
+    @field_validator("tle_file", "opm_file")
+    @classmethod
+    def _valid_file(cls, v, info):
+        if v is not None:
+            _source_state(info.field_name, v)
+        return v
+
+    @model_validator(mode="before")
+    @classmethod
+    def _elements_from_source(cls, data):
+        """A TLE/OPM source sets sma_km, ecc, the angles and epoch_utc (see the class doc)."""
+        if not isinstance(data, dict):
+            return data
+        given = [k for k in cls.SOURCE_KEYS if data.get(k) is not None]
+        if not given:
+            return data
+        if len(given) > 1:
+            raise ValueError(f"give one orbit source, not {' and '.join('orbit.' + k for k in given)}")
+        source = given[0]
+        try:
+            derived = _source_elements(source, data[source])
+        except ValueError:
+            return data  # the source's field validator reports it with its key
+        for key in cls.DERIVED_KEYS:
+            mine = data.get(key)
+            if mine is not None and not _same_value(key, mine, derived.get(key)):
+                set_by = f"{derived[key]!r}" if key in derived else "sma_km instead"
+                raise ValueError(f"orbit.{key} = {mine!r} is given with orbit.{source}, which sets it ({set_by}): "
+                                 f"remove orbit.{key}")
+        return {**data, **derived}
 
     @field_validator("epoch_utc")
     @classmethod
@@ -89,6 +152,51 @@ class OrbitSection(Section):
     @property
     def sma_m(self) -> float:
         return self.sma_km * 1e3 if self.sma_km is not None else R_EARTH + self.altitude_km * 1e3
+
+
+def _source_state(key: str, value):
+    """(epoch ISO UTC, ECI state (6,) m, m/s) of an orbit source; ValueError naming the problem."""
+    from proxops.errors import ProxopsInputError
+    from proxops.orbitdata.tle import read_tle_file, tle_orbit
+
+    try:
+        if key == "tle":
+            o = tle_orbit(value)
+        elif key == "tle_file":
+            o = tle_orbit(read_tle_file(value))
+        else:
+            from proxops.orbitdata.ccsds import read_opm
+
+            o = read_opm(value)
+    except ProxopsInputError as exc:
+        raise ValueError(str(exc)) from None
+    return o.epoch_utc, o.state_eci
+
+
+def _source_elements(key: str, value) -> dict:
+    """[orbit] keys (sma_km, ecc, angles in deg, epoch_utc) set by an orbit source."""
+    from proxops.frames.elements import eci_to_elements
+
+    epoch, state = _source_state(key, value)
+    el = eci_to_elements(state)
+    return {"sma_km": el.sma / 1e3, "ecc": el.ecc, "inc_deg": math.degrees(el.inc), "raan_deg": math.degrees(el.raan),
+            "argp_deg": math.degrees(el.argp), "nu_deg": math.degrees(el.true_anomaly), "epoch_utc": epoch}
+
+
+def _same_value(key: str, given, derived) -> bool:
+    """Whether a key given beside a source equals the value the source sets (a stored scenario)."""
+    if derived is None:
+        return False
+    if key == "epoch_utc":
+        return str(given) == str(derived)
+    try:
+        a, b = float(given), float(derived)
+    except (TypeError, ValueError):
+        return False
+    if key.endswith("_deg") and key != "inc_deg":
+        a, b = a % 360.0, b % 360.0
+        return min(abs(a - b), 360.0 - abs(a - b)) <= 1e-9
+    return abs(a - b) <= 1e-12 * max(1.0, abs(b))
 
 
 class NavigationSection(Section):
@@ -211,6 +319,13 @@ class TruthSection(Section):
                                                              "previous day, sfu")
     f107a: Annotated[float, Field(ge=50.0, le=400.0)] = Field(150.0, description="full: 81-day mean F10.7, sfu")
     ap: Annotated[float, Field(ge=0.0, le=400.0)] = Field(15.0, description="full: daily geomagnetic Ap index")
+    space_weather: Literal["constant", "cssi"] = Field(
+        "constant", description="full: constant (f107, f107a, ap above) or cssi (the shipped CSSI history of the "
+        "epoch's day: observed F10.7 of the day before, its 81-day centred mean, daily Ap; held for the run; "
+        "`proxops data` shows the range)")
+    earth_orientation: Literal["model", "iers"] = Field(
+        "model", description="full: model (UT1 = UTC) or iers (UT1 - UTC of the epoch from the shipped IERS "
+        "finals.all; polar motion and nutation corrections are not applied)")
     target: SpacecraftSection = Field(SpacecraftSection(), description="target spacecraft properties (full)")
     chaser: SpacecraftSection = Field(SpacecraftSection(), description="chaser spacecraft properties (full)")
 

@@ -48,6 +48,12 @@ def force_models(orbit: OrbitSection, truth: TruthSection):
     from proxops.propagation.composed import ForceModels
 
     order = truth.gravity_degree if truth.gravity_order is None else truth.gravity_order
+    weather = SpaceWeather(truth.f107, truth.f107a, truth.ap)
+    if truth.space_weather == "cssi" and truth.drag:
+        from proxops.environment.spaceweather import space_weather_at
+
+        day = space_weather_at(orbit.epoch_utc)
+        weather = SpaceWeather(day.f107, day.f107a, day.ap)
     return ForceModels(
         epoch=orbit.epoch_utc,
         gravity="harmonics",
@@ -60,8 +66,18 @@ def force_models(orbit: OrbitSection, truth: TruthSection):
         shadow=truth.shadow,
         target=Spacecraft(**truth.target.model_dump(), name="truth.target"),
         chaser=Spacecraft(**truth.chaser.model_dump(), name="truth.chaser"),
-        weather=SpaceWeather(truth.f107, truth.f107a, truth.ap),
+        weather=weather,
+        ut1_utc_s=_ut1_utc(orbit, truth),
     )
+
+
+def _ut1_utc(orbit: OrbitSection, truth: TruthSection) -> float:
+    """UT1 - UTC (s) of the epoch for ``truth.earth_orientation = "iers"``, else 0."""
+    if truth.earth_orientation != "iers":
+        return 0.0
+    from proxops.environment.spaceweather import eop_at
+
+    return eop_at(orbit.epoch_utc, "truth.earth_orientation")["ut1_utc_s"]
 
 
 def navigation_model(nav: NavigationSection, per_state_sigma=None, orbit: OrbitSection | None = None,
