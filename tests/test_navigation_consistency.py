@@ -191,3 +191,52 @@ def test_line_of_sight_update_agrees_with_angles_off_the_axis():
     x_ang = x_est + p0 @ H.T @ np.linalg.solve(S, sensor.residual(z, zhat))
     sig = np.sqrt(np.diag(los.P))
     assert np.all(np.abs(los.x - x_ang)[:3] < 0.05 * sig[:3])
+
+
+def test_run_records_nees_at_the_filter_ticks(tmp_path):
+    """station-keeping-ekf, 600 s: the engine stores the filter's NEES on the samples of its ticks; the
+    last one equals e^T P^-1 e computed here from the SimResult's x_true, x_est and the filter's final P;
+    the summary's mean and bands are those of the stored series (chi2(6) / chi2(3) 95 % bands), and they
+    survive save/load."""
+    from proxops.scenarios.loader import load_scenario
+    from proxops.sim.engine import simulate
+    from proxops.sim.result import SimResult
+
+    loaded = load_scenario("station-keeping-ekf", ["sim.duration_s=600"])
+    setup = loaded.system.build(loaded.scenario)
+    res = simulate(setup, seed=3)
+    nees = res.info["nav_nees"]
+    assert np.all(np.isfinite(nees))  # one filter tick per control sample
+    e = res.x_true[-1] - res.x_est[-1]
+    assert nees[-1] == pytest.approx(e @ np.linalg.solve(setup.navigation.P, e), rel=1e-9)
+    s = res.summary()
+    assert s["nav_nees_mean"] == pytest.approx(float(np.mean(nees)))
+    assert s["nav_nees_band"] == pytest.approx(list(chi2.ppf([0.025, 0.975], 6)))
+    assert s["nav_nis_band"] == pytest.approx(list(chi2.ppf([0.025, 0.975], 3)))
+    assert s["nav_nis_epochs"] == int(np.isfinite(res.info["nav_nis"]).sum()) > 50
+    assert s["nav_consistent"] in (True, False) and s["nav_overconfident_windows"] >= 0
+    back = SimResult.load(res.save(tmp_path / "run"))
+    a, b = back.consistency_summary(), res.consistency_summary()
+    assert a.keys() == b.keys()
+    for key in a:
+        assert np.asarray(a[key], dtype=float) == pytest.approx(np.asarray(b[key], dtype=float), nan_ok=True), key
+
+
+def test_campaign_consistency_uses_the_band_of_the_campaign_size():
+    """navigation_consistency on a table of 30 runs: band chi2(30 d)/30; the verdict needs the mean inside
+    it and >= 90 % of all epochs inside their per-epoch band."""
+    import pandas as pd
+
+    from proxops.analysis.statistics import navigation_consistency
+
+    def table(mean, in_band):
+        rows = {"outcome": ["completed"] * 30, "metric.nav_nees_mean": [mean] * 30, "metric.nav_nees_dim": [6] * 30,
+                "metric.nav_nees_epochs": [100] * 30, "metric.nav_nees_in_band": [in_band] * 30}
+        return pd.DataFrame(rows)
+
+    good = navigation_consistency(table(6.1, 0.95))
+    assert good["nees"]["band"] == pytest.approx(list(chi2.ppf([0.025, 0.975], 180) / 30))
+    assert good["nees"]["epochs"] == 3000 and good["consistent"]
+    assert not navigation_consistency(table(chi2.ppf(0.975, 180) / 30 + 0.01, 0.95))["consistent"]
+    assert not navigation_consistency(table(6.0, 0.89))["consistent"]
+    assert navigation_consistency(pd.DataFrame({"outcome": ["completed"]})) is None
