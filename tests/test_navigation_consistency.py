@@ -90,9 +90,9 @@ def _cw_run(q_true, q_filter, seed, steps=400, dt=10.0):
 def test_filter_with_100x_too_little_process_noise_is_flagged():
     """Issue 28: process noise 100x too small. Its NEES is far above the 6-state band, its NIS per
     epoch mostly inside its band (measurement noise dominates S), but the innovation-whiteness test
-    flags it in every one of 6 runs of 400 samples (z of the whole run above the 99.9 % bound, at least
+    flags it in every one of 6 runs of 400 samples (z of the whole run above the 99.99 % bound, at least
     one window event). The correctly tuned filter on the same truth and draws: no window flagged in 6 runs
-    (false alarm 0.1 % per window by construction, 4 windows a run) and its NEES inside the 6-run band."""
+    (false alarm 0.01 % per window by construction, 4 windows a run) and its NEES inside the 6-run band."""
     q = 1e-9
     bad = [_cw_run(q, q / 100, seed) for seed in range(6)]
     good = [_cw_run(q, q, seed) for seed in range(6)]

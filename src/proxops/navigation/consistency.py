@@ -28,7 +28,11 @@ whitened innovations w_k = L_k^-1 nu_k (S_k = L_k L_k^T; i.i.d. N(0, I_m) for a 
 window of W samples, s_j = sum_k w_k^T w_(k+j) (lag j = 1..L) has mean 0 and variance m (W - j), and
 z = sum_j s_j / sqrt(m sum_j (W - j)) is N(0, 1) (the s_j are uncorrelated under the null hypothesis). An
 overconfident filter makes z large and positive; the window is flagged when z > Phi^-1(probability)
-(one-sided). False-alarm rate per window: 1 - probability (0.1 % by default).
+(one-sided). False-alarm rate per window: 1 - probability (0.01 % by default, bound z > 3.72). On the
+closed loops the measured rate is higher: 50-run campaigns (seed 1) at the 0.999 bound (3.09) had 2 of
+50 srf-vbar-ekf runs (~500 windows) and 3 of 50 station-keeping-ekf runs (250 windows) with a flagged
+window against an expected 0.5 and 0.25 -- small real correlations (range-bearing nonlinearity, range-
+dependent noise), hence the default 0.9999; the q/100 filter of the tests has z = 10-45.
 """
 
 from __future__ import annotations
@@ -79,7 +83,7 @@ class WhitenessMonitor:
     complete (non-overlapping windows), else None; ``flagged(z)`` compares it with the bound
     Phi^-1(probability). ``z_all()``: the same statistic over every sample added (the run's)."""
 
-    def __init__(self, window: int = 100, lags: int = 20, probability: float = 0.999):
+    def __init__(self, window: int = 100, lags: int = 20, probability: float = 0.9999):
         from scipy.stats import norm
 
         if not (isinstance(window, (int, np.integer)) and window > lags >= 1):

@@ -4,10 +4,21 @@ State ``x = [x, y, z, vx, vy, vz]`` (Hill/RTN, m, m/s): x radial out, y along-tr
 
 Process model: the exact Clohessy-Wiltshire transition ``Phi(dt)`` (:func:`proxops.core.cw.cw_stm`)
 with the controller's commanded acceleration through the exact ZOH input matrix, or its impulse
-added to the velocity at the start of the step. Process noise: white acceleration of power
-spectral density ``q`` (m^2/s^3) on each axis entering through B = [0; I]; its discrete
-covariance ``Q_d = int_0^dt Phi(s) B q B^T Phi(s)^T ds`` is computed exactly (Van Loan's
-matrix exponential), cached per step length.
+added to the velocity at the start of the step; or, with a ``predictor``
+(:class:`proxops.propagation.relative_predictor.HillPredictor`, scenario ``process_model = "j2"``), the
+mean by the nonlinear two-body + J2 relative motion (the covariance still by the CW Phi). Process
+noise: white acceleration of power spectral density ``q`` (m^2/s^3) on each axis entering through
+B = [0; I] (what the process model leaves out); its discrete covariance
+``Q_d = int_0^dt Phi(s) B q B^T Phi(s)^T ds`` is computed exactly (Van Loan's matrix exponential),
+cached per step length. Thruster execution errors: at each command the actuator's error covariance
+(``command_covariance``, from its error model) is added -- at the burn to the velocity block for an
+impulse, through B_zoh for a held acceleration.
+
+Consistency (issue 28, :mod:`proxops.navigation.consistency`): every tick records the NEES of the
+estimate against the true Hill state the tick is given, every measurement its NIS
+(:meth:`RelativeEKF.consistency_record`, stored by the engine), and an innovation-whiteness monitor
+flags windows whose innovations are correlated (event ``nav-overconfident``): a covariance too small
+for the errors it should cover, which the NIS alone misses when the measurement noise dominates S.
 
 Sensors (the chaser sees the target along rho = -r, axes parallel to Hill):
 
@@ -292,7 +303,7 @@ class RelativeEKF:
     command_covariance: object = None  # u -> 3x3 execution-error covariance of the actuator; None: none
     whiteness_window: int = 100  # accepted measurements per window of the innovation-whiteness test
     whiteness_lags: int = 20
-    whiteness_probability: float = 0.999  # one-sided; false alarm 1 - this per window
+    whiteness_probability: float = 0.9999  # one-sided; false alarm 1 - this per window
     period_s: float | None = field(default=None, kw_only=True)
 
     def __post_init__(self):
