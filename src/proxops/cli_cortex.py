@@ -24,7 +24,7 @@ import typer
 from proxops.cli_common import emit, friendly_errors
 
 cortex_app = typer.Typer(help="CORTEX convex reference generation (fly-around + final approach, eclipse holds).",
-                         no_args_is_help=True)
+                         no_args_is_help=True, rich_markup_mode=None)
 
 
 def _load(scenario: str, overrides: list[str]):
@@ -124,7 +124,7 @@ def references_scenario(scenario: str, n: int) -> dict:
 @friendly_errors
 def references(
     n: Annotated[int, typer.Option("--n", help="Number of Fibonacci-sphere docking axes.")] = 100,
-    workers: Annotated[int, typer.Option("--workers", help="Local worker processes.")] = 2,
+    workers: Annotated[Optional[int], typer.Option("--workers", help="Local worker processes (default: usable CPUs; 1 = in this process).")] = None,
     out: Annotated[Optional[Path], typer.Option("--out", help="Campaign folder (resumable; Parquet rows, figures).")] = None,
     scenario: Annotated[str, typer.Option("--scenario", help="Scenario file or built-in name.")] = "cortex-reference",
     set_: Annotated[list[str], typer.Option("--set", help="Override a scenario key.")] = [],
@@ -137,7 +137,7 @@ def references(
     from proxops.errors import input_error
     from proxops.systems.cortex import PAPER_5_1_1, campaign_statistics, statistics_table
 
-    if workers < 1:
+    if workers is not None and workers < 1:
         raise input_error("--workers", workers, "must be >= 1")
     data = references_scenario(scenario, n)
     t0 = time.perf_counter()
