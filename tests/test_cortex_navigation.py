@@ -17,7 +17,7 @@ from typer.testing import CliRunner
 from proxops.cli import app
 from proxops.scenarios.loader import BUILTIN_DIR, load_scenario
 
-REDUCED = ["truth.model=cw", "eclipse.model=none"]
+REDUCED = ["truth.model=cw", "navigation.process_model=cw", "eclipse.model=none"]  # CW truth: CW process model
 TABLE3_HIGH = ["errors.p_misthrust=0.1", "errors.sigma_dv=0.2", "errors.sigma_beta_deg=1.0",
                "errors.sigma_alpha_deg=1.0"]  # cortex-convex-guidance.md Table 3, high error level (execution errors)
 
@@ -59,15 +59,18 @@ def test_reduced_cortex_ekf_run_docks_and_reports_navigation():
     assert s["nav_position_error_m"]["p95"] < 0.05
 
 
-def _closed_loop(overrides):
+def _closed_loop(overrides, ignore_thruster_errors=False):
     """Run a reduced cortex-low-mc-ekf loop recording, at every navigation tick, the filter's
-    output, its covariance and the truth, and every state the supervisor is given."""
+    output, its covariance and the truth, and every state the supervisor is given.
+    ``ignore_thruster_errors``: the filter is not given the actuator's execution-error model."""
     from proxops.sim.engine import simulate
     from proxops.systems.cortex_loop import build_setup
 
     sc = load_scenario("cortex-low-mc-ekf", REDUCED + overrides).scenario
     setup, ctrl, _ = build_setup(sc)
     nav = setup.navigation
+    if ignore_thruster_errors:
+        nav.command_covariance = None
     nav_out, seen = [], []
     measure, step = nav.measure, ctrl.step
 
@@ -91,7 +94,7 @@ def _nees(nav_out):
 
 def test_guidance_sees_the_filter_estimate_and_nees_stays_in_bound():
     """Thrust errors of Table 3 (low; missed thrusts off: a 100 % error no Gaussian covers), the
-    filter covering them with command_sigma_fraction = 0.1. The supervisor is given exactly the
+    filter covering them with the actuator's execution-error model. The supervisor is given exactly the
     filter's output at each step (the engine's slot, no private copy), the recorded x_est is that
     output, and the NEES e^T P^-1 e is within the 99 % chi-square(6) bound at >= 95 % of the samples
     (a consistent filter: 99 %; the samples of one run are correlated)."""
@@ -107,11 +110,11 @@ def test_guidance_sees_the_filter_estimate_and_nees_stays_in_bound():
 
 
 def test_nees_leaves_the_bound_when_the_filter_ignores_the_thruster_errors():
-    """The same loop with command_sigma_fraction = 0: the filter believes every impulse exactly, its
-    covariance no longer covers the error and the NEES test above fails: fewer than 90 % inside, against
-    the >= 95 % it asks (measured 86 %; it was 80 % before CP_g's plume rows were linearised about its own
-    solution, which fires fewer and smaller impulses)."""
-    _, nav_out, _ = _closed_loop(["errors.p_misthrust=0", "navigation.command_sigma_fraction=0"])
+    """The same loop without the actuator's error model in the filter: it believes every impulse exactly,
+    its covariance no longer covers the error and the NEES test above fails: fewer than 90 % inside,
+    against the >= 95 % it asks (measured 86 %; it was 80 % before CP_g's plume rows were linearised about
+    its own solution, which fires fewer and smaller impulses)."""
+    _, nav_out, _ = _closed_loop(["errors.p_misthrust=0"], ignore_thruster_errors=True)
     assert np.mean(_nees(nav_out) <= chi2.ppf(0.99, 6)) < 0.9
 
 

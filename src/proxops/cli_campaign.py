@@ -125,6 +125,12 @@ def format_campaign(summary: dict, stats) -> str:
         f"succeeded     {summary['succeeded']}",
         f"failed        {summary['failed']} ({summary['errors']} raised)",
         f"violations    {summary['with_violations']} runs {summary.get('violations_by_constraint') or ''}",
+    ]
+    if summary.get("navigation_consistency"):
+        from proxops.analysis.statistics import format_navigation_consistency
+
+        lines.append(format_navigation_consistency(summary["navigation_consistency"]))
+    lines += [
         "",
         format_text_table(stats) if len(stats) else "(no completed runs)",
     ]

@@ -107,6 +107,32 @@ class ThrusterModel(ActuatorBase):
             return np.zeros_like(u)
         return u
 
+    def execution_covariance(self, u: np.ndarray) -> np.ndarray:
+        """3x3 second moment E[d d^T] of the execution error d = applied - limited(u) (command unit),
+        to first order in the error sigmas: magnitude s_m^2 u u^T; pointing (rotation vector
+        phi ~ N(0, s_p^2 I), d = phi x u) s_p^2 (|u|^2 I - u u^T); eq. (29) angles s_b^2 g_b g_b^T +
+        s_a^2 g_a g_a^T with g the derivatives of |u| [cos b sin a, cos b cos a, sin b]; a missed
+        thrust (d = -u with probability p) p u u^T. A navigation filter adds it to its covariance
+        (the process noise of the actuator, issue 28)."""
+        u = self.limited(np.asarray(u, dtype=float))
+        m2 = float(u @ u)
+        cov = np.zeros((3, 3))
+        if m2 == 0.0 or u.size != 3:
+            return cov
+        uu = np.outer(u, u)
+        cov += (self.magnitude_sigma ** 2 + self.missed_probability) * uu
+        if self.pointing_sigma_rad > 0.0:
+            cov += self.pointing_sigma_rad ** 2 * (m2 * np.eye(3) - uu)
+        if self.elevation_sigma_rad > 0.0 or self.azimuth_sigma_rad > 0.0:
+            m = math.sqrt(m2)
+            b = math.asin(max(-1.0, min(1.0, float(u[2]) / m)))
+            a = math.atan2(float(u[0]), float(u[1]))
+            cb, sb, ca, sa = math.cos(b), math.sin(b), math.cos(a), math.sin(a)
+            gb = m * np.array([-sb * sa, -sb * ca, cb])
+            ga = m * np.array([cb * ca, -cb * sa, 0.0])
+            cov += self.elevation_sigma_rad ** 2 * np.outer(gb, gb) + self.azimuth_sigma_rad ** 2 * np.outer(ga, ga)
+        return cov
+
     def apply(self, t: float, u: np.ndarray, kind: str, rng: np.random.Generator) -> np.ndarray:
         u = np.array(u, dtype=float)
         if self.missed_window_s is not None and self.missed_probability > 0.0:

@@ -55,6 +55,7 @@ from proxops.analysis.statistics import (
     METRIC_PREFIX,
     DISP_PREFIX,
     metric_statistics,
+    navigation_consistency,
     outcome_counts,
     statistics_dict,
 )
@@ -204,6 +205,7 @@ class CampaignResult:
             "seed": self.manifest.get("seed"),
             "out": str(self.out) if self.out else None,
             "statistics": statistics_dict(self.statistics()),
+            **({"navigation_consistency": nc} if (nc := navigation_consistency(self.table)) else {}),
         }
 
     def row(self, run_id: int) -> dict:

@@ -168,6 +168,69 @@ NAV_KEYS = ("nav_position_error_m", "nav_velocity_error_mps")
 GUIDANCE_KEYS = ("total_dv_mps", "terminal_position_error_m", "terminal_velocity_error_mps", "arrival_error_m")  # srf: arrival
 
 
+def navigation_consistency(table: pd.DataFrame, probability: float = 0.95, max_outside: float = 0.10) -> dict | None:
+    """Consistency of a campaign's navigation filter (issue 28), or None when no run recorded a NEES.
+
+    For the NEES (dimension d) and the NIS (m), over the N runs that did not raise and report one:
+    ``mean`` = the mean of the runs' time-mean values, ``band`` = its two-sided ``probability`` band
+    chi^2(N d) / N (:func:`proxops.navigation.consistency.mean_band`: the N runs are independent; the
+    epochs of one run are correlated and the band is the one of N single-epoch values, whose variance
+    bounds that of N time means -- derivation in that module), ``epochs_in_band`` = the fraction of all
+    epochs of all runs inside their per-epoch chi^2(d) band, and the verdict ``consistent`` = mean inside
+    its band and at most ``max_outside`` of the epochs outside theirs."""
+    from proxops.navigation.consistency import chi2_band, mean_band
+
+    if METRIC_PREFIX + "nav_nees_mean" not in table:
+        return None
+    rows = table[table["outcome"] != "error"] if "outcome" in table else table
+    out = {}
+    for name in ("nees", "nis"):
+        col = METRIC_PREFIX + f"nav_{name}_mean"
+        if col not in rows:
+            continue
+        means = rows[col].astype(float).to_numpy()
+        ok = np.isfinite(means)
+        dims = rows[METRIC_PREFIX + f"nav_{name}_dim"].astype(float).to_numpy()[ok]
+        epochs = rows[METRIC_PREFIX + f"nav_{name}_epochs"].astype(float).to_numpy()[ok]
+        inside = rows[METRIC_PREFIX + f"nav_{name}_in_band"].astype(float).to_numpy()[ok]
+        n = int(ok.sum())
+        if n == 0:
+            continue
+        d = int(dims[0])
+        mean = float(means[ok].mean())
+        lo, hi = mean_band(n, d, probability)
+        frac = float((inside * epochs).sum() / epochs.sum()) if epochs.sum() > 0 else math.nan
+        out[name] = {"runs": n, "dim": d, "mean": mean, "band": [lo, hi], "epoch_band": list(chi2_band(d, probability)),
+                     "epochs_in_band": frac, "epochs": int(epochs.sum()),
+                     "consistent": bool(lo <= mean <= hi and frac >= 1.0 - max_outside)}
+    col = METRIC_PREFIX + "nav_overconfident_windows"
+    if col in rows:
+        flagged = rows[col].astype(float).to_numpy()
+        out["runs_flagged_overconfident"] = int(np.sum(flagged[np.isfinite(flagged)] > 0))
+    if "nees" in out:
+        out["consistent"] = out["nees"]["consistent"]
+    return out or None
+
+
+def format_navigation_consistency(nc: dict | None) -> str:
+    """Text lines of :func:`navigation_consistency` ('' when None)."""
+    if not nc:
+        return ""
+    lines = []
+    for name in ("nees", "nis"):
+        c = nc.get(name)
+        if c is None:
+            continue
+        lines.append(f"{name.upper():<14}mean {c['mean']:.3g} over {c['runs']} runs (dim {c['dim']}; 95 % band of the "
+                     f"campaign mean {c['band'][0]:.3g}-{c['band'][1]:.3g}), {100 * c['epochs_in_band']:.1f} % of "
+                     f"{c['epochs']} epochs in the per-epoch band {c['epoch_band'][0]:.3g}-{c['epoch_band'][1]:.3g}: "
+                     f"{'consistent' if c['consistent'] else 'NOT consistent'}")
+    if "runs_flagged_overconfident" in nc:
+        lines.append(f"{'whiteness':<14}{nc['runs_flagged_overconfident']} runs with a window flagged overconfident "
+                     "(innovations not white)")
+    return "\n".join(lines)
+
+
 def navigation_table(table: pd.DataFrame) -> str:
     """Markdown: the estimation error of a campaign on the navigation filter beside its guidance
     statistics (issue 17), or '' when no run used the filter. Each row is one per-run quantity
@@ -179,7 +242,8 @@ def navigation_table(table: pd.DataFrame) -> str:
     rows = table[table["outcome"] != "error"] if "outcome" in table else table
     names = [k for k in GUIDANCE_KEYS if METRIC_PREFIX + k in rows]
     names += [f"{k}.{s}" for k in NAV_KEYS for s in ("median", "p95", "max")]
-    names += [k for k in ("nav_rejected", "nav_reinits") if METRIC_PREFIX + k in rows]
+    names += [k for k in ("nav_rejected", "nav_reinits", "nav_nees_mean", "nav_nees_in_band", "nav_nis_mean",
+                          "nav_nis_in_band", "nav_whiteness_z", "nav_overconfident_windows") if METRIC_PREFIX + k in rows]
     n_ok = int(rows["success"].astype(bool).sum()) if "success" in rows else None
     lines = ([f"Runs: {len(rows)} completed, {n_ok} succeeded." if n_ok is not None else f"Runs: {len(rows)}.", ""]
              + ["| per-run quantity | unit | runs | median | p95 | max |", "| --- | --- | --- | --- | --- | --- |"])
@@ -193,4 +257,7 @@ def navigation_table(table: pd.DataFrame) -> str:
             lines.append(f"| {name} | {unit or '-'} | {v.size} | {f(med)} | {f(p95)} | {f(v.max())} |")
         else:
             lines.append(f"| {name} | {unit or '-'} | 0 | - | - | - |")
+    nc = format_navigation_consistency(navigation_consistency(table))
+    if nc:
+        lines += ["", "Filter consistency (proxops.analysis.statistics.navigation_consistency):", "", "```", nc, "```"]
     return "\n".join(lines)

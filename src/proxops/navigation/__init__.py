@@ -5,7 +5,9 @@ and ``period_s`` (s between measurements, None = every controller sample). Noise
 per block of the plant's :class:`proxops.core.layout.StateLayout`: additive on position,
 velocity, angle and rate blocks, a small random rotation on a quaternion block. :mod:`proxops.navigation.ekf` holds the relative-navigation filter
 (EKF on the Hill state fed by simulated sensors), which also takes the controller's commands
-(``command(t, u, kind)``) and reports rejected measurements through its ``events`` list.
+(``command(t, u, kind)``) and reports rejected measurements through its ``events`` list;
+:mod:`proxops.navigation.consistency` holds the NEES / NIS chi-square bands and the innovation-whiteness
+test that judge such a filter.
 """
 
 from __future__ import annotations

@@ -4,14 +4,35 @@ State ``x = [x, y, z, vx, vy, vz]`` (Hill/RTN, m, m/s): x radial out, y along-tr
 
 Process model: the exact Clohessy-Wiltshire transition ``Phi(dt)`` (:func:`proxops.core.cw.cw_stm`)
 with the controller's commanded acceleration through the exact ZOH input matrix, or its impulse
-added to the velocity at the start of the step. Process noise: white acceleration of power
-spectral density ``q`` (m^2/s^3) on each axis entering through B = [0; I]; its discrete
-covariance ``Q_d = int_0^dt Phi(s) B q B^T Phi(s)^T ds`` is computed exactly (Van Loan's
-matrix exponential), cached per step length.
+added to the velocity at the start of the step; or, with a ``predictor``
+(:class:`proxops.propagation.relative_predictor.HillPredictor`, scenario ``process_model = "j2"``), the
+mean by the nonlinear two-body + J2 relative motion (the covariance still by the CW Phi). Process
+noise: white acceleration of power spectral density ``q`` (m^2/s^3) on each axis entering through
+B = [0; I] (what the process model leaves out); its discrete covariance
+``Q_d = int_0^dt Phi(s) B q B^T Phi(s)^T ds`` is computed exactly (Van Loan's matrix exponential),
+cached per step length. Thruster execution errors: at each command the actuator's error covariance
+(``command_covariance``, from its error model) is added -- at the burn to the velocity block for an
+impulse, through B_zoh for a held acceleration.
+
+Consistency (issue 28, :mod:`proxops.navigation.consistency`): every tick records the NEES of the
+estimate against the true Hill state the tick is given, every measurement its NIS
+(:meth:`RelativeEKF.consistency_record`, stored by the engine), and an innovation-whiteness monitor
+flags windows whose innovations are correlated (event ``nav-overconfident``): a covariance too small
+for the errors it should cover, which the NIS alone misses when the measurement noise dominates S.
 
 Sensors (the chaser sees the target along rho = -r, axes parallel to Hill):
 
-* ``range-bearing``: ``[|rho|, az, el]``, az = atan2(rho_y, rho_x), el = asin(rho_z / |rho|);
+* ``range-bearing``: ``[|rho|, az, el]``, az = atan2(rho_y, rho_x), el = asin(rho_z / |rho|). The
+  azimuth is singular on the z axis (rho_x = rho_y = 0: d az / d rho ~ 1 / sqrt(rho_x^2 + rho_y^2)).
+  Within ``POLE_SIN`` of it (sqrt(rho_x^2 + rho_y^2) < 0.02 |rho| for the predicted line of sight, 1.15 deg
+  from the orbit normal) the update uses the measured unit line of sight u(az, el) = [cos el cos az,
+  cos el sin az, sin el] instead of the angles (defined everywhere, also at el = +-90 deg): the innovation
+  is [range - |rho_hat|, t1 . u, t2 . u] with t1, t2 orthonormal and perpendicular to the predicted line
+  of sight, H = -[u_hat; t1 / |rho_hat|; t2 / |rho_hat|] and R = diag(sigma_r^2, sigma_ang^2, sigma_ang^2).
+  The isotropic tangent-plane noise is that of a physical angle sensor; the simulated one draws its noise
+  in azimuth and elevation, and an azimuth error moves the line of sight by cos(el) sigma_az only: mapped
+  exactly (J diag J^T) that component would be nearly noise-free (exactly at el = +-90 deg), P would lose
+  rank, so R is conservative by up to 1 / cos(el) in that one direction inside the 1.15 deg zone;
 * ``pose``: relative position ``r`` (3 components).
 
 Noise 1-sigma may grow with range: sigma(rho) = sigma * (f + (1 - f) rho / rho_ref) -- the
@@ -51,8 +72,10 @@ import numpy as np
 from proxops.core.cw import cw_input_matrix_zoh, cw_stm
 from proxops.core.layout import StateLayout
 from proxops.errors import input_error
+from proxops.navigation.consistency import WhitenessMonitor
 
 SENSORS = ("range-bearing", "pose")
+POLE_SIN = 0.02  # range-bearing: sqrt(rho_x^2 + rho_y^2) / |rho| below this -> unit line-of-sight update
 NIS_CAP = 1e12  # NIS values above this count as this in the collapse window (inf/NaN included)
 
 
@@ -173,6 +196,36 @@ class SensorModel:
         H[2, :3] = (x0 * x2 / (r2 * rh), x1 * x2 / (r2 * rh), -rh / r2)
         return np.array([r, math.atan2(x1, x0), math.asin(max(-1.0, min(1.0, x2 / r)))]), H
 
+    def near_pole(self, x: np.ndarray) -> bool:
+        """Range-bearing and the line of sight of ``x`` within POLE_SIN of the z axis (module docstring)."""
+        if self.kind != "range-bearing":
+            return False
+        x0, x1, x2 = float(x[0]), float(x[1]), float(x[2])
+        rh2 = x0 * x0 + x1 * x1
+        return rh2 < POLE_SIN * POLE_SIN * (rh2 + x2 * x2)
+
+    def tangent_innovation(self, z: np.ndarray, x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(innovation (3,), H (3x6), R (3x3)) of a range-bearing measurement ``z`` in the unit
+        line-of-sight form (module docstring), valid at every line of sight (used near the z axis)."""
+        rho = -np.asarray(x[:3], dtype=float)
+        r_hat = float(np.linalg.norm(rho))
+        u_hat = rho / r_hat
+        ex = np.array([1.0, 0.0, 0.0]) if abs(u_hat[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
+        t1 = ex - (ex @ u_hat) * u_hat
+        t1 /= np.linalg.norm(t1)
+        t2 = np.cross(u_hat, t1)
+        rng, az, el = (float(v) for v in z)
+        ca, sa, ce, se = math.cos(az), math.sin(az), math.cos(el), math.sin(el)
+        u = np.array([ce * ca, ce * sa, se])
+        nu = np.array([rng - r_hat, t1 @ u, t2 @ u])
+        H = np.zeros((3, 6))
+        H[0, :3], H[1, :3], H[2, :3] = -u_hat, -t1 / r_hat, -t2 / r_hat
+        s_r, s_a, s_e = self.sigma(r_hat)
+        R = np.zeros((3, 3))
+        R[0, 0] = s_r * s_r
+        R[1, 1] = R[2, 2] = max(s_a, s_e) ** 2
+        return nu, H, R
+
     def residual(self, z: np.ndarray, zhat: np.ndarray) -> np.ndarray:
         """z - zhat with the azimuth wrapped to (-pi, pi]."""
         d = z - zhat
@@ -246,6 +299,11 @@ class RelativeEKF:
     reinit_after_rejections: int = 0  # k: collapse when the mean NIS of the last k measurements is out of bound
     reinit_velocity_sigma_mps: float = 0.1  # 1-sigma velocity per axis after a re-initialisation
     layout: StateLayout | None = None
+    predictor: object = None  # predict(t0, x, u, kind, dt) -> x (mean process model); None: CW
+    command_covariance: object = None  # u -> 3x3 execution-error covariance of the actuator; None: none
+    whiteness_window: int = 100  # accepted measurements per window of the innovation-whiteness test
+    whiteness_lags: int = 20
+    whiteness_probability: float = 0.9999  # one-sided; false alarm 1 - this per window
     period_s: float | None = field(default=None, kw_only=True)
 
     def __post_init__(self):
@@ -280,6 +338,9 @@ class RelativeEKF:
         self._kind = "acceleration"
         self._impulse_t: float | None = None
         self.nis: list[float] = []
+        self.nis_t: list[float] = []
+        self.nees: list[float] = []
+        self.nees_t: list[float] = []
         self.rejected = 0
         self.updates = 0
         self.reinits = 0
@@ -287,6 +348,8 @@ class RelativeEKF:
         self._window_sum = 0.0
         self._collapse_sum = self.collapse_bound * k if k else math.inf
         self._collapsed: str | None = None
+        self.monitor = WhitenessMonitor(self.whiteness_window, self.whiteness_lags, self.whiteness_probability)
+        self.overconfident_windows = 0
 
     def reset(self, t: float, x_est: np.ndarray, P: np.ndarray | None = None) -> None:
         """Start from the estimate ``x_est`` with covariance ``P`` (default p0) at ``t``."""
@@ -295,10 +358,13 @@ class RelativeEKF:
         self.t = t
         self._u, self._kind, self._impulse_t = np.zeros(3), "acceleration", None
         self.nis, self.rejected, self.updates, self.reinits = [], 0, 0, 0
+        self.nis_t, self.nees, self.nees_t = [], [], []
         self._window.clear()
         self._window_sum = 0.0
         self._collapsed = None
         self.events.clear()
+        self.monitor.reset()
+        self.overconfident_windows = 0
 
     def matrices(self, dt: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(Phi, B_zoh, Q_d) of a step of ``dt`` s (cached)."""
@@ -316,30 +382,59 @@ class RelativeEKF:
         self._impulse_t = t if kind == "impulse" else None
 
     def propagate(self, t: float) -> None:
-        """Predict the estimate and covariance to ``t`` (exact CW, commanded control)."""
+        """Predict the estimate and covariance to ``t`` with the commanded control.
+
+        Mean: the ``predictor`` (nonlinear two-body + J2, :class:`proxops.propagation.relative_predictor.HillPredictor`)
+        or, without one, the exact CW transition. Covariance: P <- Phi P Phi^T + Q_d (CW Phi; the J2 and
+        nonlinear corrections to Phi are O(J2 (R_E/r)^2, rho/r) relative and enter P at that order only)
+        plus the execution error of the command (:meth:`execution_covariance`)."""
         dt = t - self.t
         if dt <= 0.0:
             return
         phi, bd, qd = self.matrices(dt)
         x = self.x
+        impulse = self._kind == "impulse" and self._impulse_t is not None and abs(self._impulse_t - self.t) < 1e-9
         if self._kind == "impulse":
-            if self._impulse_t is not None and abs(self._impulse_t - self.t) < 1e-9:
-                x = x.copy()
-                x[3:6] += self._u
-                if self.command_sigma_fraction > 0.0:  # execution error of the impulse (m/s)
-                    self.P = self.P.copy()
-                    self.P.flat[21::7] += (self.command_sigma_fraction * float(np.linalg.norm(self._u))) ** 2
             self._impulse_t = None
-            self.x = phi @ x
+            u = self._u if impulse else np.zeros(3)
+            if impulse:
+                cu = self.execution_covariance(self._u)
+                if cu is not None:  # execution error of the impulse (m/s), at the burn
+                    self.P = self.P.copy()
+                    self.P[3:, 3:] += cu
+            if self.predictor is not None:
+                self.x = self.predictor.predict(self.t, x, u, "impulse", dt)
+            else:
+                if impulse:
+                    x = x.copy()
+                    x[3:6] += self._u
+                self.x = phi @ x
             self.P = phi @ self.P @ phi.T + qd
             self.t = t
             return
-        self.x = phi @ x + bd @ self._u
+        if self.predictor is not None:
+            self.x = self.predictor.predict(self.t, x, self._u, "acceleration", dt)
+        else:
+            self.x = phi @ x + bd @ self._u
         self.P = phi @ self.P @ phi.T + qd
-        if self.command_sigma_fraction > 0.0 and self._u.any():  # ZOH acceleration error through B_zoh
-            su2 = (self.command_sigma_fraction * float(np.linalg.norm(self._u))) ** 2
-            self.P = self.P + su2 * (bd @ bd.T)
+        if self._u.any():  # ZOH acceleration execution error through B_zoh
+            cu = self.execution_covariance(self._u)
+            if cu is not None:
+                self.P = self.P + bd @ cu @ bd.T
         self.t = t
+
+    def execution_covariance(self, u: np.ndarray) -> np.ndarray | None:
+        """3x3 covariance of the executed minus the commanded control ``u`` (command unit): the
+        actuator's error model (``command_covariance``, e.g.
+        :meth:`proxops.actuators.ThrusterModel.execution_covariance`) plus the isotropic
+        ``command_sigma_fraction`` |u| per axis; None when both are absent."""
+        out = None
+        if self.command_covariance is not None:
+            out = np.asarray(self.command_covariance(u), dtype=float)
+        if self.command_sigma_fraction > 0.0:
+            iso = np.eye(3) * (self.command_sigma_fraction * float(np.linalg.norm(u))) ** 2
+            out = iso if out is None else out + iso
+        return out
 
     def update(self, t: float, z: np.ndarray) -> bool:
         """Measurement update with ``z``; False (and an event) when the chi-square gate rejects it.
@@ -351,16 +446,22 @@ class RelativeEKF:
             self.reinitialise(t, z)
             return True
         x, P, sensor = self.x, self.P, self.sensor
-        zhat, H = sensor.h_and_jacobian(x)
-        r = math.sqrt(x[0] * x[0] + x[1] * x[1] + x[2] * x[2])
-        HP = H @ P
-        S = HP @ H.T
-        S.flat[::4] += sensor.sigma(r) ** 2
+        if sensor.near_pole(x):  # azimuth singular: unit line-of-sight form
+            nu, H, R = sensor.tangent_innovation(z, x)
+            HP = H @ P
+            S = HP @ H.T + R
+        else:
+            zhat, H = sensor.h_and_jacobian(x)
+            r = math.sqrt(x[0] * x[0] + x[1] * x[1] + x[2] * x[2])
+            HP = H @ P
+            S = HP @ H.T
+            S.flat[::4] += sensor.sigma(r) ** 2
+            nu = sensor.residual(z, zhat)
         Sinv = _inv3(S)
-        nu = sensor.residual(z, zhat)
         Sinv_nu = Sinv @ nu
         nis = float(nu @ Sinv_nu)
         self.nis.append(nis)
+        self.nis_t.append(t)
         if self.reinit_after_rejections:
             self._check_collapse(nis)
         if not nis <= self.gate:  # NaN is rejected too
@@ -368,6 +469,12 @@ class RelativeEKF:
             self.events.append(("nav-rejected", f"{sensor.kind} measurement rejected: NIS {nis:.3g} > "
                                 f"{self.gate:.3g} (chi-square {self.gate_probability:g}, {sensor.m} dof)"))
             return False
+        z = self.monitor.add(np.linalg.solve(np.linalg.cholesky(S), nu))  # whitened innovation
+        if self.monitor.flagged(z):
+            self.overconfident_windows += 1
+            self.events.append(("nav-overconfident", f"innovations not white: z = {z:.3g} > {self.monitor.bound:.3g} "
+                                f"over the last {self.monitor.window} measurements (lags 1-{self.monitor.lags}, "
+                                f"one-sided {self.monitor.probability:g}): the covariance is too small"))
         K = HP.T @ Sinv
         self.x = x + HP.T @ Sinv_nu
         KHP = K @ HP
@@ -375,6 +482,18 @@ class RelativeEKF:
         self.P = 0.5 * (P + P.T)
         self.updates += 1
         return True
+
+    def consistency_record(self) -> tuple[dict, dict]:
+        """(series, meta) for the run's record: ``{"nav_nees": (t, NEES), "nav_nis": (t, NIS)}`` (s, -)
+        at every filter tick / measurement (NEES after the tick's update, from the true Hill state the
+        tick was given; NIS of every measurement, gated or not), and the dimensions and whiteness
+        statistics (:mod:`proxops.navigation.consistency`)."""
+        series = {"nav_nees": (np.array(self.nees_t), np.array(self.nees)),
+                  "nav_nis": (np.array(self.nis_t), np.array(self.nis))}
+        meta = {"nav_nees_dim": 6, "nav_nis_dim": self.sensor.m, "nav_whiteness_z": self.monitor.z_all(),
+                "nav_whiteness_bound": self.monitor.bound, "nav_whiteness_window": self.monitor.window,
+                "nav_overconfident_windows": self.overconfident_windows}
+        return series, meta
 
     def _check_collapse(self, nis: float) -> None:
         """Collapse test on the NIS window: mean of the last k NIS above chi2.ppf(p, m k) / k (a running
@@ -421,6 +540,9 @@ class RelativeEKF:
         z = self.sensor.draw(t, x_hill, rng)
         if z is not None:
             self.update(t, z)
+        e = x_hill[:6] - self.x
+        self.nees.append(float(e @ np.linalg.solve(self.P, e)))
+        self.nees_t.append(t)
         if self._slices is None:
             return self.x.copy()
         out = x_full.copy()

@@ -201,7 +201,7 @@ def _same_value(key: str, given, derived) -> bool:
 
 class NavigationSection(Section):
     """Navigation: ``noise`` (white Gaussian on the true state, per axis, 1-sigma) or ``ekf`` (an
-    extended Kalman filter on the Hill state, CW process model, fed by a simulated sensor:
+    extended Kalman filter on the Hill state, CW or nonlinear J2 process model, fed by a simulated sensor:
     proxops.navigation.ekf; los: the target's attitude and rate by a multiplicative EKF,
     proxops.navigation.mekf; underactuated: the planar pose, proxops.navigation.planar_ekf). The ``ekf``
     keys are ignored by ``noise`` and vice versa."""
@@ -228,8 +228,11 @@ class NavigationSection(Section):
     outage_probability: Probability = Field(0.0, description="ekf: probability that a measurement is lost (random outage)")
     eclipse_dropout: bool = Field(False, description="ekf: no measurement while the target is in the Earth's shadow "
                                   "(conical, proxops.environment.eclipse; orbit.epoch_utc)")
+    process_model: Literal["cw", "j2"] = Field(
+        "cw", description="ekf: mean prediction by the linear CW transition (cw) or by the nonlinear two-body + J2 "
+        "relative motion from the known target orbit (j2, proxops.propagation.relative_predictor)")
     process_noise_m2_s3: NonNegative = Field(1e-9, description="ekf: white-acceleration power spectral density per "
-                                             "axis (covers J2 and other unmodelled accelerations)")
+                                             "axis (covers the accelerations the process model leaves out)")
     initial_position_sigma_m: Positive = Field(1.0, description="ekf: initial 1-sigma position error per axis (the "
                                                "initial estimate is drawn from it)")
     initial_velocity_sigma_mps: Positive = Field(0.01, description="ekf: initial 1-sigma velocity error per axis")
@@ -237,8 +240,9 @@ class NavigationSection(Section):
         None, description="ekf: full 6x6 initial covariance (SI: m^2, m^2/s, m^2/s^2), positive definite; replaces "
         "the two initial sigmas")
     command_sigma_fraction: NonNegative = Field(
-        0.0, description="ekf: 1-sigma execution error of each commanded impulse/acceleration per axis, as a "
-        "fraction of its norm (covers thruster magnitude and pointing errors)")
+        0.0, description="ekf: extra isotropic 1-sigma execution error of each commanded impulse/acceleration per "
+        "axis, as a fraction of its norm, on top of the [actuator] / [errors] execution-error model the filter "
+        "always adds (magnitude, pointing, direction angles, missed thrusts)")
     gate_probability: Annotated[float, Field(gt=0.0, lt=1.0)] = Field(
         0.9999, description="ekf: chi-square gate confidence; a measurement beyond it is rejected (an event)")
     reinit_after_rejections: Annotated[int, Field(ge=0, le=1000)] = Field(

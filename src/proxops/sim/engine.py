@@ -13,7 +13,10 @@ loop it always did. Each base tick k at t_k = k h:
    e.g. the cortex triggers of Table 1) is shown the truth before its step; a filter's ``events``
    list (if any) is drained into the run's events and its ``command(t, u, kind)`` hook (if any)
    gets each controller command after the actuator's known saturations (``actuator.limited``, if
-   any; not its random execution errors)
+   any; not its random execution errors). A filter with ``consistency_record()`` (NEES from the true
+   state it is given at each tick, NIS of each measurement) has them stored at the end of the run as
+   ``info["nav_nees"]`` / ``info["nav_nis"]`` on the samples of their ticks (NaN elsewhere), its
+   dimensions and statistics in ``meta``
 2. each periodic component on its ticks: events += component.update(t, x_est); then on
    controller ticks cmd = controller.step(t, x_est)   (Command: u, kind, status, ...)
 3. on actuator ticks (and every controller tick) u = actuator.apply(t, cmd.u, cmd.kind, rng_act)
@@ -419,6 +422,17 @@ def simulate(setup: Setup, seed: int = 0, progress: bool = False, coast: bool = 
     )
     if nav_events is not None:
         meta.update(navigation_filter=True)
+    nav_record = getattr(nav, "consistency_record", None)  # optional: a filter's NEES / NIS per tick
+    info_out = {key: arr[:n] for key, arr in info.items()}
+    if nav_record is not None:
+        series, nav_meta = nav_record()
+        for key, (times, values) in series.items():
+            col = np.full(n, np.nan)
+            idx = np.rint(np.asarray(times, dtype=float) / h).astype(int)
+            keep = (idx >= 0) & (idx < n)
+            col[idx[keep]] = np.asarray(values, dtype=float)[keep]
+            info_out[key] = col
+        meta.update(nav_meta)
     if not single_rate:
         meta.update(base_step_s=h, navigation_period_s=h * k_nav, actuator_period_s=h * k_act)
     if periodic:
@@ -433,7 +447,7 @@ def simulate(setup: Setup, seed: int = 0, progress: bool = False, coast: bool = 
         status=status[:n],
         solve_time_s=solve_t[:n],
         mode=modes[:n],
-        info={key: arr[:n] for key, arr in info.items()},
+        info=info_out,
         events=events,
         meta=meta,
         plant_mode=[""] * n if plain_mode else plant_modes[:n],

@@ -124,6 +124,30 @@ class SimResult:
             out[key] = {"median": float(np.median(n)), "p95": float(np.percentile(n, 95)), "max": float(n.max())}
         out["nav_rejected"] = len(self.events_of("nav-rejected"))
         out["nav_reinits"] = len(self.events_of("nav-reinit"))
+        out.update(self.consistency_summary())
+        return out
+
+    def consistency_summary(self) -> dict:
+        """NEES and NIS of a filtered run (:mod:`proxops.navigation.consistency`): ``nav_nees_mean``, its
+        per-epoch band ``nav_nees_band`` (95 % of chi^2(d)), the band of the run's mean ``nav_nees_mean_band``,
+        the fractions of epochs inside / above / below (``nav_nees_in_band``, ...), the epochs and the
+        dimension; the same for ``nav_nis_*``; ``nav_consistent`` (NEES mean inside its band and <= 10 % of
+        the epochs outside theirs); the innovation-whiteness statistic of the run and the number of
+        windows flagged overconfident. Empty without a recorded NEES (``info["nav_nees"]``)."""
+        from proxops.navigation.consistency import consistency_stats
+
+        if "nav_nees" not in self.info:
+            return {}
+        out = {}
+        for name, dim in (("nees", self.meta.get("nav_nees_dim", 6)), ("nis", self.meta.get("nav_nis_dim", 3))):
+            for key, val in consistency_stats(self.info.get(f"nav_{name}", []), int(dim)).items():
+                if key != "consistent":
+                    out[f"nav_{name}_{key}"] = val
+                elif name == "nees":
+                    out["nav_consistent"] = val
+        out["nav_whiteness_z"] = float(self.meta.get("nav_whiteness_z", float("nan")))
+        out["nav_whiteness_bound"] = float(self.meta.get("nav_whiteness_bound", float("nan")))
+        out["nav_overconfident_windows"] = int(self.meta.get("nav_overconfident_windows", 0))
         return out
 
     # --- persistence --------------------------------------------------------------

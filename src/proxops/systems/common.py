@@ -81,7 +81,7 @@ def _ut1_utc(orbit: OrbitSection, truth: TruthSection) -> float:
 
 
 def navigation_model(nav: NavigationSection, per_state_sigma=None, orbit: OrbitSection | None = None,
-                     control_dt_s: float | None = None, system: str = "this system"):
+                     control_dt_s: float | None = None, system: str = "this system", actuator=None):
     """The navigation of a [navigation] section (the one place it is built): ``model = "noise"``:
     perfect when both sigmas are 0, else Gaussian; ``per_state_sigma(position_sigma_m,
     velocity_sigma_mps)`` maps the two sigmas onto a state layout other than [r; v] (e.g. the
@@ -89,7 +89,7 @@ def navigation_model(nav: NavigationSection, per_state_sigma=None, orbit: OrbitS
     state, which needs the target ``orbit`` (mean motion) and the controller period
     ``control_dt_s`` (systems whose controller sees another state pass neither: an error)."""
     if nav.model == "ekf":
-        return ekf_navigation(nav, orbit, control_dt_s, system)
+        return ekf_navigation(nav, orbit, control_dt_s, system, actuator=actuator)
     if nav.position_sigma_m == 0.0 and nav.velocity_sigma_mps == 0.0:
         return PerfectNavigation()
     if per_state_sigma is not None:
@@ -106,10 +106,13 @@ def actuator_model(act: ActuatorSection):
 
 
 def ekf_navigation(nav: NavigationSection, orbit: OrbitSection | None, control_dt_s: float | None,
-                   system: str = "this system", layout=None):
+                   system: str = "this system", layout=None, actuator=None):
     """:class:`proxops.navigation.ekf.RelativeEKF` of a ``model = "ekf"`` [navigation] section;
     ``layout``: the plant's state layout (the filter estimates its position and velocity blocks;
-    None: the 6-state Hill layout)."""
+    None: the 6-state Hill layout); ``actuator``: the run's actuator, whose execution-error model
+    (``execution_covariance``, or that of its ``errors`` stage) the filter adds to its covariance
+    at each command. ``process_model = "j2"``: the mean is predicted by
+    :class:`proxops.propagation.relative_predictor.HillPredictor` on the target orbit."""
     import math
 
     from proxops.core.cw import mean_motion
@@ -143,7 +146,16 @@ def ekf_navigation(nav: NavigationSection, orbit: OrbitSection | None, control_d
                          sigma_reference_range_m=nav.sigma_reference_range_m,
                          sigma_floor_fraction=nav.sigma_floor_fraction, fov_rad=math.radians(nav.fov_deg),
                          boresight=boresight, outage_probability=nav.outage_probability, illuminated=illuminated)
+    predictor = None
+    if nav.process_model == "j2":
+        from proxops.propagation.relative_predictor import HillPredictor
+
+        predictor = HillPredictor(target_elements(orbit), j2=True)
+    command_covariance = getattr(actuator, "execution_covariance", None)
+    if command_covariance is None:
+        command_covariance = getattr(getattr(actuator, "errors", None), "execution_covariance", None)
     return RelativeEKF(mean_motion(orbit.sma_m), sensor, p0, q_m2_s3=nav.process_noise_m2_s3,
+                       predictor=predictor, command_covariance=command_covariance,
                        gate_probability=nav.gate_probability, command_sigma_fraction=nav.command_sigma_fraction,
                        reinit_after_rejections=nav.reinit_after_rejections,
                        reinit_velocity_sigma_mps=nav.reinit_velocity_sigma_mps, layout=layout, period_s=period)

@@ -61,7 +61,7 @@ def check_loop(sc) -> None:
         raise input_error("guidance.terminal_penalty", g.terminal_penalty, "must be > 0 (eps_P of eq. 27a)")
 
 
-def navigation_of(sc, layout=None):
+def navigation_of(sc, layout=None, actuator=None):
     """The navigation slot of the closed loop. ``[navigation] model = "noise"`` (default): the
     injection errors of Algorithm 3 (``[errors] delta_r_m``, §5.1.2 range law, white on the truth;
     the [navigation] noise sigmas are not used by cortex and must stay 0). ``model = "ekf"``: the
@@ -78,7 +78,7 @@ def navigation_of(sc, layout=None):
                               "errors of Algorithm 3 are the noise option; the filter's sensor sets the errors)", "m")
         from proxops.systems.common import ekf_navigation
 
-        return ekf_navigation(nav, sc.orbit, sc.guidance.substep_s, system="cortex", layout=layout)
+        return ekf_navigation(nav, sc.orbit, sc.guidance.substep_s, system="cortex", layout=layout, actuator=actuator)
     for key in ("position_sigma_m", "velocity_sigma_mps"):
         if getattr(nav, key) != 0.0:
             raise input_error(f"navigation.{key}", getattr(nav, key), "is not used by cortex: give the injection "
@@ -152,8 +152,9 @@ def build_setup(sc):
                             ApproachCone(axis, cfg.cone_half_angle_rad), plume_bar=PlumeConstraint(cfg.alpha_p_bar))
     x0 = np.asarray(cfg.start_state, float)
     plant = translational_plant(sc.orbit, sc.truth, x0)
-    setup = Setup(plant=plant, controller=ctrl, duration_s=sc.sim.duration_s, navigation=navigation_of(sc, plant.layout),
-                  actuator=actuator_of(sc), meta={"system": "cortex", "control": "impulse", "frame": "Hill/RTN"})
+    actuator = actuator_of(sc)
+    setup = Setup(plant=plant, controller=ctrl, duration_s=sc.sim.duration_s,
+                  navigation=navigation_of(sc, plant.layout, actuator), actuator=actuator, meta={"system": "cortex", "control": "impulse", "frame": "Hill/RTN"})
     return setup, ctrl, plan
 
 

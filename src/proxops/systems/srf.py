@@ -352,9 +352,11 @@ def build_setup(sc: SrfScenario, cbf: bool | None = None) -> Setup:
     # The run ends one sample after the braking impulse (its coast simulated), with outcome
     # "handover": duration and stop condition say so, so the engine's step count (progress bar)
     # is the number of steps simulated (it was one too many with a 2-step margin).
+    actuator = actuator_model(sc.actuator)
     return Setup(plant=plant, controller=ctrl, duration_s=float(sched.times[-1]) + sched.dt,
-                 navigation=navigation_model(sc.navigation, orbit=sc.orbit, control_dt_s=ctrl.dt, system="srf"),
-                 actuator=actuator_model(sc.actuator), constraints=(keep_out_hill(sc),), stop_condition=_Handover(ctrl),
+                 navigation=navigation_model(sc.navigation, orbit=sc.orbit, control_dt_s=ctrl.dt, system="srf",
+                                             actuator=actuator),
+                 actuator=actuator, constraints=(keep_out_hill(sc),), stop_condition=_Handover(ctrl),
                  check_substeps=sc.sim.check_substeps, meta=meta)
 
 

@@ -53,10 +53,11 @@ class StationKeepingSystem(SystemBase):
         else:
             ctrl = PdStationKeeping(n, c.dt_s, c.hold_position_m, c.kp, c.kd)
         plant = translational_plant(sc.orbit, sc.truth, initial_hill_state(sc.initial))
+        actuator = actuator_model(sc.actuator)
         return Setup(plant=plant, controller=ctrl, duration_s=sc.sim.duration_s,
                      navigation=navigation_model(sc.navigation, orbit=sc.orbit, control_dt_s=ctrl.dt,
-                                                 system="station-keeping"),
-                     actuator=actuator_model(sc.actuator),
+                                                 system="station-keeping", actuator=actuator),
+                     actuator=actuator,
                      check_substeps=sc.sim.check_substeps)
 
     def summarize(self, sc: StationKeepingScenario, result) -> dict:
