@@ -112,17 +112,18 @@ def cache_key(name: str, runs: int, seed: int | None, overrides=()) -> str:
     return f"{name}-runs{runs}-seed{'default' if seed is None else seed}-{ov}-v{__version__}"
 
 
-def campaign(name: str, ctx: Context, runs: int, overrides=(), seed: int | None = None):
+def campaign(name: str, ctx: Context, runs: int | None, overrides=(), seed: int | None = None, scenario=None):
     """A Monte Carlo campaign of a built-in, cached under ``out/cache/<cache_key>``: a finished campaign
     there is reused (its rows read back), an interrupted one completed (``seed=None``: the scenario's
-    ``sim.seed``). Without ``out`` (--quick) the rows stay in memory."""
+    ``sim.seed``; ``scenario``: a scenario dict to run instead of the built-in ``name``, which then only
+    names the cache; ``runs=None``: its grid size). Without ``out`` (--quick) the rows stay in memory."""
     from proxops.analysis.campaign import MANIFEST, run_campaign, write_report
 
     key = cache_key(name, runs, seed, overrides)
     out = ctx.sub(f"cache/{key}")
     resume = out is not None and (out / MANIFEST).exists()
     t0 = time.perf_counter()
-    res = run_campaign(name, n_runs=runs, workers=ctx.workers, out=out, overrides=list(overrides), seed=seed,
+    res = run_campaign(name if scenario is None else scenario, n_runs=runs, workers=ctx.workers, out=out, overrides=list(overrides), seed=seed,
                        progress=ctx.progress, keep_series=out is not None, resume=resume)
     wall = time.perf_counter() - t0
     if out is not None and not (out / "report").exists():

@@ -64,7 +64,7 @@ def case2_row(out: Path | None = None) -> Claim:
     m = {}
     for lab, res in results.items():
         w = np.degrees(res.x_true[:, 5])
-        th = np.degrees(res.x_true[:, 2])
+        th = np.degrees(np.unwrap(res.x_true[:, 2]))
         half = len(w) // 2
         m[lab] = {"docked": bool(summary["runs"][lab]["docked"]), "steps": int(summary["runs"][lab]["steps"]),
                   "rate_reversals": _sign_changes(w, dead),
