@@ -20,7 +20,7 @@ from pathlib import Path
 
 from proxops.report.claims import SYSTEM_NAMES, systems
 from proxops.report.claims.common import (CALIBRATED, EXPLAINED, INCONSISTENT, NOT_ATTEMPTED, REPRODUCED,  # noqa: F401
-                                          UNEXPLAINED, VERDICT_RULES, VERDICTS, Claim, Context, Goal)
+                                          RUN_CACHE, UNEXPLAINED, VERDICT_RULES, VERDICTS, Claim, Context, Goal)
 from proxops.report.claims.cortex import cortex_claims  # noqa: F401
 from proxops.report.claims.hybrid import hybrid_claims  # noqa: F401
 from proxops.report.claims.los import los_claims  # noqa: F401
@@ -46,6 +46,8 @@ def reproduce(target: str = "all", quick: bool = False, out: str | Path | None =
     if workers < 1:
         raise input_error("workers", workers, "must be >= 1")
     ctx = Context(quick=quick, workers=workers, out=Path(out) if out is not None else None, progress=progress)
+    RUN_CACHE["dir"] = ctx.out / "cache" if ctx.out is not None else None
+    RUN_CACHE["memo"] = {}
     t_start = time.perf_counter()
     funcs = systems()
     rows, timings = [], {}
@@ -116,8 +118,8 @@ def markdown(result: dict, notes: bool = True) -> str:
             lines.append(f"| {n['scenario']} | {n['base_scenario']} | {_num(e.get('success'))} / {_num(b.get('success'))} "
                          f"| {_num(e.get('dv_mps'))} / {_num(b.get('dv_mps'))} | {_num(e.get('terminal_error_m'))} / "
                          f"{_num(b.get('terminal_error_m'))} | {_num(e.get('nav_nees_mean'))} | {_num(e.get('att_nees_mean'))} |")
+    lines += ["", "Verdict rules", ""] + [f"- {v}" for v in result.get("verdict_rules", VERDICT_RULES)]
     if notes:
-        lines += ["", "Verdict rules", ""] + [f"- {v}" for v in result.get("verdict_rules", VERDICT_RULES)]
         lines += ["", "Notes", ""]
         for i, r in enumerate(result["rows"], 1):
             extra = f" Reduced in --quick: {r['reduced']}." if r.get("reduced") else ""

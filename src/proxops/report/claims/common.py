@@ -97,11 +97,42 @@ def f(x: float, digits: int = 2) -> str:
     return f"{x:.{digits}f}"
 
 
-def run(name: str, overrides=(), out: Path | None = None) -> dict:
-    """One closed loop of a built-in (``proxops run``): its summary."""
+RUN_CACHE: dict = {"dir": None, "memo": {}}  # set by reproduce(): OUT/cache (None: in memory only)
+
+
+def run(name: str, overrides=(), out: Path | None = None, cache: bool = True) -> dict:
+    """One closed loop of a built-in (``proxops run``): its summary. With ``cache`` the summary is kept
+    for this process and, when reproduce() has an OUT folder, in ``OUT/cache/run-<key>.json`` (a later
+    reproduction reuses it; figures are written on the first run only). ``cache=False`` for rows that
+    measure wall time."""
     from proxops.runner import run_scenario
 
-    return run_scenario(name, overrides=list(overrides), out=out, figures=out is not None)
+    key = cache_key(name, 1, None, overrides).replace("-runs1-seeddefault", "")
+    memo, folder = RUN_CACHE["memo"], RUN_CACHE["dir"]
+    path = Path(folder) / f"run-{key}.json" if folder is not None else None
+    if cache and key in memo:
+        return memo[key]
+    if cache and path is not None and path.exists():
+        memo[key] = json.loads(path.read_text())
+        return memo[key]
+    s = run_scenario(name, overrides=list(overrides), out=out, figures=out is not None)
+    if cache:
+        memo[key] = s
+        if path is not None:
+            path.parent.mkdir(parents=True, exist_ok=True)
+            path.write_text(json.dumps(s, default=_plain))
+    return s
+
+
+def _plain(obj):
+    """JSON for numpy values (summaries are JSON-ready otherwise)."""
+    import numpy as np
+
+    if isinstance(obj, np.generic):
+        return obj.item()
+    if isinstance(obj, np.ndarray):
+        return obj.tolist()
+    return str(obj)
 
 
 def cache_key(name: str, runs: int, seed: int | None, overrides=()) -> str:
