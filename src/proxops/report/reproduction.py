@@ -24,7 +24,7 @@ from proxops.report.claims.common import (CALIBRATED, EXPLAINED, INCONSISTENT, N
 from proxops.report.claims.cortex import cortex_claims  # noqa: F401
 from proxops.report.claims.hybrid import hybrid_claims  # noqa: F401
 from proxops.report.claims.los import los_claims  # noqa: F401
-from proxops.report.claims.navigation import navigation_pairs, navigation_table  # noqa: F401
+from proxops.report.claims.navigation import TERMINAL_KEYS, navigation_pairs, navigation_table  # noqa: F401
 from proxops.report.claims.reach import reach_claims  # noqa: F401
 from proxops.report.claims.srf import designed_dv, srf_claims  # noqa: F401
 from proxops.report.claims.underactuated import underactuated_claims  # noqa: F401
@@ -110,7 +110,8 @@ def markdown(result: dict, notes: bool = True) -> str:
             lines.append(f"| {g['system']} | {_cell(g['goal'])} | {_cell(g['target'])} | {_cell(g['ours'])} | {met} |")
     nav = result.get("navigation") or []
     if nav:
-        lines += ["", "Navigation: each *-ekf built-in beside its base scenario (same seed)", "",
+        lines += ["", "Navigation: each *-ekf built-in beside its base scenario (each its own sim.seed; terminal error = "
+                  "the first of the summary keys " + ", ".join(TERMINAL_KEYS) + " present)", "",
                   "| scenario | base | success (ekf / base) | Δv m/s (ekf / base) | terminal error m (ekf / base) "
                   "| nav_nees_mean | att_nees_mean |", "| --- | --- | --- | --- | --- | --- | --- |"]
         for n in nav:
