@@ -3,13 +3,12 @@
 from __future__ import annotations
 
 import math
-import time
-from pathlib import Path
 
 import numpy as np
 
-from proxops.report.claims.common import (CALIBRATED, EXPLAINED, INCONSISTENT, NOT_ATTEMPTED, REPRODUCED, UNEXPLAINED,
-                                          Claim, Context, Goal, abort_items, campaign, f, run, sig_round)
+from proxops.report.claims.common import (CALIBRATED, EXPLAINED, INCONSISTENT, NOT_ATTEMPTED, REPRODUCED,
+                                          UNEXPLAINED, Claim, Context, campaign, run)
+
 
 def _table4_row(t, col: str, scale: float = 1.0) -> dict:
     v = t[col].astype(float).to_numpy() * scale if col in t else np.zeros(0)

@@ -3,13 +3,12 @@
 from __future__ import annotations
 
 import math
-import time
-from pathlib import Path
 
 import numpy as np
 
-from proxops.report.claims.common import (CALIBRATED, EXPLAINED, INCONSISTENT, NOT_ATTEMPTED, REPRODUCED, UNEXPLAINED,
-                                          Claim, Context, Goal, abort_items, campaign, f, run, sig_round)
+from proxops.report.claims.common import (EXPLAINED, NOT_ATTEMPTED, REPRODUCED, UNEXPLAINED, Claim, Context, Goal,
+                                          campaign, run)
+
 
 def hybrid_claims(ctx: Context) -> list[Claim]:
     """hybrid-mpc-capture.md §VII: the capture / post-capture sequence of hybrid-capture and the

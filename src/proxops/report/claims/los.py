@@ -3,13 +3,11 @@
 from __future__ import annotations
 
 import math
-import time
-from pathlib import Path
 
 import numpy as np
 
-from proxops.report.claims.common import (CALIBRATED, EXPLAINED, INCONSISTENT, NOT_ATTEMPTED, REPRODUCED, UNEXPLAINED,
-                                          Claim, Context, Goal, abort_items, campaign, f, run, sig_round)
+from proxops.report.claims.common import EXPLAINED, REPRODUCED, UNEXPLAINED, Claim, Context
+
 
 def los_claims(ctx: Context) -> list[Claim]:
     from proxops.analysis.los_boundary import boundary_fraction, open_loop_boundary

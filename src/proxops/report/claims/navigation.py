@@ -8,6 +8,7 @@ from __future__ import annotations
 
 from proxops.report.claims.common import Context, run
 
+
 TERMINAL_KEYS = ("terminal_position_error_m", "final_position_error_m", "arrival_error_m", "final_tracking_error_m",
                  "final_range_m")  # first present: the row names the one it used
 EXTRA_KEYS = ("nav_nees_mean", "att_nees_mean", "nav_position_error_m", "nav_velocity_error_mps")

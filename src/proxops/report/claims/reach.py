@@ -8,8 +8,9 @@ from pathlib import Path
 
 import numpy as np
 
-from proxops.report.claims.common import (CALIBRATED, EXPLAINED, INCONSISTENT, NOT_ATTEMPTED, REPRODUCED, UNEXPLAINED,
-                                          Claim, Context, Goal, abort_items, campaign, f, run, sig_round)
+from proxops.report.claims.common import (CALIBRATED, EXPLAINED, NOT_ATTEMPTED, REPRODUCED, UNEXPLAINED, Claim,
+                                          Context, sig_round)
+
 
 def analytic_rows() -> tuple[list[Claim], dict, object, float]:
     """Table 2, the robust set and the hierarchy (the analytical sets of the 20 combinations): rows,

@@ -3,13 +3,12 @@
 from __future__ import annotations
 
 import math
-import time
-from pathlib import Path
 
 import numpy as np
 
-from proxops.report.claims.common import (CALIBRATED, EXPLAINED, INCONSISTENT, NOT_ATTEMPTED, REPRODUCED, UNEXPLAINED,
-                                          Claim, Context, Goal, abort_items, campaign, f, run, sig_round)
+from proxops.report.claims.common import (EXPLAINED, INCONSISTENT, NOT_ATTEMPTED, REPRODUCED, UNEXPLAINED, Claim,
+                                          Context, abort_items, campaign, f, run, sig_round)
+
 
 def designed_dv(theta_deg: float, hops: int, gamma: float, start_m: float, end_m: float, sma_m: float) -> dict:
     """Sums of Algorithm 1's open-loop impulses on CW (from rest: each hop's start impulse, the junction

@@ -2,14 +2,12 @@
 
 from __future__ import annotations
 
-import math
-import time
 from pathlib import Path
 
 import numpy as np
 
-from proxops.report.claims.common import (CALIBRATED, EXPLAINED, INCONSISTENT, NOT_ATTEMPTED, REPRODUCED, UNEXPLAINED,
-                                          Claim, Context, Goal, abort_items, campaign, f, run, sig_round)
+from proxops.report.claims.common import INCONSISTENT, NOT_ATTEMPTED, REPRODUCED, UNEXPLAINED, Claim, Context
+
 
 def _sign_changes(x: np.ndarray, dead: float) -> int:
     """Sign changes of ``x`` ignoring |x| <= dead (a reversal counts once the value leaves the dead band)."""
