@@ -27,7 +27,8 @@ VERDICTS = (REPRODUCED, EXPLAINED, UNEXPLAINED, CALIBRATED, NOT_ATTEMPTED, INCON
 VERDICT_RULES = (
     f"`{REPRODUCED}`: ours agrees with the paper within the row's stated tolerance, and the row says where the "
     "tolerance comes from (the paper's printed precision, a paper-given bound, or a spread measured independently); "
-    "a quantity our simulation makes true by construction is never 'reproduced'.",
+    "a quantity our simulation makes true by construction is never 'reproduced' (a property the paper itself says "
+    "holds by construction is, when the row measures the construction's precondition).",
     f"`{EXPLAINED}`: ours differs and the row carries a measurement that shows the cause (in its note and data); "
     "a bracket of two readings or a plausible story without a measurement is not an explanation.",
     f"`{UNEXPLAINED}`: ours differs and we have no measurement showing why.",
