@@ -13,7 +13,6 @@ and prints median/IQR of delta-v, TOF and compute time next to §5.1.1.
 
 from __future__ import annotations
 
-import copy
 import math
 import time
 from pathlib import Path
@@ -103,23 +102,6 @@ def format_plan(s: dict) -> str:
     return "\n".join(lines)
 
 
-def references_scenario(scenario: str, n: int) -> dict:
-    """The scenario data with the Fibonacci grid: ``axis.fibonacci_index`` = 0..n-1 (overrides are
-    applied by the campaign engine)."""
-    from proxops.errors import input_error
-    from proxops.scenarios.loader import read_toml, resolve
-
-    if isinstance(n, bool) or n < 1:
-        raise input_error("--n", n, "must be a whole number >= 1")
-    data = copy.deepcopy(read_toml(resolve(scenario)))
-    data.setdefault("axis", {})["fibonacci_n"] = int(n)
-    data["axis"].pop("fibonacci_index", None)
-    data["axis"]["fibonacci_index"] = 0
-    data["dispersions"] = {"axis.fibonacci_index": {"grid": list(range(int(n)))}}
-    data["name"] = f"{data.get('name', 'cortex')}-fibonacci-{n}"
-    return data
-
-
 @cortex_app.command("references")
 @friendly_errors
 def references(
@@ -135,7 +117,7 @@ def references(
     """Plan the references of N Fibonacci-sphere axes as a campaign; statistics next to §5.1.1."""
     from proxops.analysis.campaign import run_campaign
     from proxops.errors import input_error
-    from proxops.systems.cortex import PAPER_5_1_1, campaign_statistics, statistics_table
+    from proxops.systems.cortex import PAPER_5_1_1, campaign_statistics, references_scenario, statistics_table
 
     if workers is not None and workers < 1:
         raise input_error("--workers", workers, "must be >= 1")

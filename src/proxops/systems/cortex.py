@@ -337,6 +337,25 @@ class CortexSystem(SystemBase):
         return statistics_table(campaign_statistics(table))
 
 
+def references_scenario(scenario: str, n: int) -> dict:
+    """The scenario data with the Fibonacci grid: ``axis.fibonacci_index`` = 0..n-1 (overrides are
+    applied by the campaign engine)."""
+    import copy
+
+    from proxops.errors import input_error
+    from proxops.scenarios.loader import read_toml, resolve
+
+    if isinstance(n, bool) or n < 1:
+        raise input_error("--n", n, "must be a whole number >= 1")
+    data = copy.deepcopy(read_toml(resolve(scenario)))
+    data.setdefault("axis", {})["fibonacci_n"] = int(n)
+    data["axis"].pop("fibonacci_index", None)
+    data["axis"]["fibonacci_index"] = 0
+    data["dispersions"] = {"axis.fibonacci_index": {"grid": list(range(int(n)))}}
+    data["name"] = f"{data.get('name', 'cortex')}-fibonacci-{n}"
+    return data
+
+
 def campaign_statistics(table) -> dict:
     """Median / IQR of delta-v, TOF (tau_1 + tau_2) and compute time over the successful plans."""
     ok = table[table["success"].astype(bool)] if "success" in table else table

@@ -517,6 +517,7 @@ def summarize_result(sc: SrfScenario, result) -> dict:
         "koz_violated": bool(koz_fine < 0.0),
         "impulses": int(fired.size),
         "impulse_times_s": [float(result.t[k]) for k in fired],
+        "impulse_dv_mps": [float(np.linalg.norm(u[k])) for k in fired],  # |dv| of each fired impulse (m/s)
         "hop_start_times_s": [float(t) for t in hop_start_times],
         "hop_intervals_s": [float(x) for x in np.diff([0.0] + list(hop_nodes))],
         "dv_l1_mps": l1,

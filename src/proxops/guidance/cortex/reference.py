@@ -165,6 +165,13 @@ class CortexConfig:
         pos("approach_end_range", self.approach_end_range_m, "m")
 
 
+def _last_impulse(phase) -> float:
+    """|dv| of a phase's last-node (terminal) impulse (m/s), NaN without a solution."""
+    if phase is None or getattr(phase, "dv", None) is None or not len(phase.dv):
+        return math.nan
+    return float(np.linalg.norm(phase.dv[-1]))
+
+
 def fibonacci_axes(n: int) -> np.ndarray:
     """N unit axes on a spherical Fibonacci lattice (Keinert et al. 2015, ref. 11), (n, 3) in Hill:
     z_i = 1 - (2i + 1)/n, phi_i = 2 pi i / golden ratio, axis = [sqrt(1-z^2) cos phi, sqrt(1-z^2) sin phi, z]."""
@@ -274,6 +281,8 @@ class CortexPlan:
             "cp1_solve_time_median_s": float(np.median(self.cp1_solve_times_s)) if self.cp1_solve_times_s else math.nan,
             "cp2_solve_time_median_s": float(np.median(self.cp2_solve_times_s)) if self.cp2_solve_times_s else math.nan,
             "n_cp1_solves": len(self.cp1_solve_times_s), "n_cp2_solves": len(self.cp2_solve_times_s),
+            # the terminal burn at each phase's last node (impulses at nodes 0..N, one more than eqs. 17 / 20), m/s
+            "dv1_terminal_mps": _last_impulse(self.cp1), "dv2_terminal_mps": _last_impulse(self.cp2),
         }
         if c is not None:
             out.update({f"check_{k}": v for k, v in asdict(c).items() if k != "failures"})
