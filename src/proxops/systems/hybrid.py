@@ -443,6 +443,7 @@ def summarize_result(sc: HybridScenario, result) -> dict:
         summary["chief_attitude_est_error_deg"] = {"final": float(att[-1]), "max_after_60s": float(
             att[t >= 60.0].max()) if (t >= 60.0).any() else float(att.max())}
         summary["chief_rate_est_error_deg_s_final"] = float(np.degrees(np.linalg.norm(xe[-1, 17:20] - x[-1, 17:20])))
+    summary["estimation"] = sc.estimation.model  # "mekf": the MPCs ran on estimates; "exact": on the truth
     summary["sequence"] = sequence_text(contacts, changes, result.events)
     summary.update(final_verdict(sc, result, x, err, wc, docked, decoupled, bool(redock)))
     return summary

@@ -48,14 +48,26 @@ def hybrid_claims(ctx: Context) -> list[Claim]:
     damped = s["chief_rate_final_deg_s"] < 0.1 * s["chief_rate_initial_deg_s"]
     rows.append(Claim(
         "hybrid", "Chief tumble damped after capture", "omega_c -> 0 (§VII, Fig. 7b)",
-        f"|omega_c| {s['chief_rate_initial_deg_s']:.3f} -> {s['chief_rate_final_deg_s']:.3f} deg/s",
+        f"|omega_c| {s['chief_rate_initial_deg_s']:.3f} -> {s['chief_rate_final_deg_s']:.3f} deg/s at the end; "
+        f"peak {s['chief_rate_peak_deg_s']:.2f} deg/s at {s['chief_rate_peak_time_s']:.0f} s (the contacts spin it up)",
         REPRODUCED if damped else UNEXPLAINED, "hybrid-capture, end of the run",
         tolerance="final rate below 10 % of the initial (Fig. 7b decays to zero; 10 % is our reading of 'damped')"))
     rows.append(tracking_row(s))
+    exact, _ = execute(load_scenario("hybrid-capture-exact"))
+    rows.append(Claim(
+        "hybrid", "Composite CoM orbit tracking, exact states (labelled variant)",
+        "millimetre-level error (§VII, Fig. 8)",
+        f"max over the last 100 s {exact['tracking_error_last_100s_max_m']:.2e} m; status {exact['status']}",
+        NOT_ATTEMPTED, "hybrid-capture-exact: the MPCs see the true state (no navigation noise) on the two-body + J2 "
+        "truth; shown beside the estimator run above to separate model mismatch from estimation error, not as a "
+        "reproduction", data={"tracking_error_last_100s_max_m": exact["tracking_error_last_100s_max_m"]}))
     rows.append(Claim(
         "hybrid", "Latch snap decouples the pair, then re-docking and tracking resume",
         "0.05 N s snap at ~593 s, capture MPC, re-dock (§VII, Fig. 9)",
-        f"decoupled={s['decoupled']} at {s['decouple_time_s']} s, redocked={s['redocked']} at {s['redock_time_s']} s",
+        f"decoupled={s['decoupled']} at {s['decouple_time_s']} s (snap at {s['snap_time_s']} s), "
+        f"redocked={s['redocked']} at {s['redock_time_s']} s; separation reached "
+        f"{1e3 * s['max_separation_after_snap_m']:.1f} mm, inside the 2 cm capture envelope: a re-grab, not a "
+        "re-capture (hybrid-redock drives the pair beyond the envelope and re-captures)",
         REPRODUCED if s["decoupled"] and s["redocked"] else UNEXPLAINED,
         "snap at 593 s (scripted); the supervisor sees the open latch at the next expiry of its dwell timer tau "
         "(T_1 = 10 s) and the latch re-arms 10 s after the snap (our choices). " + note_run,
@@ -104,7 +116,7 @@ def hybrid_claims(ctx: Context) -> list[Claim]:
     return rows
 
 
-NAV_KEYS = ("nav_position_error_m", "navigation", "nav_nees_mean")
+NAV_KEYS = ("nav_position_error_m", "navigation", "nav_nees_mean")  # a translational filter ran
 
 
 def tracking_row(s: dict) -> Claim:
@@ -112,7 +124,7 @@ def tracking_row(s: dict) -> Claim:
     truth's translation is the MPC's own linear model, so the number cannot differ: not a reproduction.
     When the run reports navigation (any of NAV_KEYS), the row is judged on it."""
     trk = s.get("tracking_error_last_100s_max_m")
-    noisy = any(k in s for k in NAV_KEYS)
+    noisy = any(k in s for k in NAV_KEYS) or s.get("estimation", "exact") != "exact"
     ours = (f"max |rho_n - r_des| over the last 100 s: {trk:.2e} m; final {s['final_tracking_error_m']:.2e} m"
             if trk is not None else "no tracking error reported")
     if not noisy:
@@ -125,8 +137,9 @@ def tracking_row(s: dict) -> Claim:
     ok = s.get("docked") and trk is not None and trk < 1e-2
     return Claim(
         "hybrid", "Composite CoM orbit tracking", "millimetre-level error (§VII, Fig. 8)", ours,
-        REPRODUCED if ok else UNEXPLAINED, "hybrid-capture with navigation (summary keys: "
-        + ", ".join(k for k in NAV_KEYS if k in s) + "), last 100 s of the run (after the re-dock)",
+        REPRODUCED if ok else UNEXPLAINED, f"hybrid-capture on estimates (estimation = {s.get('estimation')!r}: "
+        "noisy relative pose and composite CoM, MEKF of the chief attitude and rate) on the two-body + J2 truth, "
+        "last 100 s of the run (after the re-dock)",
         data={"tracking_error_last_100s_max_m": trk, "navigation": True},
         tolerance="'millimetre-level' read as below 10 mm over the last 100 s")
 
