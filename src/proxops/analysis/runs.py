@@ -14,6 +14,12 @@ def execute(loaded, seed: int | None = None, progress: bool = False) -> tuple[di
     main = next(iter(results.values()))
     summary = {"scenario": sc.name, "system": sc.system, **main.summary(), **extra}
     summary["seed"] = seed
+    # one vocabulary across systems: `success` (the system's own test, as campaigns count it),
+    # `outcome` (the system's word for how the run ended: docked, handover, qp_infeasible, ...;
+    # the same text as `status`) and `stop_reason` (completed, stop_condition, controller)
+    summary["outcome"] = summary.get("outcome", summary.get("status"))
+    summary["stop_reason"] = str(main.meta.get("stop_reason", ""))
+    summary["success"] = bool(system.success(sc, summary))
     return summary, results
 
 
