@@ -50,8 +50,15 @@ class ProxopsGroup(TyperGroup):
     """Typer's group with the proxops error policy (see the module docstring)."""
 
     def main(self, args=None, prog_name=None, complete_var=None, standalone_mode=True, **extra):
-        code = guarded(lambda: super(ProxopsGroup, self).main(args, prog_name, complete_var,
-                                                              standalone_mode=False, **extra))
+        def call():
+            rv = super(ProxopsGroup, self).main(args, prog_name, complete_var, standalone_mode=False, **extra)
+            if isinstance(rv, int) and not isinstance(rv, bool) and rv == EXIT_INTERRUPTED:
+                # typer turns a Ctrl-C outside ``invoke`` (parsing the command line, closing the context)
+                # into a silent exit code 130: 5 of 10 Ctrl-Cs 3-5 s into `proxops mc` printed nothing
+                raise KeyboardInterrupt
+            return rv
+
+        code = guarded(call)
         if standalone_mode:
             sys.exit(code)
         return code
