@@ -161,6 +161,20 @@ CASES = [
     ("reach-map-out-is-file", ["reach", "map", "--omega-deg", "2", "--amax", "0.1", "--out", "{afile}"], "is a file"),
     ("reach-map-out-read-only", ["reach", "map", "--omega-deg", "2", "--amax", "0.1", "--out", "/proc/x"], "--out"),
     ("report-dir-read-only", ["report", "{good}", "--report-dir", "/sys/proxops-test"], "--report-dir"),
+    # every command that writes checks its output folder first, and refuses a campaign's folder
+    ("run-out-campaign", ["run", "station-keeping", "--out", "{good}", *SK], "is a campaign folder"),
+    ("demo-out-campaign", ["demo", "--out", "{good}"], "is a campaign folder"),
+    ("cortex-reference-out-campaign", ["cortex", "reference", "--out", "{good}"], "is a campaign folder"),
+    ("cortex-reference-out-is-file", ["cortex", "reference", "--out", "{afile}"], "--out"),
+    ("cortex-references-out-is-file", ["cortex", "references", "--n", "2", "--out", "{afile}"], "--out"),
+    ("cortex-references-out-read-only", ["cortex", "references", "--n", "2", "--out", "/proc/x"], "--out"),
+    ("reach-table-out-is-file", ["reach", "table", "--out", "{afile}"], "--out"),
+    ("reach-table-out-campaign", ["reach", "table", "--out", "{good}"], "is a campaign folder"),
+    ("reach-mc-out-is-file", ["reach", "mc", "--out", "{afile}"], "--out"),
+    ("reproduce-out-is-file", ["reproduce", "los", "--quick", "--out", "{afile}"], "--out"),
+    ("reproduce-out-read-only", ["reproduce", "los", "--quick", "--out", "/proc/x"], "--out"),
+    ("mc-out-read-only", ["mc", "station-keeping-mc", "--runs", "2", "--out", "/proc/x"], "--out"),
+    ("mc-out-under-file", ["mc", "station-keeping-mc", "--runs", "2", "--out", "{afile}/sub"], "--out"),
     # reach sizes and values
     ("reach-map-grid-huge", ["reach", "map", "--omega-deg", "2", "--amax", "0.1", "--grid", "100000", "--out",
                              "{dir}/rm"], "3000"),
@@ -265,3 +279,34 @@ def test_malformed_scheduler_prints_one_line_in_a_real_process(tmp_path):
                           capture_output=True, text=True, timeout=120)
     lines = [ln for ln in proc.stderr.splitlines() if ln.strip()]
     assert proc.returncode == 2 and len(lines) == 1 and lines[0].startswith("error: --scheduler"), proc.stderr
+
+
+# --------------------------------------------------------------------------- outputs checked first
+@pytest.mark.parametrize("argv, work", [
+    (["reproduce", "los", "--quick", "--out", "{afile}"], "proxops.report.reproduction.reproduce"),
+    (["cortex", "reference", "--out", "{good}"], "proxops.systems.cortex.plan_scenario"),
+    (["run", "station-keeping", "--out", "{good}"], "proxops.runner.run_scenario"),
+    (["reach", "table", "--out", "{afile}"], "proxops.analysis.reach.reach_table"),
+    (["mc", "station-keeping-mc", "--runs", "2", "--out", "{afile}/sub"], "proxops.analysis.campaign.run_campaign"),
+], ids=["reproduce", "cortex-reference", "run", "reach-table", "mc"])
+def test_output_folders_are_checked_before_any_work(files, monkeypatch, argv, work):
+    """`reproduce los --quick --out FILE` computed for 99 s before it failed (issue 25): the work
+    function must not even be called; a campaign folder is left exactly as it was."""
+    import importlib
+
+    module, name = work.rsplit(".", 1)
+    monkeypatch.setattr(importlib.import_module(module), name,
+                        lambda *a, **k: pytest.fail(f"{work} ran before the output check"))
+    before = {p: p.read_bytes() for p in files["good"].rglob("*") if p.is_file()}
+    res = CliRunner().invoke(app, [a.format(**{k: str(v) for k, v in files.items()}) for a in argv])
+    assert res.exit_code == 2 and res.stderr.startswith("error: --out"), res.stderr
+    assert {p: p.read_bytes() for p in files["good"].rglob("*") if p.is_file()} == before
+
+
+def test_a_campaign_check_of_a_new_folder_leaves_nothing_behind(tmp_path):
+    from proxops.cli_common import check_out_dir
+
+    target = tmp_path / "a" / "b" / "c"
+    assert check_out_dir(target, campaign=True) == target
+    assert list(tmp_path.iterdir()) == []
+    assert check_out_dir(target).is_dir()  # one result: the folder is made

@@ -42,6 +42,10 @@ def mc(
         raise ProxopsInputError(f"--connect-timeout-s {connect_timeout_s}: give a positive, finite number of seconds")
     if seed is not None and not 0 <= seed < 2**63:
         raise ProxopsInputError(f"--seed {seed}: give a whole number from 0 to 2^63 - 1")
+    from proxops.cli_common import check_out_dir
+
+    out = out if out is not None else Path("out") / f"mc-{Path(scenario).stem}"
+    check_out_dir(out, campaign=True)
     if scheduler is None:  # local workers start now (if proxops.entry has not): their imports overlap ours
         from proxops.cli_prestart import prestart
 
@@ -49,7 +53,6 @@ def mc(
     from proxops.analysis.campaign import CampaignInterrupted, run_campaign, write_report
     from proxops.cli_common import Interrupted
 
-    out = out if out is not None else Path("out") / f"mc-{Path(scenario).stem}"
     try:
         result = run_campaign(scenario, n_runs=runs, workers=workers, scheduler=scheduler, seed=seed, out=out,
                               resume=resume, overrides=set_, progress=progress, keep_series=series,

@@ -125,13 +125,38 @@ def friendly_errors(func):
     return func
 
 
-def check_out_dir(path, option: str = "--out") -> Path:
-    """An output folder the user named: created if missing; one-line error if it cannot be."""
+CAMPAIGN_MARKERS = ("campaign.json", "runs")  # a folder holding either is a campaign's (analysis.storage)
+
+
+def check_out_dir(path, option: str = "--out", campaign: bool = False) -> Path:
+    """Check an output folder the user named, before any work: the one check of every command that
+    writes (one ``error:`` line naming ``option``, exit code 2).
+
+    - a file, a folder that cannot be created (under a file, a read-only file system) or written
+      (a real write: permissions and quotas show here) is refused;
+    - ``campaign=False`` (one result: ``run``, ``demo``, ``cortex reference``, ``reach table``, ...):
+      the folder is created, and a campaign's folder is refused (the result's summary.json and
+      figures would overwrite the campaign's);
+    - ``campaign=True`` (``mc``, ``cortex references``, ``reach mc``): nothing is left behind (a
+      folder created for the check is removed); the campaign checks its manifest itself.
+    """
     import tempfile
 
     path = Path(path)
     if path.exists() and not path.is_dir():
         raise ProxopsInputError(f"{option} {path}: exists and is a file; give a folder (it is created if missing)")
+    if not campaign and path.is_dir():
+        held = [name for name in CAMPAIGN_MARKERS if (path / name).exists()]
+        if held:
+            raise ProxopsInputError(
+                f"{option} {path}: is a campaign folder (holds {' and '.join(held)}); writing one result there "
+                f"would overwrite the campaign's files: give another folder (`proxops report {path}` redraws a "
+                "campaign's report)")
+    created = []  # folders this check creates, outermost first
+    probe = path
+    while not probe.exists() and probe != probe.parent:
+        created.insert(0, probe)
+        probe = probe.parent
     try:
         path.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
@@ -142,6 +167,13 @@ def check_out_dir(path, option: str = "--out") -> Path:
     except OSError as exc:
         raise ProxopsInputError(f"{option} {path}: cannot write there ({exc.strerror or exc}); "
                                 "choose another folder") from None
+    finally:
+        if campaign:
+            for folder in reversed(created):
+                try:
+                    folder.rmdir()
+                except OSError:
+                    pass
     return path
 
 

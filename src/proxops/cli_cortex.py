@@ -43,7 +43,11 @@ def reference(
     as_json: Annotated[bool, typer.Option("--json", help="One JSON object on stdout.")] = False,
 ):
     """Plan one reference (outer search, CP1, CP2, holds) and print its summary."""
+    from proxops.cli_common import check_out_dir
     from proxops.systems.cortex import plan_scenario
+
+    if out is not None:
+        check_out_dir(out)
 
     loaded = _load(scenario, list(set_))
     sc = loaded.scenario
@@ -137,8 +141,12 @@ def references(
     from proxops.errors import input_error
     from proxops.systems.cortex import PAPER_5_1_1, campaign_statistics, statistics_table
 
+    from proxops.cli_common import check_out_dir
+
     if workers < 1:
         raise input_error("--workers", workers, "must be >= 1")
+    if out is not None:
+        check_out_dir(out, campaign=True)
     data = references_scenario(scenario, n)
     t0 = time.perf_counter()
     res = run_campaign(data, workers=workers, out=out, resume=resume, progress=not as_json, overrides=list(set_),
