@@ -226,11 +226,21 @@ def test_a_mixed_folder_is_refused_before_anything_is_written(files):
 def test_srf_run_away_from_the_reference_point_is_not_arrived_and_fails():
     # the nominal V-bar run ends ~1-3 m from the reference point (srf §5.1); a 1 mm tolerance is
     # the boundary case where the engine's "handover" stop must not read as success
+    # the summary is printed all the same; the exit code says "finished but failed" (4), one line on stderr
     res = CliRunner().invoke(app, ["run", "srf-vbar", "--json", "--set", "safety.reference_tolerance_m=0.001"])
-    assert res.exit_code == 0, res.output
+    assert res.exit_code == 4, res.output
     s = json.loads(res.stdout)
     assert s["arrived"] is False and s["reached_reference"] is False
     assert s["status"].startswith("failed: ended") and s["arrival_error_m"] > 0.001
+    lines = [ln for ln in res.stderr.splitlines() if ln.strip()]
+    assert len(lines) == 1 and "finished but failed" in lines[0] and "exit code 4" in lines[0], res.stderr
+
+
+def test_the_exit_codes_are_documented_in_help_and_readme():
+    readme = (Path(__file__).resolve().parents[1] / "README.md").read_text()
+    assert "4 a run that finished but failed" in " ".join(readme.split())
+    res = CliRunner().invoke(app, ["--help"])
+    assert "4 a run that finished but failed" in " ".join(res.stdout.replace("│", " ").split())
 
 
 def test_mc_with_every_run_failed_exits_3(files, tmp_path):

@@ -21,12 +21,13 @@ from typing import Annotated, Optional
 import typer
 
 from proxops import __version__
-from proxops.cli_common import STATE, ProxopsGroup, emit, friendly_errors
+from proxops.cli_common import EXIT_CODES_HELP, STATE, ProxopsGroup, emit, friendly_errors
 
 app = typer.Typer(
     name="proxops",
     cls=ProxopsGroup,
     help="Spacecraft rendezvous and proximity operations: guidance, MPC, closed-loop simulation, Monte Carlo.",
+    epilog=EXIT_CODES_HELP,
     no_args_is_help=True,
     add_completion=False,
     pretty_exceptions_enable=False,
@@ -93,17 +94,23 @@ def run(
     figures: Annotated[bool, typer.Option("--figures/--no-figures", help="Draw figures when --out is given.")] = True,
     as_json: Annotated[bool, typer.Option("--json", help="One JSON object on stdout.")] = False,
 ):
-    """Run one closed-loop simulation and print its summary."""
-    from proxops.cli_common import check_out_dir
+    """Run one closed-loop simulation and print its summary (exit code 4 if the run finished but failed)."""
+    from proxops.cli_common import EXIT_RUN_FAILED, check_out_dir
     from proxops.errors import input_error
     from proxops.runner import run_scenario
+    from proxops.scenarios.loader import load_scenario
 
     if seed is not None and not 0 <= seed < 2**63:
         raise input_error("--seed", seed, "allowed a whole number from 0 to 2^63 - 1")
     if out is not None:
         check_out_dir(out)
-    summary = run_scenario(scenario, overrides=set_, seed=seed, out=out, figures=figures, progress=not as_json)
+    loaded = load_scenario(scenario, set_)
+    summary = run_scenario(loaded, seed=seed, out=out, figures=figures, progress=not as_json)
     emit(summary, as_json, format_summary(summary))
+    if not loaded.system.success(loaded.scenario, summary):  # the campaigns' test of a run, not another one
+        typer.echo(f"error: the run finished but failed (status {summary.get('status')!r}); exit code "
+                   f"{EXIT_RUN_FAILED}", err=True)
+        raise typer.Exit(EXIT_RUN_FAILED)
 
 
 def format_summary(s: dict) -> str:

@@ -10,7 +10,8 @@ The error policy lives in one place, :class:`ProxopsGroup` (the click group behi
   naming ``--debug``, exit 1. ``--debug`` shows the traceback instead.
 
 Exit codes: 0 ok, 1 internal error or a campaign that could not go on, 2 bad input,
-3 a campaign that finished but every run failed, 130 interrupted.
+3 a campaign that finished but every run failed, 4 a single run (``proxops run``) that finished but
+failed, 130 interrupted.
 """
 
 from __future__ import annotations
@@ -27,7 +28,10 @@ from proxops.errors import ProxopsInputError
 
 STATE = {"debug": False}  # set by the top-level --debug option
 
-EXIT_OK, EXIT_INTERNAL, EXIT_INPUT, EXIT_ALL_FAILED, EXIT_INTERRUPTED = 0, 1, 2, 3, 130
+EXIT_OK, EXIT_INTERNAL, EXIT_INPUT, EXIT_ALL_FAILED, EXIT_RUN_FAILED, EXIT_INTERRUPTED = 0, 1, 2, 3, 4, 130
+EXIT_CODES_HELP = ("Exit codes: 0 ok; 1 internal error (please report it) or a campaign that could not go on; "
+                   "2 bad input; 3 a campaign that finished but every run failed; 4 a run that finished but "
+                   "failed; 130 interrupted.")
 
 
 class Interrupted(KeyboardInterrupt):

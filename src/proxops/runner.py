@@ -10,15 +10,16 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
-from proxops.scenarios.loader import load_scenario
+from proxops.scenarios.loader import LoadedScenario, load_scenario
 from proxops.analysis.runs import check_scenario, execute  # noqa: F401 (re-exported)
 from proxops.sim.result import SimResult
 
 
-def run_scenario(name_or_path: str, overrides=(), seed: int | None = None, out: Path | None = None,
+def run_scenario(name_or_path, overrides=(), seed: int | None = None, out: Path | None = None,
                  figures: bool = True, progress: bool = False) -> dict:
-    """Load, run and (with ``out``) save one scenario; returns the summary dict."""
-    loaded = load_scenario(name_or_path, list(overrides))
+    """Load (a file or built-in name; or a :class:`LoadedScenario` as it is), run and (with ``out``)
+    save one scenario; returns the summary dict."""
+    loaded = name_or_path if isinstance(name_or_path, LoadedScenario) else load_scenario(name_or_path, list(overrides))
     summary, results = execute(loaded, seed=seed, progress=progress)
     if out is not None:
         save_run(loaded, summary, results, Path(out), figures=figures)
