@@ -84,6 +84,13 @@ CASES = [
     ("duration-text", ["validate", "station-keeping", "--set", "sim.duration_s=abc"], "duration_s"),
     ("dt-longer-than-run", ["run", "station-keeping", "--set", "sim.dt_s=1000", "--set", "sim.duration_s=100"],
      "dt_s"),
+    ("controller-dt-longer-than-run", ["validate", "station-keeping", "--set", "controller.dt_s=600.001", "--set",
+                                       "sim.duration_s=600"], "no step"),
+    ("duration-too-many-steps", ["run", "station-keeping", "--set", "sim.duration_s=1e12", "--set", "truth.model=cw"],
+     "at most 2,000,000 steps"),
+    ("string-for-number", ["validate", "cortex-nominal", "--set", 'geometry.r_kos_m="15"'], "geometry.r_kos_m = '15'"),
+    ("string-for-bool", ["validate", "hybrid-capture", "--set", 'latch.snap="yes"'], "latch.snap = 'yes'"),
+    ("float-for-int", ["validate", "srf-vbar", "--set", "approach.hops=3.5"], "approach.hops"),
     ("check-substeps-zero", ["validate", "station-keeping", "--set", "sim.check_substeps=0"], "check_substeps"),
     ("altitude-underground", ["validate", "station-keeping", "--set", "orbit.altitude_km=-100"], "Earth"),
     ("ecc-above-one", ["validate", "station-keeping", "--set", "orbit.ecc=1.5"], "ecc"),
@@ -320,3 +327,39 @@ def test_a_campaign_check_of_a_new_folder_leaves_nothing_behind(tmp_path):
     assert check_out_dir(target, campaign=True) == target
     assert list(tmp_path.iterdir()) == []
     assert check_out_dir(target).is_dir()  # one result: the folder is made
+
+
+# --------------------------------------------------------------------------- cross-field and types
+def test_a_control_period_equal_to_the_run_is_one_step_and_valid():
+    # the boundary of "controller-dt-longer-than-run": dt = duration is one step, allowed
+    res = CliRunner().invoke(app, ["run", "station-keeping", "--set", "controller.dt_s=600", "--set",
+                                   "sim.duration_s=600", "--set", "truth.model=cw", "--json"])
+    assert res.exit_code == 0, res.stderr
+    assert json.loads(res.stdout)["sim_time_s"] == 600.0
+
+
+def test_toml_integers_are_numbers_for_float_keys_but_strings_and_floats_are_not_coerced(tmp_path):
+    from proxops.scenarios.loader import load_scenario
+
+    base = Path(__file__).resolve().parents[1] / "src/proxops/scenarios/builtin/station-keeping.toml"
+    text = base.read_text()
+    ok = tmp_path / "int.toml"
+    ok.write_text(_with_key(text, "sim", "duration_s", "600"))
+    sc = load_scenario(str(ok)).scenario
+    assert sc.sim.duration_s == 600.0 and isinstance(sc.sim.duration_s, float)
+    assert load_scenario("station-keeping", ["sim.duration_s=600"]).scenario.sim.duration_s == 600.0
+    for value, fragment in (('"600"', "valid number"), ("true", "valid number")):
+        bad = tmp_path / "bad.toml"
+        bad.write_text(_with_key(text, "sim", "duration_s", value))
+        res = CliRunner().invoke(app, ["validate", str(bad)])
+        assert res.exit_code == 2 and "sim.duration_s" in res.stderr and fragment in res.stderr, res.stderr
+
+
+def _with_key(text: str, section: str, key: str, value: str) -> str:
+    """``text`` (TOML) with ``key`` of ``[section]`` set to ``value`` (replaced or added)."""
+    import re
+
+    head, sep, rest = text.partition(f"[{section}]\n")
+    body, nxt, tail = rest.partition("\n[")
+    body = re.sub(rf"^{key}\s*=.*$\n?", "", body, flags=re.M)
+    return head + sep + f"{key} = {value}\n" + body + nxt + tail

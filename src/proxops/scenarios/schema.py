@@ -20,7 +20,7 @@ from proxops.core.constants import R_EARTH
 class Section(BaseModel):
     """Base of every scenario section: unknown keys and NaN/inf are errors."""
 
-    model_config = ConfigDict(extra="forbid", allow_inf_nan=False, validate_assignment=True)
+    model_config = ConfigDict(extra="forbid", allow_inf_nan=False, validate_assignment=True, strict=True)
 
 
 Vector3 = Annotated[list[float], Field(min_length=3, max_length=3)]
