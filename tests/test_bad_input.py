@@ -25,6 +25,8 @@ def files(tmp_path_factory) -> dict[str, Path]:
     f["bad_toml"].write_text('name = "x"\nsystem = "srf"\n[sim\n')
     f["bad_system"].write_text('name = "x"\nsystem = "nope"\n')
     f["empty"].write_text("")
+    f["not_utf8"] = d / "latin1.toml"
+    f["not_utf8"].write_bytes('name = "caf\u00e9"\nsystem = "srf"\n'.encode("latin-1"))
     base = Path(__file__).resolve().parents[1] / "src/proxops/scenarios/builtin/station-keeping.toml"
     f["unknown_key"].write_text(base.read_text().replace("[sim]", "[sim]\nbogus_key_s = 3.0", 1))
     f["wrong_type"].write_text(base.read_text().replace("[sim]", '[sim]\ncheck_substeps = "many"', 1))
@@ -195,6 +197,26 @@ CASES = [
     ("reach-mc-ny-zero", ["reach", "mc", "--out", "{dir}/rmc", "--n-y", "0"], "--n-y"),
     ("reach-mc-duration-nan", ["reach", "mc", "--out", "{dir}/rmc", "--duration-s", "nan"], "--duration-s"),
     ("keys-unknown-system", ["keys", "nosystem"], "nosystem"),
+    # internal errors that were input errors (issue 25): a scenario of another system, bytes, sizes
+    ("propagate-srf-no-initial", ["propagate", "--scenario", "srf-vbar", "--duration-s", "100"], "[initial]"),
+    ("cortex-reference-srf", ["cortex", "reference", "--scenario", "srf-vbar"], "give a cortex one"),
+    ("cortex-references-srf", ["cortex", "references", "--scenario", "srf-vbar", "--n", "3"], "give a cortex one"),
+    ("scenario-not-utf8", ["validate", "{not_utf8}"], "not UTF-8"),
+    ("orbit-in-the-atmosphere", ["propagate", "--scenario", "station-keeping", "--duration-s", "100", "--set",
+                                 "orbit.altitude_km=99.9"], ">= 100 km"),
+    ("orbit-sma-in-the-atmosphere", ["validate", "srf-vbar", "--set", "orbit.sma_km=6478.0"], ">= 100 km"),
+    ("cortex-references-n-huge", ["cortex", "references", "--n", "1000000000"], "1,000,000"),
+    ("cortex-eclipse-samples-huge", ["cortex", "reference", "--set", "eclipse.samples_per_orbit=1000000000"],
+     "samples_per_orbit"),
+    ("cortex-eclipse-orbits-huge", ["validate", "cortex-reference", "--set", "eclipse.orbits=1e9"], "orbits"),
+    ("cortex-fibonacci-n-huge", ["validate", "cortex-reference", "--set", "axis.fibonacci_n=1000001"], "fibonacci_n"),
+    ("cortex-kos-iter-huge", ["validate", "cortex-reference", "--set", "planner.kos_max_iter=1001"], "kos_max_iter"),
+    ("underactuated-horizon-huge", ["validate", "underactuated-case1", "--set", "controller.horizon=1001"],
+     "horizon"),
+    ("mc-workers-huge", ["mc", "station-keeping-mc", "--runs", "3", "--workers", "257"], "--workers"),
+    ("cortex-references-workers-huge", ["cortex", "references", "--n", "3", "--workers", "257"], "--workers"),
+    ("reach-mc-workers-huge", ["reach", "mc", "--out", "{dir}/rmw", "--workers", "257"], "--workers"),
+    ("hop-hops-huge", ["hop-times", "--approach-deg", "0", "--hops", "51"], "--hops"),
     ("propagate-multistep-j2", ["propagate", "--scenario", "station-keeping", "--duration-s", "100", "--set",
                                 'truth.integrator="multistep"'], "integrator = 'multistep' needs model = 'full'"),
     ("propagate-multistep-srp", ["propagate", "--scenario", "station-keeping", "--duration-s", "100", "--model",
@@ -363,3 +385,10 @@ def _with_key(text: str, section: str, key: str, value: str) -> str:
     body, nxt, tail = rest.partition("\n[")
     body = re.sub(rf"^{key}\s*=.*$\n?", "", body, flags=re.M)
     return head + sep + f"{key} = {value}\n" + body + nxt + tail
+
+
+def test_the_lowest_allowed_orbit_is_valid():
+    # the boundary of "orbit-in-the-atmosphere": a perigee altitude of exactly 100 km is allowed
+    from proxops.scenarios.loader import load_scenario
+
+    assert load_scenario("station-keeping", ["orbit.altitude_km=100.0"]).scenario.orbit.sma_m == 6478137.0

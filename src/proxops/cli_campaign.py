@@ -36,8 +36,11 @@ def mc(
 
     if runs is not None and runs < 1:
         raise ProxopsInputError(f"--runs {runs}: give a whole number of runs >= 1")
-    if workers is not None and workers < 1:
-        raise ProxopsInputError(f"--workers {workers}: give a whole number >= 1 (1 runs in this process)")
+    from proxops.exec.backends import MAX_WORKERS
+
+    if workers is not None and not 1 <= workers <= MAX_WORKERS:
+        raise ProxopsInputError(f"--workers {workers}: give a whole number from 1 to {MAX_WORKERS} (1 runs in this "
+                                "process)")
     if not (math.isfinite(connect_timeout_s) and connect_timeout_s > 0):
         raise ProxopsInputError(f"--connect-timeout-s {connect_timeout_s}: give a positive, finite number of seconds")
     if seed is not None and not 0 <= seed < 2**63:

@@ -28,9 +28,20 @@ cortex_app = typer.Typer(help="CORTEX convex reference generation (fly-around + 
 
 
 def _load(scenario: str, overrides: list[str]):
+    """A cortex scenario, or a one-line error naming --scenario (another system has no [geometry])."""
     from proxops.scenarios.loader import load_scenario
 
-    return load_scenario(scenario, overrides)
+    loaded = load_scenario(scenario, overrides)
+    _require_cortex(scenario, loaded.scenario.system)
+    return loaded
+
+
+def _require_cortex(scenario: str, system) -> None:
+    from proxops.errors import input_error
+
+    if system != "cortex":
+        raise input_error("--scenario", scenario, f"is a {system!r} scenario; give a cortex one (system = "
+                          "\"cortex\", e.g. cortex-reference)")
 
 
 @cortex_app.command("reference")
@@ -112,10 +123,12 @@ def references_scenario(scenario: str, n: int) -> dict:
     applied by the campaign engine)."""
     from proxops.errors import input_error
     from proxops.scenarios.loader import read_toml, resolve
+    from proxops.systems.cortex import MAX_FIBONACCI_N
 
-    if isinstance(n, bool) or n < 1:
-        raise input_error("--n", n, "must be a whole number >= 1")
+    if isinstance(n, bool) or not 1 <= n <= MAX_FIBONACCI_N:
+        raise input_error("--n", n, f"must be a whole number from 1 to {MAX_FIBONACCI_N:,}")
     data = copy.deepcopy(read_toml(resolve(scenario)))
+    _require_cortex(scenario, data.get("system"))
     data.setdefault("axis", {})["fibonacci_n"] = int(n)
     data["axis"].pop("fibonacci_index", None)
     data["axis"]["fibonacci_index"] = 0
@@ -143,8 +156,10 @@ def references(
 
     from proxops.cli_common import check_out_dir
 
-    if workers < 1:
-        raise input_error("--workers", workers, "must be >= 1")
+    from proxops.exec.backends import MAX_WORKERS
+
+    if not 1 <= workers <= MAX_WORKERS:
+        raise input_error("--workers", workers, f"must be a whole number from 1 to {MAX_WORKERS}")
     if out is not None:
         check_out_dir(out, campaign=True)
     data = references_scenario(scenario, n)

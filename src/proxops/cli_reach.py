@@ -228,8 +228,10 @@ def mc(
     as_json: Annotated[bool, typer.Option("--json", help="Print one JSON object.")] = False,
 ):
     """§9 Monte Carlo feasibility sweep (20 x 195 closed-loop runs, J2 truth), maps and certification check."""
-    if workers is not None and workers < 1:
-        raise ProxopsInputError(f"--workers = {workers}: give a whole number >= 1")
+    from proxops.exec.backends import MAX_WORKERS
+
+    if workers is not None and not 1 <= workers <= MAX_WORKERS:
+        raise ProxopsInputError(f"--workers = {workers}: give a whole number from 1 to {MAX_WORKERS}")
     if not (np.isfinite(duration_s) and duration_s > 0):
         raise ProxopsInputError(f"--duration-s = {duration_s}: must be a finite number > 0 s")
     _check_grid(grid)

@@ -35,6 +35,7 @@ START_METHOD = "forkserver" if "forkserver" in multiprocessing.get_all_start_met
 # with numba loaded, while it still holds this process's stderr open)
 FORKSERVER_EXIT = "proxops.exec.forkserver_exit"
 MAX_POOL_RESTARTS = 10
+MAX_WORKERS = 256  # local worker processes of one pool (each holds its imports: ~0.2-0.4 GB)
 
 
 class CampaignError(ProxopsError):
@@ -314,6 +315,7 @@ def prestart_pool(workers: int, modules: Sequence[str] = ()) -> None:
     importing the campaign layer). The pool is the one a later campaign of this process with as
     many workers uses (kept in ``_POOLS`` like any pool). No effect for fewer than 2 workers or
     when that pool exists."""
+    check_workers(workers)
     if workers < 2 or workers in _POOLS:
         return
     saved = _single_thread_env()  # the workers are spawned (inherit the environment) in submit
@@ -493,12 +495,18 @@ def _make_backend(workers: int | None, scheduler, context, connect_timeout_s: fl
     if scheduler is not None:
         return _DaskBackend(scheduler, context, connect_timeout_s)
     workers = default_workers() if workers is None else workers
-    if not isinstance(workers, int) or isinstance(workers, bool) or workers < 1:
-        raise ProxopsInputError(f"workers = {workers!r}: give a whole number >= 1 (1 runs in this process)")
+    check_workers(workers)
     workers = min(workers, max(1, n_items))
     if workers == 1:
         return _SerialBackend(context)
     return _PoolBackend(workers, context)
+
+
+def check_workers(workers) -> None:
+    """A one-line input error unless ``workers`` is a whole number from 1 to :data:`MAX_WORKERS`."""
+    if not isinstance(workers, int) or isinstance(workers, bool) or not 1 <= workers <= MAX_WORKERS:
+        raise ProxopsInputError(f"workers = {workers!r}: give a whole number from 1 to {MAX_WORKERS} local processes "
+                                "(1 runs in this process; more machines: --scheduler)")
 
 
 def default_workers() -> int:
