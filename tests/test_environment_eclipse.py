@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from proxops.core.constants import MU_EARTH, R_EARTH
-from proxops.environment.eclipse import eclipse_profile, illumination, kepler_positions
+from proxops.environment.eclipse import eclipse_profile, illumination, kepler_positions, shadow_boundaries
 from proxops.environment.ephemeris import AU, R_SUN, sun_position_eci
 from proxops.environment.epochs import parse_epoch
 from proxops.environment.gravity import j2_raan_rate
@@ -55,6 +55,30 @@ def test_conical_penumbra_matches_brute_force_disc_sampling():
     # sunlit side, umbra, and the 0/1 limits
     assert illumination(np.array([[rad, 0, 0]]), s)[0] == 1.0
     assert illumination(np.array([[-rad, 0, 0]]), s)[0] == 0.0
+
+
+def test_shadow_event_functions_change_sign_where_the_disc_starts_and_stops_being_covered():
+    """The integrators restart where shadow_boundaries changes sign: just outside the
+    penumbra (c = a + b) the brute-force disc sampling sees the whole Sun, 0.1 a inside it
+    ~2 % covered; just inside the umbra (c = b - a) none of it, 0.1 a outside a sliver.
+    Cylindrical: the event function's sign is the 0/1 factor."""
+    s = np.array([AU, 0.0, 0.0])
+    rad = R_EARTH + 500e3
+    b = math.asin(R_EARTH / rad)
+    a = math.asin(R_SUN / AU)
+    for th, pen, umb in ((b + 1.1 * a, 1, 1), (b + 0.9 * a, -1, 1), (b - 0.9 * a, -1, 1), (b - 1.1 * a, -1, -1)):
+        r = rad * np.array([-math.cos(th), math.sin(th), 0.0])
+        g_pen, g_umb = shadow_boundaries(*r, *s, R_EARTH, R_SUN, True)
+        assert np.sign(g_pen) == pen and np.sign(g_umb) == umb
+        brute = _visible_fraction_brute(r, s)
+        assert (brute == 1.0) == (pen > 0) and (brute == 0.0) == (umb < 0)
+        assert illumination(r[None], s)[0] == pytest.approx(brute, abs=3e-3)
+    edge = math.asin(R_EARTH / rad)  # cylinder wall: |r| sin(th) = R_E
+    for th in (edge - 1e-6, edge + 1e-6):
+        r = rad * np.array([-math.cos(th), math.sin(th), 0.0])
+        g, g2 = shadow_boundaries(*r, *s, R_EARTH, R_SUN, False)
+        assert g == g2 and (g < 0.0) == (illumination(r[None], s, "cylindrical")[0] == 0.0) == (th < edge)
+        assert abs(g) == pytest.approx(rad * abs(math.sin(th) - R_EARTH / rad), rel=1e-3)
 
 
 def test_annular_case_far_from_earth():

@@ -190,3 +190,23 @@ def test_runs_of_one_target_share_its_setup_and_each_starts_at_its_own_body_posi
         r_body = hill_dcm(y0[0:6]) @ y0[6:9]
         np.testing.assert_allclose(r_body, position, rtol=0, atol=1e-9)
         np.testing.assert_allclose(s.plant.relative_state(y0)[:3], position, rtol=0, atol=1e-9)
+
+
+def test_qp_infeasible_beyond_r_sync_carries_a_hint():
+    """A hard-corridor run that fails from beyond r_sync = 2 a_max / w_t^2 (§7) says why and what to
+    try (soft constraints), instead of only 'qp_infeasible'."""
+    import math
+
+    from typer.testing import CliRunner
+
+    from proxops.cli import app
+
+    done = CliRunner().invoke(app, ["run", "los-tumble", "--set", "target.tumble_rate_deg_s=5", "--set",
+                                    "chaser.a_max_mps2=0.02", "--set", "sim.duration_s=120", "--json"])
+    import json
+
+    s = json.loads(done.stdout)
+    r_sync = 2 * 0.02 / math.radians(5.0) ** 2  # §7, closed form: 5.25 m
+    assert s["status"] == "qp_infeasible" and s["initial_range_m"] > r_sync
+    assert math.isclose(s["r_sync_m"], r_sync, rel_tol=1e-12)
+    assert "beyond r_sync" in s["hint"] and 'constraint_mode = "soft"' in s["hint"]

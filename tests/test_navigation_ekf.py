@@ -235,8 +235,14 @@ def test_bad_navigation_input_is_one_line_exit_2(args, fragment):
 
 
 def test_ekf_on_a_system_without_a_hill_state_is_refused():
-    res = CliRunner().invoke(app, ["run", "underactuated-case1", *EKF])
-    assert res.exit_code == 2 and "navigation.model" in res.stderr and "allowed: noise" in res.stderr, res.stderr
+    """The Hill-state filter itself refuses a system whose state is not the Hill state (los and
+    underactuated run their own attitude filters on navigation.model = ekf: tests/test_navigation_attitude.py)."""
+    from proxops.errors import ProxopsInputError
+    from proxops.systems.common import navigation_model
+    from proxops.scenarios.schema import NavigationSection
+
+    with pytest.raises(ProxopsInputError, match="allowed: noise"):
+        navigation_model(NavigationSection(model="ekf"), system="underactuated (planar state)")
 
 
 @pytest.mark.parametrize("kind", ["range-bearing", "pose"])

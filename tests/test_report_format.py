@@ -25,8 +25,11 @@ from proxops.runner import summary_markdown
     (0.83115001, "total_dv_mps", "0.8312 m/s"),
     (10882.527364212114, "arrival_time_s", "10882.53 s"),  # s to 10 ms
     (0.8479, "solve_time_ms.median", "0.848 ms"),      # dotted metric: the unit of the part that has one
-    (3.3333e-05, "velocity_sigma_mps", "3.3e-05 m/s"),  # below the resolution: 2 significant digits, not 0
-    (0.0, "x_m", "0.000 m"),
+    (3.3333e-05, "velocity_sigma_mps", "0 m/s"),   # below the resolution (0.1 mm/s): nothing to read, 0
+    (5.6e-16, "final_range_m", "0 m"),             # a numerically zero range prints as 0, not 5.6e-16
+    (2.4e-42, "chief_rate_final_deg_s", "0 deg/s"),
+    (6.041880, "peak_contact_impulse_Ns", "6.0419 N s"),  # impulses to 0.1 mN s
+    (0.0, "x_m", "0 m"),
     (1.0e-7, "hop_distance_weight_per_m2", "1e-07 1/m^2"),
     (0.013507467, "dv_share_along_track", "0.01351"),  # no unit: 4 significant digits
     (12345.678, "steps", "12346"),

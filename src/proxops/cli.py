@@ -21,7 +21,7 @@ from typing import Annotated, Optional
 import typer
 
 from proxops import __version__
-from proxops.cli_common import EXIT_CODES_HELP, STATE, ProxopsGroup, emit, friendly_errors
+from proxops.cli_common import EXIT_CODES_HELP, STATE, ProxopsGroup, configure_logging, emit, friendly_errors
 
 app = typer.Typer(
     name="proxops",
@@ -31,6 +31,7 @@ app = typer.Typer(
     no_args_is_help=True,
     add_completion=False,
     pretty_exceptions_enable=False,
+    rich_markup_mode=None,  # help text is plain text: [dispersions] is a word, not a style tag
 )
 
 
@@ -44,8 +45,11 @@ def _version(value: bool):
 def main(
     version: Annotated[Optional[bool], typer.Option("--version", callback=_version, is_eager=True, help="Print the version.")] = None,
     debug: Annotated[bool, typer.Option("--debug", help="Show tracebacks for errors.")] = False,
+    verbose: Annotated[bool, typer.Option("--verbose", "-v", help="More lines on stderr: every stage with its detail.")] = False,
+    quiet: Annotated[bool, typer.Option("--quiet", "-q", help="Only errors on stderr: no stage lines, no progress bars.")] = False,
 ):
     STATE["debug"] = debug
+    configure_logging(verbose=verbose, quiet=quiet)
 
 
 # --------------------------------------------------------------------------- scenarios
@@ -105,7 +109,7 @@ def run(
     if out is not None:
         check_out_dir(out)
     loaded = load_scenario(scenario, set_)
-    summary = run_scenario(loaded, seed=seed, out=out, figures=figures, progress=not as_json)
+    summary = run_scenario(loaded, seed=seed, out=out, figures=figures, progress=not as_json and not STATE["quiet"])
     emit(summary, as_json, format_summary(summary))
     if not loaded.system.success(loaded.scenario, summary):  # the campaigns' test of a run, not another one
         typer.echo(f"error: the run finished but failed (status {summary.get('status')!r}); exit code "
@@ -113,25 +117,51 @@ def run(
         raise typer.Exit(EXIT_RUN_FAILED)
 
 
+RUN_LINE_KEYS = ("status", "docked", "steps", "dock_time_s", "final_range_m", "total_dv_mps", "value_function_increases",
+                 "mean_iterations", "controller_wall_time_s")
+
+
 def format_summary(s: dict) -> str:
+    """The readable run summary: every number rounded to the resolution of its unit and shown
+    with it, nested blocks as ``key  sub value, sub value`` (``--json`` keeps full precision)."""
+    from proxops.analysis.formatting import format_quantity
+
+    def q(key: str) -> str:
+        return format_quantity(s[key], key)
+
+    solve = s.get("solve_time_ms") or {}
+    events = ", ".join(f"{kind} {count}" for kind, count in (s.get("events") or {}).items()) or "none"
     lines = [
         f"scenario      {s.get('scenario', '')} ({s.get('system', '')})",
         f"status        {s['status']}",
-        f"final range   {s['final_range_m']:.3f} m, speed {s['final_speed_mps']:.4f} m/s",
-        f"min range     {s['min_range_m']:.3f} m",
-        f"total dv      {s['total_dv_mps']:.4f} m/s",
-        f"sim time      {s['sim_time_s']:.1f} s in {s['wall_time_s']:.2f} s wall",
-        f"solve time    median {s['solve_time_ms']['median']:.3f} ms, p95 {s['solve_time_ms']['p95']:.3f} ms",
-        f"events        {s['events'] or 'none'}",
+        f"final range   {q('final_range_m')}, speed {q('final_speed_mps')}",
+        f"min range     {q('min_range_m')}",
+        f"total dv      {q('total_dv_mps')}",
+        f"sim time      {q('sim_time_s')} in {q('wall_time_s')} wall",
+        f"solve time    median {format_quantity(solve.get('median', 0.0), 'solve_time_ms')}, "
+        f"p95 {format_quantity(solve.get('p95', 0.0), 'solve_time_ms')}",
+        f"events        {events}",
     ]
     skip = {"scenario", "system", "status", "final_range_m", "final_speed_mps", "min_range_m", "total_dv_mps",
-            "sim_time_s", "wall_time_s", "solve_time_ms", "events", "steps", "solver_failures"}
-    from proxops.analysis.formatting import format_quantity
-
-    extra = [k for k, v in s.items() if k not in skip and not isinstance(v, (list, dict))]
+            "sim_time_s", "wall_time_s", "solve_time_ms", "events", "steps", "solver_failures", "out"}
+    extra = [k for k, v in s.items() if k not in skip and not isinstance(v, list)]
     width = max([13, *(len(k) for k in extra)])
     for key in extra:  # rounded to the resolution of its unit (--json keeps full precision)
-        lines.append(f"{key:<{width}} {format_quantity(s[key], key)}")
+        value = s[key]
+        if isinstance(value, dict) and value and all(isinstance(v, dict) for v in value.values()):
+            # one closed loop per line (e.g. the general and averaged NMPC of underactuated-compare)
+            lines.append(f"{key}")
+            for label, sub in value.items():
+                shown = [k for k in RUN_LINE_KEYS if k in sub] or [k for k, v in sub.items() if not isinstance(v, (dict, list))][:6]
+                lines.append(f"  {label}: " + ", ".join(f"{k} {format_quantity(sub[k], k)}" for k in shown))
+            continue
+        if isinstance(value, dict):
+            parts = [f"{sub} {format_quantity(v, key if sub in ('median', 'p95', 'max', 'min', 'mean') else sub)}"
+                     for sub, v in value.items() if not isinstance(v, (dict, list))]
+            text = ", ".join(parts) or "-"
+        else:
+            text = format_quantity(value, key)
+        lines.append(f"{key:<{width}} {text}")
     if "out" in s:
         lines.append(f"written to    {s['out']}")
     return "\n".join(lines)

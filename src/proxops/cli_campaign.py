@@ -6,6 +6,7 @@ Mounted by :func:`proxops.cli._mount_optional` (input errors -> one line, exit c
 from __future__ import annotations
 
 import json
+import logging
 import math
 import sys
 from pathlib import Path
@@ -56,6 +57,9 @@ def mc(
     from proxops.analysis.campaign import CampaignInterrupted, run_campaign, write_report
     from proxops.cli_common import Interrupted
 
+    log = logging.getLogger("proxops.mc")
+    log.info("campaign %s: %s runs on %s, results in %s", scenario, runs if runs is not None else "all grid",
+             scheduler or f"{workers or 'all usable'} local worker(s)", out)
     try:
         result = run_campaign(scenario, n_runs=runs, workers=workers, scheduler=scheduler, seed=seed, out=out,
                               resume=resume, overrides=set_, progress=progress, keep_series=series,
@@ -67,13 +71,14 @@ def mc(
             raise
         typer.echo(f"error: {exc}", err=True)
         raise typer.Exit(1)
+    log.info("campaign %s: %d runs finished in %.1f s", scenario, len(result.table), result.wall_time_s)
     summary = result.summary()
     if report_:
         summary["report"] = write_report(result)["report_dir"]
     if as_json:
         sys.stdout.write(json.dumps(summary, default=str) + "\n")
     else:
-        typer.echo(format_campaign(summary, result.statistics()))
+        typer.echo(format_campaign(summary, result.headline_statistics()))
         if report_ and (Path(summary["report"]) / "paper_table.md").is_file():
             typer.echo("\n" + (Path(summary["report"]) / "paper_table.md").read_text())
     if summary["runs"] and not summary["succeeded"]:  # finished, but nothing worked: scripts must see it
@@ -109,7 +114,7 @@ def report(
     if as_json:
         sys.stdout.write(json.dumps(done, default=str) + "\n")
         return
-    text = format_campaign(done["summary"], result.statistics())
+    text = format_campaign(done["summary"], result.headline_statistics())
     typer.echo(text + f"\nreport written to {done['report_dir']} ({len(done['files'])} files)")
 
 
@@ -127,6 +132,8 @@ def format_campaign(summary: dict, stats) -> str:
         "",
         format_text_table(stats) if len(stats) else "(no completed runs)",
     ]
-    if summary.get("out"):
+    if summary.get("report"):
+        lines.append(f"\nreport written to {summary['report']} (report.html, report.md, figures)")
+    elif summary.get("out"):
         lines.append(f"\nresults in {summary['out']}; `proxops report {summary['out']}` draws tables and figures")
     return "\n".join(lines)

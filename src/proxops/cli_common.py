@@ -26,7 +26,7 @@ from typer.core import TyperGroup
 
 from proxops.errors import ProxopsInputError
 
-STATE = {"debug": False}  # set by the top-level --debug option
+STATE = {"debug": False, "quiet": False}  # set by the top-level --debug and --quiet options
 
 EXIT_OK, EXIT_INTERNAL, EXIT_INPUT, EXIT_ALL_FAILED, EXIT_RUN_FAILED, EXIT_INTERRUPTED = 0, 1, 2, 3, 4, 130
 EXIT_CODES_HELP = ("Exit codes: 0 ok; 1 internal error (please report it) or a campaign that could not go on; "
@@ -54,6 +54,8 @@ class ProxopsGroup(TyperGroup):
     """Typer's group with the proxops error policy (see the module docstring)."""
 
     def main(self, args=None, prog_name=None, complete_var=None, standalone_mode=True, **extra):
+        name_metavars(self)
+
         def call():
             rv = super(ProxopsGroup, self).main(args, prog_name, complete_var, standalone_mode=False, **extra)
             if isinstance(rv, int) and not isinstance(rv, bool) and rv == EXIT_INTERRUPTED:
@@ -72,6 +74,65 @@ class ProxopsGroup(TyperGroup):
             return super().invoke(ctx)
         except KeyboardInterrupt as exc:
             raise _CarriedInterrupt(exc) from None
+
+
+# option value placeholders in --help, by meaning (typer would print the Python type: <float>)
+_METAVAR_BY_NAME = {"out": "DIR", "report_dir": "DIR", "set_": "KEY=VALUE", "overrides": "KEY=VALUE",
+                    "seed": "SEED", "runs": "N", "n": "N", "workers": "N", "scheduler": "ADDRESS",
+                    "scenario": "SCENARIO", "system": "SYSTEM", "folder": "DIR", "axis": "X Y Z",
+                    "omega_deg": "DEG/S", "amax": "M/S^2"}
+_METAVAR_BY_SUFFIX = (("_deg_s", "DEG/S"), ("_mps2", "M/S^2"), ("_mps", "M/S"), ("_deg", "DEG"), ("_km", "KM"),
+                      ("_m", "M"), ("_s", "S"), ("_n", "N"), ("_kg", "KG"))
+
+
+def _metavar(param) -> str | None:
+    """A placeholder that says what to give: DIR, KEY=VALUE, N, or the unit of a ``*_m`` option."""
+    if getattr(param, "is_flag", False) or getattr(param, "count", False):
+        return ""
+    name = (param.name or "").lower()
+    if name in _METAVAR_BY_NAME:
+        return _METAVAR_BY_NAME[name]
+    for suffix, text in _METAVAR_BY_SUFFIX:
+        if name.endswith(suffix):
+            return text
+    bare = getattr(param, "bare_type", None)  # typer's parameters: the annotation's type name
+    kind = bare() if callable(bare) else getattr(getattr(param, "type", None), "name", "")
+    return {"int": "N", "integer": "N", "float": "NUMBER", "Path": "PATH", "path": "PATH", "bool": "",
+            "boolean": ""}.get(kind, name.upper() or "VALUE")
+
+
+def name_metavars(command) -> None:
+    """Give every option and argument of ``command`` and its subcommands a metavar by meaning
+    (:func:`_metavar`) where none was set; idempotent."""
+    for param in getattr(command, "params", []):
+        if param.metavar is None and (param.name or "") not in ("help", "version"):
+            param.metavar = _metavar(param)
+        if getattr(param, "param_type_name", "") == "argument":  # typer adds "<str>" after an argument's name
+            param.display_type_rich = lambda ctx=None: ""
+    for sub in getattr(command, "commands", {}).values():
+        name_metavars(sub)
+
+
+def configure_logging(verbose: bool = False, quiet: bool = False) -> None:
+    """Stage lines on stderr through :mod:`logging` (logger ``proxops``): by default one line per
+    stage when stderr is not a terminal (a log file sees progress), none on a terminal (which
+    has the progress bars); ``--verbose`` adds the detail, ``--quiet`` leaves only errors and
+    turns the progress bars off."""
+    import logging
+
+    STATE["quiet"] = quiet
+    level = logging.DEBUG if verbose else logging.ERROR if quiet else \
+        logging.INFO if not sys.stderr.isatty() else logging.WARNING
+    logger = logging.getLogger("proxops")
+    logger.setLevel(level)
+    handler = next((h for h in logger.handlers if getattr(h, "_proxops", False)), None)
+    if handler is None:
+        handler = logging.StreamHandler(sys.stderr)
+        handler.setFormatter(logging.Formatter("proxops: %(message)s"))
+        handler._proxops = True
+        logger.addHandler(handler)
+        logger.propagate = False
+    handler.stream = sys.stderr  # this invocation's stderr (a test runner swaps it; setStream would flush the old one)
 
 
 def guarded(call) -> int:

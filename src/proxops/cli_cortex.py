@@ -24,7 +24,7 @@ import typer
 from proxops.cli_common import emit, friendly_errors
 
 cortex_app = typer.Typer(help="CORTEX convex reference generation (fly-around + final approach, eclipse holds).",
-                         no_args_is_help=True)
+                         no_args_is_help=True, rich_markup_mode=None)
 
 
 def _load(scenario: str, overrides: list[str]):
@@ -141,7 +141,7 @@ def references_scenario(scenario: str, n: int) -> dict:
 @friendly_errors
 def references(
     n: Annotated[int, typer.Option("--n", help="Number of Fibonacci-sphere docking axes.")] = 100,
-    workers: Annotated[int, typer.Option("--workers", help="Local worker processes.")] = 2,
+    workers: Annotated[Optional[int], typer.Option("--workers", help="Local worker processes (default: usable CPUs; 1 = in this process).")] = None,
     out: Annotated[Optional[Path], typer.Option("--out", help="Campaign folder (resumable; Parquet rows, figures).")] = None,
     scenario: Annotated[str, typer.Option("--scenario", help="Scenario file or built-in name.")] = "cortex-reference",
     set_: Annotated[list[str], typer.Option("--set", help="Override a scenario key.")] = [],
@@ -155,10 +155,9 @@ def references(
     from proxops.systems.cortex import PAPER_5_1_1, campaign_statistics, statistics_table
 
     from proxops.cli_common import check_out_dir
-
     from proxops.exec.backends import MAX_WORKERS
 
-    if not 1 <= workers <= MAX_WORKERS:
+    if workers is not None and not 1 <= workers <= MAX_WORKERS:
         raise input_error("--workers", workers, f"must be a whole number from 1 to {MAX_WORKERS}")
     if out is not None:
         check_out_dir(out, campaign=True)

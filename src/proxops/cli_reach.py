@@ -2,7 +2,7 @@
 (tumbling-target-reachability.md §8-11). Mounted by proxops.cli as a command group.
 
     proxops reach table [--grid 300] [--json] [--out DIR]       Table 2 + hierarchy + backward kernel (+ Table 4 times)
-    proxops reach map --omega-deg W --amax A --out DIR [--mc DIR]  one combination's maps (overlay with a campaign)
+    proxops reach map --omega-deg-s W --a-max-mps2 A --out DIR [--mc DIR]  one combination's maps (overlay with a campaign)
     proxops reach mc [--workers K] [--scheduler ADDR] --out DIR  the §9 Monte Carlo campaign, Figs. 2-3, certification check
 """
 
@@ -30,6 +30,7 @@ reach_app = typer.Typer(
     no_args_is_help=True,
     add_completion=False,
     pretty_exceptions_enable=False,
+    rich_markup_mode=None,
 )
 
 
@@ -47,9 +48,9 @@ def _check_grid(grid: int, y_max_m: float = 320.0) -> None:
 
 def _check_rates(omegas, amaxs) -> None:
     if not all(np.isfinite(w) and w > 0 for w in omegas):
-        raise ProxopsInputError(f"--omega-deg = {list(omegas)} deg/s: tumble rates must be finite and > 0")
+        raise ProxopsInputError(f"--omega-deg-s = {list(omegas)} deg/s: tumble rates must be finite and > 0")
     if not all(np.isfinite(a) and a > 0 for a in amaxs):
-        raise ProxopsInputError(f"--amax = {list(amaxs)} m/s^2: thrust authorities must be finite and > 0")
+        raise ProxopsInputError(f"--a-max-mps2 = {list(amaxs)} m/s^2: thrust authorities must be finite and > 0")
 
 
 def _fmt(v, width=7, digits=1) -> str:
@@ -129,8 +130,8 @@ def table(
 @reach_app.command("map")
 @_friendly
 def map_(
-    omega_deg: Annotated[float, typer.Option("--omega-deg", help="Tumble rate w_t (deg/s).")],
-    amax: Annotated[float, typer.Option("--amax", help="Thrust authority a_max (m/s^2).")],
+    omega_deg: Annotated[float, typer.Option("--omega-deg-s", "--omega-deg", help="Tumble rate w_t, deg/s.")],
+    amax: Annotated[float, typer.Option("--a-max-mps2", "--amax", help="Thrust authority a_max, m/s^2.")],
     out: Annotated[Path, typer.Option("--out", help="Output folder.")],
     grid: Annotated[int, typer.Option("--grid", help="Grid points per axis.")] = 300,
     y_max_m: Annotated[float, typer.Option("--y-max-m", help="Grid extent along y_B (m).")] = 320.0,
@@ -221,8 +222,8 @@ def mc(
     grid: Annotated[int, typer.Option("--grid", help="Analytical grid points per axis for the maps.")] = 300,
     n_y: Annotated[int, typer.Option("--n-y", help="IC rows in y_B (paper 15).")] = 15,
     n_x: Annotated[int, typer.Option("--n-x", help="ICs per row in x_B (paper 13).")] = 13,
-    omega_deg: Annotated[Optional[list[float]], typer.Option("--omega-deg", help="Tumble rates (deg/s); repeat. Default 1..5.")] = None,
-    amax: Annotated[Optional[list[float]], typer.Option("--amax", help="Thrust authorities (m/s^2); repeat. Default 0.2 0.1 0.05 0.02.")] = None,
+    omega_deg: Annotated[Optional[list[float]], typer.Option("--omega-deg-s", "--omega-deg", help="Tumble rates, deg/s; repeat. Default 1..5.")] = None,
+    amax: Annotated[Optional[list[float]], typer.Option("--a-max-mps2", "--amax", help="Thrust authorities, m/s^2; repeat. Default 0.2 0.1 0.05 0.02.")] = None,
     progress: Annotated[bool, typer.Option("--progress/--no-progress", help="Progress bar on stderr.")] = True,
     viability_check: Annotated[bool, typer.Option("--viability-check", help="Also decide, by a 400-step LP, whether each certified-but-failed IC could be kept in the corridor by any controller.")] = False,
     as_json: Annotated[bool, typer.Option("--json", help="Print one JSON object.")] = False,

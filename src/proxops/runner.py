@@ -8,11 +8,16 @@ Otherwise the default is one ``simulate(system.build(sc))``.
 from __future__ import annotations
 
 import json
+import logging
+import sys
+import time
 from pathlib import Path
 
 from proxops.scenarios.loader import LoadedScenario, load_scenario
 from proxops.analysis.runs import check_scenario, execute  # noqa: F401 (re-exported)
 from proxops.sim.result import SimResult
+
+log = logging.getLogger("proxops.runner")
 
 
 def run_scenario(name_or_path, overrides=(), seed: int | None = None, out: Path | None = None,
@@ -20,10 +25,14 @@ def run_scenario(name_or_path, overrides=(), seed: int | None = None, out: Path 
     """Load (a file or built-in name; or a :class:`LoadedScenario` as it is), run and (with ``out``)
     save one scenario; returns the summary dict."""
     loaded = name_or_path if isinstance(name_or_path, LoadedScenario) else load_scenario(name_or_path, list(overrides))
+    log.info("%s: %s scenario loaded from %s", loaded.scenario.name, loaded.scenario.system, loaded.source)
+    start = time.perf_counter()
     summary, results = execute(loaded, seed=seed, progress=progress)
+    log.info("%s: ran in %.1f s, status %s", loaded.scenario.name, time.perf_counter() - start, summary.get("status"))
     if out is not None:
         save_run(loaded, summary, results, Path(out), figures=figures)
         summary["out"] = str(out)
+        log.info("%s: time series, summary%s written to %s", loaded.scenario.name, " and figures" if figures else "", out)
     return summary
 
 
@@ -48,10 +57,15 @@ def run_demo(out: Path) -> Path:
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     lines = ["# proxops demo report", ""]
-    for name in DEMO_SCENARIOS:
+    for k, name in enumerate(DEMO_SCENARIOS, start=1):
+        # one line per stage on stderr, also when it is a log file and not a terminal
+        first = " (includes the one-time compilation of the numba kernels)" if k == 1 else ""
+        _stage(f"[demo {k}/{len(DEMO_SCENARIOS)}] {name}: running{first}")
+        start = time.perf_counter()
         loaded = load_scenario(name)
         summary, results = execute(loaded, progress=True)
         figs = save_run(loaded, summary, results, out / name)
+        _stage(f"[demo {k}/{len(DEMO_SCENARIOS)}] {name}: {summary.get('status', '?')} in {time.perf_counter() - start:.1f} s")
         lines += [f"## {name}", "", loaded.scenario.description, ""] + summary_markdown(summary)
         lines.append("")
         lines += [f"![{p.stem}]({p.relative_to(out)})" for p in figs]
@@ -59,6 +73,11 @@ def run_demo(out: Path) -> Path:
     report = out / "report.md"
     report.write_text("\n".join(lines))
     return report
+
+
+def _stage(line: str) -> None:
+    """One progress line on stderr, flushed at once (a log reader sees each stage as it ends)."""
+    print(line, file=sys.stderr, flush=True)
 
 
 def summary_markdown(summary: dict) -> list[str]:

@@ -50,6 +50,7 @@ import numpy as np
 import pandas as pd
 
 from proxops.scenarios.dispersions import DispersionPlan, apply_values, parse_dispersions
+from proxops.analysis.metric_order import ordered_metrics
 from proxops.analysis.statistics import (
     METRIC_PREFIX,
     DISP_PREFIX,
@@ -173,6 +174,13 @@ class CampaignResult:
 
     def counts(self) -> dict:
         return outcome_counts(self.table)
+
+    def headline_statistics(self, subset: str = "completed") -> pd.DataFrame:
+        """:meth:`statistics` of the metrics that inform, in reading order
+        (:func:`proxops.analysis.metric_order.ordered_metrics`: Δv, terminal accuracy, safety,
+        navigation, the system's own, timings; constants, bookkeeping and repeats left out)."""
+        cols = ordered_metrics(self.table) if len(self.table) else []
+        return metric_statistics(self.table, metrics=cols, subset=subset)
 
     def deterministic_table(self) -> pd.DataFrame:
         """The table without machine-dependent timing columns (equal across backends/resumes)."""

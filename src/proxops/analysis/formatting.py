@@ -18,7 +18,7 @@ from proxops.scenarios.loader import unit_of
 # 1 um/s^2, times to 10 ms (solve times to 1 us), angles to 0.001 deg, rates to 1e-4 deg/s
 DECIMALS = {
     "m": 3, "km": 6, "m/s": 4, "m/s^2": 6, "s": 2, "ms": 3, "deg": 3, "deg/s": 4, "deg/s^2": 4,
-    "rad": 5, "rad/s": 6, "rad/s^2": 6, "N": 4, "N m": 6, "N m s": 6, "N s": 6, "kg": 3, "kg m^2": 6, "%": 1,
+    "rad": 5, "rad/s": 6, "rad/s^2": 6, "N": 4, "N m": 6, "N m s": 6, "N s": 4, "kg": 3, "kg m^2": 6, "%": 1,
 }
 SIGNIFICANT = 4  # keys without a unit (ratios, weights, counts as means)
 
@@ -35,8 +35,8 @@ def unit_of_metric(key: str) -> str:
 
 def format_number(value, unit: str = "") -> str:
     """``value`` rounded to the resolution of ``unit`` (fixed decimals, see DECIMALS), or to 4
-    significant digits without a unit. Non-zero values below the resolution keep 2 significant
-    digits (``3.3e-05``) instead of printing as zero. Integers, booleans and text are as they are."""
+    significant digits without a unit. Values below the resolution print as ``0`` (a 5.6e-16 m
+    range is a zero range to the reader), as does zero itself. Integers, booleans and text are as they are."""
     if value is None:
         return "none"
     if getattr(getattr(value, "dtype", None), "kind", "") == "b":
@@ -52,12 +52,10 @@ def format_number(value, unit: str = "") -> str:
             return str(value)
     if not math.isfinite(value):
         return str(value)
-    if value == 0.0:
-        return "0" if unit not in DECIMALS else f"{0.0:.{DECIMALS[unit]}f}"
     decimals = DECIMALS.get(unit)
+    if value == 0.0 or (decimals is not None and abs(value) < 0.5 * 10.0**-decimals):
+        return "0"  # zero, or below the unit's resolution: nothing to read in its digits
     if decimals is not None:
-        if abs(value) < 0.5 * 10.0**-decimals:
-            return f"{value:.2g}"
         return f"{value:.{decimals}f}"
     if abs(value) >= 10**SIGNIFICANT:
         return f"{value:.0f}"

@@ -106,6 +106,18 @@ def outcome_counts(table: pd.DataFrame) -> dict:
     }
 
 
+def wilson_interval(successes: int, n: int, z: float = 1.959963984540054) -> tuple[float, float]:
+    """Wilson score interval of a binomial proportion (95 % for the default z): the interval a
+    success rate of ``successes`` out of ``n`` runs is quoted with (E. B. Wilson, JASA 22 (1927)
+    209-212). Unlike the normal approximation it stays inside [0, 1] and is not empty at 0 or n."""
+    if n <= 0:
+        return (math.nan, math.nan)
+    p = successes / n
+    centre = (p + z * z / (2 * n)) / (1 + z * z / n)
+    half = z * math.sqrt(p * (1 - p) / n + z * z / (4 * n * n)) / (1 + z * z / n)
+    return (max(0.0, centre - half), min(1.0, centre + half))
+
+
 def statistics_dict(stats: pd.DataFrame) -> dict:
     """``{metric: {n, mean, std, q1, median, q3, p99, min, max}}`` for JSON (NaN -> None)."""
     out = {}

@@ -37,6 +37,7 @@ class Block:
     stop: int
     names: tuple[str, ...] = ()  # component names (default name_0, name_1, ...)
     unit: str = ""  # default: the kind's unit
+    frame: str = ""  # frame the components are expressed in ("hill", "chief", ...; "" = none/scalar)
 
     def __post_init__(self):
         if self.kind not in KIND_UNITS:
@@ -110,15 +111,29 @@ class StateLayout:
             out[b.start:b.stop] = [b.unit] * b.size
         return out
 
+    @property
+    def frames(self) -> list[str]:
+        out = [""] * self.n_x
+        for b in self.blocks:
+            out[b.start:b.stop] = [b.frame] * b.size
+        return out
+
+    def column_names(self, prefix: str = "") -> list[str]:
+        """Self-explaining table column names, one per component: ``prefix + name_frame_unit``
+        (e.g. ``x_hill_m``, ``vy_hill_mps``, ``est_theta_rad``, ``q_w``); see :func:`column_name`."""
+        return [prefix + column_name(n, f, u) for n, f, u in zip(self.names, self.frames, self.units)]
+
     # --- persistence --------------------------------------------------------------
     def to_dict(self) -> dict:
         return {"n_x": self.n_x, "blocks": [{"name": b.name, "kind": b.kind, "start": b.start, "stop": b.stop,
-                                             "names": list(b.names), "unit": b.unit} for b in self.blocks]}
+                                             "names": list(b.names), "unit": b.unit, "frame": b.frame}
+                                            for b in self.blocks]}
 
     @classmethod
     def from_dict(cls, d: dict) -> "StateLayout":
         return cls(int(d["n_x"]), tuple(Block(b["name"], b["kind"], int(b["start"]), int(b["stop"]),
-                                              tuple(b.get("names", ())), b.get("unit", "")) for b in d["blocks"]))
+                                              tuple(b.get("names", ())), b.get("unit", ""), b.get("frame", ""))
+                                        for b in d["blocks"]))
 
     @classmethod
     def from_slices(cls, n_x: int, position: tuple[int, int] = (0, 3), velocity: tuple[int, int] = (3, 6)) -> "StateLayout":
@@ -126,10 +141,33 @@ class StateLayout:
         return cls(n_x, (Block("position", "position", *position), Block("velocity", "velocity", *velocity)))
 
 
+# unit -> column-name suffix (ASCII, no slashes: pandas/Parquet/MATLAB-safe); "-" (dimensionless) has none
+UNIT_SUFFIX = {"m": "m", "m/s": "mps", "m/s^2": "mps2", "rad": "rad", "rad/s": "radps", "rad/s^2": "radps2",
+               "kg": "kg", "N": "N", "N m": "Nm", "s": "s", "-": "", "count": "", "flag": ""}
+
+
+def column_name(name: str, frame: str = "", unit: str = "-") -> str:
+    """``name_frame_unitsuffix`` with empty parts dropped: ("vy", "hill", "m/s") -> ``vy_hill_mps``."""
+    suffix = UNIT_SUFFIX.get(unit, unit.replace("/", "p").replace("^", "").replace(" ", ""))
+    return "_".join(part for part in (name, frame, suffix) if part)
+
+
 def translational_layout() -> StateLayout:
     """Hill/RTN relative state ``[x, y, z, vx, vy, vz]`` (m, m/s)."""
-    return StateLayout(6, (Block("position", "position", 0, 3, ("x", "y", "z")),
-                           Block("velocity", "velocity", 3, 6, ("vx", "vy", "vz"))))
+    return StateLayout(6, (Block("position", "position", 0, 3, ("x", "y", "z"), frame="hill"),
+                           Block("velocity", "velocity", 3, 6, ("vx", "vy", "vz"), frame="hill")))
+
+
+def make_control_layout(names: tuple[str, ...], units: tuple[str, ...], frame: str = "") -> StateLayout:
+    """Layout of a plant's control input ``u`` (one ``other`` block per component, with its unit).
+    A unit ``"kind"`` is resolved when a run is recorded: m/s for impulse commands, m/s^2 for
+    accelerations (:class:`proxops.sim.protocols.Command`)."""
+    return StateLayout(len(names), tuple(Block(n, "other", i, i + 1, (n,), u, frame)
+                                         for i, (n, u) in enumerate(zip(names, units))))
+
+
+# translational plants: the Hill delta-v or acceleration of the command (see control_layout)
+HILL_CONTROL = make_control_layout(("ux", "uy", "uz"), ("kind",) * 3, "hill")
 
 
 HILL_LAYOUT = translational_layout()

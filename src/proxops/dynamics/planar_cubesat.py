@@ -34,7 +34,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from proxops.errors import ProxopsInputError, input_error
-from proxops.core.layout import Block, StateLayout
+from proxops.core.layout import Block, StateLayout, make_control_layout
 from proxops.dynamics.plant import PlantBase
 
 STATE_NAMES = ("x", "y", "theta", "vx", "vy", "omega")
@@ -266,9 +266,10 @@ class PlanarCubeSatPlant(PlantBase):
 
     n_x = N_STATE
     n_u = N_CONTROL
-    layout = StateLayout(N_STATE, (Block("position", "position", 0, 2, ("x", "y")),
+    control_layout = make_control_layout(("thrust", "wheel_acc"), ("N", "rad/s^2"))
+    layout = StateLayout(N_STATE, (Block("position", "position", 0, 2, ("x", "y"), frame="hill"),
                                    Block("attitude", "angle", 2, 3, ("theta",)),
-                                   Block("velocity", "velocity", 3, 5, ("vx", "vy")),
+                                   Block("velocity", "velocity", 3, 5, ("vx", "vy"), frame="hill"),
                                    Block("rate", "rate", 5, 6, ("omega",))))
 
     def __init__(self, params: PlanarCubeSatParams, s0, substeps_per_s: float = 4.0):

@@ -15,7 +15,7 @@ from typing import Callable
 
 import numpy as np
 
-from proxops.core.layout import HILL_LAYOUT, StateLayout
+from proxops.core.layout import HILL_CONTROL, HILL_LAYOUT, StateLayout
 
 
 def translational_delta_v(u: np.ndarray, kind: str, dt: float) -> float:
@@ -33,6 +33,7 @@ class PlantBase:
     """
 
     layout: StateLayout = HILL_LAYOUT
+    control_layout: StateLayout = HILL_CONTROL  # what u is: names, units, frame (result columns)
     has_events: bool = False  # True: the engine calls propagate_events instead of propagate
     rng: np.random.Generator | None = None
 

@@ -18,7 +18,10 @@ Cylindrical model: 0 when r . s_hat < 0 and the distance from the Sun line
 The Earth is a sphere of the equatorial radius (its oblateness moves LEO shadow
 boundaries by up to ~ 2 s); atmospheric refraction and dimming are not modelled.
 One kernel (:func:`shadow_factor`) on plain floats serves SRP inside the integrator;
-:func:`illumination` is its vectorised numpy form.
+:func:`illumination` is its vectorised numpy form. :func:`shadow_boundaries` gives the
+signed distances to the boundaries where the factor stops being smooth (the event functions
+at which the integrators restart: the conical factor is continuous with unbounded
+derivatives there, the overlap area growing like depth^(3/2); the cylindrical one jumps).
 """
 
 from __future__ import annotations
@@ -39,20 +42,9 @@ MODELS = ("conical", "cylindrical")
 
 
 @njit(cache=True, fastmath=False)
-def shadow_factor(
-    rx: float, ry: float, rz: float, sx: float, sy: float, sz: float, r_earth: float, r_sun: float, conical: bool
-) -> float:
-    """Visible fraction of the solar disc in [0, 1] at spacecraft ECI position ``r`` (m) with
-    the Sun at ECI ``s`` (m, geocentric). Conical (umbra/penumbra) or cylindrical model."""
-    if not conical:
-        sn = math.sqrt(sx * sx + sy * sy + sz * sz)
-        proj = (rx * sx + ry * sy + rz * sz) / sn
-        if proj >= 0.0:
-            return 1.0
-        px = rx - proj * sx / sn
-        py = ry - proj * sy / sn
-        pz = rz - proj * sz / sn
-        return 0.0 if px * px + py * py + pz * pz < r_earth * r_earth else 1.0
+def _disc_angles(rx: float, ry: float, rz: float, sx: float, sy: float, sz: float, r_earth: float, r_sun: float):
+    """Apparent radii of the Sun ``a`` and of the Earth ``b`` and the angle ``c`` between
+    their centres (rad), seen from ``r`` (m) with the Sun at ``s`` (m) (module doc)."""
     dx, dy, dz = sx - rx, sy - ry, sz - rz
     dn = math.sqrt(dx * dx + dy * dy + dz * dz)
     rn = math.sqrt(rx * rx + ry * ry + rz * rz)
@@ -60,6 +52,49 @@ def shadow_factor(
     b = math.asin(min(1.0, r_earth / rn))
     cosc = -(rx * dx + ry * dy + rz * dz) / (rn * dn)
     c = math.acos(max(-1.0, min(1.0, cosc)))
+    return a, b, c
+
+
+@njit(cache=True, fastmath=False)
+def _cylinder_distance(rx: float, ry: float, rz: float, sx: float, sy: float, sz: float, r_earth: float) -> float:
+    """Cylindrical shadow: distance (m) from the shadow cylinder's wall, < 0 inside (behind
+    the Earth, closer than ``r_earth`` to the Sun line), > 0 outside (r_earth when sunward)."""
+    sn = math.sqrt(sx * sx + sy * sy + sz * sz)
+    proj = (rx * sx + ry * sy + rz * sz) / sn
+    if proj >= 0.0:
+        return r_earth
+    px = rx - proj * sx / sn
+    py = ry - proj * sy / sn
+    pz = rz - proj * sz / sn
+    return math.sqrt(px * px + py * py + pz * pz) - r_earth
+
+
+@njit(cache=True, fastmath=False)
+def shadow_boundaries(
+    rx: float, ry: float, rz: float, sx: float, sy: float, sz: float, r_earth: float, r_sun: float, conical: bool
+):
+    """Event functions of the shadow at ECI position ``r`` (m), Sun at ``s`` (m): the pair
+    ``(g_penumbra, g_umbra)``, each changing sign exactly where :func:`shadow_factor` stops
+    being smooth. Conical (rad): g_penumbra = c - (a + b) (> 0: full sunlight),
+    g_umbra = c - (b - a) (> 0: outside the umbra; the annular branch needs a > b, i.e. more
+    than ~1.4e9 m from the Earth, and has no event). Cylindrical (m): both the signed
+    distance from the shadow cylinder's wall (> 0: lit)."""
+    if not conical:
+        g = _cylinder_distance(rx, ry, rz, sx, sy, sz, r_earth)
+        return g, g
+    a, b, c = _disc_angles(rx, ry, rz, sx, sy, sz, r_earth, r_sun)
+    return c - (a + b), c - (b - a)
+
+
+@njit(cache=True, fastmath=False)
+def shadow_factor(
+    rx: float, ry: float, rz: float, sx: float, sy: float, sz: float, r_earth: float, r_sun: float, conical: bool
+) -> float:
+    """Visible fraction of the solar disc in [0, 1] at spacecraft ECI position ``r`` (m) with
+    the Sun at ECI ``s`` (m, geocentric). Conical (umbra/penumbra) or cylindrical model."""
+    if not conical:
+        return 0.0 if _cylinder_distance(rx, ry, rz, sx, sy, sz, r_earth) < 0.0 else 1.0
+    a, b, c = _disc_angles(rx, ry, rz, sx, sy, sz, r_earth, r_sun)
     if c >= a + b:
         return 1.0
     if c <= b - a:

@@ -456,7 +456,13 @@ def _dask_client(scheduler, connect_timeout_s: float):
     """A connected ``distributed.Client`` or a clear error within ``connect_timeout_s``."""
     if _is_client(scheduler):
         return scheduler
-    from distributed import Client
+    try:
+        from distributed import Client
+    except ImportError:
+        raise ProxopsInputError(
+            f"--scheduler {scheduler!r}: campaigns on a Dask cluster need the Dask client, which is an "
+            "optional extra: pip install 'proxops[cluster]'"
+        ) from None
 
     text = str(scheduler)
     is_address = "://" in text or (":" in text and not Path(text).suffix == ".json" and not Path(text).exists())

@@ -114,6 +114,11 @@ class LosGuidanceController(Supervisor):
     :class:`proxops.dynamics.tumbling_target.TumblingTargetTruth` reports) and returns an
     LVLH acceleration. ``info`` per step: range_m, r_ref_m, mpc_iterations,
     mpc_build_ms, u_body_0..2, slack_m.
+
+    ``attitude_source`` (None: the target attitude is known): a navigation that estimates the target
+    attitude (:class:`proxops.navigation.target_attitude.TargetAttitudeNavigation`); before each step
+    the model's frame angle becomes theta(t) + ``attitude_source.frame_angle_error()`` (the body frame
+    as estimated), so commands are rotated to LVLH and the corridor is predicted from the estimate.
     """
 
     def __init__(self, model: BodyFrameModel, a_max: float, corridor: LosCorridor | None = None,
@@ -121,6 +126,8 @@ class LosGuidanceController(Supervisor):
         if not a_max > 0:
             raise input_error("chaser.a_max_mps2", a_max, "must be > 0", "m/s^2")
         self.model = model
+        self._theta0_rad = model.theta0_rad
+        self.attitude_source = None  # estimated target attitude (frame_angle_error(), rad): see _regime_step
         self.dt = model.dt
         self.a_max = float(a_max)
         self.corridor = corridor or LosCorridor()
@@ -160,6 +167,8 @@ class LosGuidanceController(Supervisor):
 
     def _regime_step(self, mode: str, t: float, x_est: np.ndarray) -> Command:
         """The command of regime ``mode`` (reference, PD law, MPC safety filter)."""
+        if self.attitude_source is not None:  # the body frame as estimated: theta^ = theta(t) + psi
+            self.model.theta0_rad = self._theta0_rad + self.attitude_source.frame_angle_error()
         x = np.asarray(x_est, float)
         p, v = x[:3], x[3:6]
         r = math.sqrt(p @ p)

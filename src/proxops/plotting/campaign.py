@@ -10,6 +10,8 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from proxops.analysis.formatting import unit_of_metric
+from proxops.analysis.metric_order import ordered_metrics
 from proxops.plotting.common import plt, save
 
 OUTCOME_COLORS = {"success": "tab:green", "failure": "tab:red", "error": "black"}
@@ -23,6 +25,22 @@ def _label(col: str) -> str:
 def _short(col: str) -> str:
     """Last part of a key path: "disp.target.tumble_rate_deg_s" -> "tumble_rate_deg_s"."""
     return _label(col).split(".")[-1]
+
+
+def axis_label(col: str) -> str:
+    """A dispersed key as an axis label: ``disp.initial.position_m[0]`` -> ``initial position [0] [m]``."""
+    key = _label(col)
+    unit = unit_of_metric(key)
+    section, _, name = key.rpartition(".")
+    base, bracket, index = name.partition("[")
+    for suffix in ("_deg_s", "_mps2", "_mps", "_deg", "_km", "_kg", "_m", "_s", "_N"):
+        if base.endswith(suffix):
+            base = base[: -len(suffix)]
+            break
+    text = " ".join(part for part in (section.replace(".", " "), base.replace("_", " ")) if part)
+    if bracket:
+        text += f" [{index}"
+    return f"{text} [{unit}]" if unit else text
 
 
 def plot_dv_distribution(table: pd.DataFrame, path: Path, metric: str = "metric.total_dv_mps") -> Path | None:
@@ -51,11 +69,9 @@ def plot_dv_distribution(table: pd.DataFrame, path: Path, metric: str = "metric.
 
 
 def plot_metric_histograms(table: pd.DataFrame, path: Path, metrics: list[str] | None = None) -> Path | None:
-    """One histogram per metric (up to 12): the Table 4 metrics at a glance."""
-    from proxops.analysis.statistics import metric_columns
-
-    cols = metrics or [c for c in metric_columns(table) if table[c].nunique(dropna=True) > 1
-                       and "wall_time" not in c and "solve_time" not in c]
+    """One histogram per metric (up to 12), the informative ones in reading order
+    (:func:`proxops.analysis.metric_order.ordered_metrics`: total Δv first; no timings)."""
+    cols = metrics or ordered_metrics(table, include_timing=False)
     cols = cols[:12]
     if not cols:
         return None
@@ -66,6 +82,9 @@ def plot_metric_histograms(table: pd.DataFrame, path: Path, metrics: list[str] |
         vals = table[col].dropna().to_numpy(dtype=float)
         ax.hist(vals, bins=min(40, max(5, int(math.sqrt(vals.size)) * 2)), color="tab:blue", alpha=0.8)
         ax.set_title(_label(col), fontsize=9)
+        unit = unit_of_metric(col)
+        ax.set_xlabel(f"{_short(col)} [{unit}]" if unit else _short(col), fontsize=8)
+        ax.set_ylabel("runs", fontsize=8)
         ax.grid(alpha=0.3)
     for ax in list(axes.flat)[len(cols):]:
         ax.set_visible(False)
@@ -143,8 +162,8 @@ def plot_outcome_map(table: pd.DataFrame, manifest: dict, path: Path, max_facets
         pts = sub.groupby([x, y], sort=False)["success_f"].agg(["mean", "size"]).reset_index()
         sc = ax.scatter(pts[x], pts[y], c=pts["mean"], cmap="RdYlGn", vmin=0.0, vmax=1.0,
                         s=max(8, 400 / max(1, math.sqrt(len(pts)))), edgecolors="none")
-        ax.set_xlabel(_short(x), fontsize=8)
-        ax.set_ylabel("" if y == "_zero" else _short(y), fontsize=8)
+        ax.set_xlabel(axis_label(x), fontsize=8)
+        ax.set_ylabel("" if y == "_zero" else axis_label(y), fontsize=8)
         ax.set_title(title, fontsize=8)
         ax.grid(alpha=0.3)
     for ax in list(axes.flat)[len(combos):]:

@@ -14,7 +14,14 @@ PHASE_COLORS = {"flyaround": "#d8f0d8", "approach": "#d8e4f8", "null": "#f8d8d8"
                 "retreat": "#f8d8d8", "hold1": "#eeeeee", "hold2": "#eeeeee"}
 
 
+PHASE_LABELS = {"flyaround": "fly-around", "approach": "final approach", "null": "recompute / abort",
+                "abort_null": "recompute / abort", "retreat": "recompute / abort", "hold1": "eclipse hold",
+                "hold2": "eclipse hold"}
+
+
 def _spans(ax, result):
+    """Shade each phase of the run; one legend entry per phase that occurs."""
+    labelled: set[str] = set()
     modes = list(result.mode)
     t = result.t
     k0 = 0
@@ -22,7 +29,10 @@ def _spans(ax, result):
         if k == len(modes) or modes[k] != modes[k0]:
             c = PHASE_COLORS.get(modes[k0])
             if c and k0 < len(t) - 1:
-                ax.axvspan(t[k0], t[min(k, len(t) - 1)], color=c, lw=0, zorder=0)
+                label = PHASE_LABELS.get(modes[k0], modes[k0])
+                ax.axvspan(t[k0], t[min(k, len(t) - 1)], color=c, lw=0, zorder=0,
+                           label=None if label in labelled else label)
+                labelled.add(label)
             k0 = k
 
 
@@ -30,12 +40,14 @@ def run_figure(sc, result, path: Path) -> Path:
     """One run: in-plane trajectory (x radial, y along-track) and tracking error over time."""
     fig, (a1, a2) = plt.subplots(1, 2, figsize=(11, 4.5))
     r = result.x_true[:, :3]
-    a1.plot(r[:, 1], r[:, 0], lw=1)
+    a1.plot(r[:, 1], r[:, 0], lw=1, label="chaser")
     th = np.linspace(0, 2 * np.pi, 200)
-    for rad, ls in ((sc.geometry.r_kos_m, "-"), (sc.geometry.r_kos_m * sc.margins.kos, "--")):
-        a1.plot(rad * np.cos(th), rad * np.sin(th), "r" + ls, lw=0.8)
-    a1.plot(r[0, 1], r[0, 0], "go")
-    a1.plot(r[-1, 1], r[-1, 0], "r*")
+    for rad, ls, label in ((sc.geometry.r_kos_m, "-", "keep-out sphere"),
+                           (sc.geometry.r_kos_m * sc.margins.kos, "--", "KOS with margin")):
+        a1.plot(rad * np.cos(th), rad * np.sin(th), "r" + ls, lw=0.8, label=label)
+    a1.plot(r[0, 1], r[0, 0], "go", label="start")
+    a1.plot(r[-1, 1], r[-1, 0], "r*", label="end")
+    a1.legend(fontsize=7, loc="best")
     a1.set_xlabel("y along-track (m)")
     a1.set_ylabel("x radial (m)")
     a1.set_aspect("equal")
@@ -43,10 +55,11 @@ def run_figure(sc, result, path: Path) -> Path:
     err = result.info.get("track_err_m")
     _spans(a2, result)
     if err is not None:
-        a2.semilogy(result.t, np.where(err > 0, err, np.nan), lw=0.8)
+        a2.semilogy(result.t, np.where(err > 0, err, np.nan), lw=0.8, color="k", label="|r - r_ref|")
     a2.set_xlabel("t (s)")
     a2.set_ylabel("|r - r_ref| (m)")
-    a2.set_title("tracking error (green: fly-around, blue: approach, red: recompute/abort)")
+    a2.set_title("tracking error by phase")
+    a2.legend(fontsize=7, loc="best")
     fig.tight_layout()
     return save(fig, path)
 

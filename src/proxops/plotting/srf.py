@@ -78,9 +78,14 @@ def plot_trajectory(result, path: Path, *, theta_deg: float, koz_radius_m: float
     lo = np.minimum(p[:, [0, 2]].min(axis=0), -koz_radius_m)
     hi = np.maximum(p[:, [0, 2]].max(axis=0), koz_radius_m)
     pad = 0.35 * float(np.max(hi - lo))
-    ax.set_xlim(lo[0] - pad, hi[0] + pad)
-    ax.set_ylim(hi[1] + pad, lo[1] - pad)
-    ax.legend(loc="best", fontsize=8)
+    lo, hi = lo - pad, hi + pad
+    # an approach along one axis (R-bar) would make a sliver: keep the box at least 3:4 either way
+    span = hi - lo
+    want = np.maximum(span, 0.75 * span[::-1])
+    lo, hi = (lo + hi) / 2 - want / 2, (lo + hi) / 2 + want / 2
+    ax.set_xlim(lo[0], hi[0])
+    ax.set_ylim(hi[1], lo[1])
+    ax.legend(loc="upper left", bbox_to_anchor=(1.02, 1.0), fontsize=8, borderaxespad=0.0)  # beside the data
     ax.set_title(title or "SRF trajectory")
     if own:
         return save(fig, path)

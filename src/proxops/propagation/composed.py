@@ -21,6 +21,15 @@ SRP, whose shadow boundary the fixed step cannot follow) and ``"reference"`` (sc
 on the same RHS, with pymsis called at both spacecraft on every evaluation). The J2-only and
 two-body truths stay in RelativeTruth (the fastest path, unchanged).
 
+With SRP both DOP853 paths restart at every shadow crossing of either spacecraft (penumbra
+and umbra boundaries, :func:`proxops.environment.eclipse.shadow_boundaries`): the numba loop
+locates them on each step's Hermite interpolant (:mod:`proxops.propagation.kernels_full`),
+the reference path with scipy's event search, redoing the step over the crossing. Without
+it a step over a crossing made the result depend on where the steps fell (20 km, 20x20 +
+Sun/Moon + SRP, one orbit: 0.27-0.82 mm for rtol x 0.8-1.25 and the reference path 0.5-2.8 mm
+off the converged solution; now 1-2 um and 4-6 um). Cost with SRP: 877 instead of 553
+right-hand sides per orbit (20x20), 1801 instead of 1561 (100x100).
+
 Multistep vs DOP853 (benchmarks/bench_truth.py; 100x100 + drag + Sun/Moon, A/m 0.004 /
 0.015 m^2/kg, relative position vs numba DOP853 at rtol 1e-13): the default (order 6, 18 s,
 look-ahead) takes 668 evaluations of the 100x100 field per orbit against DOP853's 3122 at the
@@ -34,10 +43,12 @@ with the former default, one orbit 7.9-13.2 ms against 12.9-24.7 ms with one poi
 
 Measured (tests/test_propagation_composed.py, benchmarks/bench_truth.py; 500 km, 51.6 deg,
 2022-05-01, one orbit, default rtol 3e-11): fast path vs scipy DOP853 on both absolute
-states 0.008 mm at 100 m, 0.13 mm at 2 km, 0.52 mm at 20 km (100x100 + Sun/Moon + SRP;
-the absolute integration's own error is part of it); fast (density table) vs reference
-(direct NRLMSISE-00) with drag + Sun/Moon + SRP and different A/m: 0.05 mm at 2 km,
-0.13 mm at 20 km ahead + 4 km radial + 2 km cross-track. pymsis computes in single
+states 0.002 mm at 100 m, 0.006 mm at 2 km, 0.07 mm at 20 km (100x100 + Sun/Moon + SRP,
+the absolute integration piecewise between the shadow crossings at rtol 1e-13, whose own
+error is part of it: 0.16 mm at 20 km against rtol 3e-14; measured 2026-11-27); fast
+(density table) vs reference (direct NRLMSISE-00) with drag + Sun/Moon + SRP and different
+A/m: 0.035 mm at 2 km, 0.045 mm at 20 km ahead + 4 km radial + 2 km cross-track (2026-11-27,
+both paths restarting at the shadow crossings; 0.03 / 0.10 mm without). pymsis computes in single
 precision (float32, ~1e-6..1e-5 relative noise in density), which bounds the latter
 comparison. Against Orekit 13 with matching models, two orbits (tests/orekit_reference.py):
 <= 0.29 mm at 2 km, <= 3.1 mm at 20 km for every model set, mostly Earth orientation (README, "Validation against Orekit").
@@ -355,7 +366,10 @@ class ComposedTruth(PlantBase):
         return status, out
 
     def _integrate_reference(self, y0: np.ndarray, grid: np.ndarray, u: np.ndarray) -> np.ndarray:
-        """scipy DOP853 on the same RHS with NRLMSISE-00 called directly at both spacecraft."""
+        """scipy DOP853 on the same RHS with NRLMSISE-00 called directly at both spacecraft;
+        with SRP restarted at every shadow crossing, located by scipy's own event search
+        (its dense output and root finder) on the event functions of
+        :func:`proxops.environment.eclipse.shadow_boundaries`."""
         arrays = self._arrays()
         p = self.p
 
@@ -373,10 +387,64 @@ class ComposedTruth(PlantBase):
             return np.tile(y0, (grid.size, 1))
         from scipy.integrate import solve_ivp  # heavy (0.5 s): only on the reference path
 
-        sol = solve_ivp(fun, (grid[0], grid[-1]), y0, method="DOP853", t_eval=grid, rtol=self.rtol, atol=self.atol)
-        if not sol.success:
-            raise ProxopsError(f"reference propagation failed: {sol.message}")
-        return sol.y.T.copy()
+        events = self._shadow_events() if self.models.srp else []
+        side = [math.copysign(1.0, g(grid[0], y0)) for g in events]  # the side of each boundary now
+        out = np.empty((grid.size, 12))
+        out[0] = y0
+        t, y, idx = float(grid[0]), y0, 1
+
+        def run(t_a, t_b, y_a, samples, **kw):
+            sol = solve_ivp(fun, (t_a, t_b), y_a, method="DOP853", t_eval=samples, rtol=self.rtol, atol=self.atol,
+                            **kw)  # fmt: skip
+            if not sol.success:
+                raise ProxopsError(f"reference propagation failed: {sol.message}")
+            return sol, np.asarray(sol.y).reshape(12, -1).T  # (no sample: scipy gives empty lists)
+
+        while idx < grid.size:
+            for g, sgn in zip(events, side):
+                g.terminal, g.direction = True, -sgn  # the next crossing leaves the current side
+            sol, ys = run(t, float(grid[-1]), y, grid[idx:], events=events or None, dense_output=bool(events))
+            if sol.status != 1:
+                out[idx:] = ys
+                break
+            hit = [k for k, te in enumerate(sol.t_events) if te.size]
+            t_event = float(sol.t_events[hit[0]][0])
+            # scipy locates the crossing on the dense output of the step over it, whose stages
+            # straddle the kink: the samples after that step's start and the state at the
+            # crossing are redone from the step's start
+            ts = sol.sol.ts
+            t_a = float(ts[max(0, int(np.searchsorted(ts, t_event, side="left")) - 1)])
+            keep = int(np.count_nonzero(grid[idx:] <= t_a))
+            out[idx : idx + keep] = ys[:keep]
+            idx += keep
+            n_redo = int(np.count_nonzero(grid[idx:] <= t_event))
+            _, redo = run(t_a, t_event, sol.sol(t_a), np.append(grid[idx : idx + n_redo], t_event))
+            out[idx : idx + n_redo] = redo[:n_redo]
+            idx += n_redo
+            t, y = t_event, redo[-1]
+            for k in hit:  # (the cylindrical model's two functions of one spacecraft cross together)
+                if sol.t_events[k][0] == t_event:
+                    side[k] = -side[k]
+        return out
+
+    def _shadow_events(self) -> list:
+        """Event functions g(t, y) of the shadow boundaries (target and chaser; penumbra and
+        umbra, one for the cylindrical model) for scipy's solve_ivp."""
+        from proxops.environment.eclipse import shadow_boundaries
+        from proxops.environment.ephemeris import sun_eci_kernel
+
+        p = self.p
+        conical = self.models.shadow == "conical"
+
+        def make(body: int, which: int):
+            def g(t, y):
+                sx, sy, sz = sun_eci_kernel(p[kf.I_D0] + t / 86400.0)
+                r = y[:3] + y[6:9] if body else y[:3]
+                return shadow_boundaries(r[0], r[1], r[2], sx, sy, sz, p[kf.I_R_EARTH], p[kf.I_R_SUN], conical)[which]
+
+            return g
+
+        return [make(body, which) for body in (0, 1) for which in ((0, 1) if conical else (0,))]
 
     # ------------------------------------------------------------------ helpers
     def with_relative_state(self, state: np.ndarray, hill_state: np.ndarray) -> np.ndarray:

@@ -53,7 +53,7 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
-from proxops.core.layout import Block, StateLayout
+from proxops.core.layout import Block, StateLayout, make_control_layout
 from proxops.core.quaternion import dcm_kernel
 from proxops.dynamics.hybrid_relative import N_REL, relative_from_truth
 from proxops.dynamics.plant import PlantBase, locate_guard
@@ -216,6 +216,7 @@ class HybridCapturePlant(PlantBase):
 
     n_x, n_u = N_MEASURED, 6
     layout = HYBRID_LAYOUT
+    control_layout = make_control_layout(("F_x", "F_y", "F_z", "M_x", "M_y", "M_z"), ("N",) * 3 + ("N m",) * 3, "deputy")
     has_events = True
 
     def __init__(self, params: HybridParams, x0_truth, envelope: CaptureEnvelope = CaptureEnvelope(),

@@ -9,9 +9,11 @@ from pathlib import Path
 import pandas as pd
 
 from proxops.analysis.campaign import CampaignResult, _campaign_system, load_campaign, series_dir
+from proxops.analysis.metric_order import ordered_metrics
 from proxops.analysis.statistics import metric_statistics
 from proxops.errors import ProxopsInputError
 from proxops.plotting.systems import mc_figures, mc_table_figures
+from proxops.report.html import write_html
 
 
 def write_report(campaign, report_dir: str | Path | None = None, figures: bool = True, max_overlay: int = 100) -> dict:
@@ -38,7 +40,7 @@ def write_report(campaign, report_dir: str | Path | None = None, figures: bool =
     lines = [
         f"# Monte Carlo campaign: {m.get('scenario')}",
         "",
-        f"- scenario source: `{m.get('source')}`, overrides: {m.get('overrides') or 'none'}",
+        f"- scenario: {_source_label(m.get('source'))}, overrides: {m.get('overrides') or 'none'}",
         f"- content hash {m.get('scenario_hash')}, campaign seed {m.get('seed')}, "
         f"{counts['runs']} of {m.get('n_runs')} runs finished",
         f"- succeeded {counts['succeeded']}, failed {counts['failed']} (of which {counts['errors']} raised), "
@@ -46,7 +48,10 @@ def write_report(campaign, report_dir: str | Path | None = None, figures: bool =
         "",
         "## Statistics over runs that did not raise (layout of cortex-convex-guidance.md Table 4)",
         "",
-        format_table4(stats) if len(stats) else "(no completed runs)",
+        "Metrics in reading order (Δv, terminal accuracy, safety, navigation, the system's own, timings);"
+        " constants and bookkeeping are left out here and kept in statistics.csv.",
+        "",
+        format_table4(result.headline_statistics()) if len(stats) else "(no completed runs)",
         "",
     ]
     nav = navigation_table(table) if len(table) else ""
@@ -60,7 +65,8 @@ def write_report(campaign, report_dir: str | Path | None = None, figures: bool =
         for gi, grp in done.groupby("grid_index", sort=True):
             point = grp.iloc[0]
             label = ", ".join(f"{c.removeprefix('disp.')} = {format_quantity(point[c], c, significant=True)}" for c in grid_cols)
-            lines += [f"### Grid point {int(gi)}: {label}", "", format_table4(metric_statistics(grp, subset="all")), ""]
+            lines += [f"### Grid point {int(gi)}: {label}", "",
+                      format_table4(metric_statistics(grp, metrics=ordered_metrics(table), subset="all")), ""]
     if grid_cols and len(table):
         by = table.groupby(grid_cols, sort=True)["success"].agg(["mean", "size"]).reset_index()
         by.to_csv(rdir / "grid_success.csv", index=False)
@@ -107,7 +113,52 @@ def write_report(campaign, report_dir: str | Path | None = None, figures: bool =
         lines += ["## Figures", ""] + [f"![{f.stem}]({f.name})" for f in figs] + [""]
     (rdir / "report.md").write_text("\n".join(lines))
     files.append(rdir / "report.md")
+    files.append(write_html(rdir / "report.html", f"Monte Carlo campaign: {m.get('scenario')}",
+                            headline(result, summary), "\n".join(lines)))
     return {"summary": summary, "files": [str(f) for f in files], "report_dir": str(rdir)}
+
+
+def headline(result: CampaignResult, summary: dict) -> list[tuple[str, str, str]]:
+    """The numbers a reader looks for first, as ``(label, value, note)`` cards: the success rate
+    with its 95 % Wilson interval, total Δv, safety, timings."""
+    from proxops.analysis.formatting import format_percent, format_quantity
+    from proxops.analysis.statistics import METRIC_PREFIX, wilson_interval
+
+    table, counts = result.table, result.counts()
+    n, k = counts["runs"], counts["succeeded"]
+    lo, hi = wilson_interval(k, n)
+    cards = [("success rate", format_percent(k / n) if n else "no runs",
+              f"{k} of {n} runs; 95 % interval [{format_percent(lo)}, {format_percent(hi)}] (Wilson)" if n else "")]
+    done = table[table["outcome"] != "error"] if n else table
+    dv = METRIC_PREFIX + "total_dv_mps"
+    if n and dv in done and done[dv].notna().any():
+        v = done[dv].astype(float)
+        cards.append(("total Δv (median)", format_quantity(float(v.median()), "total_dv_mps"),
+                      f"p95 {format_quantity(float(v.quantile(0.95)), 'total_dv_mps')}, "
+                      f"max {format_quantity(float(v.max()), 'total_dv_mps')}"))
+    by = ", ".join(f"{c} {v}" for c, v in counts["violations_by_constraint"].items() if v) or "none"
+    cards.append(("runs with a constraint violation", f"{counts['with_violations']} of {n}", f"by constraint: {by}"))
+    verdicts = [c for c in done.columns if c.startswith(METRIC_PREFIX) and "safe" in c
+                and pd.api.types.is_bool_dtype(done[c])]
+    for c in verdicts[:2]:
+        cards.append((c[len(METRIC_PREFIX):].replace("_", " "), f"{int(done[c].sum())} of {int(done[c].notna().sum())}",
+                      "runs with the verdict true"))
+    wall = summary.get("wall_time_s")
+    run_wall = METRIC_PREFIX + "wall_time_s"
+    note = f"median run {format_quantity(float(done[run_wall].median()), 'wall_time_s')}" \
+        if n and run_wall in done and done[run_wall].notna().any() else ""
+    cards.append(("campaign wall time", format_quantity(float(wall), "wall_time_s") if wall is not None else "-", note))
+    return cards
+
+
+def _source_label(source) -> str:
+    """A built-in's name, or the scenario file's name (not this machine's absolute path)."""
+    if not source:
+        return "unknown"
+    path = Path(str(source))
+    if "scenarios/builtin" in path.as_posix():
+        return f"built-in `{path.stem}`"
+    return f"`{path.name}`"
 
 
 def _system_campaign_figures(manifest: dict, results: list, rdir: Path) -> list[Path]:

@@ -101,7 +101,9 @@ class OrbitSection(Section):
 class NavigationSection(Section):
     """Navigation: ``noise`` (white Gaussian on the true state, per axis, 1-sigma) or ``ekf`` (an
     extended Kalman filter on the Hill state, CW process model, fed by a simulated sensor:
-    proxops.navigation.ekf). The ``ekf`` keys are ignored by ``noise`` and vice versa."""
+    proxops.navigation.ekf; los: the target's attitude and rate by a multiplicative EKF,
+    proxops.navigation.mekf; underactuated: the planar pose, proxops.navigation.planar_ekf). The ``ekf``
+    keys are ignored by ``noise`` and vice versa."""
 
     model: Literal["noise", "ekf"] = Field("noise", description="noise: Gaussian error on the true state; ekf: "
                                            "filter estimate from simulated sensor measurements")
@@ -145,6 +147,26 @@ class NavigationSection(Section):
     reinit_velocity_sigma_mps: Positive = Field(
         0.1, description="ekf: 1-sigma velocity per axis after a re-initialisation (the position comes from the "
         "measurement)")
+    # --- attitude filter (issue 28 item 4): los (the target's attitude and rate), underactuated (planar pose) ---
+    attitude_sigma_deg: Positive = Field(
+        0.5, description="ekf (los, underactuated): 1-sigma per axis of the attitude of a camera/LIDAR pose measurement")
+    attitude_rate_sigma_deg_s: Positive | None = Field(
+        None, description="ekf (los): also measure the target's body rate with this 1-sigma per axis (none: no rate "
+        "measurement)")
+    attitude_fov_deg: Annotated[float, Field(gt=0.0, le=180.0)] = Field(
+        180.0, description="ekf (los, underactuated): the pose is measured while the line of sight lies within half "
+        "this cone about the sensor axis (los: the target's docking axis +y_B; underactuated: the deputy's body x)")
+    attitude_process_noise_rad2_s3: NonNegative = Field(
+        1e-8, description="ekf (los, underactuated): white angular-acceleration power spectral density per axis, "
+        "rad^2/s^3 (unmodelled torques)")
+    initial_attitude_sigma_deg: Positive = Field(
+        5.0, description="ekf (los, underactuated): initial 1-sigma attitude error per axis (the initial estimate is "
+        "drawn from it)")
+    initial_rate_sigma_deg_s: Positive = Field(
+        0.2, description="ekf (los, underactuated): initial 1-sigma body-rate error per axis")
+    attitude_inertia_kgm2: Annotated[list[Annotated[float, Field(gt=0.0)]], Field(min_length=3, max_length=3)] = Field(
+        [1.0, 1.0, 1.0], description="ekf (los): principal moments of inertia of the target in the filter's "
+        "torque-free model (only their ratios matter)")
 
 
 def _actuator_fields() -> dict:

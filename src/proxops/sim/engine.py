@@ -160,6 +160,7 @@ def simulate(setup: Setup, seed: int = 0, progress: bool = False, coast: bool = 
     single_rate = k_ctrl == k_nav == k_act == 1
     n_steps = run_steps(setup)[1]
     layout = plant.layout
+    kinds_seen: set[str] = set()  # command kinds of the run (the unit of a "kind" control column)
 
     state = plant.initial_state()
     # the translational default without its method call (the same function)
@@ -391,6 +392,7 @@ def simulate(setup: Setup, seed: int = 0, progress: bool = False, coast: bool = 
                     u = np.asarray(act.apply(t, cmd.u, cmd.kind, rng_act), dtype=float)
                 u_cmd[k], u_app[k] = (zero_u if cmd.kind == "impulse" else cmd.u), u
             kind = cmd.kind
+            kinds_seen.add(kind)
             dv_cum[k + 1] = dv_cum[k] + delta_v(u, kind, h)
             if kind == "impulse":
                 if ctrl_tick and u.any():
@@ -433,6 +435,8 @@ def simulate(setup: Setup, seed: int = 0, progress: bool = False, coast: bool = 
         position_slice=list(layout.span("position") or (0, 3)),
         velocity_slice=list(layout.span("velocity") or (3, 6)),
         layout=layout.to_dict(),
+        control_layout=plant.control_layout.to_dict(),
+        control_kind="/".join(sorted(kinds_seen)) or "acceleration",
         max_violation=max_violation,
         final_plant_state=np.asarray(state, dtype=float).tolist(),
     )

@@ -80,6 +80,7 @@ class Plant(Protocol):
     n_x: int  # length of the measured state returned by relative_state
     n_u: int  # length of the control vector
     layout: StateLayout  # named blocks (units) of the measured state, stored with the result
+    control_layout: StateLayout  # names, units and frame of the control vector u (result columns)
     has_events: bool  # True: the engine calls propagate_events (guards, jump maps) instead of propagate
     rng: np.random.Generator | None  # the plant's own stream (process noise), set by the engine
 

@@ -2,8 +2,12 @@
 
 On-disk layout of ``result.save(dir)``::
 
-    dir/steps.parquet   one row per sample: t, x_true_<i>, x_est_<i>, u_cmd_<i>, u_applied_<i>,
-                        dv_cum, status, solve_time_s, mode, info_<key>, plant_mode (when any is set)
+    dir/steps.parquet   one row per sample, columns named from the plant's layouts with frame and
+                        unit (:meth:`SimResult.column_info`): t_s; the true state (x_hill_m, ...,
+                        vz_hill_mps); the estimate (est_x_hill_m, ...); the commanded and applied
+                        control (cmd_ux_hill_mps, applied_ux_hill_mps, ...); dv_cum_mps, status,
+                        solve_time_s, mode, info_<key>, plant_mode (when any is set). Each column's
+                        unit, frame and meaning are also in the Parquet schema's field metadata.
     dir/events.parquet  t, kind, message
     dir/meta.json       scenario name, seed, stop_reason, state layout (blocks, names, units),
                         position/velocity slices, summary extras
@@ -12,12 +16,12 @@ On-disk layout of ``result.save(dir)``::
 from __future__ import annotations
 
 import json
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
 
-from proxops.core.layout import StateLayout
+from proxops.core.layout import StateLayout, make_control_layout
 from proxops.solvers.stats import solve_time_stats
 from proxops.status import Status
 
@@ -123,14 +127,26 @@ class SimResult:
         return out
 
     # --- persistence --------------------------------------------------------------
+    @property
+    def control_layout(self) -> StateLayout:
+        """Names, units and frame of ``u_cmd`` / ``u_applied`` (see :func:`control_layout_of`)."""
+        return control_layout_of(self.meta, self.u_cmd.shape[1])
+
+    def column_info(self) -> dict[str, dict[str, str]]:
+        """``{column: {"unit", "frame", "meaning"}}`` of the time-series table (``to_frame``)."""
+        return column_info(self.layout, self.control_layout)
+
     def to_frame(self) -> "pd.DataFrame":
+        """The time series as a pandas DataFrame with self-explaining columns (:meth:`column_info`)."""
         import pandas as pd  # heavy (0.4 s + pyarrow on save): only when a result is stored
 
-        cols: dict[str, np.ndarray | list] = {"t": self.t}
-        for name, arr in (("x_true", self.x_true), ("x_est", self.x_est), ("u_cmd", self.u_cmd), ("u_applied", self.u_applied)):
+        cols: dict[str, np.ndarray | list] = {"t_s": self.t}
+        names = iter(self.column_info())
+        next(names)  # t_s
+        for arr in (self.x_true, self.x_est, self.u_cmd, self.u_applied):
             for i in range(arr.shape[1]):
-                cols[f"{name}_{i}"] = arr[:, i]
-        cols["dv_cum"] = self.dv_cum
+                cols[next(names)] = arr[:, i]
+        cols["dv_cum_mps"] = self.dv_cum
         cols["status"] = [str(s) for s in self.status]
         cols["solve_time_s"] = self.solve_time_s
         cols["mode"] = list(self.mode)
@@ -143,9 +159,16 @@ class SimResult:
     def save(self, directory: str | Path) -> Path:
         import pandas as pd
 
+        import pyarrow as pa
+        import pyarrow.parquet as pq
+
         d = Path(directory)
         d.mkdir(parents=True, exist_ok=True)
-        self.to_frame().to_parquet(d / "steps.parquet", index=False)
+        table = pa.Table.from_pandas(self.to_frame(), preserve_index=False)
+        info = self.column_info()
+        fields = [f.with_metadata({k: v for k, v in info[f.name].items() if v}) if f.name in info else f
+                  for f in table.schema]
+        pq.write_table(table.cast(pa.schema(fields, metadata=table.schema.metadata)), d / "steps.parquet")
         ev = pd.DataFrame(self.events, columns=["t", "kind", "message"]) if self.events else pd.DataFrame(
             {"t": pd.Series(dtype=float), "kind": pd.Series(dtype=str), "message": pd.Series(dtype=str)}
         )
@@ -162,19 +185,30 @@ class SimResult:
         ev = pd.read_parquet(d / "events.parquet")
         meta = json.loads((d / "meta.json").read_text())
 
-        def block(prefix: str) -> np.ndarray:
-            names = sorted((c for c in df.columns if c.startswith(prefix + "_") and c[len(prefix) + 1 :].isdigit()),
-                           key=lambda c: int(c.rsplit("_", 1)[1]))
-            return df[names].to_numpy()
+        if "t_s" in df.columns:  # named columns, in the order column_info gives them
+            layout = StateLayout.from_dict(meta["layout"])
+            control = control_layout_of(meta, len(meta["control_layout"]["blocks"]))
+            cols = list(column_info(layout, control))
+            n_x, n_u = layout.n_x, control.n_x
+            parts = np.split(np.array(cols[1:1 + 2 * n_x + 2 * n_u]), np.cumsum([n_x, n_x, n_u]))
+            x_true, x_est, u_cmd, u_applied = (df[list(p)].to_numpy() for p in parts)
+            t, dv_cum = df["t_s"].to_numpy(), df["dv_cum_mps"].to_numpy()
+        else:  # results saved before the columns had names: x_true_<i>, ...
+            def block(prefix: str) -> np.ndarray:
+                names = sorted((c for c in df.columns if c.startswith(prefix + "_") and c[len(prefix) + 1:].isdigit()),
+                               key=lambda c: int(c.rsplit("_", 1)[1]))
+                return df[names].to_numpy()
 
+            x_true, x_est, u_cmd, u_applied = (block(p) for p in ("x_true", "x_est", "u_cmd", "u_applied"))
+            t, dv_cum = df["t"].to_numpy(), df["dv_cum"].to_numpy()
         info = {c[5:]: df[c].to_numpy() for c in df.columns if c.startswith("info_")}
         return cls(
-            t=df["t"].to_numpy(),
-            x_true=block("x_true"),
-            x_est=block("x_est"),
-            u_cmd=block("u_cmd"),
-            u_applied=block("u_applied"),
-            dv_cum=df["dv_cum"].to_numpy(),
+            t=t,
+            x_true=x_true,
+            x_est=x_est,
+            u_cmd=u_cmd,
+            u_applied=u_applied,
+            dv_cum=dv_cum,
             status=df["status"].tolist(),
             solve_time_s=df["solve_time_s"].to_numpy(),
             mode=df["mode"].tolist(),
@@ -183,6 +217,39 @@ class SimResult:
             meta=meta,
             plant_mode=df["plant_mode"].tolist() if "plant_mode" in df.columns else [""] * len(df),
         )
+
+
+def control_layout_of(meta: dict, n_u: int) -> StateLayout:
+    """The control layout stored with a run (``meta["control_layout"]``), its ``"kind"`` units
+    resolved from the run's command kind (m/s for impulses, m/s^2 for accelerations); ``u0, u1,
+    ...`` without units for runs recorded before control layouts existed."""
+    d = meta.get("control_layout")
+    if d is None:
+        return make_control_layout(tuple(f"u{i}" for i in range(n_u)), ("-",) * n_u)
+    layout = d if isinstance(d, StateLayout) else StateLayout.from_dict(d)
+    unit = {"impulse": "m/s", "acceleration": "m/s^2"}.get(meta.get("control_kind", "acceleration"), "-")
+    return StateLayout(layout.n_x, tuple(replace(b, unit=unit if b.unit == "kind" else b.unit) for b in layout.blocks))
+
+
+def column_info(layout: StateLayout, control: StateLayout) -> dict[str, dict[str, str]]:
+    """``{column: {"unit", "frame", "meaning"}}`` of a run's time-series table, in column order."""
+    out = {"t_s": {"unit": "s", "frame": "", "meaning": "time since the scenario start"}}
+    for prefix, lay, what in (("", layout, "true state"), ("est_", layout, "navigation estimate"),
+                              ("cmd_", control, "commanded control"),
+                              ("applied_", control, "control after the actuator model")):
+        for col, name, unit, frame in zip(_unique(lay.column_names(prefix)), lay.names, lay.units, lay.frames):
+            out[col] = {"unit": unit, "frame": frame, "meaning": f"{what}: {name}"}
+    out["dv_cum_mps"] = {"unit": "m/s", "frame": "", "meaning": "cumulative delta-v"}
+    out["status"] = {"unit": "", "frame": "", "meaning": "controller/solver status of the sample"}
+    out["solve_time_s"] = {"unit": "s", "frame": "", "meaning": "solver time of the sample's decision"}
+    out["mode"] = {"unit": "", "frame": "", "meaning": "controller mode / guidance regime"}
+    return out
+
+
+def _unique(names: list[str]) -> list[str]:
+    """Names made unique by appending the component index where two would collide."""
+    seen = {n: names.count(n) for n in names}
+    return [n if seen[n] == 1 else f"{n}_{i}" for i, n in enumerate(names)]
 
 
 def _jsonable(obj):

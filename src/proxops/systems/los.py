@@ -10,7 +10,7 @@ Table 1 plus the target quaternion (eq. 2); the measured relative state is the
 body-frame state of eqs. (7)-(8). Controller: §7 regimes + eq.-(11) MPC
 (:class:`proxops.guidance.los_regimes.LosGuidanceController`).
 
-Programmatic use (Monte Carlo, issue 6)::
+Programmatic use (Monte Carlo)::
 
     from proxops.systems.los import run_case
     out = run_case(tumble_rate_deg_s=2, a_max_mps2=0.1, initial_body_position_m=[0, 80, 0],
@@ -23,7 +23,7 @@ termination.
 Table 3 sweep (§10.6): scenario ``los-sweep`` (grid dispersions, 15 combinations x hard/soft
 constraints) through the campaign engine; ``run_sweep()`` runs it and ``sweep_table()``
 prints the paper's layout with our columns next to the paper's. Standalone:
-``python -m proxops.systems.los sweep [--workers 2] [--out DIR] [--no-campaign]``.
+``python -m proxops.analysis.los_sweep sweep [--workers 2] [--out DIR] [--no-campaign]``.
 """
 
 from __future__ import annotations
@@ -192,11 +192,59 @@ def build_setup(sc: LosScenario) -> Setup:
                                  v_max_mps=g.v_max_mps, pd_natural_frequency_rad_s=2 * np.pi / g.pd_period_s,
                                  use_mpc=g.use_mpc, stop_on_infeasible=g.stop_on_infeasible,
                                  stop_at_hold=g.stop_at_hold)
+    ekf = sc.navigation.model == "ekf"  # the target attitude and rate estimated (issue 28 item 4)
+    if ekf:
+        navigation = attitude_navigation(sc, target, dt)
+        model = BodyFrameModel(model.n, model.tumble_rate_rad_s, model.dt, model.theta0_rad)  # own copy: its angle
+    else:                                                                                    # follows the estimate
+        navigation = navigation_model(sc.navigation, system="los (target body frame)")
     ctrl = LosGuidanceController(model, sc.chaser.a_max_mps2, corridor, mpc_cfg, guidance)
     meta = {"system": "los", "r_sync_m": ctrl.r_sync, "frame": "target body (eqs. 7-8)"}
+    if ekf:
+        ctrl.attitude_source = navigation
+        meta["attitude_filter"] = navigation.record  # filled during the run (summary: att_* keys)
     return Setup(plant=plant, controller=ctrl, duration_s=sc.sim.duration_s,
-                 navigation=navigation_model(sc.navigation, system="los (target body frame)"), actuator=actuator_model(sc.actuator),
+                 navigation=navigation, actuator=actuator_model(sc.actuator),
                  constraints=(corridor,), check_substeps=sc.sim.check_substeps, meta=meta)
+
+
+def attitude_navigation(sc: LosScenario, target, dt: float):
+    """:class:`proxops.navigation.target_attitude.TargetAttitudeNavigation` of a ``model = "ekf"``
+    [navigation] section: the target's attitude and rate from pose measurements (attitude_* keys),
+    the truth from ``target`` (the plant's closed-form attitude)."""
+    import math
+
+    from proxops.errors import input_error
+    from proxops.navigation.mekf import PoseAttitudeSensor
+    from proxops.navigation.target_attitude import TargetAttitudeNavigation
+
+    nav = sc.navigation
+    period = nav.update_period_s
+    if period is not None:
+        ratio = dt / period
+        if period > dt * (1 + 1e-9) or abs(ratio - round(ratio)) > 1e-6:
+            raise input_error("navigation.update_period_s", period, f"must divide the control period {dt:g} s", "s")
+    sensor = PoseAttitudeSensor(
+        sigma_rad=math.radians(nav.attitude_sigma_deg),
+        rate_sigma_rad_s=None if nav.attitude_rate_sigma_deg_s is None else math.radians(nav.attitude_rate_sigma_deg_s),
+        fov_rad=math.radians(nav.attitude_fov_deg), boresight=np.array([0.0, 1.0, 0.0]),
+        outage_probability=nav.outage_probability)
+    p0 = np.diag([math.radians(nav.initial_attitude_sigma_deg) ** 2] * 3
+                 + [math.radians(nav.initial_rate_sigma_deg_s) ** 2] * 3)
+    return TargetAttitudeNavigation(target_truth_attitude(target), sensor, p0, np.array(nav.attitude_inertia_kgm2),
+                                    nav.attitude_process_noise_rad2_s3, gate_probability=nav.gate_probability,
+                                    position_sigma_m=nav.position_sigma_m, velocity_sigma_mps=nav.velocity_sigma_mps,
+                                    period_s=period)
+
+
+class target_truth_attitude:  # noqa: N801 (a picklable callable)
+    """``t -> (q_IB, w_B)`` of a :class:`proxops.dynamics.tumbling_target.TumblingTarget` (eq. 2)."""
+
+    def __init__(self, target):
+        self.target = target
+
+    def __call__(self, t: float):
+        return self.target.quaternion(t), self.target.omega_body
 
 
 def summarize_result(sc: LosScenario, result) -> dict:
@@ -214,7 +262,19 @@ def summarize_result(sc: LosScenario, result) -> dict:
     r_sync = sync_range(sc.chaser.a_max_mps2, w) if w > 0 else float("inf")
     r0 = float(np.linalg.norm(sc.chaser.initial_body_position_m))
     max_viol = float(viol.max()) if viol.size else 0.0
+    extra = {}
+    if "attitude_filter" in result.meta:
+        from proxops.navigation.mekf import attitude_summary
+
+        extra = attitude_summary(result.meta["attitude_filter"])
+    if qp_infeasible and sc.mpc.constraint_mode == "hard":
+        where = "beyond" if r0 > r_sync else "inside"
+        extra["hint"] = (f"the hard corridor rows became infeasible; the start ({r0:.1f} m) is {where} r_sync = "
+                         f"{r_sync:.1f} m, the range within which a_max can hold the rotating corridor "
+                         "(tumbling-target-reachability.md §7): start inside r_sync, raise chaser.a_max_mps2, or "
+                         "set mpc.constraint_mode = \"soft\" to fly with penalised violations")
     return {
+        **extra,
         "los_violations": n_viol,
         "max_violation_m": max_viol,
         "r_sync_m": float(r_sync),

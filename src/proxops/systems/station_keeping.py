@@ -1,7 +1,7 @@
 """Station keeping about a hold point with LQR or PD on continuous thrust.
 
 The smallest complete system: it exercises the scenario schema, truth, navigation,
-actuator model and engine, and is the default demo.
+actuator model and engine; the Python API examples and the campaign tests use it.
 """
 
 from __future__ import annotations

@@ -1,5 +1,5 @@
 """System ``underactuated``: NMPC docking of a planar underactuated 6U CubeSat
-(underactuated-docking-nmpc.md, issue 7).
+(underactuated-docking-nmpc.md).
 
 Scenarios (src/proxops/scenarios/builtin/underactuated-*.toml)::
 
@@ -266,7 +266,13 @@ def build_setup(sc: UnderactuatedScenario, run: dict | None = None) -> Setup:
     )
     controller = UnderactuatedNMPC(params, limits, config, docking)
     plant = PlanarCubeSatPlant(params, sc.initial_state.vector())
-    navigation = navigation_model(sc.navigation, per_state_sigma=planar_sigma, system="underactuated (planar state)")
+    meta = {"run": run}
+    if sc.navigation.model == "ekf":  # planar pose estimated (issue 28 item 4)
+        navigation = planar_navigation(sc, params, c.dt_s)
+        meta["attitude_filter"] = navigation.record  # filled during the run (summary: att_*, pose_nees_*)
+    else:
+        navigation = navigation_model(sc.navigation, per_state_sigma=planar_sigma,
+                                      system="underactuated (planar state)")
 
     def docked(t: float, s: np.ndarray) -> str | None:
         return "docked" if docking.contains(s) else None
@@ -278,8 +284,31 @@ def build_setup(sc: UnderactuatedScenario, run: dict | None = None) -> Setup:
         navigation=navigation,
         stop_condition=docked,
         check_substeps=sc.sim.check_substeps,
-        meta={"run": run},
+        meta=meta,
     )
+
+
+def planar_navigation(sc: UnderactuatedScenario, params, control_dt_s: float):
+    """:class:`proxops.navigation.planar_ekf.PlanarPoseEKF` of a ``model = "ekf"`` [navigation] section:
+    pose [x, y, theta] with ``range_sigma_m`` per position axis and ``attitude_sigma_deg``; process noise
+    ``process_noise_m2_s3`` (translation) and ``attitude_process_noise_rad2_s3`` (rotation); initial sigmas
+    initial_position_sigma_m, initial_velocity_sigma_mps, initial_attitude_sigma_deg, initial_rate_sigma_deg_s."""
+    from proxops.errors import input_error
+    from proxops.navigation.planar_ekf import PlanarPoseEKF
+
+    nav = sc.navigation
+    period = nav.update_period_s
+    if period is not None:
+        ratio = control_dt_s / period
+        if period > control_dt_s * (1 + 1e-9) or abs(ratio - round(ratio)) > 1e-6:
+            raise input_error("navigation.update_period_s", period,
+                              f"must divide the control period {control_dt_s:g} s", "s")
+    p0 = np.diag([nav.initial_position_sigma_m ** 2] * 2 + [math.radians(nav.initial_attitude_sigma_deg) ** 2]
+                 + [nav.initial_velocity_sigma_mps ** 2] * 2 + [math.radians(nav.initial_rate_sigma_deg_s) ** 2])
+    return PlanarPoseEKF(params, p0, nav.range_sigma_m, math.radians(nav.attitude_sigma_deg),
+                         q_accel_m2_s3=nav.process_noise_m2_s3, q_angular_rad2_s3=nav.attitude_process_noise_rad2_s3,
+                         fov_rad=math.radians(nav.attitude_fov_deg), outage_probability=nav.outage_probability,
+                         gate_probability=nav.gate_probability, period_s=period)
 
 
 def summarize_result(sc: UnderactuatedScenario, result) -> dict:
@@ -312,6 +341,12 @@ def summarize_result(sc: UnderactuatedScenario, result) -> dict:
         "mean_iterations": float(np.nanmean(result.info["iterations"][: len(solved)])) if "iterations" in result.info and len(solved) else 0.0,
         "controller_wall_time_s": float(np.sum(solved)),
     }
+    if "attitude_filter" in result.meta:
+        from proxops.navigation.mekf import attitude_summary, consistency_keys
+
+        rec = result.meta["attitude_filter"]
+        out.update(attitude_summary(rec))
+        out.update(consistency_keys(rec.get("pose_nees", []), rec.get("pose_nees_dof", 6), "pose_nees"))
     return out
 
 
