@@ -25,6 +25,8 @@ def files(tmp_path_factory) -> dict[str, Path]:
     f["bad_toml"].write_text('name = "x"\nsystem = "srf"\n[sim\n')
     f["bad_system"].write_text('name = "x"\nsystem = "nope"\n')
     f["empty"].write_text("")
+    f["not_utf8"] = d / "latin1.toml"
+    f["not_utf8"].write_bytes('name = "caf\u00e9"\nsystem = "srf"\n'.encode("latin-1"))
     base = Path(__file__).resolve().parents[1] / "src/proxops/scenarios/builtin/station-keeping.toml"
     f["unknown_key"].write_text(base.read_text().replace("[sim]", "[sim]\nbogus_key_s = 3.0", 1))
     f["wrong_type"].write_text(base.read_text().replace("[sim]", '[sim]\ncheck_substeps = "many"', 1))
@@ -84,6 +86,13 @@ CASES = [
     ("duration-text", ["validate", "station-keeping", "--set", "sim.duration_s=abc"], "duration_s"),
     ("dt-longer-than-run", ["run", "station-keeping", "--set", "sim.dt_s=1000", "--set", "sim.duration_s=100"],
      "dt_s"),
+    ("controller-dt-longer-than-run", ["validate", "station-keeping", "--set", "controller.dt_s=600.001", "--set",
+                                       "sim.duration_s=600"], "no step"),
+    ("duration-too-many-steps", ["validate", "station-keeping", "--set", "sim.duration_s=1e12"],
+     "at most 2,000,000 steps"),
+    ("string-for-number", ["validate", "cortex-nominal", "--set", 'geometry.r_kos_m="15"'], "geometry.r_kos_m = '15'"),
+    ("string-for-bool", ["validate", "hybrid-capture", "--set", 'latch.snap="yes"'], "latch.snap = 'yes'"),
+    ("float-for-int", ["validate", "srf-vbar", "--set", "approach.hops=3.5"], "approach.hops"),
     ("check-substeps-zero", ["validate", "station-keeping", "--set", "sim.check_substeps=0"], "check_substeps"),
     ("altitude-underground", ["validate", "station-keeping", "--set", "orbit.altitude_km=-100"], "Earth"),
     ("ecc-above-one", ["validate", "station-keeping", "--set", "orbit.ecc=1.5"], "ecc"),
@@ -161,6 +170,20 @@ CASES = [
     ("reach-map-out-is-file", ["reach", "map", "--omega-deg", "2", "--amax", "0.1", "--out", "{afile}"], "is a file"),
     ("reach-map-out-read-only", ["reach", "map", "--omega-deg", "2", "--amax", "0.1", "--out", "/proc/x"], "--out"),
     ("report-dir-read-only", ["report", "{good}", "--report-dir", "/sys/proxops-test"], "--report-dir"),
+    # every command that writes checks its output folder first, and refuses a campaign's folder
+    ("run-out-campaign", ["run", "station-keeping", "--out", "{good}", *SK], "is a campaign folder"),
+    ("demo-out-campaign", ["demo", "--out", "{good}"], "is a campaign folder"),
+    ("cortex-reference-out-campaign", ["cortex", "reference", "--out", "{good}"], "is a campaign folder"),
+    ("cortex-reference-out-is-file", ["cortex", "reference", "--out", "{afile}"], "--out"),
+    ("cortex-references-out-is-file", ["cortex", "references", "--n", "2", "--out", "{afile}"], "--out"),
+    ("cortex-references-out-read-only", ["cortex", "references", "--n", "2", "--out", "/proc/x"], "--out"),
+    ("reach-table-out-is-file", ["reach", "table", "--out", "{afile}"], "--out"),
+    ("reach-table-out-campaign", ["reach", "table", "--out", "{good}"], "is a campaign folder"),
+    ("reach-mc-out-is-file", ["reach", "mc", "--out", "{afile}"], "--out"),
+    ("reproduce-out-is-file", ["reproduce", "los", "--quick", "--out", "{afile}"], "--out"),
+    ("reproduce-out-read-only", ["reproduce", "los", "--quick", "--out", "/proc/x"], "--out"),
+    ("mc-out-read-only", ["mc", "station-keeping-mc", "--runs", "2", "--out", "/proc/x"], "--out"),
+    ("mc-out-under-file", ["mc", "station-keeping-mc", "--runs", "2", "--out", "{afile}/sub"], "--out"),
     # reach sizes and values
     ("reach-map-grid-huge", ["reach", "map", "--omega-deg", "2", "--amax", "0.1", "--grid", "100000", "--out",
                              "{dir}/rm"], "3000"),
@@ -174,6 +197,26 @@ CASES = [
     ("reach-mc-ny-zero", ["reach", "mc", "--out", "{dir}/rmc", "--n-y", "0"], "--n-y"),
     ("reach-mc-duration-nan", ["reach", "mc", "--out", "{dir}/rmc", "--duration-s", "nan"], "--duration-s"),
     ("keys-unknown-system", ["keys", "nosystem"], "nosystem"),
+    # internal errors that were input errors (issue 25): a scenario of another system, bytes, sizes
+    ("propagate-srf-no-initial", ["propagate", "--scenario", "srf-vbar", "--duration-s", "100"], "[initial]"),
+    ("cortex-reference-srf", ["cortex", "reference", "--scenario", "srf-vbar"], "give a cortex one"),
+    ("cortex-references-srf", ["cortex", "references", "--scenario", "srf-vbar", "--n", "3"], "give a cortex one"),
+    ("scenario-not-utf8", ["validate", "{not_utf8}"], "not UTF-8"),
+    ("orbit-in-the-atmosphere", ["propagate", "--scenario", "station-keeping", "--duration-s", "100", "--set",
+                                 "orbit.altitude_km=99.9"], ">= 100 km"),
+    ("orbit-sma-in-the-atmosphere", ["validate", "srf-vbar", "--set", "orbit.sma_km=6478.0"], ">= 100 km"),
+    ("cortex-references-n-huge", ["cortex", "references", "--n", "1000000000"], "1,000,000"),
+    ("cortex-eclipse-samples-huge", ["cortex", "reference", "--set", "eclipse.samples_per_orbit=1000000000"],
+     "samples_per_orbit"),
+    ("cortex-eclipse-orbits-huge", ["validate", "cortex-reference", "--set", "eclipse.orbits=1e9"], "orbits"),
+    ("cortex-fibonacci-n-huge", ["validate", "cortex-reference", "--set", "axis.fibonacci_n=1000001"], "fibonacci_n"),
+    ("cortex-kos-iter-huge", ["validate", "cortex-reference", "--set", "planner.kos_max_iter=1001"], "kos_max_iter"),
+    ("underactuated-horizon-huge", ["validate", "underactuated-case1", "--set", "controller.horizon=1001"],
+     "horizon"),
+    ("mc-workers-huge", ["mc", "station-keeping-mc", "--runs", "3", "--workers", "257"], "--workers"),
+    ("cortex-references-workers-huge", ["cortex", "references", "--n", "3", "--workers", "257"], "--workers"),
+    ("reach-mc-workers-huge", ["reach", "mc", "--out", "{dir}/rmw", "--workers", "257"], "--workers"),
+    ("hop-hops-huge", ["hop-times", "--approach-deg", "0", "--hops", "51"], "--hops"),
     ("propagate-multistep-j2", ["propagate", "--scenario", "station-keeping", "--duration-s", "100", "--set",
                                 'truth.integrator="multistep"'], "integrator = 'multistep' needs model = 'full'"),
     ("propagate-multistep-srp", ["propagate", "--scenario", "station-keeping", "--duration-s", "100", "--model",
@@ -212,11 +255,21 @@ def test_a_mixed_folder_is_refused_before_anything_is_written(files):
 def test_srf_run_away_from_the_reference_point_is_not_arrived_and_fails():
     # the nominal V-bar run ends ~1-3 m from the reference point (srf §5.1); a 1 mm tolerance is
     # the boundary case where the engine's "handover" stop must not read as success
+    # the summary is printed all the same; the exit code says "finished but failed" (4), one line on stderr
     res = CliRunner().invoke(app, ["run", "srf-vbar", "--json", "--set", "safety.reference_tolerance_m=0.001"])
-    assert res.exit_code == 0, res.output
+    assert res.exit_code == 4, res.output
     s = json.loads(res.stdout)
     assert s["arrived"] is False and s["reached_reference"] is False
     assert s["status"].startswith("failed: ended") and s["arrival_error_m"] > 0.001
+    errors = [ln for ln in res.stderr.splitlines() if ln.startswith("error:")]  # besides stage lines (logging)
+    assert len(errors) == 1 and "finished but failed" in errors[0] and "exit code 4" in errors[0], res.stderr
+
+
+def test_the_exit_codes_are_documented_in_help_and_readme():
+    readme = (Path(__file__).resolve().parents[1] / "README.md").read_text()
+    assert "4 a run that finished but failed" in " ".join(readme.split())
+    res = CliRunner().invoke(app, ["--help"])
+    assert "4 a run that finished but failed" in " ".join(res.stdout.replace("│", " ").split())
 
 
 def test_mc_with_every_run_failed_exits_3(files, tmp_path):
@@ -265,3 +318,77 @@ def test_malformed_scheduler_prints_one_line_in_a_real_process(tmp_path):
                           capture_output=True, text=True, timeout=120)
     lines = [ln for ln in proc.stderr.splitlines() if ln.strip()]
     assert proc.returncode == 2 and len(lines) == 1 and lines[0].startswith("error: --scheduler"), proc.stderr
+
+
+# --------------------------------------------------------------------------- outputs checked first
+@pytest.mark.parametrize("argv, work", [
+    (["reproduce", "los", "--quick", "--out", "{afile}"], "proxops.report.reproduction.reproduce"),
+    (["cortex", "reference", "--out", "{good}"], "proxops.systems.cortex.plan_scenario"),
+    (["run", "station-keeping", "--out", "{good}"], "proxops.runner.run_scenario"),
+    (["reach", "table", "--out", "{afile}"], "proxops.analysis.reach.reach_table"),
+    (["mc", "station-keeping-mc", "--runs", "2", "--out", "{afile}/sub"], "proxops.analysis.campaign.run_campaign"),
+], ids=["reproduce", "cortex-reference", "run", "reach-table", "mc"])
+def test_output_folders_are_checked_before_any_work(files, monkeypatch, argv, work):
+    """`reproduce los --quick --out FILE` computed for 99 s before it failed (issue 25): the work
+    function must not even be called; a campaign folder is left exactly as it was."""
+    import importlib
+
+    module, name = work.rsplit(".", 1)
+    monkeypatch.setattr(importlib.import_module(module), name,
+                        lambda *a, **k: pytest.fail(f"{work} ran before the output check"))
+    before = {p: p.read_bytes() for p in files["good"].rglob("*") if p.is_file()}
+    res = CliRunner().invoke(app, [a.format(**{k: str(v) for k, v in files.items()}) for a in argv])
+    assert res.exit_code == 2 and res.stderr.startswith("error: --out"), res.stderr
+    assert {p: p.read_bytes() for p in files["good"].rglob("*") if p.is_file()} == before
+
+
+def test_a_campaign_check_of_a_new_folder_leaves_nothing_behind(tmp_path):
+    from proxops.cli_common import check_out_dir
+
+    target = tmp_path / "a" / "b" / "c"
+    assert check_out_dir(target, campaign=True) == target
+    assert list(tmp_path.iterdir()) == []
+    assert check_out_dir(target).is_dir()  # one result: the folder is made
+
+
+# --------------------------------------------------------------------------- cross-field and types
+def test_a_control_period_equal_to_the_run_is_one_step_and_valid():
+    # the boundary of "controller-dt-longer-than-run": dt = duration is one step, allowed
+    res = CliRunner().invoke(app, ["run", "station-keeping", "--set", "controller.dt_s=600", "--set",
+                                   "sim.duration_s=600", "--set", "truth.model=cw", "--json"])
+    assert res.exit_code == 0, res.stderr
+    assert json.loads(res.stdout)["sim_time_s"] == 600.0
+
+
+def test_toml_integers_are_numbers_for_float_keys_but_strings_and_floats_are_not_coerced(tmp_path):
+    from proxops.scenarios.loader import load_scenario
+
+    base = Path(__file__).resolve().parents[1] / "src/proxops/scenarios/builtin/station-keeping.toml"
+    text = base.read_text()
+    ok = tmp_path / "int.toml"
+    ok.write_text(_with_key(text, "sim", "duration_s", "600"))
+    sc = load_scenario(str(ok)).scenario
+    assert sc.sim.duration_s == 600.0 and isinstance(sc.sim.duration_s, float)
+    assert load_scenario("station-keeping", ["sim.duration_s=600"]).scenario.sim.duration_s == 600.0
+    for value, fragment in (('"600"', "valid number"), ("true", "valid number")):
+        bad = tmp_path / "bad.toml"
+        bad.write_text(_with_key(text, "sim", "duration_s", value))
+        res = CliRunner().invoke(app, ["validate", str(bad)])
+        assert res.exit_code == 2 and "sim.duration_s" in res.stderr and fragment in res.stderr, res.stderr
+
+
+def _with_key(text: str, section: str, key: str, value: str) -> str:
+    """``text`` (TOML) with ``key`` of ``[section]`` set to ``value`` (replaced or added)."""
+    import re
+
+    head, sep, rest = text.partition(f"[{section}]\n")
+    body, nxt, tail = rest.partition("\n[")
+    body = re.sub(rf"^{key}\s*=.*$\n?", "", body, flags=re.M)
+    return head + sep + f"{key} = {value}\n" + body + nxt + tail
+
+
+def test_the_lowest_allowed_orbit_is_valid():
+    # the boundary of "orbit-in-the-atmosphere": a perigee altitude of exactly 100 km is allowed
+    from proxops.scenarios.loader import load_scenario
+
+    assert load_scenario("station-keeping", ["orbit.altitude_km=100.0"]).scenario.orbit.sma_m == 6478137.0

@@ -21,12 +21,13 @@ from typing import Annotated, Optional
 import typer
 
 from proxops import __version__
-from proxops.cli_common import STATE, ProxopsGroup, configure_logging, emit, friendly_errors
+from proxops.cli_common import EXIT_CODES_HELP, STATE, ProxopsGroup, configure_logging, emit, friendly_errors
 
 app = typer.Typer(
     name="proxops",
     cls=ProxopsGroup,
     help="Spacecraft rendezvous and proximity operations: guidance, MPC, closed-loop simulation, Monte Carlo.",
+    epilog=EXIT_CODES_HELP,
     no_args_is_help=True,
     add_completion=False,
     pretty_exceptions_enable=False,
@@ -99,10 +100,11 @@ def run(
     oem: Annotated[Optional[Path], typer.Option("--oem", help="CCSDS OEM of the chaser (+ -target, -hill files).")] = None,
     mat: Annotated[Optional[Path], typer.Option("--mat", help="MATLAB .mat of the time series and summary.")] = None,
 ):
-    """Run one closed-loop simulation and print its summary."""
-    from proxops.cli_common import check_out_dir
+    """Run one closed-loop simulation and print its summary (exit code 4 if the run finished but failed)."""
+    from proxops.cli_common import EXIT_RUN_FAILED, check_out_dir
     from proxops.errors import input_error
     from proxops.runner import run_scenario
+    from proxops.scenarios.loader import load_scenario
 
     if seed is not None and not 0 <= seed < 2**63:
         raise input_error("--seed", seed, "allowed a whole number from 0 to 2^63 - 1")
@@ -112,9 +114,14 @@ def run(
 
     check_out_file(oem, "--oem")
     check_out_file(mat, "--mat")
-    summary = run_scenario(scenario, overrides=set_, seed=seed, out=out, figures=figures,
+    loaded = load_scenario(scenario, set_)
+    summary = run_scenario(loaded, seed=seed, out=out, figures=figures,
                            progress=not as_json and not STATE["quiet"], oem=oem, mat=mat)
     emit(summary, as_json, format_summary(summary))
+    if not summary["success"]:  # the system's own test, as campaigns count it (analysis.runs.execute)
+        typer.echo(f"error: the run finished but failed (status {summary.get('status')!r}); exit code "
+                   f"{EXIT_RUN_FAILED}", err=True)
+        raise typer.Exit(EXIT_RUN_FAILED)
 
 
 RUN_LINE_KEYS = ("status", "docked", "steps", "dock_time_s", "final_range_m", "total_dv_mps", "value_function_increases",

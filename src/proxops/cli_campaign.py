@@ -37,12 +37,19 @@ def mc(
 
     if runs is not None and runs < 1:
         raise ProxopsInputError(f"--runs {runs}: give a whole number of runs >= 1")
-    if workers is not None and workers < 1:
-        raise ProxopsInputError(f"--workers {workers}: give a whole number >= 1 (1 runs in this process)")
+    from proxops.exec.backends import MAX_WORKERS
+
+    if workers is not None and not 1 <= workers <= MAX_WORKERS:
+        raise ProxopsInputError(f"--workers {workers}: give a whole number from 1 to {MAX_WORKERS} (1 runs in this "
+                                "process)")
     if not (math.isfinite(connect_timeout_s) and connect_timeout_s > 0):
         raise ProxopsInputError(f"--connect-timeout-s {connect_timeout_s}: give a positive, finite number of seconds")
     if seed is not None and not 0 <= seed < 2**63:
         raise ProxopsInputError(f"--seed {seed}: give a whole number from 0 to 2^63 - 1")
+    from proxops.cli_common import check_out_dir
+
+    out = out if out is not None else Path("out") / f"mc-{Path(scenario).stem}"
+    check_out_dir(out, campaign=True)
     if scheduler is None:  # local workers start now (if proxops.entry has not): their imports overlap ours
         from proxops.cli_prestart import prestart
 
@@ -50,7 +57,6 @@ def mc(
     from proxops.analysis.campaign import CampaignInterrupted, run_campaign, write_report
     from proxops.cli_common import Interrupted
 
-    out = out if out is not None else Path("out") / f"mc-{Path(scenario).stem}"
     log = logging.getLogger("proxops.mc")
     log.debug("campaign %s: %s runs on %s, results in %s", scenario, runs if runs is not None else "all grid",
              scheduler or f"{workers or 'all usable'} local worker(s)", out)

@@ -10,7 +10,8 @@ The error policy lives in one place, :class:`ProxopsGroup` (the click group behi
   naming ``--debug``, exit 1. ``--debug`` shows the traceback instead.
 
 Exit codes: 0 ok, 1 internal error or a campaign that could not go on, 2 bad input,
-3 a campaign that finished but every run failed, 130 interrupted.
+3 a campaign that finished but every run failed, 4 a single run (``proxops run``) that finished but
+failed, 130 interrupted.
 """
 
 from __future__ import annotations
@@ -27,7 +28,10 @@ from proxops.errors import ProxopsInputError
 
 STATE = {"debug": False, "quiet": False}  # set by the top-level --debug and --quiet options
 
-EXIT_OK, EXIT_INTERNAL, EXIT_INPUT, EXIT_ALL_FAILED, EXIT_INTERRUPTED = 0, 1, 2, 3, 130
+EXIT_OK, EXIT_INTERNAL, EXIT_INPUT, EXIT_ALL_FAILED, EXIT_RUN_FAILED, EXIT_INTERRUPTED = 0, 1, 2, 3, 4, 130
+EXIT_CODES_HELP = ("Exit codes: 0 ok; 1 internal error (please report it) or a campaign that could not go on; "
+                   "2 bad input; 3 a campaign that finished but every run failed; 4 a run that finished but "
+                   "failed; 130 interrupted.")
 
 
 class Interrupted(KeyboardInterrupt):
@@ -51,8 +55,16 @@ class ProxopsGroup(TyperGroup):
 
     def main(self, args=None, prog_name=None, complete_var=None, standalone_mode=True, **extra):
         name_metavars(self)
-        code = guarded(lambda: super(ProxopsGroup, self).main(args, prog_name, complete_var,
-                                                              standalone_mode=False, **extra))
+
+        def call():
+            rv = super(ProxopsGroup, self).main(args, prog_name, complete_var, standalone_mode=False, **extra)
+            if isinstance(rv, int) and not isinstance(rv, bool) and rv == EXIT_INTERRUPTED:
+                # typer turns a Ctrl-C outside ``invoke`` (parsing the command line, closing the context)
+                # into a silent exit code 130: 5 of 10 Ctrl-Cs 3-5 s into `proxops mc` printed nothing
+                raise KeyboardInterrupt
+            return rv
+
+        code = guarded(call)
         if standalone_mode:
             sys.exit(code)
         return code
@@ -179,13 +191,38 @@ def friendly_errors(func):
     return func
 
 
-def check_out_dir(path, option: str = "--out") -> Path:
-    """An output folder the user named: created if missing; one-line error if it cannot be."""
+CAMPAIGN_MARKERS = ("campaign.json", "runs")  # a folder holding either is a campaign's (analysis.storage)
+
+
+def check_out_dir(path, option: str = "--out", campaign: bool = False) -> Path:
+    """Check an output folder the user named, before any work: the one check of every command that
+    writes (one ``error:`` line naming ``option``, exit code 2).
+
+    - a file, a folder that cannot be created (under a file, a read-only file system) or written
+      (a real write: permissions and quotas show here) is refused;
+    - ``campaign=False`` (one result: ``run``, ``demo``, ``cortex reference``, ``reach table``, ...):
+      the folder is created, and a campaign's folder is refused (the result's summary.json and
+      figures would overwrite the campaign's);
+    - ``campaign=True`` (``mc``, ``cortex references``, ``reach mc``): nothing is left behind (a
+      folder created for the check is removed); the campaign checks its manifest itself.
+    """
     import tempfile
 
     path = Path(path)
     if path.exists() and not path.is_dir():
         raise ProxopsInputError(f"{option} {path}: exists and is a file; give a folder (it is created if missing)")
+    if not campaign and path.is_dir():
+        held = [name for name in CAMPAIGN_MARKERS if (path / name).exists()]
+        if held:
+            raise ProxopsInputError(
+                f"{option} {path}: is a campaign folder (holds {' and '.join(held)}); writing one result there "
+                f"would overwrite the campaign's files: give another folder (`proxops report {path}` redraws a "
+                "campaign's report)")
+    created = []  # folders this check creates, outermost first
+    probe = path
+    while not probe.exists() and probe != probe.parent:
+        created.insert(0, probe)
+        probe = probe.parent
     try:
         path.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
@@ -196,6 +233,13 @@ def check_out_dir(path, option: str = "--out") -> Path:
     except OSError as exc:
         raise ProxopsInputError(f"{option} {path}: cannot write there ({exc.strerror or exc}); "
                                 "choose another folder") from None
+    finally:
+        if campaign:
+            for folder in reversed(created):
+                try:
+                    folder.rmdir()
+                except OSError:
+                    pass
     return path
 
 

@@ -27,9 +27,20 @@ cortex_app = typer.Typer(help="CORTEX convex reference generation (fly-around + 
 
 
 def _load(scenario: str, overrides: list[str]):
+    """A cortex scenario, or a one-line error naming --scenario (another system has no [geometry])."""
     from proxops.scenarios.loader import load_scenario
 
-    return load_scenario(scenario, overrides)
+    loaded = load_scenario(scenario, overrides)
+    _require_cortex(scenario, loaded.scenario.system)
+    return loaded
+
+
+def _require_cortex(scenario: str, system) -> None:
+    from proxops.errors import input_error
+
+    if system != "cortex":
+        raise input_error("--scenario", scenario, f"is a {system!r} scenario; give a cortex one (system = "
+                          "\"cortex\", e.g. cortex-reference)")
 
 
 @cortex_app.command("reference")
@@ -42,7 +53,11 @@ def reference(
     as_json: Annotated[bool, typer.Option("--json", help="One JSON object on stdout.")] = False,
 ):
     """Plan one reference (outer search, CP1, CP2, holds) and print its summary."""
+    from proxops.cli_common import check_out_dir
     from proxops.systems.cortex import plan_scenario
+
+    if out is not None:
+        check_out_dir(out)
 
     loaded = _load(scenario, list(set_))
     sc = loaded.scenario
@@ -119,8 +134,13 @@ def references(
     from proxops.errors import input_error
     from proxops.systems.cortex import PAPER_5_1_1, campaign_statistics, references_scenario, statistics_table
 
-    if workers is not None and workers < 1:
-        raise input_error("--workers", workers, "must be >= 1")
+    from proxops.cli_common import check_out_dir
+    from proxops.exec.backends import MAX_WORKERS
+
+    if workers is not None and not 1 <= workers <= MAX_WORKERS:
+        raise input_error("--workers", workers, f"must be a whole number from 1 to {MAX_WORKERS}")
+    if out is not None:
+        check_out_dir(out, campaign=True)
     data = references_scenario(scenario, n)
     t0 = time.perf_counter()
     res = run_campaign(data, workers=workers, out=out, resume=resume, progress=not as_json, overrides=list(set_),

@@ -48,8 +48,9 @@ def propagate(
     loaded = load_scenario(scenario, sets)
     sc = loaded.scenario
     for section in ("orbit", "initial", "truth"):
-        if not hasattr(sc, section):
-            raise input_error("--scenario", scenario, f"needs an [{section}] section (a translational scenario)")
+        if getattr(sc, section, None) is None:  # srf's [initial] is optional (it starts on its approach axis)
+            raise input_error("--scenario", scenario, f"needs an [{section}] section (a translational scenario "
+                              "with its initial relative state)")
     elements = target_elements(sc.orbit)
     x0 = initial_hill_state(sc.initial)
     truth = sc.truth

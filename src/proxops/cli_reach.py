@@ -71,9 +71,13 @@ def table(
     """Table 2 (nominal), stochastic/robust regions, pointwise hierarchy, backward kernel, Table 4 timings."""
     from proxops.analysis import reach as R
 
+    from proxops.cli_common import check_out_dir
+
     _check_grid(grid, y_max_m)
     if backward_start not in ("inertial", "body"):
         raise ProxopsInputError(f"--backward-start = {backward_start!r}: allowed inertial, body")
+    if out is not None:
+        check_out_dir(out)
     results, timings, g = R.reach_table(n_points=grid, y_max_m=y_max_m, backward=backward,
                                         initial_velocity=backward_start)
     combos = [r.as_json() for r in results]
@@ -225,8 +229,10 @@ def mc(
     as_json: Annotated[bool, typer.Option("--json", help="Print one JSON object.")] = False,
 ):
     """§9 Monte Carlo feasibility sweep (20 x 195 closed-loop runs, J2 truth), maps and certification check."""
-    if workers is not None and workers < 1:
-        raise ProxopsInputError(f"--workers = {workers}: give a whole number >= 1")
+    from proxops.exec.backends import MAX_WORKERS
+
+    if workers is not None and not 1 <= workers <= MAX_WORKERS:
+        raise ProxopsInputError(f"--workers = {workers}: give a whole number from 1 to {MAX_WORKERS}")
     if not (np.isfinite(duration_s) and duration_s > 0):
         raise ProxopsInputError(f"--duration-s = {duration_s}: must be a finite number > 0 s")
     _check_grid(grid)
@@ -234,6 +240,9 @@ def mc(
         if not 1 <= n <= MAX_IC_AXIS:
             raise ProxopsInputError(f"{name} = {n}: give a whole number of initial conditions from 1 to {MAX_IC_AXIS}")
     _check_rates(omega_deg or (), amax or ())
+    from proxops.cli_common import check_out_dir
+
+    check_out_dir(out, campaign=True)
     if scheduler is None and not resume:  # before this process's own imports (numba, pandas, scipy)
         n_combos = len(omega_deg or PAPER_OMEGAS_DEG_S) * len(amax or PAPER_A_MAX_MPS2)
         _prestart_workers(workers, n_combos * n_x * n_y, duration_s)

@@ -24,8 +24,12 @@ def reproduce(
     Campaigns are cached under OUT/cache and reused by the next run."""
     from proxops.report.reproduction import markdown, reproduce as run, write_markdown
 
+    from proxops.cli_common import check_out_dir
+
     if out is None and not quick:
         out = Path("out")
+    if out is not None:
+        check_out_dir(out)
     result = run(system, quick=quick, out=out, workers=workers, progress=not as_json)
     if out is not None:
         result["report"] = str(write_markdown(result, Path(out) / "reproduction.md"))

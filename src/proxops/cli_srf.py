@@ -19,6 +19,7 @@ import typer
 from proxops.errors import input_error
 
 DEFAULT_SMA_KM = 8100.0  # srf-hopping-mpc.md Table 2
+MAX_HOPS = 50  # as the scenario key approach.hops
 
 
 def hop_times(
@@ -44,6 +45,8 @@ def hop_times(
         raise input_error("semi-major axis", sma_m / 1e3, f"must exceed the Earth radius {R_EARTH / 1e3:.3f}", "km")
     if not (math.isfinite(approach_deg) and -360.0 <= approach_deg <= 360.0):
         raise input_error("--approach-deg", approach_deg, "allowed -360 to 360 (0 V-bar, 90 R-bar)", "deg")
+    if not 1 <= hops <= MAX_HOPS:
+        raise input_error("--hops", hops, f"must be a whole number from 1 to {MAX_HOPS}")
     if not (0.0 < vbar_period_fraction < 1.0):
         raise input_error("--vbar-period-fraction", vbar_period_fraction, "must satisfy 0 < f < 1")
     plan = plan_hops(math.radians(approach_deg), hops, gamma, start_m, end_m, mean_motion(sma_m),

@@ -13,19 +13,20 @@ import sys
 import time
 from pathlib import Path
 
-from proxops.scenarios.loader import load_scenario
+from proxops.scenarios.loader import LoadedScenario, load_scenario
 from proxops.analysis.runs import check_scenario, execute  # noqa: F401 (re-exported)
 from proxops.sim.result import SimResult
 
 log = logging.getLogger("proxops.runner")
 
 
-def run_scenario(name_or_path: str, overrides=(), seed: int | None = None, out: Path | None = None,
+def run_scenario(name_or_path, overrides=(), seed: int | None = None, out: Path | None = None,
                  figures: bool = True, progress: bool = False, oem: Path | None = None,
                  mat: Path | None = None) -> dict:
-    """Load, run and (with ``out``) save one scenario; returns the summary dict. ``oem``/``mat``:
-    also write CCSDS OEM / MATLAB files (:mod:`proxops.analysis.export`; summary key ``export``)."""
-    loaded = load_scenario(name_or_path, list(overrides))
+    """Load (a file or built-in name; or a :class:`LoadedScenario` as it is), run and (with ``out``)
+    save one scenario; returns the summary dict. ``oem``/``mat``: also write CCSDS OEM / MATLAB
+    files (:mod:`proxops.analysis.export`; summary key ``export``)."""
+    loaded = name_or_path if isinstance(name_or_path, LoadedScenario) else load_scenario(name_or_path, list(overrides))
     if oem is not None:
         from proxops.analysis.export import check_exportable
 

@@ -35,6 +35,7 @@ START_METHOD = "forkserver" if "forkserver" in multiprocessing.get_all_start_met
 # with numba loaded, while it still holds this process's stderr open)
 FORKSERVER_EXIT = "proxops.exec.forkserver_exit"
 MAX_POOL_RESTARTS = 10
+MAX_WORKERS = 256  # local worker processes of one pool (each holds its imports: ~0.2-0.4 GB)
 
 
 class CampaignError(ProxopsError):
@@ -72,6 +73,10 @@ def _init_worker() -> None:
     except ValueError:  # not the main thread
         pass
     signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})
+    from proxops.exec import forkserver_exit
+
+    if forkserver_exit.SERVER_PID is not None:  # forked by the fork server: end when it ends
+        forkserver_exit.die_with_parent(forkserver_exit.SERVER_PID)
     atexit.register(_worker_exit)
     from proxops._startup import defer_unused_numpy_submodules
 
@@ -272,7 +277,36 @@ def _new_pool(workers: int, preload: Sequence[str] = ()) -> ProcessPoolExecutor:
     ctx = multiprocessing.get_context(START_METHOD)
     if START_METHOD == "forkserver":  # a server already running keeps its imports
         ctx.set_forkserver_preload([FORKSERVER_EXIT, *(m for m in preload if m != FORKSERVER_EXIT)])
+        _ensure_fork_server()
     return ProcessPoolExecutor(max_workers=workers, mp_context=ctx, initializer=_init_worker)
+
+
+def _ensure_fork_server() -> None:
+    """Start the fork server now (no effect when it runs), SIGINT blocked. Started from the main
+    thread it dies with this process (:func:`proxops.exec.forkserver_exit.die_with_parent`: the
+    kernel's parent-death signal fires when the thread that started it ends, so never from
+    another thread), and its workers die with it."""
+    import threading
+
+    from multiprocessing import forkserver
+
+    from proxops.exec.forkserver_exit import PARENT_ENV
+
+    from multiprocessing import resource_tracker
+
+    main_thread = threading.current_thread() is threading.main_thread()
+    if main_thread:
+        os.environ[PARENT_ENV] = str(os.getpid())
+    try:
+        # The tracker first: its start unblocks SIGINT in this thread whatever the mask was before,
+        # which let the fork server start with SIGINT deliverable (a Ctrl-C during its imports of
+        # the warm-up printed a KeyboardInterrupt traceback, measured). Once it runs, the server's
+        # own call of it does nothing, and the server starts with SIGINT blocked.
+        resource_tracker.ensure_running()
+        with _sigint_blocked():
+            forkserver.ensure_running()
+    finally:
+        os.environ.pop(PARENT_ENV, None)
 
 
 def prestart_pool(workers: int, modules: Sequence[str] = ()) -> None:
@@ -281,19 +315,16 @@ def prestart_pool(workers: int, modules: Sequence[str] = ()) -> None:
     importing the campaign layer). The pool is the one a later campaign of this process with as
     many workers uses (kept in ``_POOLS`` like any pool). No effect for fewer than 2 workers or
     when that pool exists."""
+    check_workers(workers)
     if workers < 2 or workers in _POOLS:
         return
     saved = _single_thread_env()  # the workers are spawned (inherit the environment) in submit
     try:
         pool = _POOLS[workers] = _new_pool(workers, modules)
         if START_METHOD == "forkserver":
-            # The server starts now, with this environment and SIGINT blocked; its first fork waits
-            # for its imports, so the submits that fork the workers wait in a thread while this
-            # process goes on with its own imports (a submit of this process waits for them).
-            from multiprocessing import forkserver
-
-            with _sigint_blocked():
-                forkserver.ensure_running()
+            # The server has started (in _new_pool), with this environment and SIGINT blocked; its
+            # first fork waits for its imports, so the submits that fork the workers wait in a thread
+            # while this process goes on with its own imports (a submit of this process waits for them).
             import threading
 
             threading.Thread(target=_submit_imports, args=(pool, workers, tuple(modules)), daemon=True,
@@ -339,10 +370,30 @@ def _stop_pool(pool: ProcessPoolExecutor, force: bool) -> None:
 
 def shutdown_pools(force: bool = False) -> None:
     """Stop the worker processes kept for reuse (also done at interpreter exit); ``force``
-    terminates busy ones instead of waiting for them."""
+    terminates busy ones instead of waiting for them, and the fork server too (a later pool
+    starts a new one): a Ctrl-C while the server still imported the warm-up left ``proxops``
+    waiting for it to fork the workers it was asked for (up to 30 s measured, under load), only to
+    stop them."""
+    if force and _POOLS:
+        _kill_fork_server()
     while _POOLS:
         _, pool = _POOLS.popitem()
         _stop_pool(pool, force)
+
+
+def _kill_fork_server() -> None:
+    """SIGKILL the fork server of this process, if one runs (it holds no state of ours: the workers
+    it forked end with it, a request waiting for it sees the end of its pipe)."""
+    if START_METHOD != "forkserver":
+        return
+    from multiprocessing import forkserver
+
+    pid = getattr(getattr(forkserver, "_forkserver", None), "_forkserver_pid", None)  # no public accessor
+    if pid is not None:
+        try:
+            os.kill(pid, signal.SIGKILL)
+        except OSError:  # already gone
+            pass
 
 
 atexit.register(shutdown_pools)
@@ -450,12 +501,18 @@ def _make_backend(workers: int | None, scheduler, context, connect_timeout_s: fl
     if scheduler is not None:
         return _DaskBackend(scheduler, context, connect_timeout_s)
     workers = default_workers() if workers is None else workers
-    if not isinstance(workers, int) or isinstance(workers, bool) or workers < 1:
-        raise ProxopsInputError(f"workers = {workers!r}: give a whole number >= 1 (1 runs in this process)")
+    check_workers(workers)
     workers = min(workers, max(1, n_items))
     if workers == 1:
         return _SerialBackend(context)
     return _PoolBackend(workers, context)
+
+
+def check_workers(workers) -> None:
+    """A one-line input error unless ``workers`` is a whole number from 1 to :data:`MAX_WORKERS`."""
+    if not isinstance(workers, int) or isinstance(workers, bool) or not 1 <= workers <= MAX_WORKERS:
+        raise ProxopsInputError(f"workers = {workers!r}: give a whole number from 1 to {MAX_WORKERS} local processes "
+                                "(1 runs in this process; more machines: --scheduler)")
 
 
 def default_workers() -> int:

@@ -71,7 +71,7 @@ def list_builtin() -> list[dict]:
     """``[{name, description, system}]`` of the built-in scenarios (files are not validated here)."""
     out = []
     for path in sorted(BUILTIN_DIR.glob("*.toml")):
-        data = tomllib.loads(path.read_text())
+        data = read_toml(path)
         out.append({"name": path.stem, "description": data.get("description", ""), "system": data.get("system", "")})
     return out
 
@@ -91,7 +91,10 @@ def resolve(name_or_path: str) -> Path:
 
 def read_toml(path: Path) -> dict:
     try:
-        return tomllib.loads(path.read_text())
+        return tomllib.loads(path.read_text(encoding="utf-8"))
+    except UnicodeDecodeError as exc:
+        raise ProxopsInputError(f"{path}: not UTF-8 text (byte 0x{exc.object[exc.start]:02x} at offset {exc.start}); "
+                                "TOML files are UTF-8: save it as UTF-8") from None
     except tomllib.TOMLDecodeError as exc:
         raise ProxopsInputError(f"{path}: not valid TOML: {exc}") from None
 

@@ -20,7 +20,7 @@ from proxops.core.constants import R_EARTH
 class Section(BaseModel):
     """Base of every scenario section: unknown keys and NaN/inf are errors."""
 
-    model_config = ConfigDict(extra="forbid", allow_inf_nan=False, validate_assignment=True)
+    model_config = ConfigDict(extra="forbid", allow_inf_nan=False, validate_assignment=True, strict=True)
 
 
 Vector3 = Annotated[list[float], Field(min_length=3, max_length=3)]
@@ -48,9 +48,12 @@ class SimSection(Section):
         return self
 
 
+MIN_PERIGEE_ALTITUDE_KM = 100.0  # the Karman line: lower, drag ends an orbit within a revolution
+
+
 class OrbitSection(Section):
     """Target orbit: give exactly one of ``sma_km`` or ``altitude_km`` (circular altitude
-    above the equatorial radius 6378.137 km), or one source that sets the elements and the
+    above the equatorial radius 6378.137 km; the perigee at least 100 km above it), or one source that sets the elements and the
     epoch: ``tle`` (two lines, or three with the title first), ``tle_file`` or ``opm_file``
     (CCSDS OPM, KVN). A source's state at its epoch (SGP4 output for a TLE, rotated from TEME)
     becomes the osculating elements of the truth's inertial frame
@@ -62,8 +65,10 @@ class OrbitSection(Section):
     DERIVED_KEYS: ClassVar[tuple[str, ...]] = ("sma_km", "altitude_km", "ecc", "inc_deg", "raan_deg", "argp_deg",
                                                "nu_deg", "epoch_utc")
 
-    sma_km: Positive | None = Field(None, description="target semi-major axis (give this or altitude_km; perigee above the Earth)")
-    altitude_km: float | None = Field(None, description="circular altitude above 6378.137 km (give this or sma_km)")
+    sma_km: Positive | None = Field(None, description="target semi-major axis (give this or altitude_km; perigee "
+                                    "altitude >= 100 km)")
+    altitude_km: float | None = Field(None, description="circular altitude above 6378.137 km, >= 100 km (give this "
+                                      "or sma_km)")
     ecc: Annotated[float, Field(ge=0.0, lt=1.0)] = Field(0.0, description="target eccentricity")
     inc_deg: Annotated[float, Field(ge=0.0, le=180.0)] = Field(0.0, description="target inclination")
     raan_deg: float = Field(0.0, description="right ascension of the ascending node")
@@ -142,10 +147,12 @@ class OrbitSection(Section):
         if (self.sma_km is None) == (self.altitude_km is None):
             raise ValueError("give exactly one of orbit.sma_km or orbit.altitude_km")
         perigee_km = self.sma_m * (1.0 - self.ecc) / 1e3
-        if perigee_km <= R_EARTH / 1e3:
+        if perigee_km < R_EARTH / 1e3 + MIN_PERIGEE_ALTITUDE_KM:
+            where = "inside the Earth" if perigee_km <= R_EARTH / 1e3 else "in the lower atmosphere"
             raise ValueError(
-                f"orbit perigee radius {perigee_km:.1f} km is inside the Earth (radius {R_EARTH / 1e3:.1f} km): "
-                "raise sma_km/altitude_km or lower ecc"
+                f"perigee altitude {perigee_km - R_EARTH / 1e3:.1f} km is {where} (Earth radius "
+                f"{R_EARTH / 1e3:.3f} km); allowed a perigee altitude >= {MIN_PERIGEE_ALTITUDE_KM:g} km: raise "
+                "sma_km/altitude_km or lower ecc"
             )
         return self
 

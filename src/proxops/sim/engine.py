@@ -122,6 +122,29 @@ def schedule(ctrl_dt: float, nav_period: float | None, act_period: float | None,
     return ctrl_dt / k_ctrl, k_ctrl, k_nav, k_act, tuple(k_extra)
 
 
+MAX_STEPS = 2_000_000  # base steps of one run: its records take ~0.2-0.5 kB per step (~1 GB at the limit)
+
+
+def run_steps(setup: Setup) -> tuple[float, int]:
+    """Base step h (s, :func:`schedule`) and number of steps of a run of ``setup``; a one-line input
+    error unless the run has 1 to :data:`MAX_STEPS` steps: a control period longer than the run gave
+    0 steps, status "completed" and exit code 0; a duration of 1e12 s a MemoryError (745 GiB)."""
+    h = schedule(float(setup.controller.dt), setup.navigation.period_s, setup.actuator.period_s,
+                 [float(c.period_s) for c in setup.periodic])[0]
+    duration = float(setup.duration_s)
+    if not (math.isfinite(duration) and duration > 0):
+        raise input_error("sim.duration_s", duration, "must be finite and > 0", "s")
+    if duration < h * (1.0 - 1e-9):
+        raise input_error("sim.duration_s", duration, f"is shorter than the step of the closed loop ({h:g} s: its "
+                          "control period, e.g. controller.dt_s or sim.dt_s): the run would have no step; give a "
+                          "duration >= the step or a shorter step", "s")
+    n_steps = int(round(duration / h))
+    if n_steps > MAX_STEPS:
+        raise input_error("sim.duration_s", duration, f"gives {n_steps:,} steps of {h:g} s; at most {MAX_STEPS:,} "
+                          f"steps in one run (duration <= {MAX_STEPS * h:g} s at this step)", "s")
+    return h, n_steps
+
+
 def simulate(setup: Setup, seed: int = 0, progress: bool = False, coast: bool = True) -> SimResult:
     """Run one closed loop to ``setup.duration_s`` (or an earlier stop) and return its SimResult.
 
@@ -138,7 +161,7 @@ def simulate(setup: Setup, seed: int = 0, progress: bool = False, coast: bool = 
                                                 [float(c.period_s) for c in setup.periodic])
     periodic = list(zip(setup.periodic, k_extra))
     single_rate = k_ctrl == k_nav == k_act == 1
-    n_steps = int(round(setup.duration_s / h))
+    n_steps = run_steps(setup)[1]
     layout = plant.layout
     kinds_seen: set[str] = set()  # command kinds of the run (the unit of a "kind" control column)
 

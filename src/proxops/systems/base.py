@@ -32,8 +32,13 @@ class SystemBase:
         return self.summarize(sc, result), {"run": result}
 
     def check(self, sc) -> None:
-        """The checks of a run before its first step: by default, build it (and discard it)."""
-        self.build(sc)
+        """The checks of a run before its first step: by default, build it (and discard it) and
+        check its number of steps (:func:`proxops.sim.engine.run_steps`)."""
+        setup = self.build(sc)
+        from proxops.sim.engine import Setup, run_steps
+
+        if isinstance(setup, Setup):
+            run_steps(setup)
 
     def success(self, sc, summary: dict) -> bool:
         """A campaign run succeeds unless its summary status starts with failed/failure/error."""

@@ -87,9 +87,9 @@ class PlannerSection(Section):
     convergence_penalty_s: Annotated[float, Field(ge=0.0)] = Field(6000.0, description="penalty eps_C added to J when a phase does not converge (eq. 12; 100, read in minutes)")
     dt_cp1_s: Annotated[float, Field(gt=0.0)] = Field(30.0, description="node spacing of the fly-around problem CP1 (Table 2: 30 s)")
     dt_cp2_s: Annotated[float, Field(gt=0.0)] = Field(10.0, description="node spacing of the final-approach problem CP2 (Table 2: 10 s)")
-    kos_max_iter: Annotated[int, Field(ge=1)] = Field(50, description="CP1: most re-solves adding KOS supporting planes (eq. 18) before the status 'not converged'")
+    kos_max_iter: Annotated[int, Field(ge=1, le=1000)] = Field(50, description="CP1: most re-solves adding KOS supporting planes (eq. 18) before the status 'not converged'")
     kos_arc_planes: bool = Field(False, description="CP1: also add planes at the deepest coast point between nodes (not in the paper)")
-    scp_max_iter: Annotated[int, Field(ge=1)] = Field(30, description="CP2: most successive-convexification iterations of the plume constraint (eqs. 21-22)")
+    scp_max_iter: Annotated[int, Field(ge=1, le=1000)] = Field(30, description="CP2: most successive-convexification iterations of the plume constraint (eqs. 21-22)")
     scp_tol_mps: Annotated[float, Field(gt=0.0)] = Field(1e-5, description="CP2: convergence test on the change of the impulses between iterations")
     plume_tol_deg: Annotated[float, Field(gt=0.0)] = Field(0.00573, description="CP2: plume constraint tolerance in the acceptance check")
     search: Literal["auto", "scan"] = Field("auto", description="outer search over tau: auto (doubling then halving for CP1, scan for CP2) or scan (linear scans)")
@@ -114,7 +114,7 @@ class GuidanceSection(Section):
     recompute_hold2_m: float = Field(15.0, description="tracking (cortex 2/2): recompute threshold in the second hold (Table 1)")
     recompute_approach_m: float = Field(5.0, description="tracking (cortex 2/2): recompute threshold in the final approach (Table 1)")
     closed_loop: bool = Field(False, description="run the tracking loop (cortex 2/2) against the truth; false: plan only")
-    max_recomputes: Annotated[int, Field(ge=0)] = Field(3, description="reference regenerations per run before the next recompute trigger aborts (not in the paper)")
+    max_recomputes: Annotated[int, Field(ge=0, le=1000)] = Field(3, description="reference regenerations per run before the next recompute trigger aborts (not in the paper)")
     abort_at_s: Annotated[float, Field(ge=0.0)] | None = Field(None, description="ground abort command at this time (s from the start; none: no command)")
     buffer_tol_m: Annotated[float, Field(ge=0.0)] = Field(0.1, description="buffered-KOS recompute only below rho_bar minus this (the second hold sits on rho_bar)")
     tracking_cone_margin_deg: Annotated[float, Field(ge=0.0)] = Field(0.0, description="final approach: CP_g imposes the cone row (27g) at alpha_c minus this first and falls back to alpha_c when that is infeasible (0: the printed alpha_c only)")
@@ -125,13 +125,13 @@ class GuidanceSection(Section):
     tracking_plume_margin_deg: Annotated[float, Field(ge=0.0, lt=45.0)] = Field(0.0, description="final approach: CP_g's plume rows (plume_linearization = solution) keep each impulse this far beyond alpha_p_bar (a design margin against execution errors; 0: at alpha_p_bar)")
     plume_min_dv_mps: Annotated[float, Field(ge=0.0)] = Field(1e-4, description="impulses below this are not thrust for the plume triggers (minimum impulse bit)")
     regen_cone_return_s: Annotated[float, Field(ge=0.0)] = Field(0.0, description="final-approach regeneration from outside alpha_c_bar: the planning cone, widened to pass the start, closes linearly back onto alpha_c_bar within this time (0: the widened cone throughout)")
-    replan_candidates: Annotated[int, Field(ge=1)] = Field(30, description="regeneration: most phase durations tried from tau_lb (onboard time budget; none converged -> abort)")
+    replan_candidates: Annotated[int, Field(ge=1, le=1000)] = Field(30, description="regeneration: most phase durations tried from tau_lb (onboard time budget; none converged -> abort)")
     null_tol_mps: Annotated[float, Field(gt=0.0)] = Field(1e-3, description="velocity nulling before a re-plan / retreat ends below this speed")
     passive_orbits: Annotated[float, Field(ge=1.0, le=50.0)] = Field(5.0, description="after an abort: window of the passive-safety certificate (orbits of thrust-free truth from the final state, issue 26) and of the onboard insertion check's CW prediction")
     passive_margin_m: Annotated[float, Field(ge=0.0)] = Field(2.0, description="safe-orbit insertion: the thrusters stop only when the thrust-free CW prediction from the estimate stays this far outside r_KOS for passive_orbits orbits")
     recompute_every: Literal["guidance", "impulse"] = Field("guidance", description="closed loop: evaluate the recompute conditions of Table 1 at every guidance step (Algorithm 2 lines 11-15, x_{k+1}) or at every impulse; the abort conditions are evaluated at every impulse either way")
     trace_step_s: Annotated[float, Field(ge=0.0)] = Field(10.0, description="closed loop: the run summary keeps the trajectory every this many seconds (campaign Figs. 13-14 without saved series; 0: none)")
-    insertion_max_intervals: Annotated[int, Field(ge=0)] = Field(20, description="safe-orbit insertion: most extra guidance intervals spent trimming onto the safe orbit before the thrusters stop anyway")
+    insertion_max_intervals: Annotated[int, Field(ge=0, le=10000)] = Field(20, description="safe-orbit insertion: most extra guidance intervals spent trimming onto the safe orbit before the thrusters stop anyway")
     insertion_coast_s: Annotated[float, Field(gt=0.0)] | None = Field(None, description="safe-orbit insertion: thrust-free coast of each insertion check, its estimates averaged (none: one guidance interval dt_g_s)")
     insertion_drift_tol_m: Annotated[float, Field(gt=0.0)] | None = Field(0.5, description="safe-orbit insertion: the thrusters stop only when the predicted along-track drift |6 pi (2 x + y_dot / n)| per orbit is at most this, else an along-track drift trim (none: drift not checked, the position-only check before issue 26)")
 
@@ -164,13 +164,16 @@ class CortexActuatorSection(ActuatorSection):
     min_on_time_s: Annotated[float, Field(ge=0.0)] = Field(0.0, description="thrusters: duty cycles shorter than this on-time fire nothing (minimum on-time; must not exceed guidance.substep_s)")
 
 
+MAX_FIBONACCI_N = 1_000_000  # points of the Fibonacci sphere (`cortex references --n`): a bound, not a use
+
+
 class AxisSection(Section):
     """Docking axis e in Hill (x radial, y along-track, z normal; the paper's frame, see
     proxops.guidance.cortex.reference). With ``fibonacci_index`` set, the axis is point i of
     an N-point Fibonacci sphere instead."""
 
     docking_axis: Vector3 = Field([-math.sin(math.pi / 4), -math.sin(math.pi / 4), 0.0], description="docking axis e in Hill (x radial, y along-track, z normal); §5.1.2: [-sin 45, -sin 45, 0]")
-    fibonacci_n: Annotated[int, Field(ge=1)] = Field(100, description="points N of the Fibonacci sphere of docking axes (ref. 11)")
+    fibonacci_n: Annotated[int, Field(ge=1, le=MAX_FIBONACCI_N)] = Field(100, description="points N of the Fibonacci sphere of docking axes (ref. 11)")
     fibonacci_index: Annotated[int, Field(ge=0)] | None = Field(None, description="use point i of the N-point Fibonacci sphere as the axis (none: docking_axis)")
 
     @model_validator(mode="after")
@@ -184,8 +187,8 @@ class EclipseSection(Section):
     """Sunlight profile for the holds (eqs. 13-15). model "none" switches the holds off."""
 
     model: Literal["conical", "cylindrical", "none"] = Field("conical", description="Earth shadow model of the sunlight profile for the holds; none switches the holds off")
-    samples_per_orbit: Annotated[int, Field(ge=10)] = Field(1000, description="sunlight samples per orbit (§3.1: 1000)")
-    orbits: Annotated[float, Field(gt=0.0)] = Field(4.0, description="length of the sunlight profile in orbits (two holds of up to an orbit plus two phases)")
+    samples_per_orbit: Annotated[int, Field(ge=10, le=100_000)] = Field(1000, description="sunlight samples per orbit (§3.1: 1000)")
+    orbits: Annotated[float, Field(gt=0.0, le=100.0)] = Field(4.0, description="length of the sunlight profile in orbits (two holds of up to an orbit plus two phases)")
     sunlit_threshold: Annotated[float, Field(gt=0.0, le=1.0)] = Field(1.0, description="illumination fraction counted as sunlit (eta = 1); 1: full sun only")
 
 
@@ -345,9 +348,12 @@ def references_scenario(scenario: str, n: int) -> dict:
     from proxops.errors import input_error
     from proxops.scenarios.loader import read_toml, resolve
 
-    if isinstance(n, bool) or n < 1:
-        raise input_error("--n", n, "must be a whole number >= 1")
+    if isinstance(n, bool) or not 1 <= n <= MAX_FIBONACCI_N:
+        raise input_error("--n", n, f"must be a whole number from 1 to {MAX_FIBONACCI_N:,}")
     data = copy.deepcopy(read_toml(resolve(scenario)))
+    if data.get("system") != "cortex":
+        raise input_error("--scenario", scenario, f"is a {data.get('system')!r} scenario; give a cortex one "
+                          "(system = \"cortex\", e.g. cortex-reference)")
     data.setdefault("axis", {})["fibonacci_n"] = int(n)
     data["axis"].pop("fibonacci_index", None)
     data["axis"]["fibonacci_index"] = 0

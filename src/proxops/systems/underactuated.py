@@ -37,7 +37,7 @@ from proxops.solvers.stats import solve_time_stats
 DEG = math.pi / 180.0
 
 Bounds = Annotated[list[float], Field(min_length=2, max_length=2)]
-PositiveInt = Annotated[int, Field(ge=1)]
+Horizon = Annotated[int, Field(ge=1, le=1000)]  # NMPC steps: the NLP grows with it
 
 
 def _ordered(value: list[float]) -> list[float]:
@@ -126,9 +126,9 @@ class ControllerSection(Section):
 
     variant: Literal["averaged", "general"] = Field(
         "averaged", description="averaged-value NMPC (eq. 14) or the general NMPC with terminal constraint (eq. 9)")
-    horizon: PositiveInt = Field(30, description="prediction horizon H in steps of dt_s")
+    horizon: Horizon = Field(30, description="prediction horizon H in steps of dt_s")
     dt_s: Annotated[float, Field(gt=0.0)] = Field(2.0, description="NMPC and engine sample time (Table 1: 2 s)")
-    average_window: PositiveInt = Field(10, description="averaging window N of eq. 14, in steps")
+    average_window: Annotated[int, Field(ge=1, le=1000)] = Field(10, description="averaging window N of eq. 14, in steps")
     q: Annotated[list[Annotated[float, Field(ge=0.0)]], Field(min_length=6, max_length=6)] = Field(
         [1.0, 1.0, 10.0, 10.0, 10.0, 1000.0], description="state weights on [x, y, theta, vx, vy, omega] (SI, rad)")
     r: Annotated[list[Annotated[float, Field(gt=0.0)]], Field(min_length=2, max_length=2)] = Field(
@@ -138,8 +138,8 @@ class ControllerSection(Section):
     terminal_box_fraction: Annotated[float, Field(ge=0.0, le=1.0)] = Field(
         0.1, description="general variant: |s_H| <= fraction x docking set (0: the exact s_H = 0)")
     solver: Literal["fatrop", "ipopt"] = Field("fatrop", description="NLP solver (through CasADi)")
-    model_substeps: PositiveInt = Field(1, description="RK4 substeps per sample in the prediction model")
-    max_iter: PositiveInt = Field(200, description="NLP iteration limit per warm-started solve (5x when cold)")
+    model_substeps: Annotated[int, Field(ge=1, le=100)] = Field(1, description="RK4 substeps per sample in the prediction model")
+    max_iter: Annotated[int, Field(ge=1, le=100_000)] = Field(200, description="NLP iteration limit per warm-started solve (5x when cold)")
 
 
 class RunSection(Section):
@@ -148,7 +148,7 @@ class RunSection(Section):
     label: Annotated[str, Field(min_length=1, pattern=r"^[A-Za-z0-9_.-]+$")] = Field(
         description="name of this run (output subfolder, summary key)")
     variant: Literal["averaged", "general"] | None = Field(None, description="NMPC variant (none: controller.variant)")
-    horizon: PositiveInt | None = Field(None, description="horizon H (none: controller.horizon)")
+    horizon: Horizon | None = Field(None, description="horizon H (none: controller.horizon)")
     damping_Nms: Annotated[float, Field(ge=0.0)] | None = Field(
         None, description="damping c (none: deputy.damping_Nms)")
 
@@ -161,7 +161,7 @@ class UnderactuatedScenario(ScenarioBase):
     docking: DockingSection = Field(DockingSection(), description="admissible docking set")
     initial_state: InitialStateSection = Field(description="initial planar state")
     controller: ControllerSection = Field(ControllerSection(), description="NMPC settings")
-    runs: list[RunSection] = Field([], description="closed loops to run, as [[runs]] tables (none: one run "
+    runs: Annotated[list[RunSection], Field(max_length=20)] = Field([], description="closed loops to run, as [[runs]] tables (none: one run "
                                    "with [controller]); the first is the main one")
 
     @model_validator(mode="after")
