@@ -1,4 +1,4 @@
-"""``proxops cortex``: CORTEX reference generation (cortex-convex-guidance.md §3.1, §5.1).
+"""``proxops cortex``: CORTEX reference generation (Wijayatunga et al. §3.1, §5.1).
 
 Mounted by :mod:`proxops.cli` as a group::
 

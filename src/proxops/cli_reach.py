@@ -1,5 +1,5 @@
 """``proxops reach``: safe-start certification of the tumbling-target approach
-(tumbling-target-reachability.md §8-11). Mounted by proxops.cli as a command group.
+(Iskender 2026 §8-11). Mounted by proxops.cli as a command group.
 
     proxops reach table [--grid 300] [--json] [--out DIR]       Table 2 + hierarchy + backward kernel (+ Table 4 times)
     proxops reach map --omega-deg-s W --a-max-mps2 A --out DIR [--mc DIR]  one combination's maps (overlay with a campaign)

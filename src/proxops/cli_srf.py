@@ -1,4 +1,4 @@
-"""``proxops hop-times``: the SRF guidance expert (srf-hopping-mpc.md Algorithm 1) from the shell.
+"""``proxops hop-times``: the SRF guidance expert (Silva et al. 2026 Algorithm 1) from the shell.
 
 Mounted by :mod:`proxops.cli` as a command::
 
@@ -18,7 +18,7 @@ import typer
 
 from proxops.errors import input_error
 
-DEFAULT_SMA_KM = 8100.0  # srf-hopping-mpc.md Table 2
+DEFAULT_SMA_KM = 8100.0  # Silva et al. 2026 Table 2
 MAX_HOPS = 50  # as the scenario key approach.hops
 
 

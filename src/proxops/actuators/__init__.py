@@ -60,7 +60,7 @@ class ThrusterModel(ActuatorBase):
       alpha = atan2(dv_x, dv_y) (in plane, from along-track towards radial), re-composed as
       |dv| [cos b sin a, cos b cos a, sin b] (Alg. 3 step 5). The printed
       alpha = atan(v_t / v_n) does not invert step 5; atan2(v_r, v_t) does.
-    (cortex-convex-guidance.md Alg. 3 / Table 3 execution-error model; eq. 28 draws
+    (Wijayatunga et al. Alg. 3 / Table 3 execution-error model; eq. 28 draws
     M ~ N(0, 1) and compares it with p, which misses with probability Phi(p) ~ 0.5: the
     text's "with probability p" is implemented: U(0, 1) < p.)
     """
@@ -113,7 +113,7 @@ class ThrusterModel(ActuatorBase):
         phi ~ N(0, s_p^2 I), d = phi x u) s_p^2 (|u|^2 I - u u^T); eq. (29) angles s_b^2 g_b g_b^T +
         s_a^2 g_a g_a^T with g the derivatives of |u| [cos b sin a, cos b cos a, sin b]; a missed
         thrust (d = -u with probability p) p u u^T. A navigation filter adds it to its covariance
-        (the process noise of the actuator, issue 28)."""
+        (the process noise of the actuator)."""
         u = self.limited(np.asarray(u, dtype=float))
         m2 = float(u @ u)
         cov = np.zeros((3, 3))

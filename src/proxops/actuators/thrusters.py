@@ -1,4 +1,4 @@
-"""Thruster chain of cortex-convex-guidance.md §4.1.3-4.1.4: main-engine on-time by the rocket
+"""Thruster chain of Wijayatunga et al. §4.1.3-4.1.4: main-engine on-time by the rocket
 equation with mass depletion (eq. 32), RCS force/torque-to-PWM allocation (Algorithm 4) and the
 PWM on/off law (eq. 33).
 

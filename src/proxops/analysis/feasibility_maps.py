@@ -1,4 +1,4 @@
-"""Monte Carlo feasibility maps of the tumbling-target approach (tumbling-target-reachability.md §9-10.5).
+"""Monte Carlo feasibility maps of the tumbling-target approach (Iskender 2026 §9-10.5).
 
 1. Initial conditions (§9.1): 15 values of y_B in [20, 300] m times 13 values of x_B in
    [-0.95 tan(30 deg) y_B, +0.95 tan(30 deg) y_B], z_B = 0, zero body-frame velocity.
@@ -88,7 +88,7 @@ def mc_scenario(
     )
     data = sc.model_dump(mode="json", exclude_none=True)
     data["name"] = "reach-mc"
-    data["description"] = "tumbling-target-reachability.md §9 feasibility sweep"
+    data["description"] = "Iskender 2026 §9 feasibility sweep"
     data["dispersions"] = {
         OMEGA_KEY: {"grid": [float(w) for w in omegas_deg_s]},
         A_MAX_KEY: {"grid": [float(a) for a in a_max_mps2]},

@@ -1,5 +1,5 @@
-"""The paper's relative model against the direct two-rigid-body truth (hybrid-mpc-capture.md
-§IV, issue 16 item 2): the agreement numbers behind ``proxops reproduce hybrid`` and
+"""The paper's relative model against the direct two-rigid-body truth (Basu et al.
+§IV): the agreement numbers behind ``proxops reproduce hybrid`` and
 benchmarks/bench_hybrid_physics.py.
 
 The truth (dynamics/two_rigid_bodies.py: CW translation of both bodies, eq. 21 with the

@@ -1,4 +1,4 @@
-"""The measured feasibility boundary of the los closed loop (tumbling-target-reachability.md §10.6).
+"""The measured feasibility boundary of the los closed loop (Iskender 2026 §10.6).
 
 The paper states that starts inside r_sync = 2 a_max / w_t^2 (eq. 14) "achieve zero
 violations". This module measures, for one (w_t, a_max) combination and one start type, the

@@ -1,4 +1,4 @@
-"""The los Table 3 sweep (tumbling-target-reachability.md §10.6): tumble rate x a_max grid in
+"""The los Table 3 sweep (Iskender 2026 §10.6): tumble rate x a_max grid in
 hard and soft constraint modes, through the campaign engine or a plain loop.
 
 ``python -m proxops.analysis.los_sweep sweep [--workers N] [--out DIR] [--no-campaign]``

@@ -1,4 +1,4 @@
-"""Safe-start certification for the approach to a tumbling target (tumbling-target-reachability.md §8-10).
+"""Safe-start certification for the approach to a tumbling target (Iskender 2026 §8-10).
 
 Everything lives on a body-frame evaluation grid in the plane z_B = 0 of the LOS
 corridor (eq. 9, :class:`proxops.constraints.los_corridor.LosCorridor`, rows

@@ -1,5 +1,5 @@
 """Campaign statistics: per-metric mean, std, quartiles and P99 (the layout of
-cortex-convex-guidance.md Table 4), success / failure / violation counts.
+Wijayatunga et al. Table 4), success / failure / violation counts.
 
 Conventions: ``std`` is the sample standard deviation (ddof = 1; 0 for one run);
 quantiles use numpy's default linear interpolation. Statistics are taken over the runs
@@ -128,7 +128,7 @@ def statistics_dict(stats: pd.DataFrame) -> dict:
 
 
 def format_table4(stats: pd.DataFrame, digits: int | None = None) -> str:
-    """Markdown table in the layout of cortex-convex-guidance.md Table 4:
+    """Markdown table in the layout of Wijayatunga et al. Table 4:
     ``| metric | unit | n | mu | sigma | [Q1, Q2, Q3, P99] |``, each value rounded to the
     resolution of the metric's unit (:func:`proxops.analysis.formatting.format_number`; m to
     1 mm, m/s to 0.1 mm/s, ...). statistics.csv and summary.json keep full precision."""
@@ -169,7 +169,7 @@ GUIDANCE_KEYS = ("total_dv_mps", "terminal_position_error_m", "terminal_velocity
 
 
 def navigation_consistency(table: pd.DataFrame, probability: float = 0.95, max_outside: float = 0.10) -> dict | None:
-    """Consistency of a campaign's navigation filter (issue 28), or None when no run recorded a NEES.
+    """Consistency of a campaign's navigation filter, or None when no run recorded a NEES.
 
     For the NEES (dimension d) and the NIS (m), over the N runs that did not raise and report one:
     ``mean`` = the mean of the runs' time-mean values, ``band`` = its two-sided ``probability`` band
@@ -233,7 +233,7 @@ def format_navigation_consistency(nc: dict | None) -> str:
 
 def navigation_table(table: pd.DataFrame) -> str:
     """Markdown: the estimation error of a campaign on the navigation filter beside its guidance
-    statistics (issue 17), or '' when no run used the filter. Each row is one per-run quantity
+    statistics, or '' when no run used the filter. Each row is one per-run quantity
     (Δv, terminal or arrival errors; the run's median / p95 / max estimation error |r_est - r_true| and
     |v_est - v_true|; rejected measurements; re-initialisations); the columns are its median, p95
     and max over the runs that did not raise (terminal errors: over the runs that report one)."""

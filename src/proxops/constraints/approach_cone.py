@@ -1,5 +1,5 @@
 """Approach cone and thruster-plume constraints of a final approach
-(cortex-convex-guidance.md eqs. 19d, 19f/20f, 21-22).
+(Wijayatunga et al. eqs. 19d, 19f/20f, 21-22).
 
 Generic over the frame (Hill/RTN in proxops); positions are relative to the target.
 

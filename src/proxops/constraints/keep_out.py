@@ -1,4 +1,4 @@
-"""Spherical keep-out zone (KOZ) with its control barrier function (srf-hopping-mpc.md eqs. 26-28).
+"""Spherical keep-out zone (KOZ) with its control barrier function (Silva et al. 2026 eqs. 26-28).
 
 Generic (any radius and centre, any frame whose first six state entries are
 ``[p, v]``; Hill/RTN in proxops)::

@@ -1,6 +1,6 @@
 """Polyhedral line-of-sight (LOS) docking corridor of a tumbling target.
 
-tumbling-target-reachability.md §5, eq. (9): a cone in the target body frame F_B with
+Iskender 2026 §5, eq. (9): a cone in the target body frame F_B with
 axis +y_B and half-angle alpha_c, approximated by ``n_faces`` half-spaces plus a floor::
 
     face i (i = 0..n_faces-1):  cos(th_i) x_B + sin(th_i) z_B - tan(alpha_c) y_B <= 0,
@@ -12,7 +12,7 @@ paper's raw rows (not normalised), so a face residual ``G_i p - h_i`` is in metr
 equals the Euclidean distance to the face plane divided by cos(alpha_c). The 8 faces
 circumscribe the circular cone (every point of the circular cone satisfies them).
 
-Public API (also used by the reachability analysis, issue 6)::
+Public API (also used by the reachability analysis)::
 
     c = LosCorridor()                      # 30 deg, y_min = 1 m, 8 faces, tol 1e-3 m
     c.G, c.h                               # solver rows, G p_B <= h (body frame)

@@ -1,5 +1,5 @@
 """Passive safety of a free drift: the unforced trajectory after an impulse (or an abort) must stay
-outside the keep-out zone (srf-hopping-mpc.md §4.3 passive abort; the CORTEX safe orbit, and any
+outside the keep-out zone (Silva et al. 2026 §4.3 passive abort; the CORTEX safe orbit, and any
 system whose abort is "stop thrusting"). The caller propagates the drift with its own truth or
 model (``times`` s, states (F, 6) m, m/s); these checks are numpy only.
 """

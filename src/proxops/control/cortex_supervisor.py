@@ -1,4 +1,4 @@
-"""CORTEX closed loop: phases, triggers, regeneration and abort (cortex-convex-guidance.md §3.2-3.4,
+"""CORTEX closed loop: phases, triggers, regeneration and abort (Wijayatunga et al. §3.2-3.4,
 Algorithm 2, Table 1).
 
 Three parts, each usable alone:
@@ -746,7 +746,7 @@ class CortexSupervisor:
             # check again; at most insertion_max_intervals of both together. Measured before: open-loop insertion
             # with 20 % magnitude errors left 1-7 mm/s, and 1 mm/s drifts ~17 m along-track per orbit against a
             # 3.75 m margin; a position-only check over one orbit passed states drifting up to 12 m/orbit
-            # (issue 26: 12 of 21 high-error aborts re-entered r_KOS within 5 orbits).
+            # (12 of 21 high-error aborts re-entered r_KOS within 5 orbits).
             if not self.verifying:
                 self._start_coast(t, x_est, [])
                 return Command(u=np.zeros(3), kind="impulse", mode=self.mode, events=events,

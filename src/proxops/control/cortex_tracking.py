@@ -1,4 +1,4 @@
-"""CORTEX convex tracking guidance CP_g (cortex-convex-guidance.md §3.2.1, eq. 27).
+"""CORTEX convex tracking guidance CP_g (Wijayatunga et al. §3.2.1, eq. 27).
 
 One guidance interval of ``N_sub = dt_g / delta_t_g`` impulses::
 

@@ -1,4 +1,4 @@
-"""Capture and post-capture MPCs of hybrid-mpc-capture.md (Problems 2 and 3, eqs. 62-82).
+"""Capture and post-capture MPCs of Basu et al. (Problems 2 and 3, eqs. 62-82).
 
 Both controllers take the paper's 32-entry relative state ``x_rel``
 (:mod:`proxops.dynamics.hybrid_relative`, as :func:`relative_from_truth` returns it) and
@@ -156,7 +156,7 @@ N_U = 6
 # --------------------------------------------------------------------------------------
 @dataclass(frozen=True)
 class CaptureMPCConfig:
-    """Problem 2 settings (hybrid-mpc-capture.md §VI.A, §VII). Weights are diagonal entries."""
+    """Problem 2 settings (Basu et al. §VI.A, §VII). Weights are diagonal entries."""
 
     horizon_s: float = 10.0  # T^0 = 10 s (§VII)
     period_s: float = 1.0  # control period: not in the paper; our choice (module doc)
@@ -183,13 +183,13 @@ class CaptureMPCConfig:
     safe_margin_m: float = 0.3  # waypoint radius = chief half-diagonal + deputy port's reach + this
     retreat_fraction: float = 0.9  # closer than this fraction of the waypoint radius: back off radially first
     max_iter: int = 2000  # DAQP active-set iteration cap
-    # Rate bound (not in the paper; issue 29): |omega_i| <= rate_max_deg_s per axis of the deputy's
+    # Rate bound (not in the paper): |omega_i| <= rate_max_deg_s per axis of the deputy's
     # rate relative to the chief on every predicted stage, as soft rows (DAQP relaxes them at a
     # penalty when the measured rate is already beyond). 10 deg/s: 1.6 x the eq. 78 start
     # (|omega| = 6.2 deg/s), so the paper's case is untouched while the 10 m start, which spun
     # the deputy to 65 deg/s, is held. None: no bound.
     rate_max_deg_s: float | None = 10.0
-    # Far from the port the linear model's lever arm is wrong (failure analysis, issue 29): eq. 19
+    # Far from the port the linear model's lever arm is wrong (failure analysis): eq. 19
     # makes the port move with the deputy's attitude (rho = R rho_0 + Q^T P_d - P_c); linearised,
     # a constant rate moves the port without bound (omega x P_d t), while the true port only
     # circles the deputy CoM within |P_d| = 0.35 m. At 10 m the plan spun the deputy up to
@@ -221,7 +221,7 @@ class CaptureMPCConfig:
 
 @dataclass(frozen=True)
 class PostCaptureMPCConfig:
-    """Problem 3 settings (hybrid-mpc-capture.md §VI.B, §VII)."""
+    """Problem 3 settings (Basu et al. §VI.B, §VII)."""
 
     horizon_s: float = 10.0  # T^1: not in the paper; our choice (= T^0)
     period_s: float = 1.0  # control period: not in the paper; our choice
@@ -233,7 +233,7 @@ class PostCaptureMPCConfig:
     thrust_at_current_attitude: bool = True  # force block of B at the measured R^T Q^T (module doc)
     kinematics_at_current_attitude: bool = True  # p_eta' = E(p) omega_c at the measured p (module doc)
     max_iter: int = 2000
-    # Rate bound (not in the paper; issue 29): |omega_c_i| <= rate_max_deg_s per axis of the
+    # Rate bound (not in the paper): |omega_c_i| <= rate_max_deg_s per axis of the
     # composite's tumble on every predicted stage (soft rows). 0.5 deg/s per axis (|omega_c| <= 0.87 deg/s,
     # 3.6 x the eq. 78 tumble
     # of 0.238 deg/s); without it the +-5 N m slew from p(0) (120 deg from q_I) spun the pair up to

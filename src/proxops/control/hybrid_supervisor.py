@@ -1,4 +1,4 @@
-"""Supervisory logic of hybrid-mpc-capture.md §III (Cases 1-4, eq. 17) on the generic
+"""Supervisory logic of Basu et al. §III (Cases 1-4, eq. 17) on the generic
 :class:`proxops.control.supervisor.Supervisor`.
 
 Modes: ``"capture"`` (h = 0, capture MPC kappa_0) and ``"post-capture"`` (h = 1, kappa_1).
@@ -14,7 +14,7 @@ mode's controller. Transition sets (the paper names them but gives no numbers; o
 
 Dwell timer tau (eq. 16): set to T_1 on entry to post-capture; it runs down at rate 1 and
 only when it reaches 0 is x tested against |rho| >= release distance of T_{1->0}. A latch
-sensor reading open is acted on at once (issue 29: waiting out tau left the post-capture MPC
+sensor reading open is acted on at once (waiting out tau left the post-capture MPC
 pushing +-5 N on a free deputy for up to 8 s after the §VII snap; with navigation noise that
 ground the deputy into the chief, 88 contacts and 38 deg/s). (When tau reaches 0, it is reset to T_1, the smallest value eq. 16 allows.) The generic supervisor's minimum dwell is also T_1, so every
 mode lasts at least T_1 s and the number of switches in a window of L s is at most

@@ -1,4 +1,4 @@
-"""Receding-horizon QP (tumbling-target-reachability.md eq. 11) in the target body frame.
+"""Receding-horizon QP (Iskender 2026 eq. 11) in the target body frame.
 
 Problem at time t with body-frame state x_0 (m, m/s) and inputs u_j (m/s^2)::
 

@@ -1,4 +1,4 @@
-"""Nonlinear MPC for the planar underactuated CubeSat (underactuated-docking-nmpc.md §3-§5).
+"""Nonlinear MPC for the planar underactuated CubeSat (Aborizk et al. §3-§5).
 
 Two variants (CasADi ``nlpsol``, multiple shooting, RK4 of the shared model in
 :mod:`proxops.dynamics.planar_cubesat`):

@@ -1,4 +1,4 @@
-"""Short Range Framework MPC (srf-hopping-mpc.md §4.4, problem 29) on impulsive CW.
+"""Short Range Framework MPC (Silva et al. 2026 §4.4, problem 29) on impulsive CW.
 
 Problem solved at every MPC node ``i`` (shrinking horizon ``i..N``, impulses ``u_i..u_N``;
 ``x_j`` is the state *before* the impulse at node ``j``, ``x_{j+1} = Phi(t_{j+1}-t_j)(x_j + [0; u_j])``)::
@@ -546,7 +546,7 @@ class SrfMpc:
 
     def drift_band(self) -> tuple[float, float]:
         """Band (m/s) of the drift invariant c after a hop-start or trim impulse: ONE-SIDED, on the side of a
-        free drift away from the target (issue 26). The secular along-track motion is -3 c per unit time
+        free drift away from the target. The secular along-track motion is -3 c per unit time
         (CW: y(t) has -3 (vy0 + 2 n x0) t), so the chaser at d a (d > 0 along the approach axis a) drifts away
         when c a_y < 0: with s = -sign(a_y), s c in [b, b + 2 tol] (b = ``drift_outward_mps``, tol =
         ``drift_free_tol_mps``; the same width as the two-sided |c| <= tol it replaces)."""

@@ -3,20 +3,20 @@
 Convention (the only one used in the package)
 ----------------------------------------------
 * **Scalar-last Hamilton quaternions** ``q = [qx, qy, qz, qw]`` (vector part ``q_eta``,
-  scalar ``q_mu`` as in hybrid-mpc-capture.md eq. 3), product ``p (x) q`` with
+  scalar ``q_mu`` as in Basu et al. eq. 3), product ``p (x) q`` with
   ``i j = k`` (Hamilton), unit norm.
 * ``q`` describes the attitude of a frame B relative to a frame A: B's axes are A's axes
   actively rotated by ``q``. ``quat_to_dcm(q)`` returns the *active* rotation matrix
   ``R = C_{A<-B}``: it maps B-components to A-components, ``v|_A = R v|_B`` and
   ``quat_rotate(q, v) = q (x) [v, 0] (x) q* = R v``.
-* hybrid-mpc-capture.md eq. 4 writes ``R(q) = (q_mu^2 - q_eta.q_eta) I + 2 q_eta q_eta^T
+* Basu et al. eq. 4 writes ``R(q) = (q_mu^2 - q_eta.q_eta) I + 2 q_eta q_eta^T
   - 2 q_mu q_eta^x``: that is ``quat_to_dcm(q).T = C_{B<-A}`` (the passive matrix).
   Note the paper's own eq. 2 (Rodrigues with ``+ sin(theta) n^x``) is the *active*
   matrix, i.e. eq. 2 and eq. 4 are transposes of each other for the same (theta, n);
   we follow eq. 3 + the kinematics eq. 27, which are consistent with the convention here.
 * Kinematics with body rates ``w = omega_{B/A}|_B`` (rad/s):
   ``qdot = 0.5 q (x) [w, 0] = 0.5 Omega(w) q`` with
-  ``Omega(w) = [[-w^x, w], [-w^T, 0]]`` (hybrid-mpc-capture.md eq. 27).
+  ``Omega(w) = [[-w^x, w], [-w^T, 0]]`` (Basu et al. eq. 27).
 
 All functions accept a single quaternion/vector or stacks with leading dimensions
 (``(..., 4)`` and ``(..., 3)``) and broadcast.
@@ -92,7 +92,7 @@ def quat_rotate_inverse(q: np.ndarray, v: np.ndarray) -> np.ndarray:
 def quat_to_dcm(q: np.ndarray) -> np.ndarray:
     """Active rotation matrix ``R = C_{A<-B}`` of unit ``q`` (``v|_A = R v|_B``).
 
-    R = (w^2 - qv.qv) I + 2 qv qv^T + 2 w qv^x  (transpose of hybrid-mpc-capture.md eq. 4)."""
+    R = (w^2 - qv.qv) I + 2 qv qv^T + 2 w qv^x  (transpose of Basu et al. eq. 4)."""
     q = np.asarray(q, dtype=float)
     x, y, z, w = q[..., 0], q[..., 1], q[..., 2], q[..., 3]
     return np.stack(
@@ -138,7 +138,7 @@ def dcm_to_quat(R: np.ndarray) -> np.ndarray:
 
 def quat_from_axis_angle(axis: np.ndarray, angle: float | np.ndarray) -> np.ndarray:
     """``[sin(angle/2) n, cos(angle/2)]`` for a rotation of ``angle`` (rad) about ``axis``
-    (normalised here) -- hybrid-mpc-capture.md eq. 3."""
+    (normalised here) -- Basu et al. eq. 3."""
     axis = np.asarray(axis, dtype=float)
     norm = np.linalg.norm(axis, axis=-1, keepdims=True)
     if np.any(norm == 0.0) or not np.all(np.isfinite(norm)):
@@ -175,7 +175,7 @@ def omega_matrix(omega: np.ndarray) -> np.ndarray:
 
 def quat_kinematics(q: np.ndarray, omega: np.ndarray) -> np.ndarray:
     """Quaternion rate ``qdot = 0.5 q (x) [w, 0]`` for body rates ``w`` (rad/s, B-frame
-    components); equals ``0.5 Omega(w) q`` and hybrid-mpc-capture.md eq. 27."""
+    components); equals ``0.5 Omega(w) q`` and Basu et al. eq. 27."""
     w = np.asarray(omega, dtype=float)
     wq = np.concatenate([w, np.zeros(w.shape[:-1] + (1,))], axis=-1)
     return 0.5 * quat_multiply(q, wq)

@@ -1,4 +1,4 @@
-"""The paper's relative-state model of hybrid-mpc-capture.md: capture flow f_0 (eqs. 18-32),
+"""The paper's relative-state model of Basu et al.: capture flow f_0 (eqs. 18-32),
 contact jump g_0 (eqs. 33-39), composite post-capture pieces (eqs. 44-51) and the
 decoupling jump g_1 (eqs. 53-61), written once for numpy and CasADi operands.
 

@@ -1,4 +1,4 @@
-"""Planar underactuated 6U CubeSat deputy in Hill's frame (underactuated-docking-nmpc.md §2, §4).
+"""Planar underactuated 6U CubeSat deputy in Hill's frame (Aborizk et al. §2, §4).
 
 State ``s = [x, y, theta, vx, vy, omega]`` (m, m, rad, m/s, m/s, rad/s): in-plane Hill/RTN
 position (x radial out, y along-track) and velocity, body angle ``theta`` measured

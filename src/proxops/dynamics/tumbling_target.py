@@ -1,5 +1,5 @@
 """Tumbling target: attitude (eq. 2), body-frame relative state (eqs. 7-8) and the
-body-frame prediction model with its exact Jacobian (tumbling-target-reachability.md §3-4).
+body-frame prediction model with its exact Jacobian (Iskender 2026 §3-4).
 
 Frames. F_I = ECI, F_L = Hill/LVLH of the target (x radial out, y along-track, z orbit
 normal), F_B = target body (docking axis +y_B). The target spins at a constant body rate
@@ -106,7 +106,7 @@ class TumblingTarget:
 
 
 def sync_range(a_max_mps2: float, tumble_rate_rad_s: float) -> float:
-    """r_sync = 2 a_max / w_t^2 (m), tumbling-target-reachability.md eq. (14): inside it the chaser's
+    """r_sync = 2 a_max / w_t^2 (m), Iskender 2026 eq. (14): inside it the chaser's
     acceleration a_max (m/s^2) can follow the rotating docking axis (tumble rate w_t, rad/s, either
     sign). inf for a target at rest (w_t = 0). The one home of this formula (guidance, reach, los)."""
     if not (math.isfinite(a_max_mps2) and a_max_mps2 > 0.0):

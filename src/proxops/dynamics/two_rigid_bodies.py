@@ -1,5 +1,5 @@
 """Two rigid bodies (chief C and deputy D) in the target orbit frame T: the direct truth of
-hybrid-mpc-capture.md (§II.A, §IV, §VII), their cuboid geometry, contacts and the
+Basu et al. (§II.A, §IV, §VII), their cuboid geometry, contacts and the
 frictionless impulse jump (eqs. 33-39 written on the direct state).
 
 Frames (paper §II.A). T = LVLH/Hill frame of the chief's initial circular orbit (x radial
@@ -160,7 +160,7 @@ def _vec3(name: str, v, unit: str) -> np.ndarray:
 
 @dataclass(frozen=True)
 class HybridParams:
-    """Chief/deputy physical parameters, hybrid-mpc-capture.md §VII (SI units).
+    """Chief/deputy physical parameters, Basu et al. §VII (SI units).
 
     Inertias default to the §VII constant-density cuboids; docking ports default to face
     centres: the chief's on its +y face (the docking normal ``v = [0, 1, 0]`` of §VII) and

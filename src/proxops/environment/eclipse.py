@@ -176,7 +176,7 @@ def eclipse_profile(
     model: str = "conical",
     j2_mean: bool = False,
 ) -> tuple[np.ndarray, np.ndarray]:
-    """Illumination profile (cortex-convex-guidance.md sec. 3.1.1, eta_ecl, 1000 points per
+    """Illumination profile (Wijayatunga et al. sec. 3.1.1, eta_ecl, 1000 points per
     orbit) of the orbit ``elements`` (osculating at ``epoch``): ``(t_s, illum)`` with
     ``t_s`` s after the epoch on a uniform grid of ``n_per_orbit`` points per Keplerian
     period over ``n_orbits`` periods (both ends included) and ``illum`` in [0, 1]

@@ -2,7 +2,7 @@
 Sun and Moon third body, cannonball solar radiation pressure. Each is a numba kernel on
 plain floats (SI, ECI axes) behind a small friendly class (hapsira's pattern).
 
-* Drag (cortex-convex-guidance.md eq. 5, with the co-rotating atmosphere):
+* Drag (Wijayatunga et al. eq. 5, with the co-rotating atmosphere):
   a = -1/2 rho (C_D A / m) |v_r| v_r,  v_r = v - w_E x r  (w_E along the Earth's pole).
 * Third body (Montenbruck & Gill, *Satellite Orbits*, eq. 3.37):
   a = GM_b [(s - r)/|s - r|^3 - s/|s|^3],  s = geocentric body position.

@@ -7,7 +7,7 @@ order 120, tide-free, GM = 3.986004415e14 m^3/s^2, R = 6378136.3 m. It is a verb
 truncation of ``EGM96.gfc`` (ICGEM format) as shipped by the PyPI package
 ``satkit-data`` 0.9.0; :func:`read_gfc` reads that file, and a test compares the shipped
 arrays with it when ``satkit-data`` is installed. 120 covers the 100 x 100 field of
-cortex-convex-guidance.md eq. 4 (which uses GGM03S, not on PyPI: EGM96 and GGM03S
+Wijayatunga et al. eq. 4 (which uses GGM03S, not on PyPI: EGM96 and GGM03S
 differ by ~1e-9 in normalised coefficients below degree 50).
 
 Recursion (Montenbruck & Gill, *Satellite Orbits*, sec. 3.2.4-3.2.5, eqs. 3.29-3.33,

@@ -1,6 +1,6 @@
 """Exact nonlinear conversions between ECI states and the Hill/RTN relative state.
 
-Hill/RTN frame of a target with ECI state (r, v) (cortex-convex-guidance.md eq. 7):
+Hill/RTN frame of a target with ECI state (r, v) (Wijayatunga et al. eq. 7):
 x along r (radial out), z along h = r x v (orbit normal), y = z x x (along-track).
 ``C = hill_dcm(target)`` has these unit vectors as rows and maps ECI components to
 Hill components.
@@ -13,7 +13,7 @@ Relative state of a chaser with ECI offset (dr, dv) = chaser - target (transport
 ``w`` is the angular velocity of the Hill frame. Its z part |h|/r^2 is exact for any
 force; its x part comes from the out-of-plane acceleration ``a_t`` of the target (e.g.
 J2) turning h. With ``target_accel=None`` only the z part is used, which is exactly
-cortex-convex-guidance.md eqs. 6-8: there Omega C dr = -w x (C dr) with
+Wijayatunga et al. eqs. 6-8: there Omega C dr = -w x (C dr) with
 Omega = |h|/r^2 [[0, 1, 0], [-1, 0, 0], [0, 0, 0]] (checked: sign and layout are right).
 Pass the target's gravity acceleration (two-body + J2) to get the exact time
 derivative of the Hill position under J2 (the x part is ~1.5e-6 rad/s in LEO, i.e.
@@ -47,7 +47,7 @@ def _as_vectors(name: str, value) -> np.ndarray:
 
 def hill_dcm(target_state: np.ndarray) -> np.ndarray:
     """DCM ``C_{ECI->Hill}`` (..., 3, 3): rows r_hat, h_hat x r_hat, h_hat
-    (cortex-convex-guidance.md eq. 7)."""
+    (Wijayatunga et al. eq. 7)."""
     target = _as_states("target_state", target_state)
     r, v = target[..., :3], target[..., 3:]
     h = np.cross(r, v)
@@ -108,7 +108,7 @@ def hill_to_eci_offset(
 def eci_to_hill(
     target_state: np.ndarray, chaser_state: np.ndarray, target_accel: np.ndarray | None = None
 ) -> np.ndarray:
-    """Hill relative state of a chaser from both ECI states (cortex-convex-guidance.md
+    """Hill relative state of a chaser from both ECI states (Wijayatunga et al.
     eqs. 6-8, plus the optional J2 frame-rate term, see module doc).
 
     The subtraction of the two ECI states costs ~1e-9 m of rounding at LEO radius; the

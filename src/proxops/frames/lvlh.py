@@ -1,4 +1,4 @@
-"""Hill/RTN <-> V-bar/R-bar LVLH convention of srf-hopping-mpc.md (sec. 2).
+"""Hill/RTN <-> V-bar/R-bar LVLH convention of Silva et al. 2026 (sec. 2).
 
 srf LVLH axes: x = V-bar (along the target velocity), y = -orbit normal (negative
 angular momentum), z = R-bar (towards the Earth's centre). In Hill/RTN terms

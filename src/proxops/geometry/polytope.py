@@ -56,7 +56,7 @@ class ConvexSection:
     variables) run on :class:`proxops.solvers.DaqpQP` in its LP mode (H = 0, proximal-point
     iterations with ``eps_prox`` > 0), warm-started from the previous direction's working set:
     ~0.02 ms per LP against HiGHS's ~0.15-0.3 ms fixed cost per ``run()`` even hot-started
-    (benchmarks/bench_closed_loop.py, issue 18). Larger ones, and any direction DAQP does not
+    (benchmarks/bench_closed_loop.py). Larger ones, and any direction DAQP does not
     settle as optimal (infeasible included), are solved by the hot-started HiGHS model
     (``n_highs`` counts those; ``n_lp`` counts every support and feasibility LP). Point
     feasibility LPs (bounds change per point) run on HiGHS too."""

@@ -1,4 +1,4 @@
-"""Guidance expert of the Short Range Framework: hop times (srf-hopping-mpc.md §4.1-4.3).
+"""Guidance expert of the Short Range Framework: hop times (Silva et al. 2026 §4.1-4.3).
 
 Everything here is the paper's in-plane problem in its own LVLH convention (2-D
 ``[p_x, p_z]`` = [V-bar, R-bar], z towards the Earth), written without units: positions
@@ -240,7 +240,7 @@ def solve_hop(theta: float, rho: float) -> HopSolution:
             f"approach angle = {math.degrees(theta) % 360:.3f} deg with hop fraction rho = {rho:.4g}: no passively "
             f"safe hop exists (eqs. 17-25 have no solution that stays on one side of the approach axis); "
             f"allowed for this rho: 0 <= angle <= {edge:.1f} deg or 180 <= angle <= {180 + edge:.1f} deg "
-            "(srf-hopping-mpc.md §5.3, Fig. 8a)"
+            "(Silva et al. 2026 §5.3, Fig. 8a)"
         )
     return sol
 

@@ -1,4 +1,4 @@
-"""Guidance regimes for the approach to a tumbling target (tumbling-target-reachability.md §7)
+"""Guidance regimes for the approach to a tumbling target (Iskender 2026 §7)
 with the eq.-(11) MPC as safety filter; one Controller for the closed-loop engine, built on the
 generic :class:`proxops.control.supervisor.Supervisor` (sub-controllers far / close / hold, the
 §7 switching rule, hold absorbing; every regime change is a ``mode`` event).

@@ -74,7 +74,7 @@ class GaussianNavigation(NavigationBase):
 
     def scale(self, x: np.ndarray) -> float:
         """1 without ``range_scale_m``; else floor + (1 - floor) ||r|| / range_scale_m (the additive
-        sigmas are multiplied by it): cortex-convex-guidance.md §5.1.2, sigma_r = (Delta r / 3)
+        sigmas are multiplied by it): Wijayatunga et al. §5.1.2, sigma_r = (Delta r / 3)
         (0.02 + 0.98 ||r|| / r_AS) with floor 0.02 and range_scale_m = r_AS."""
         if self.range_scale_m is None:
             return 1.0

@@ -1,4 +1,4 @@
-"""Filter consistency: NEES / NIS chi-square bands and an innovation-whiteness test (issue 28).
+"""Filter consistency: NEES / NIS chi-square bands and an innovation-whiteness test.
 
 A filter is consistent when its errors match its covariance (Bar-Shalom, Li & Kirubarajan,
 *Estimation with Applications to Tracking and Navigation*, 2001, §5.4):
@@ -19,7 +19,7 @@ A filter is consistent when its errors match its covariance (Bar-Shalom, Li & Ki
   band for N = 20, d = 6.)
 
 Overconfidence shows in the NEES, but the NEES needs the truth. The NIS alone misses it when the
-measurement noise dominates S = H P H^T + R: then NIS ~ m whatever P is (issue 28: process noise 100x
+measurement noise dominates S = H P H^T + R: then NIS ~ m whatever P is (process noise 100x
 too small gave NEES 197 with NIS 3.62). An overconfident filter weights its measurements too little,
 its error decays slowly, and the part H e of the innovation is correlated over many samples: the
 innovation sequence is no longer white (Mehra 1970, "On the identification of variances and adaptive

@@ -14,7 +14,7 @@ cached per step length. Thruster execution errors: at each command the actuator'
 (``command_covariance``, from its error model) is added -- at the burn to the velocity block for an
 impulse, through B_zoh for a held acceleration.
 
-Consistency (issue 28, :mod:`proxops.navigation.consistency`): every tick records the NEES of the
+Consistency (:mod:`proxops.navigation.consistency`): every tick records the NEES of the
 estimate against the true Hill state the tick is given, every measurement its NIS
 (:meth:`RelativeEKF.consistency_record`, stored by the engine), and an innovation-whiteness monitor
 flags windows whose innovations are correlated (event ``nav-overconfident``): a covariance too small
@@ -36,7 +36,7 @@ Sensors (the chaser sees the target along rho = -r, axes parallel to Hill):
 * ``pose``: relative position ``r`` (3 components).
 
 Noise 1-sigma may grow with range: sigma(rho) = sigma * (f + (1 - f) rho / rho_ref) -- the
-form of cortex-convex-guidance.md §5.1.2 (there for 3-sigma with f = 0.02, rho_ref = r_AS);
+form of Wijayatunga et al. §5.1.2 (there for 3-sigma with f = 0.02, rho_ref = r_AS);
 without ``rho_ref`` it is constant. Angles keep a constant sigma. Measurements are dropped
 outside the field of view (full cone angle about the boresight), with a random outage
 probability, or while the target is in the Earth's shadow (eclipse dropout). Each update

@@ -1,4 +1,4 @@
-"""Navigation of the hybrid capture system (hybrid-mpc-capture.md, issue 29): what both MPCs
+"""Navigation of the hybrid capture system (Basu et al.): what both MPCs
 see instead of the exact relative state.
 
 Measured state (34, :data:`proxops.propagation.hybrid_plant.HYBRID_LAYOUT` order): the paper's

@@ -14,7 +14,7 @@ covariance ``P`` is that of the error state (rad^2, rad^2/s, rad^2/s^2).
 
 Process model: torque-free rigid-body rotation, Euler's equations ``J omega_dot = -omega x J omega``
 plus white angular acceleration of PSD ``q_accel_psd`` (rad^2/s^3 per body axis; covers unmodelled
-torques and inertia errors), ``qdot = 0.5 q (x) [omega, 0]`` (hybrid-mpc-capture.md eq. 27). The
+torques and inertia errors), ``qdot = 0.5 q (x) [omega, 0]`` (Basu et al. eq. 27). The
 bias (when estimated) is a random walk of PSD ``q_bias_psd`` (rad^2/s^3). The mean is integrated
 with classical RK4 on ``[q, omega]`` in substeps (at most ``max_substep_s`` and
 ``max_substep_angle_rad`` of rotation each), the quaternion renormalised after each. Error

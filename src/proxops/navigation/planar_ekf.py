@@ -1,4 +1,4 @@
-"""Planar pose EKF of the underactuated CubeSat deputy (issue 28 item 4, system ``underactuated``).
+"""Planar pose EKF of the underactuated CubeSat deputy (system ``underactuated``).
 
 State ``s = [x, y, theta, vx, vy, omega]`` (m, rad, m/s, rad/s; :mod:`proxops.dynamics.planar_cubesat`),
 the same as the plant's and the NMPC's. Why one 6-state EKF (the translational EKF extended with the

@@ -1,9 +1,9 @@
 """Navigation of the chaser relative to a tumbling target whose attitude and rate are estimated
-(issue 28 item 4, system ``los``): an :class:`proxops.navigation.mekf.AttitudeMEKF` fed by the
+(system ``los``): an :class:`proxops.navigation.mekf.AttitudeMEKF` fed by the
 attitude part of a simulated camera/LIDAR pose (:class:`proxops.navigation.mekf.PoseAttitudeSensor`).
 
 The plant (:class:`proxops.dynamics.tumbling_target.TumblingTargetTruth`) reports the chaser's
-state in the *true* target body frame, x_B = [r_B, v_B] (tumbling-target-reachability.md eqs.
+state in the *true* target body frame, x_B = [r_B, v_B] (Iskender 2026 eqs.
 7-8). The controller sees it in the *estimated* body frame:
 
     dr = R r_B,  dv = R (v_B + w x r_B)                    (truth, inertial axes)

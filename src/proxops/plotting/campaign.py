@@ -133,7 +133,7 @@ def outcome_map_axes(table: pd.DataFrame, manifest: dict) -> tuple[str | None, s
 def plot_outcome_map(table: pd.DataFrame, manifest: dict, path: Path, max_facets: int = 20) -> Path | None:
     """Success fraction per parameter point (green = all runs succeeded, red = none); with
     more than two grid axes, one panel per combination of the other axes (e.g. the
-    tumble rate x thrust authority panels of tumbling-target-reachability.md §9)."""
+    tumble rate x thrust authority panels of Iskender 2026 §9)."""
     x, y, facets = outcome_map_axes(table, manifest)
     if x is None:
         return None

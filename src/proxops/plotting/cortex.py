@@ -1,4 +1,4 @@
-"""CORTEX reference figures (cortex-convex-guidance.md Figs. 11-12): trajectories of both phases
+"""CORTEX reference figures (Wijayatunga et al. Figs. 11-12): trajectories of both phases
 around the keep-out sphere and the approach cone, and the histograms of compute time, TOF and delta-v."""
 
 from __future__ import annotations

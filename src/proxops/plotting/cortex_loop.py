@@ -1,4 +1,4 @@
-"""Figures of the CORTEX closed loop (cortex-convex-guidance.md Figs. 13-15): trajectories and
+"""Figures of the CORTEX closed loop (Wijayatunga et al. Figs. 13-15): trajectories and
 tracking errors over time (Fig. 13 low / Fig. 14 high error level) and the Monte Carlo
 distributions of TOF, delta-v and terminal errors (Fig. 15)."""
 

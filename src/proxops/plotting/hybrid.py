@@ -1,4 +1,4 @@
-"""Figures of the ``hybrid`` system (hybrid-mpc-capture.md Figs. 5-9), from a SimResult only.
+"""Figures of the ``hybrid`` system (Basu et al. Figs. 5-9), from a SimResult only.
 
 - ``hybrid_fig5_contact.png``: the capture flow around the first contact(s): relative
   port velocity rho_dot and rate omega, jumping at each contact (Fig. 5).

@@ -1,4 +1,4 @@
-"""Figures of the safe-start analysis (tumbling-target-reachability.md Figs. 1-3, §8.4, §11.2)."""
+"""Figures of the safe-start analysis (Iskender 2026 Figs. 1-3, §8.4, §11.2)."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""Figures of srf-hopping-mpc.md (Figs. 4-11) in the paper's LVLH (x = V-bar, z = R-bar,
+"""Figures of Silva et al. 2026 (Figs. 4-11) in the paper's LVLH (x = V-bar, z = R-bar,
 drawn with +z down so the Earth is below).
 
 * :func:`plot_trajectory` -- Figs. 4a/6a/9: trajectory, hop impulses (crosses), the free-drift

@@ -1,4 +1,4 @@
-"""Figures of the underactuated-docking system (underactuated-docking-nmpc.md Figs. 2-9).
+"""Figures of the underactuated-docking system (Aborizk et al. Figs. 2-9).
 
 - :func:`plot_trajectory` — Figs. 2 / 6 / 8: Hill-plane path with the body x axis (docking
   port, black) and the thrust direction (red) drawn every few steps.

@@ -1,4 +1,4 @@
-"""The two-rigid-body truth of hybrid-mpc-capture.md as an engine plant with events: free
+"""The two-rigid-body truth of Basu et al. as an engine plant with events: free
 flight with cuboid contacts (jump map with restitution, eqs. 33-39 on the direct state),
 a spring-damper latch (eq. 81) while docked, and the scripted latch snap of §VII.
 
@@ -6,9 +6,9 @@ Modes (``plant.mode``): ``"free"`` (two bodies, contacts active) and ``"latched"
 eq. 81 latch acts between the docking ports, and the docking faces' physical stop,
 :func:`latch_stop_kernel`, keeps them from passing through each other: a stiff unilateral
 spring-damper at every deputy corner that crosses the chief's docking-face plane, 62 um
-under the 5 N post-capture bound; issue 29 measured 10 mm overlaps without it).
+under the 5 N post-capture bound; measured 10 mm overlaps without it).
 
-Translational truth (``gravity``, issue 29): ``"j2"`` (default of the scenarios) or
+Translational truth (``gravity``): ``"j2"`` (default of the scenarios) or
 ``"twobody"``: each CoM and x_ref move under exact inertial point-mass (+ J2) gravity seen
 from T (:func:`gravity_correction_kernel`; T = the frame of the chief's initial circular
 orbit, uniformly turning at n0); ``"cw"``: the linear model itself (eq. 21). x_ref is then
@@ -37,7 +37,7 @@ time from which the latch is armed, time of the last contact, the plant's clock 
 
 Contact location: the guard is tested at each substep end against 0 (apart) or, when the
 bodies already touch after a bounce, against the current gap less ``DEPTH_TOL_M`` (10 um),
-so a second crossing during a touch is located too (issue 29 measured contacts found only
+so a second crossing during a touch is located too (measured contacts found only
 after 1.6 mm overlap); the event message gives the overlap at location.
 
 Measured state (``relative_state``, 34): the paper's relative state (32,

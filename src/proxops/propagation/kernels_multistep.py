@@ -8,7 +8,7 @@ derivatives: predictor (Adams-Bashforth, order k), one evaluation, corrector
 (PECE; Hairer, Norsett & Wanner, *Solving ODEs I*, sec. III.1; Montenbruck & Gill,
 *Satellite Orbits*, sec. 4.2.3-4.2.4, the standard for precise orbit propagation).
 
-Rate split (candidate b of issue 13): the harmonics n >= 2 are evaluated only at the
+Rate split (candidate b): the harmonics n >= 2 are evaluated only at the
 predicted state P; the final E re-evaluates the cheap part (point mass, Encke
 differential, drag, Sun, Moon, SRP) at the corrected state and re-uses the harmonic
 accelerations of P. P and the corrected state differ by the local truncation error

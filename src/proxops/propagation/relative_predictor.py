@@ -7,7 +7,7 @@ is put at the estimated Hill state with the exact nonlinear map and both are pro
 (:class:`proxops.propagation.truth.RelativeTruth`, two-body + J2, DOP853), the commanded Hill
 acceleration held or the commanded impulse applied first. It removes the deterministic error of the
 CW model at km ranges (curvature of the along-track direction, ~1.5 n^2 rho^2 / r, and the
-differential J2 terms, ~6 n^2 J2 (R_E / r)^2 rho) that made ``srf-vbar-ekf`` overconfident (issue 28).
+differential J2 terms, ~6 n^2 J2 (R_E / r)^2 rho) that made ``srf-vbar-ekf`` overconfident.
 The target's own trajectory does not depend on the chaser and is cached between calls.
 """
 

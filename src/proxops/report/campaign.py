@@ -46,7 +46,7 @@ def write_report(campaign, report_dir: str | Path | None = None, figures: bool =
         f"- succeeded {counts['succeeded']}, failed {counts['failed']} (of which {counts['errors']} raised), "
         f"runs with constraint violations {counts['with_violations']} {counts['violations_by_constraint'] or ''}",
         "",
-        "## Statistics over runs that did not raise (layout of cortex-convex-guidance.md Table 4)",
+        "## Statistics over runs that did not raise (layout of Wijayatunga et al. Table 4)",
         "",
         "Metrics in reading order (Δv, terminal accuracy, safety, navigation, the system's own, timings);"
         " constants and bookkeeping are left out here and kept in statistics.csv.",
@@ -179,6 +179,6 @@ def _system_table_figures(manifest: dict, table: pd.DataFrame, rdir: Path) -> li
 
 def _system_campaign_table(manifest: dict, table: pd.DataFrame) -> str:
     """A Markdown table the system builds from the campaign rows (``campaign_table`` hook),
-    e.g. Table 3 of tumbling-target-reachability.md for the los-sweep grid; '' if none."""
+    e.g. Table 3 of Iskender 2026 for the los-sweep grid; '' if none."""
     loaded = _campaign_system(manifest)
     return loaded.system.campaign_table(loaded.scenario, table)  # default (SystemBase): ""

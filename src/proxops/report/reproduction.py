@@ -30,7 +30,7 @@ from proxops.report.claims.srf import designed_dv, srf_claims  # noqa: F401
 from proxops.report.claims.underactuated import underactuated_claims  # noqa: F401
 
 SYSTEMS = SYSTEM_NAMES
-WALL_GOAL_S = {False: 20 * 60.0, True: 120.0}  # issue 27: full < 20 min, --quick < 2 min on 2 cores
+WALL_GOAL_S = {False: 20 * 60.0, True: 120.0}  # full < 20 min, --quick < 2 min on 2 cores
 
 
 def reproduce(target: str = "all", quick: bool = False, out: str | Path | None = None, workers: int = 2,
@@ -67,7 +67,7 @@ def reproduce(target: str = "all", quick: bool = False, out: str | Path | None =
         reused = sum(c["reused"] for c in ctx.campaigns)
         ctx.goals.append(Goal(
             "all", "`proxops reproduce all" + (" --quick`" if quick else "`") + " wall time",
-            f"< {goal / 60:.0f} min on 2 cores (issue 27)", f"{wall:.0f} s; {reused} of {len(ctx.campaigns)} campaigns "
+            f"< {goal / 60:.0f} min on 2 cores", f"{wall:.0f} s; {reused} of {len(ctx.campaigns)} campaigns "
             "reused from the cache", wall < goal,
             f"{os.cpu_count()} CPUs, load average {load[0]:.1f} / {load[1]:.1f} / {load[2]:.1f} at the end "
             "(other processes share the cores)", data={"wall_s": wall, "workers": workers}))

@@ -14,7 +14,7 @@ Random kinds (a fresh draw per run; vector keys draw each component):
 
 - ``percent = p`` (+ ``min_abs``, ``distribution = "uniform"|"normal"``): offset of scale
   ``max(p/100 * |nominal_i|, min_abs_i)``, uniform in ``[-scale, +scale]`` (default) or a
-  normal with that 1-sigma. srf-hopping-mpc.md §5: "varied by 10 % ... a minimum offset
+  normal with that 1-sigma. Silva et al. 2026 §5: "varied by 10 % ... a minimum offset
   of 1 m for position and 0.1 m/s for velocity" -> ``{percent = 10, min_abs = 1.0}``. The
   paper does not say uniform or normal; uniform in ±10 % is the default here.
 - ``sigma = s``: nominal + s N(0, 1) (absolute, same unit as the key).
@@ -29,10 +29,10 @@ declaration order, last axis fastest; run ``i`` uses grid point ``i % n_grid``):
 - ``grid = [v1, v2, ...]`` (scalars, or whole vectors for a vector key)
 - ``linspace = [start, stop, n]``
 - optional ``group = "name"``: grid keys of the same group vary together (one axis, equal
-  lengths), e.g. the low/high error levels of cortex-convex-guidance.md Table 3.
+  lengths), e.g. the low/high error levels of Wijayatunga et al. Table 3.
 
 Execution errors (navigation noise, thrust magnitude/pointing errors and missed thrusts,
-cortex-convex-guidance.md Alg. 3 / Table 3) are the scenario's ``[navigation]`` and
+Wijayatunga et al. Alg. 3 / Table 3) are the scenario's ``[navigation]`` and
 ``[actuator]`` keys; each run's own seed draws their realisation, and those keys can
 themselves be dispersed or gridded here.
 """

@@ -259,7 +259,7 @@ class NavigationSection(Section):
     reinit_velocity_sigma_mps: Positive = Field(
         0.1, description="ekf: 1-sigma velocity per axis after a re-initialisation (the position comes from the "
         "measurement)")
-    # --- attitude filter (issue 28 item 4): los (the target's attitude and rate), underactuated (planar pose) ---
+    # --- attitude filter: los (the target's attitude and rate), underactuated (planar pose) ---
     attitude_sigma_deg: Positive = Field(
         0.5, description="ekf (los, underactuated): 1-sigma per axis of the attitude of a camera/LIDAR pose measurement")
     attitude_rate_sigma_deg_s: Positive | None = Field(

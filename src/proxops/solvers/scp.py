@@ -1,5 +1,5 @@
 """Successive convexification: one loop shared by the srf MPC (CBF re-linearisation,
-srf-hopping-mpc.md §4.4) and the CORTEX final approach (plume, cortex-convex-guidance.md eq. 22).
+Silva et al. 2026 §4.4) and the CORTEX final approach (plume, Wijayatunga et al. eq. 22).
 
 Each iteration solves a convex subproblem linearised about the previous iterate; the
 caller supplies three callbacks and the loop owns the iteration order, the trust-region

@@ -1,4 +1,4 @@
-"""System ``cortex``: eclipse-aware convex reference generation (cortex-convex-guidance.md §3.1, §5.1.1).
+"""System ``cortex``: eclipse-aware convex reference generation (Wijayatunga et al. §3.1, §5.1.1).
 
 Scenario ``cortex-reference`` (src/proxops/scenarios/builtin/cortex-reference.toml)::
 
@@ -6,10 +6,12 @@ Scenario ``cortex-reference`` (src/proxops/scenarios/builtin/cortex-reference.to
     proxops cortex references --n 100 --workers 2 --out out/cortex
     proxops run cortex-reference --json        # same plan through the runner
 
-A "run" of this system is one plan (no closed loop: the tracking guidance is issue
-"cortex (2/2)"): :meth:`CortexSystem.run` returns the reference as a SimResult (states at
-the nodes, impulses as ``u_cmd``), so the campaign engine plans the Fibonacci axes as
-a grid campaign (``[dispersions] "axis.fibonacci_index" = {grid = [...]}``).
+Without ``guidance.closed_loop`` a "run" of this system is one plan: :meth:`CortexSystem.run`
+returns the reference as a SimResult (states at the nodes, impulses as ``u_cmd``), so the
+campaign engine plans the Fibonacci axes as a grid campaign
+(``[dispersions] "axis.fibonacci_index" = {grid = [...]}``). With ``guidance.closed_loop = true``
+the reference is tracked by the convex guidance CP_g on the full truth, with the Table 1
+recompute and abort triggers (:mod:`proxops.systems.cortex_loop`, ``cortex-nominal``).
 
 Eclipse: Earth shadow (conical umbra/penumbra by default) along the Keplerian CSO orbit
 of §5.1 from ``orbit.epoch_utc`` (:func:`proxops.environment.eclipse.eclipse_profile`),
@@ -103,7 +105,7 @@ class PlannerSection(Section):
 
 
 class GuidanceSection(Section):
-    """Table 2 keys of the tracking guidance (issue "cortex (2/2)"; not used by the planner):
+    """Table 2 keys of the tracking guidance (not used by the planner):
     eps_P = 10, dt_g = 30 s, delta t_g = 2 s, recompute thresholds [30, 30, 15, 5] m."""
 
     terminal_penalty: float = Field(10.0, description="tracking (cortex 2/2): terminal-error weight eps_P (Table 2: 10)")
@@ -127,7 +129,7 @@ class GuidanceSection(Section):
     regen_cone_return_s: Annotated[float, Field(ge=0.0)] = Field(0.0, description="final-approach regeneration from outside alpha_c_bar: the planning cone, widened to pass the start, closes linearly back onto alpha_c_bar within this time (0: the widened cone throughout)")
     replan_candidates: Annotated[int, Field(ge=1, le=1000)] = Field(30, description="regeneration: most phase durations tried from tau_lb (onboard time budget; none converged -> abort)")
     null_tol_mps: Annotated[float, Field(gt=0.0)] = Field(1e-3, description="velocity nulling before a re-plan / retreat ends below this speed")
-    passive_orbits: Annotated[float, Field(ge=1.0, le=50.0)] = Field(5.0, description="after an abort: window of the passive-safety certificate (orbits of thrust-free truth from the final state, issue 26) and of the onboard insertion check's CW prediction")
+    passive_orbits: Annotated[float, Field(ge=1.0, le=50.0)] = Field(5.0, description="after an abort: window of the passive-safety certificate (orbits of thrust-free truth from the final state) and of the onboard insertion check's CW prediction")
     passive_margin_m: Annotated[float, Field(ge=0.0)] = Field(2.0, description="safe-orbit insertion: the thrusters stop only when the thrust-free CW prediction from the estimate stays this far outside r_KOS for passive_orbits orbits")
     recompute_every: Literal["guidance", "impulse"] = Field("guidance", description="closed loop: evaluate the recompute conditions of Table 1 at every guidance step (Algorithm 2 lines 11-15, x_{k+1}) or at every impulse; the abort conditions are evaluated at every impulse either way")
     trace_step_s: Annotated[float, Field(ge=0.0)] = Field(10.0, description="closed loop: the run summary keeps the trajectory every this many seconds (campaign Figs. 13-14 without saved series; 0: none)")

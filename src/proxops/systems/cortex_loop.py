@@ -1,5 +1,5 @@
 """CORTEX closed loop (cortex 2/2): the ``cortex`` system with ``guidance.closed_loop = true``
-(cortex-convex-guidance.md §3.2-3.4, §5.1.2, Tables 1, 3, 4).
+(Wijayatunga et al. §3.2-3.4, §5.1.2, Tables 1, 3, 4).
 
 Scenarios ``cortex-nominal`` (fixed axis of §5.1.2, no errors), ``cortex-low-mc`` /
 ``cortex-high-mc`` (Table 3 levels, full truth) and ``cortex-abort`` (ground abort command
@@ -23,7 +23,7 @@ import math
 import numpy as np
 
 
-PAPER_TABLE4 = {  # cortex-convex-guidance.md Table 4: mean, std, Q1, Q2, Q3, P99
+PAPER_TABLE4 = {  # Wijayatunga et al. Table 4: mean, std, Q1, Q2, Q3, P99
     "low": {"tof_s": (1179.82, 0.00, 1179.82, 1179.82, 1179.82, 1179.82),
             "total_dv_mps": (0.11, 0.01, 0.10, 0.10, 0.11, 0.13),
             "terminal_position_error_mm": (3.67, 3.32, 2.23, 2.88, 3.96, 21.05),

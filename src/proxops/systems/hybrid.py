@@ -1,5 +1,5 @@
 """System ``hybrid``: hybrid MPC capture and post-capture of a tumbling chief
-(hybrid-mpc-capture.md, issue 16).
+(Basu et al.).
 
 Scenarios (src/proxops/scenarios/builtin/hybrid-capture*.toml)::
 
@@ -17,7 +17,7 @@ Controller: :class:`proxops.control.hybrid_supervisor.HybridSupervisor` (Cases 1
 dwell timer tau / T_1) over the capture MPC (Problem 2) and the post-capture MPC (Problem 3)
 of :mod:`proxops.control.hybrid_mpc`.
 
-Truth and navigation (issue 29): each CoM and the desired orbit move under exact two-body +
+Truth and navigation: each CoM and the desired orbit move under exact two-body +
 J2 gravity ([truth]); both MPCs keep their CW models and see :class:`proxops.navigation.hybrid.HybridNavigation`
 (MEKF of the chief attitude and rate, noisy relative pose and composite CoM; [estimation]).
 

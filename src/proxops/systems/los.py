@@ -1,5 +1,5 @@
 """System ``los``: approach to a tumbling target through its rotating LOS corridor
-(tumbling-target-reachability.md §2-7, §10.6).
+(Iskender 2026 §2-7, §10.6).
 
 Scenario ``los-tumble`` (src/proxops/scenarios/builtin/los-tumble.toml), e.g.::
 
@@ -192,7 +192,7 @@ def build_setup(sc: LosScenario) -> Setup:
                                  v_max_mps=g.v_max_mps, pd_natural_frequency_rad_s=2 * np.pi / g.pd_period_s,
                                  use_mpc=g.use_mpc, stop_on_infeasible=g.stop_on_infeasible,
                                  stop_at_hold=g.stop_at_hold)
-    ekf = sc.navigation.model == "ekf"  # the target attitude and rate estimated (issue 28 item 4)
+    ekf = sc.navigation.model == "ekf"  # the target attitude and rate estimated
     if ekf:
         navigation = attitude_navigation(sc, target, dt)
         model = BodyFrameModel(model.n, model.tumble_rate_rad_s, model.dt, model.theta0_rad)  # own copy: its angle
@@ -271,7 +271,7 @@ def summarize_result(sc: LosScenario, result) -> dict:
         where = "beyond" if r0 > r_sync else "inside"
         extra["hint"] = (f"the hard corridor rows became infeasible; the start ({r0:.1f} m) is {where} r_sync = "
                          f"{r_sync:.1f} m, the range within which a_max can hold the rotating corridor "
-                         "(tumbling-target-reachability.md §7): start inside r_sync, raise chaser.a_max_mps2, or "
+                         "(Iskender 2026 §7): start inside r_sync, raise chaser.a_max_mps2, or "
                          "set mpc.constraint_mode = \"soft\" to fly with penalised violations")
     return {
         **extra,
@@ -321,7 +321,7 @@ def run_case(tumble_rate_deg_s: float, a_max_mps2: float, initial_body_position_
 # --------------------------------------------------------------------------------------
 SWEEP_RATES_DEG_S = (1.0, 2.0, 3.0, 4.0, 5.0)
 SWEEP_A_MAX_MPS2 = (0.10, 0.05, 0.02)
-# tumbling-target-reachability.md Table 3: (w_t deg/s, a_max) -> (r_sync m, hold, r_min m)
+# Iskender 2026 Table 3: (w_t deg/s, a_max) -> (r_sync m, hold, r_min m)
 PAPER_TABLE3 = {
     (1.0, 0.10): (656.6, False, 0.0), (1.0, 0.05): (328.3, False, 143.7), (1.0, 0.02): (131.3, False, 145.3),
     (2.0, 0.10): (164.1, False, 143.0), (2.0, 0.05): (82.1, False, 141.9), (2.0, 0.02): (32.8, False, 111.8),

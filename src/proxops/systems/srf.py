@@ -1,4 +1,4 @@
-"""System ``srf``: the Short Range Framework of srf-hopping-mpc.md (V-bar, R-bar and
+"""System ``srf``: the Short Range Framework of Silva et al. 2026 (V-bar, R-bar and
 glideslope hopping recovered inside an MPC, passive abort safety, CBF keep-out zone).
 
 Scenarios ``srf-vbar``, ``srf-rbar``, ``srf-glideslope-40`` (and -20, -250), ``srf-cbf-demo``
@@ -122,7 +122,7 @@ class SrfMpcSection(Section):
     drift_outward_mps: Annotated[float, Field(ge=0.0)] = Field(
         0.0, description="V-bar drift rows: ONE-SIDED band, the invariant after a hop-start or trim impulse must give a "
         "drift away from the target by at least this (m/s of c = vy + 2 n x; 3 c t_orb of along-track drift per orbit) "
-        "and at most this + 2 drift_free_tol_mps (issue 26: the two-sided row sat on its inward edge)")
+        "and at most this + 2 drift_free_tol_mps (the two-sided row sat on its inward edge)")
     drift_trim: bool = Field(
         True, description="V-bar (with drift_free): a drift-free row also at a trim node after every hop start, so "
         "the MPC nulls the drift left by the hop impulse's execution errors and its single-sample estimate with a "
@@ -162,7 +162,7 @@ class SafetySection(Section):
         5.0, description="success: final distance to the reference point at most this")
     abort_orbits: Annotated[float, Field(ge=1.0, le=50.0)] = Field(
         5.0, description="passive-abort check on the truth: free drift from every hop state over this many orbits "
-        "(the window of the passive-safety certificate, issue 26)")
+        "(the window of the passive-safety certificate)")
     abort_samples_per_orbit: Annotated[int, Field(ge=10, le=100000)] = Field(
         720, description="samples per orbit of each passive-abort drift")
     abort_required_orbits: Annotated[float, Field(gt=0.0, le=10.0)] | None = Field(

@@ -1,5 +1,5 @@
 """System ``underactuated``: NMPC docking of a planar underactuated 6U CubeSat
-(underactuated-docking-nmpc.md).
+(Aborizk et al.).
 
 Scenarios (src/proxops/scenarios/builtin/underactuated-*.toml)::
 
@@ -267,7 +267,7 @@ def build_setup(sc: UnderactuatedScenario, run: dict | None = None) -> Setup:
     controller = UnderactuatedNMPC(params, limits, config, docking)
     plant = PlanarCubeSatPlant(params, sc.initial_state.vector())
     meta = {"run": run}
-    if sc.navigation.model == "ekf":  # planar pose estimated (issue 28 item 4)
+    if sc.navigation.model == "ekf":  # planar pose estimated
         navigation = planar_navigation(sc, params, c.dt_s)
         meta["attitude_filter"] = navigation.record  # filled during the run (summary: att_*, pose_nees_*)
     else:

@@ -1,4 +1,4 @@
-"""CORTEX reference generation (cortex-convex-guidance.md §3.1).
+"""CORTEX reference generation (Wijayatunga et al. §3.1).
 
 - :mod:`.holds`      sunlight-aware hold times (eqs. 13-15, Algorithm 1) on a sampled profile
 - :mod:`.phases`     the convex phases CP1 (fly-around, KOS planes) and CP2 (cone, plume SCP)

@@ -1,4 +1,4 @@
-"""Sunlight-aware hold times of CORTEX (cortex-convex-guidance.md §3.1, eqs. 13-15, Algorithm 1).
+"""Sunlight-aware hold times of CORTEX (Wijayatunga et al. §3.1, eqs. 13-15, Algorithm 1).
 
 The eclipse profile is a sampled time grid ``t_ecl`` (s, increasing) with a sunlight
 flag ``eta`` per sample (1 = sunlit); sample ``i`` stands for ``[t_i, t_{i+1})``.

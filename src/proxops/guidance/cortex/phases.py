@@ -1,4 +1,4 @@
-"""The two convex phases of CORTEX reference generation (cortex-convex-guidance.md §3.1.1-3.1.2).
+"""The two convex phases of CORTEX reference generation (Wijayatunga et al. §3.1.1-3.1.2).
 
 Both are second-order cone programs on the impulsive CW discretisation (eq. 2,
 :func:`proxops.core.cw.cw_discretize_impulsive`), solved with Clarabel

@@ -1,4 +1,4 @@
-"""CORTEX reference generation: the outer problem (cortex-convex-guidance.md eq. 12, Algorithm 1)
+"""CORTEX reference generation: the outer problem (Wijayatunga et al. eq. 12, Algorithm 1)
 over the fly-around CP1 and the final approach CP2 (:mod:`proxops.guidance.cortex.phases`).
 
 Frame: Hill/RTN (x radial out, y along-track, z orbit normal). The paper's relative

@@ -1,4 +1,4 @@
-"""cortex-convex-guidance.md §5: references (§5.1.1-5.1.2), closed loop and Table 4."""
+"""Wijayatunga et al. §5: references (§5.1.1-5.1.2), closed loop and Table 4."""
 
 from __future__ import annotations
 
@@ -140,7 +140,7 @@ def reference_rows(ctx: Context) -> list[Claim]:
         ours, EXPLAINED,
         "ours adds a terminal burn at each phase's last node (impulses at nodes 0..N: the arrival velocity x_f is met "
         "by it), measured above from the plans' own impulses; the fly-around's sits at the impulse bound in the plans "
-        "listed. It lowers the reference Δv against eqs. 17 / 20 as printed (issue 27 measured a median 0.020 m/s, up "
+        "listed. It lowers the reference Δv against eqs. 17 / 20 as printed (measured a median 0.020 m/s, up "
         "to 0.19 m/s per axis on 101 plans; not re-measured here: there is no option without it)", red,
         data={"fixed_axis": {"dv1_terminal_mps": plan["dv1_terminal_mps"], "dv2_terminal_mps": plan["dv2_terminal_mps"]},
               "a_bar_dt_cp1_mps": cap1}))
@@ -157,7 +157,7 @@ def reference_rows(ctx: Context) -> list[Claim]:
 
 
 def cortex_claims(ctx: Context) -> list[Claim]:
-    """CORTEX (cortex-convex-guidance.md §5): references (§5.1.1-5.1.2), nominal closed loop, the low- and
+    """CORTEX (Wijayatunga et al. §5): references (§5.1.1-5.1.2), nominal closed loop, the low- and
     high-error Monte Carlo campaigns of Table 3 on untuned seeds, passive safety after aborts, CP_g solve time."""
     from proxops.systems.cortex_loop import PAPER_CPG_SOLVE_MS, PAPER_TABLE4
 

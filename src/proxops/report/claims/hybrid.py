@@ -1,4 +1,4 @@
-"""hybrid-mpc-capture.md §VII: capture, docking, latch snap, re-dock, model check."""
+"""Basu et al. §VII: capture, docking, latch snap, re-dock, model check."""
 
 from __future__ import annotations
 
@@ -11,7 +11,7 @@ from proxops.report.claims.common import (EXPLAINED, NOT_ATTEMPTED, REPRODUCED, 
 
 
 def hybrid_claims(ctx: Context) -> list[Claim]:
-    """hybrid-mpc-capture.md §VII: the capture / post-capture sequence of hybrid-capture and the
+    """Basu et al. §VII: the capture / post-capture sequence of hybrid-capture and the
     50-run Monte Carlo (ours: the paper runs one case)."""
     from proxops.runner import execute, save_run
     from proxops.scenarios.loader import load_scenario
@@ -75,7 +75,7 @@ def hybrid_claims(ctx: Context) -> list[Claim]:
     rows.append(rotation_row(loaded, s, res))
     rows.append(horizon_row(ctx))
     ctx.goals.append(Goal(
-        "hybrid", "Whole §VII run (hybrid-capture) wall time", "< 20 s (issue 16; the paper gives none)",
+        "hybrid", "Whole §VII run (hybrid-capture) wall time", "< 20 s (the paper gives none)",
         f"{s['wall_time_s']:.1f} s for {s['sim_time_s']:.0f} s simulated; MPC step median "
         f"{s['solve_time_ms']['median']:.2f} ms, p95 {s['solve_time_ms']['p95']:.2f} ms", s["wall_time_s"] < 20.0,
         "wall time on the shared 2-core machine (load under the table)", data={"wall_s": s["wall_time_s"]}))
@@ -132,7 +132,7 @@ def tracking_row(s: dict) -> Claim:
             "hybrid", "Composite CoM orbit tracking", "millimetre-level error (§VII, Fig. 8)", ours, NOT_ATTEMPTED,
             "exact states: the truth's translation of the latched pair is the MPC's own linear CW model and there is "
             "no navigation noise, so the error cannot differ from zero by more than integration error: not a "
-            "reproduction. The row reads hybrid-capture's summary and is judged once the run has navigation (issue 29)",
+            "reproduction. The row reads hybrid-capture's summary and is judged once the run has navigation",
             data={"tracking_error_last_100s_max_m": trk, "navigation": False})
     ok = s.get("docked") and trk is not None and trk < 1e-2
     return Claim(

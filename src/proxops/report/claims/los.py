@@ -1,4 +1,4 @@
-"""tumbling-target-reachability.md §10.6: closed-loop approach through the rotating LOS corridor."""
+"""Iskender 2026 §10.6: closed-loop approach through the rotating LOS corridor."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""The navigation table of ``proxops reproduce`` (issue 28): every ``*-ekf`` built-in run beside its
+"""The navigation table of ``proxops reproduce``: every ``*-ekf`` built-in run beside its
 base scenario (the same name without ``-ekf``: noise on the truth, or exact states), same seed, so a
 new ``-ekf`` scenario appears without code changes. Columns: success, Δv, terminal error and, when
 the summary has them, ``nav_nees_mean`` / ``att_nees_mean`` and the mean navigation errors. A

@@ -1,4 +1,4 @@
-"""tumbling-target-reachability.md §8-11: certified safe-start sets, hierarchy, §9 Monte Carlo."""
+"""Iskender 2026 §8-11: certified safe-start sets, hierarchy, §9 Monte Carlo."""
 
 from __future__ import annotations
 

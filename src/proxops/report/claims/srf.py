@@ -1,4 +1,4 @@
-"""srf-hopping-mpc.md: hop times, V-bar / R-bar / glideslope closed loops, passive aborts, CBF."""
+"""Silva et al. 2026: hop times, V-bar / R-bar / glideslope closed loops, passive aborts, CBF."""
 
 from __future__ import annotations
 
@@ -176,7 +176,7 @@ def srf_claims(ctx: Context) -> list[Claim]:
         "the 40-90 deg trend is judged", data={"drift": {str(k): v for k, v in drift.items()}},
         tolerance="qualitative: every return >= 1 start distance, strictly decreasing from 40 to 90 deg"))
     frac = np.array(v["hop_intervals_s"]) / period
-    # the along-track dv the paper does not have: the drift-free rows and trims (issue 11), measured by switching them off
+    # the along-track dv the paper does not have: the drift-free rows and trims, measured by switching them off
     share = v["dv_share_along_track"]
     share_paper = run("srf-vbar", ["mpc.drift_free=false"])["dv_share_along_track"]
     share_no_trim = run("srf-vbar", ["mpc.drift_trim=false"])["dv_share_along_track"]

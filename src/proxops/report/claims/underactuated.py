@@ -1,4 +1,4 @@
-"""underactuated-docking-nmpc.md: averaged vs general NMPC, Case 1 and Case 2."""
+"""Aborizk et al.: averaged vs general NMPC, Case 1 and Case 2."""
 
 from __future__ import annotations
 
