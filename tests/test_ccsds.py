@@ -12,6 +12,7 @@ from typer.testing import CliRunner
 
 from proxops.cli import app
 from proxops.orbitdata.ccsds import OemSegment, format_oem, read_oem, seconds_between, utc_epochs
+from conftest import one_line_error
 
 L1 = "1 25544U 98067A   08264.51782528 -.00002182  00000-0 -11606-4 0  2927"
 L2 = "2 25544  51.6416 247.4627 0006703 130.5360 325.0288 15.72125391563537"
@@ -21,14 +22,6 @@ DURATION_S = 300.0
 
 def invoke(*args):
     return CliRunner().invoke(app, [str(a) for a in args])
-
-
-def one_line_error(res, *fragments):
-    lines = [ln for ln in res.stderr.splitlines() if ln.strip()]
-    assert res.exit_code == 2, (res.exit_code, res.stderr, res.exception)
-    assert len(lines) == 1 and lines[0].startswith("error: ") and "Traceback" not in res.stderr, res.stderr
-    for f in fragments:
-        assert f in lines[0], (f, lines[0])
 
 
 @pytest.fixture(scope="module")

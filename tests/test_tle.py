@@ -14,6 +14,7 @@ from typer.testing import CliRunner
 
 from proxops.cli import app
 from proxops.orbitdata.tle import ISS_TLE, TleError, read_tle_file, tle_orbit
+from conftest import one_line_error
 
 L1 = "1 25544U 98067A   08264.51782528 -.00002182  00000-0 -11606-4 0  2927"
 L2 = "2 25544  51.6416 247.4627 0006703 130.5360 325.0288 15.72125391563537"
@@ -28,14 +29,6 @@ def with_checksum(line68: str) -> str:
 
 def invoke(*args):
     return CliRunner().invoke(app, list(args))
-
-
-def one_line_error(res, *fragments):
-    lines = [ln for ln in res.stderr.splitlines() if ln.strip()]
-    assert res.exit_code == 2, (res.exit_code, res.stderr, res.exception)
-    assert len(lines) == 1 and lines[0].startswith("error: ") and "Traceback" not in res.stderr, res.stderr
-    for f in fragments:
-        assert f in lines[0], (f, lines[0])
 
 
 def tle_set(l1, l2):

@@ -24,6 +24,7 @@ from typer import _click as click  # typer vendors its own click: its exceptions
 import typer
 from typer.core import TyperGroup
 
+from proxops.jsonable import json_default  # noqa: F401 (one home; re-exported for the CLI modules)
 from proxops.errors import ProxopsInputError
 
 STATE = {"debug": False, "quiet": False}  # set by the top-level --debug and --quiet options
@@ -241,19 +242,6 @@ def check_out_dir(path, option: str = "--out", campaign: bool = False) -> Path:
                 except OSError:
                     pass
     return path
-
-
-def json_default(obj):
-    """JSON encoding of numpy scalars/arrays and paths."""
-    import numpy as np
-
-    if isinstance(obj, np.generic):
-        return obj.item()
-    if isinstance(obj, np.ndarray):
-        return obj.tolist()
-    if isinstance(obj, Path):
-        return str(obj)
-    return str(obj)
 
 
 def emit(obj: dict, as_json: bool, text: str) -> None:

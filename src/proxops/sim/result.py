@@ -22,6 +22,7 @@ from pathlib import Path
 import numpy as np
 
 from proxops.core.layout import StateLayout, make_control_layout
+from proxops.jsonable import json_default
 from proxops.solvers.stats import solve_time_stats
 from proxops.status import Status
 
@@ -277,10 +278,5 @@ def _unique(names: list[str]) -> list[str]:
 
 
 def _jsonable(obj):
-    if isinstance(obj, np.generic):
-        return obj.item()
-    if isinstance(obj, np.ndarray):
-        return obj.tolist()
-    if isinstance(obj, StateLayout):
-        return obj.to_dict()
-    return str(obj)
+    """meta.json: a state layout as its dict, the rest as everywhere (:func:`proxops.jsonable.json_default`)."""
+    return obj.to_dict() if isinstance(obj, StateLayout) else json_default(obj)

@@ -10,6 +10,8 @@ and reuses a finished one instead of running it again.
 
 from __future__ import annotations
 
+from proxops.jsonable import json_default
+
 import hashlib
 import json
 import time
@@ -121,19 +123,8 @@ def run(name: str, overrides=(), out: Path | None = None, cache: bool = True) ->
         memo[key] = s
         if path is not None:
             path.parent.mkdir(parents=True, exist_ok=True)
-            path.write_text(json.dumps(s, default=_plain))
+            path.write_text(json.dumps(s, default=json_default))
     return s
-
-
-def _plain(obj):
-    """JSON for numpy values (summaries are JSON-ready otherwise)."""
-    import numpy as np
-
-    if isinstance(obj, np.generic):
-        return obj.item()
-    if isinstance(obj, np.ndarray):
-        return obj.tolist()
-    return str(obj)
 
 
 def cache_key(name: str, runs: int, seed: int | None, overrides=()) -> str:
