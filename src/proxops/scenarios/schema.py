@@ -249,7 +249,10 @@ class NavigationSection(Section):
     command_sigma_fraction: NonNegative = Field(
         0.0, description="ekf: extra isotropic 1-sigma execution error of each commanded impulse/acceleration per "
         "axis, as a fraction of its norm, on top of the [actuator] / [errors] execution-error model the filter "
-        "always adds (magnitude, pointing, direction angles, missed thrusts)")
+        "adds (magnitude, pointing, direction angles, missed thrusts) unless actuator_error_model is false")
+    actuator_error_model: bool = Field(
+        True, description="ekf: add the actuator's execution-error covariance at every command (false: the filter "
+        "believes every command exactly; to study a filter that does not model its thrusters)")
     gate_probability: Annotated[float, Field(gt=0.0, lt=1.0)] = Field(
         0.9999, description="ekf: chi-square gate confidence; a measurement beyond it is rejected (an event)")
     reinit_after_rejections: Annotated[int, Field(ge=0, le=1000)] = Field(

@@ -154,6 +154,8 @@ def ekf_navigation(nav: NavigationSection, orbit: OrbitSection | None, control_d
     command_covariance = getattr(actuator, "execution_covariance", None)
     if command_covariance is None:
         command_covariance = getattr(getattr(actuator, "errors", None), "execution_covariance", None)
+    if not nav.actuator_error_model:
+        command_covariance = None
     return RelativeEKF(mean_motion(orbit.sma_m), sensor, p0, q_m2_s3=nav.process_noise_m2_s3,
                        predictor=predictor, command_covariance=command_covariance,
                        gate_probability=nav.gate_probability, command_sigma_fraction=nav.command_sigma_fraction,
