@@ -30,6 +30,7 @@ from proxops.runner import summary_markdown
     (2.4e-42, "chief_rate_final_deg_s", "0 deg/s"),
     (6.041880, "peak_contact_impulse_Ns", "6.0419 N s"),  # impulses to 0.1 mN s
     (0.0, "x_m", "0 m"),
+    (5.361e-12, "check_dynamics_residual", "< 1e-06"),  # no unit: a bound, not 12 digits of noise
     (1.0e-7, "hop_distance_weight_per_m2", "1e-07 1/m^2"),
     (0.013507467, "dv_share_along_track", "0.01351"),  # no unit: 4 significant digits
     (12345.678, "steps", "12346"),

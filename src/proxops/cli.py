@@ -140,7 +140,8 @@ def format_summary(s: dict) -> str:
     events = ", ".join(f"{kind} {count}" for kind, count in (s.get("events") or {}).items()) or "none"
     lines = [
         f"scenario      {s.get('scenario', '')} ({s.get('system', '')})",
-        f"status        {s['status']}" + (f" ({'success' if s['success'] else 'failed'}; stopped: {s.get('stop_reason')})"
+        f"status        {s['status']}" + (f" ({'success' if s['success'] else 'failed'}"
+                                            + (f"; stopped: {s['stop_reason']})" if s.get("stop_reason") else ")")
                                             if "success" in s else ""),
         f"final range   {q('final_range_m')}, speed {q('final_speed_mps')}",
         f"min range     {q('min_range_m')}",

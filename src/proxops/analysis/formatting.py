@@ -59,6 +59,8 @@ def format_number(value, unit: str = "") -> str:
         return f"{value:.{decimals}f}"
     if abs(value) >= 10**SIGNIFICANT:
         return f"{value:.0f}"
+    if not unit and abs(value) < 1e-6:  # no unit, no resolution: a bound says all a reader needs (a 5e-12 residual)
+        return "< 1e-06" if value > 0 else "> -1e-06"
     return f"{value:.{SIGNIFICANT}g}"
 
 
