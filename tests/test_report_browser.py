@@ -76,3 +76,25 @@ def test_html_report_loads_in_chromium_with_its_headline_and_figures(report):
     keep = Path(__file__).resolve().parents[1] / "out" / "browser"
     keep.mkdir(parents=True, exist_ok=True)
     shutil.copy(report / "report" / "report-screenshot.png", keep / "report-screenshot.png")  # for a person to look at
+
+
+def test_run_report_loads_in_chromium(tmp_path):
+    """`proxops run srf-vbar --out DIR --report`: DIR/report.html in Chromium shows the run's outcome and
+    Δv as summary.json has them and loads every figure of the folder."""
+    import json
+
+    out = tmp_path / "vbar"
+    done = CliRunner().invoke(app, ["run", "srf-vbar", "--out", str(out), "--report", "--json"])
+    assert done.exit_code == 0, done.output
+    summary = json.loads((out / "summary.json").read_text())
+    figures = sorted(p.name for p in out.glob("*.png"))
+    driver = _browser()
+    try:
+        driver.get((out / "report.html").as_uri())
+        text = driver.find_element("tag name", "body").text
+        severe = [e for e in driver.get_log("browser") if e["level"] == "SEVERE"]
+        images = driver.execute_script("return Array.from(document.images).map(i => i.complete && i.naturalWidth > 0)")
+    finally:
+        driver.quit()
+    assert severe == [] and figures and len(images) == len(figures) and all(images)
+    assert summary["status"] in text and f"{summary['total_dv_mps']:.4f} m/s" in text

@@ -99,6 +99,7 @@ def run(
     as_json: Annotated[bool, typer.Option("--json", help="One JSON object on stdout.")] = False,
     oem: Annotated[Optional[Path], typer.Option("--oem", help="CCSDS OEM of the chaser (+ -target, -hill files).")] = None,
     mat: Annotated[Optional[Path], typer.Option("--mat", help="MATLAB .mat of the time series and summary.")] = None,
+    report: Annotated[bool, typer.Option("--report", help="Also write OUT/report.html (headline, summary, figures; needs --out).")] = False,
 ):
     """Run one closed-loop simulation and print its summary (exit code 4 if the run finished but failed)."""
     from proxops.cli_common import EXIT_RUN_FAILED, check_out_dir
@@ -108,6 +109,8 @@ def run(
 
     if seed is not None and not 0 <= seed < 2**63:
         raise input_error("--seed", seed, "allowed a whole number from 0 to 2^63 - 1")
+    if report and out is None:
+        raise input_error("--report", True, "needs --out DIR (the report is DIR/report.html beside the figures)")
     if out is not None:
         check_out_dir(out)
     from proxops.cli_export import check_out_file
@@ -117,6 +120,10 @@ def run(
     loaded = load_scenario(scenario, set_)
     summary = run_scenario(loaded, seed=seed, out=out, figures=figures,
                            progress=not as_json and not STATE["quiet"], oem=oem, mat=mat)
+    if report:
+        from proxops.report.run import write_run_report
+
+        summary["report"] = str(write_run_report(out, summary))
     emit(summary, as_json, format_summary(summary))
     if not summary["success"]:  # the system's own test, as campaigns count it (analysis.runs.execute)
         typer.echo(f"error: the run finished but failed (status {summary.get('status')!r}); exit code "
