@@ -56,3 +56,17 @@ def test_results_saved_with_index_columns_still_load(tmp_path):
     assert np.array_equal(r.x_true, x) and np.array_equal(r.x_est, x + 1) and np.array_equal(r.u_applied, u * 2)
     # without a stored layout: a position and a velocity block by the stored slices
     assert list(r.to_frame().columns[:4]) == ["t_s", "position_0_m", "position_1_m", "position_2_m"]
+
+
+def test_a_result_built_by_hand_round_trips(tmp_path):
+    """A SimResult made without the engine (no layouts in its meta, e.g. a cortex reference plan)
+    saves named columns and loads back the same arrays."""
+    n = 5
+    rng = np.random.default_rng(7)
+    r = SimResult(t=np.arange(n, dtype=float), x_true=rng.normal(size=(n, 6)), x_est=rng.normal(size=(n, 6)),
+                  u_cmd=rng.normal(size=(n, 3)), u_applied=rng.normal(size=(n, 3)), dv_cum=np.arange(n, dtype=float),
+                  status=["ok"] * n, solve_time_s=np.zeros(n), mode=[""] * n, meta={"outcome": "ok"})
+    r.save(tmp_path)
+    back = SimResult.load(tmp_path)
+    for key in ("t", "x_true", "x_est", "u_cmd", "u_applied", "dv_cum"):
+        assert np.array_equal(getattr(r, key), getattr(back, key)), key

@@ -198,7 +198,10 @@ class SimResult:
             {"t": pd.Series(dtype=float), "kind": pd.Series(dtype=str), "message": pd.Series(dtype=str)}
         )
         ev.to_parquet(d / "events.parquet", index=False)
-        (d / "meta.json").write_text(json.dumps(self.meta, indent=2, default=_jsonable))
+        meta = dict(self.meta)  # the layouts the column names came from, also for results built by hand
+        meta.setdefault("layout", self.layout.to_dict())
+        meta.setdefault("control_layout", self.control_layout.to_dict())
+        (d / "meta.json").write_text(json.dumps(meta, indent=2, default=_jsonable))
         return d
 
     @classmethod
