@@ -48,17 +48,26 @@ def _post_intervals(result) -> list[tuple[float, float]]:
     return out
 
 
-def _decorate(ax, result, legend: bool = False) -> None:
-    """Post-capture shaded, contacts (red dotted) and the snap (black dashed)."""
-    for i, (a, b) in enumerate(_post_intervals(result)):
+def _decorate(ax, result, legend: bool = False, window: tuple[float, float] | None = None) -> None:
+    """Post-capture shaded, contacts (red dotted) and the snap (black dashed); only what falls in
+    ``window`` (s) is drawn, so the legend lists no event the panel does not show."""
+    lo, hi = window if window is not None else (-np.inf, np.inf)
+    spans = [(max(a, lo), min(b, hi)) for a, b in _post_intervals(result) if b > lo and a < hi]
+    for i, (a, b) in enumerate(spans):
         ax.axvspan(a, b, color="tab:green", alpha=0.10, label="post-capture (h = 1)" if i == 0 else None)
-    for i, tc in enumerate(_events(result, "contact")):
+    for i, tc in enumerate(t for t in _events(result, "contact") if lo <= t <= hi):
         ax.axvline(tc, color="tab:red", ls=":", lw=0.8, label="contact" if i == 0 else None)
-    for i, ts in enumerate(t for t, k, m in result.events if k == "snap" and not m.startswith("skipped")):
+    snaps = [t for t, k, m in result.events if k == "snap" and not m.startswith("skipped") and lo <= t <= hi]
+    for i, ts in enumerate(snaps):
         ax.axvline(ts, color="k", ls="--", lw=0.9, label="latch snap" if i == 0 else None)
     ax.grid(alpha=0.3)
     if legend:
-        ax.legend(loc="best", fontsize=7)
+        _legend(ax)
+
+
+def _legend(ax, ncol: int = 1) -> None:
+    """The legend beside the panel (right of the axes), never over the data."""
+    ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=7, ncol=ncol, borderaxespad=0.0)
 
 
 def _attitude_deg(q: np.ndarray) -> np.ndarray:
@@ -81,9 +90,9 @@ def plot_contact(result, path: Path, title: str = "") -> Path:
     axes[2].set_ylabel(r"$\rho$ [m] (in C)")
     axes[2].set_xlabel("time [s]")
     for ax in axes:
-        _decorate(ax, result)
+        _decorate(ax, result, window=(0.0, t_end))
         ax.set_xlim(0.0, t_end)
-        ax.legend(loc="upper right", fontsize=7, ncol=4)
+        _legend(ax)
     first = f"first contact at {contacts[0]:.2f} s" if contacts else "no contact"
     axes[0].set_title(f"{title}: capture flow with contact jumps ({first}; paper Fig. 5: 11 s)")
     return save(fig, path)
@@ -104,7 +113,7 @@ def plot_displacement_controls(result, path: Path, title: str = "") -> Path:
     axes[2].set_xlabel("time [s]")
     for i, ax in enumerate(axes):
         _decorate(ax, result)
-        ax.legend(loc="upper right", fontsize=7, ncol=3)
+        _legend(ax)
     axes[0].set_title(f"{title}: relative displacement between the ports and control norms (Fig. 6)")
     return save(fig, path)
 
@@ -125,7 +134,7 @@ def plot_rotation(result, path: Path, title: str = "") -> Path:
     axes[1, 1].set_ylabel(r"$\omega_c$ [rad/s]")
     for ax in axes.ravel():
         _decorate(ax, result)
-        ax.legend(loc="upper right", fontsize=7, ncol=4)
+        _legend(ax)
     for ax in axes[1]:
         ax.set_xlabel("time [s]")
     fig.suptitle(f"{title}: relative rotational states and the chief's attitude and rate (Fig. 7)")
@@ -150,7 +159,7 @@ def plot_tracking(result, path: Path, title: str = "") -> Path:
     axes[1].set_xlabel("time [s]")
     for ax in axes:
         _decorate(ax, result)
-        ax.legend(loc="upper right", fontsize=7, ncol=4)
+        _legend(ax)
         ax.set_xlim(t0, t[-1])
     axes[0].set_title(f"{title}: post-capture orbit tracking of the pair's CoM (Fig. 8)"
                       + ("" if ivals else " - never docked"))
@@ -182,7 +191,7 @@ def plot_decoupling(result, path: Path, title: str = "") -> Path:
     axes[2].set_xlabel("time [s]")
     for ax in axes:
         _decorate(ax, result)
-        ax.legend(loc="upper right", fontsize=7)
+        _legend(ax)
         ax.set_xlim(a, b)
     axes[0].set_title(f"{title}: latch snap, decoupling and re-docking (Fig. 9)"
                       + ("" if snaps else " - no snap in this run"))
