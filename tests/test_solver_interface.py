@@ -117,7 +117,7 @@ def test_successive_convexification_converges_to_the_nearest_point_outside_the_d
 
     out = successive_convexification(solve, lambda x, prev: prev is not None and np.abs(x - prev).max() < 1e-10,
                                      relinearize, max_iter=100)
-    assert out.converged
+    assert out.converged and out.status is SolveStatus.OPTIMAL
     np.testing.assert_allclose(out.iterate, [0.6, 0.8], atol=1e-8)
     assert np.linalg.norm(out.iterate) >= 1.0 - 1e-9
 
@@ -129,10 +129,10 @@ def test_successive_convexification_loop_rules():
     out = successive_convexification(lambda: next(seq), lambda it, prev: False,
                                      lambda prev, r: radii.append(r), max_iter=5,
                                      trust=TrustRegion(4.0), merit=lambda it: it)
-    assert out.status == "failed" and out.failure == "infeasible" and out.iterations == 3
+    assert out.status is SolveStatus.FAILED and out.failure is SolveStatus.INFEASIBLE and out.iterations == 3
     assert radii == [4.0, 2.0] and out.iterate == 2.0  # merit 1 -> 2 grew: 4 -> 2
     out = successive_convexification(lambda: (0.0, None), lambda it, prev: False, max_iter=3)
-    assert out.status == "max_iter" and out.iterations == 3
+    assert out.status is SolveStatus.MAX_ITER and out.failure is SolveStatus.NONE and out.iterations == 3
 
 
 def test_casadi_nlp_optimum_and_statuses():
