@@ -46,6 +46,15 @@ def vector(name: str, value, size: int, fill: float | None = None, allow_inf: bo
     return arr
 
 
+def cost_vector(name: str, value) -> np.ndarray:
+    """The linear cost of a problem as :func:`vector` gives it (NaN allowed: reported at solve time);
+    an empty one is refused (a problem needs at least one variable)."""
+    arr = vector(name, value, np.size(value), allow_nan=True)
+    if arr.shape[0] == 0:
+        raise input_error(name, "empty", "the problem needs at least one variable")
+    return arr
+
+
 def dense_matrix(name: str, value, shape: tuple[int, int], allow_nonfinite: bool = False) -> np.ndarray:
     """C-contiguous float64 dense copy of a dense or sparse matrix with a fixed shape."""
     arr = value.toarray() if sp.issparse(value) else np.asarray(value, dtype=float)

@@ -118,10 +118,8 @@ class ClarabelSOCP(SolverAdapter):
         ``update`` then takes these names (P, q, A, b)."""
         self._native_setup_done()
         self._qp = None
-        q = _util.vector("q", q, np.size(q), allow_nan=True)
+        q = _util.cost_vector("q", q)
         n = q.shape[0]
-        if n == 0:
-            raise input_error("q", "empty", "the problem needs at least one variable")
         m = _util.rows_of("A", A)
         cones = [(str(kind), int(dim)) for kind, dim in cones]
         for kind, dim in cones:

@@ -90,8 +90,8 @@ class DaqpQP(SolverAdapter):
     # ------------------------------------------------------------------ set-up
     def _setup_form(self, problem: QuadraticProgram) -> None:
         """Allocate the DAQP workspace for a :class:`QuadraticProgram`: equality rows A_eq come
-        first in DAQP's rows (bl = bu); P = None is an LP (H = 0: give ``settings={"eps_prox": e}``,
-        e > 0, for DAQP's proximal-point LP iterations)."""
+        first in DAQP's rows (bl = bu); P = None is an LP (H = 0; ``settings={"eps_prox": e}``, e > 0,
+        selects DAQP's proximal-point LP iterations, see the module doc)."""
         p = _util.rows_of("A_eq", problem.A_eq)
         stacked = problem.stacked()
         n = stacked.n

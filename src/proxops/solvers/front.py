@@ -54,8 +54,8 @@ def make_solver(form, name: str, **settings):
 
     form: a form instance (the adapter is also set up with it), a form class, or "QP", "SOCP", "LP",
     "MILP". Solvers by form: QP daqp, piqp, clarabel; SOCP clarabel, ipopt (the cone rows as smooth NLP
-constraints, for cross-checks: :mod:`proxops.solvers.ipopt_socp`); LP highs, daqp (give
-    ``settings={"eps_prox": e}``, e > 0), piqp, clarabel; MILP highs. ``settings`` go to the adapter's
+constraints, for cross-checks: :mod:`proxops.solvers.ipopt_socp`); LP highs, daqp (H = 0;
+    ``settings={"eps_prox": e}``, e > 0, for its proximal-point LP iterations), piqp, clarabel; MILP highs. ``settings`` go to the adapter's
     constructor. A name the form does not allow raises a one-line ProxopsInputError."""
     kind = form_kind(form)
     allowed = SOLVERS_FOR[kind]

@@ -146,10 +146,8 @@ class HighsLP(SolverAdapter):
 
     def _setup(self, c, A, rl, ru, lb, ub, integrality) -> None:
         self._integrality = integrality
-        c = _util.vector("c", c, np.size(c), allow_nan=True)
+        c = _util.cost_vector("c", c)
         n = c.shape[0]
-        if n == 0:
-            raise input_error("c", "empty", "the problem needs at least one variable")
         m = _util.rows_of("A", A)
         self.n, self.m = n, m
         self._bad = _util.BadData()

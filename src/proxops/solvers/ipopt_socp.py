@@ -49,7 +49,7 @@ class IpoptSOCP(SolverAdapter):
     def setup_native(self, P, q, A, b, cones) -> None:
         """The problem in Clarabel's native form (cones: (kind, dim) with kind zero / nonneg / soc)."""
         self._native_setup_done()
-        q = _util.vector("q", q, np.size(q))
+        q = _util.cost_vector("q", q)
         n = q.shape[0]
         m = _util.rows_of("A", A)
         cones = [(str(k), int(d)) for k, d in cones]

@@ -131,10 +131,8 @@ class PiqpQP(SolverAdapter):
         NaN data makes ``solve`` return NUMERICAL_ERROR. ``update`` then takes these names.
         """
         self._native_setup_done()
-        c = _util.vector("c", c, np.size(c), allow_nan=True)
+        c = _util.cost_vector("c", c)
         n = c.shape[0]
-        if n == 0:
-            raise input_error("c", "empty", "the problem needs at least one variable")
         p = _util.rows_of("A", A)
         m = _util.rows_of("G", G)
         if A is None and b is not None:
