@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-import math
-
 import importlib
 
 import numpy as np
@@ -45,6 +43,15 @@ def vector(name: str, value, size: int, fill: float | None = None, allow_inf: bo
         raise input_error(name, "NaN", "entries must be numbers (bounds may be +-inf)")
     if not allow_inf and np.isinf(arr).any():
         raise input_error(name, "inf", "entries must be finite")
+    return arr
+
+
+def cost_vector(name: str, value) -> np.ndarray:
+    """The linear cost of a problem as :func:`vector` gives it (NaN allowed: reported at solve time);
+    an empty one is refused (a problem needs at least one variable)."""
+    arr = vector(name, value, np.size(value), allow_nan=True)
+    if arr.shape[0] == 0:
+        raise input_error(name, "empty", "the problem needs at least one variable")
     return arr
 
 
@@ -179,23 +186,3 @@ class BadData:
         if not self.fields:
             return None
         return "non-finite problem data in " + ", ".join(sorted(self.fields)) + "; nothing was solved"
-
-
-def unsolvable(adapter, crossed_raw_status: str = "crossed_bounds"):
-    """The result for data a solver must not be called with (NaN or inf where not allowed,
-    crossed bounds, a failed set-up), or None when the solver may run; solving before
-    ``setup`` is a usage error. ``adapter`` has the
-    ``name``, ``_bad``, ``_crossed`` and ``_solver_error`` attributes every adapter keeps."""
-    from proxops.solvers.result import SolverResult, SolveStatus, failed_result
-
-    if adapter._data is None:
-        raise input_error(f"{type(adapter).__name__}.solve", "called before setup", "call setup() first")
-    bad = adapter._bad.message()
-    if bad is not None:
-        return failed_result(adapter.name, bad)
-    if adapter._crossed is not None:
-        return SolverResult(SolveStatus.INFEASIBLE, None, math.nan, 0, 0.0, adapter.name,
-                            {"raw_status": crossed_raw_status, "reason": adapter._crossed})
-    if adapter._solver_error is not None:
-        return failed_result(adapter.name, adapter._solver_error)
-    return None
