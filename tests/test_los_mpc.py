@@ -148,8 +148,9 @@ def test_fast_prediction_equals_exact_rollout(w_deg, make_cfg):
         plan = rng.uniform(-0.1, 0.1, size=(N, 3))
         F, Gam = _rollout_matrices(model, t, N)
         exact = F @ x0 + Gam @ plan.ravel()
-        p_g = mpc._load(t, x0, plan.ravel(), np.zeros(6 * N), np.zeros(3))
-        np.testing.assert_allclose(p_g, exact, rtol=0, atol=1e-9)
+        basis = mpc._load(float(model.theta(t)), x0, np.zeros((N, 6)), np.zeros(3), plan.ravel(), 2)
+        np.testing.assert_allclose(basis[: 3 * N], plan.ravel(), rtol=0, atol=0)  # g = the plan as given
+        np.testing.assert_allclose(basis[3 * N :], exact, rtol=0, atol=1e-9)
 
 
 @pytest.mark.parametrize("mode", ["hard", "soft"])

@@ -138,12 +138,14 @@ class MpcSolution:
     u0: np.ndarray
     theta_rad: float
     inputs: np.ndarray | None  # (N, 3) planned body-axes inputs (m/s^2; the MPC's own plan: do not modify)
-    prediction: tuple | None  # (p_g (6N,), S (6N, 3N), dU (3N,)): predicted states p_g + S dU, or None
-    solve_time_s: float  # DAQP solve call
-    build_time_s: float  # condensing + update
+    solve_time_s: float  # QP solver's solve call(s)
+    build_time_s: float  # QP data update (kernel + solver update)
     iterations: int
     max_slack_m: float = 0.0  # soft mode: largest corridor slack used
     info: dict = field(default_factory=dict)
+    # [plan guess g (3N), p_g (6N)] of this solve (a fresh array) and the averaged map S (6N, 3N)
+    basis: np.ndarray | None = field(default=None, repr=False)
+    S: np.ndarray | None = field(default=None, repr=False)
 
     @property
     def ok(self) -> bool:
@@ -155,13 +157,22 @@ class MpcSolution:
         return rotate_z(self.theta_rad, self.u0)
 
     @property
-    def states(self) -> np.ndarray | None:
-        """(N, 6) predicted body-frame states x_1..x_N = p_g + S dU (p_g: exact prediction of the
-        plan the QP was centred on, dU: the change of plan; computed when asked: the closed loop
-        does not use them)."""
-        if self.prediction is None:
+    def prediction(self) -> tuple | None:
+        """(p_g (6N,), S (6N, 3N), dU (3N,)): the predicted states are p_g + S dU (p_g: exact
+        prediction of the plan g the QP was centred on, dU = U - g the change of plan); None
+        after a failed solve. Computed when asked (the closed loop does not use it)."""
+        if self.basis is None or self.inputs is None:
             return None
-        base, S, dU = self.prediction
+        n3 = self.S.shape[1]
+        return self.basis[n3:], self.S, self.inputs.reshape(n3) - self.basis[:n3]
+
+    @property
+    def states(self) -> np.ndarray | None:
+        """(N, 6) predicted body-frame states x_1..x_N = p_g + S dU (see ``prediction``)."""
+        pred = self.prediction
+        if pred is None:
+            return None
+        base, S, dU = pred
         return (base + S @ dU).reshape(-1, 6)
 
 
@@ -204,6 +215,7 @@ class LosMpc:
         self.n_var = nu + (N if self.soft else 0)
         self._offsets = model.w_rel * model.dt * np.arange(N + 1)  # theta_j - theta_k
         self._ref_shape = (N, 6)
+        self._plan_shape = (N, 3)
         key = (model.n, model.w_rel, model.dt, N)
         cached = memo_get(_PREDICTION_CACHE, key, lambda: self._prediction_blocks(model, N))
         self._Phi_pow, self._Su_L, self._S = cached
@@ -221,12 +233,12 @@ class LosMpc:
         self._G = np.ascontiguousarray(G, dtype=float)
         self._n_rows = G.shape[0]
         # per-geometry arrays, shared by every run of a campaign (read only)
-        self._S_posT, A, self._HS, self._PB = memo_get(
+        A, self._KK, self._PB = memo_get(
             _WEIGHTS_CACHE, (key, weights, self._G.tobytes(), np.asarray(self._h, float).tobytes()),
             lambda: self._geometry_blocks(model))
         lb = np.full(self.n_var, -self.a_max)
         ub = np.full(self.n_var, self.a_max)
-        # hard mode: DAQP gets the QP in w = U - U_c without a linear term (module doc); soft mode
+        # hard mode: the solver gets the QP in w = U - U_c without a linear term (module doc); soft mode
         # keeps the linear term (QP in dU = U - g): shifting the slack to its unconstrained
         # minimiser -rho / w_s = -1e7 m would put 1e7 m offsets into every row (errors ~1e-9)
         self._shift = not self.soft
@@ -244,29 +256,24 @@ class LosMpc:
         self._A = A
         self._lb, self._ub = lb, ub
         self._solver: DaqpQP | None = None
-        self._plan: np.ndarray | None = None  # (N, 3) last planned body-axes inputs
-        # per-step buffers written by the kernel (DaqpQP copies the bounds into its own vectors)
-        # the kernel's arguments, packed (a jitted call costs ~0.3 us per argument):
-        # inputs [x_0 (6), u_prev (3), g (3N), ref (6N)], constants [o_j = theta_j - theta_k, cos o_j,
-        # sin o_j (N+1 each), R_u (3N), R_du (3N), h (r)], [Phi | Bd] (6, 9), [H^-1; S_pos^T] (2, 3N, 3N), outputs
-        # [p_g (6N), f, x_c, lb - x_c, ub - x_c (n_var each), rows (N r)]
-        nv, n6, nb = self.n_var, 6 * N, self._n_rows * N
-        self._inp = np.zeros(9 + nu + n6)
-        self._guess = self._inp[9 : 9 + nu]
-        self._consts = np.concatenate([self._offsets, np.cos(self._offsets), np.sin(self._offsets), self._r_u,
+        self._plan: np.ndarray | None = None  # (3N,) last planned body-axes inputs (a fresh array per solve)
+        self._zeros_n = np.zeros(nu)  # the "plan" argument before the first solve
+        # constants of the kernel, packed (a jitted call costs ~0.2 us per argument):
+        # [w_rel, a_max, shift (1/0), rho, n_var, cos o_j, sin o_j (N+1 each; o_j = theta_j - theta_k), R_u (3N),
+        #  R_du (3N), h (r)]
+        self._consts = np.concatenate([[model.w_rel, self.a_max, float(self._shift), self.cfg.slack_penalty,
+                                        float(self.n_var)], np.cos(self._offsets), np.sin(self._offsets), self._r_u,
                                        self._r_d, np.asarray(self._h, float)])
-        self._work = np.empty(n6 + 4 * nv + nb)
-        self._pred = self._work[:n6]  # p_g
-        self._f = self._work[n6 : n6 + nv]  # linear term in dU (soft mode: DAQP's f)
-        self._u_c = self._work[n6 + nv : n6 + 2 * nv]  # x = DAQP's solution + this (U_c or g; slack: 0)
-        self._lb_w = self._work[n6 + 2 * nv : n6 + 3 * nv]
-        self._ub_w = self._work[n6 + 3 * nv : n6 + 4 * nv]
-        self._b = self._work[n6 + 4 * nv :]
-        if self.soft:
-            self._f[nu:] = self.cfg.slack_penalty
-            self._u_c[nu:] = 0.0
-            self._lb_w[nu:] = 0.0
-            self._ub_w[nu:] = DAQP_INF
+        # persistent outputs of the kernel, rewritten in place every step and handed to the solver (which
+        # copies the bounds): [f, x_c, lb - x_c, ub - x_c (n_var each), corridor bounds b (N r)]
+        nv = self.n_var
+        self._work = np.empty(4 * nv + self._n_rows * N)
+        self._f = self._work[:nv]  # linear term in dU (soft mode: the solver's f)
+        self._u_c = self._work[nv : 2 * nv]  # x = the solver's solution + this (U_c or g; slack: 0)
+        self._lb_w = self._work[2 * nv : 3 * nv]
+        self._ub_w = self._work[3 * nv : 4 * nv]
+        self._b = self._work[4 * nv :]
+        self._n_basis = 9 * N  # per solve, fresh: [g (3N), p_g (6N)] (MpcSolution.prediction)
 
     # ------------------------------------------------------------------ prediction
     def _prediction_blocks(self, model: BodyFrameModel, N: int):
@@ -288,13 +295,26 @@ class LosMpc:
         return self._Phi_pow, Su, S
 
     def _geometry_blocks(self, model: BodyFrameModel):
-        """(S_pos^T (3N, 3N), corridor rows G S_pos (N r, 3N), [H^-1; S_pos^T] (2, 3N, 3N), [Phi | Bd] (6, 9))."""
+        """(corridor rows G S_pos (N r, 3N), KK (15, 3N), [Phi | Bd] (6, 9)).
+
+        S is block lower-triangular Toeplitz: its block (j, i) is K_(j-i) = S[j-i, :, 0:3] (6 x 3). The
+        rotation average of T(a + o_(j+1)) Phi^(j-i) Bd R(a + o_i) over 16 angles equals the continuous
+        average (harmonics <= 2), which does not depend on the common shift o_i; checked to 1e-15
+        relative in tests/test_los_mpc.py. So the per-step products with S use the N blocks
+        K_d (L1-resident) instead of S itself (6N x 3N): rows 0-5 of KK are W_r K_(N-1-m)[r, c] at
+        column 3m + c (weights of steps 1..N-1), rows 6-11 the same with the terminal weights, rows
+        12-14 K_d[a, c] at column 3d + a (row c): the kernel's sums become contiguous sweeps."""
         N, nu = self.N, self.n_u
-        S_posT = np.ascontiguousarray(self._S[:, 0:3, :].reshape(3 * N, nu).T)
         A = np.matmul(self._G, self._S[:, 0:3, :]).reshape(self._n_rows * N, nu)
-        HS = np.ascontiguousarray(np.stack([self._H_inv, S_posT]))
+        K = self._S[:, :, 0:3]  # (N, 6, 3): K_d
+        Wq = np.asarray(self.cfg.Q, float)
+        KK = np.zeros((15, nu))
+        rev = K[::-1]  # rev[m] = K_(N-1-m)
+        KK[0:6] = (Wq[None, :, None] * rev).transpose(1, 0, 2).reshape(6, nu)
+        KK[6:12] = (self.cfg.terminal_factor * Wq[None, :, None] * rev).transpose(1, 0, 2).reshape(6, nu)
+        KK[12:15] = K[:, 0:3, :].transpose(2, 0, 1).reshape(3, nu)
         PB = np.ascontiguousarray(np.hstack([model.Phi, model.Bd]))
-        return S_posT, A, HS, PB
+        return A, KK, PB
 
     def _weighted_blocks(self):
         """(W S (6N, 3N), H (3N, 3N), H^-1 (3N, 3N), exactly symmetric) for this configuration."""
@@ -359,78 +379,76 @@ class LosMpc:
     def solve(self, t: float, x_body: np.ndarray, x_ref, u_prev: np.ndarray | None = None) -> MpcSolution:
         """Solve eq. (11) from body-frame state ``x_body`` (m, m/s) at time ``t`` (s)."""
         t_build = time.perf_counter()
-        N, nu = self.N, self.n_u
-        x_body = np.asarray(x_body, float)
-        u_prev = _ZERO3 if u_prev is None else np.asarray(u_prev, float)
+        theta_k = self.model.theta0_rad + self.model.w_rel * t
+        if x_body.__class__ is not np.ndarray or x_body.dtype != np.float64:
+            x_body = np.asarray(x_body, float)
+        u_prev = _ZERO3 if u_prev is None else u_prev
+        if u_prev.__class__ is not np.ndarray or u_prev.dtype != np.float64:
+            u_prev = np.asarray(u_prev, float)
         ref = (x_ref if x_ref.__class__ is np.ndarray and x_ref.shape == self._ref_shape
-               else self._reference(x_ref)).reshape(6 * N)
-        guess = self._guess
-        if self._plan is None:
-            guess.reshape(N, 3)[:] = u_prev
-        else:
-            guess[: nu - 3] = self._plan.reshape(nu)[3:]
-            guess[nu - 3 :] = self._plan[-1]
-        self._load(t, x_body, guess, ref, u_prev)
+               else self._reference(x_ref))
+        plan = self._plan
+        basis = self._load(theta_k, x_body, ref, u_prev, self._zeros_n if plan is None else plan,
+                           _HOLD_U_PREV if plan is None else _SHIFT_PLAN)
         build_time = time.perf_counter() - t_build
         res = self._solver.solve()
         solve_time, iterations = res.solve_time_s, res.iterations
         for _ in range(self.cfg.refinements):
             if res.x is None or not res.ok:
                 break
-            np.add(res.x[:nu], self._u_c[:nu], out=guess)
-            self._load(t, x_body, guess, ref, u_prev)
+            x = res.x
+            x += self._u_c
+            basis = self._load(theta_k, x_body, ref, u_prev, x[: self.n_u], _PLAN_AS_IS)
             res = self._solver.solve()
             solve_time += res.solve_time_s
             iterations += res.iterations
         status = res.status
-        theta_k = self.model.theta0_rad + self.model.w_rel * t
-        if res.x is None or not res.ok:
+        x = res.x  # a fresh array from the solver
+        if x is None or not status.ok:
             u0 = self._shifted_plan()
-            return MpcSolution(status, u0, theta_k, None, None, solve_time, build_time,
-                               iterations, info={"raw_status": res.info.get("raw_status")})
-        x = res.x  # DAQP's w, a fresh array
+            return MpcSolution(status, u0, theta_k, None, solve_time, build_time, iterations,
+                               info={"raw_status": res.info.get("raw_status")})
         x += self._u_c  # w + x_c
-        U = x[:nu]
-        plan = self._plan = U.reshape(N, 3)  # never modified in place (the next guess is a copy)
-        u0 = U[:3].copy()
-        slack = float(x[nu:].max()) if self.soft else 0.0
-        return MpcSolution(status, u0, theta_k, plan, (self._pred.copy(), self._S_flat,
-                           U - guess), solve_time, build_time, iterations, max_slack_m=slack,
-                           info={"raw_status": res.info.get("raw_status"), "dual": res.info.get("dual")})
+        if self.soft:
+            U = self._plan = x[: self.n_u]
+            slack = float(x[self.n_u :].max())
+        else:
+            U = self._plan = x
+            slack = 0.0
+        # the plan is never modified in place (the next guess is written into a new array)
+        return MpcSolution(status, U[:3].copy(), theta_k, U.reshape(self._plan_shape), solve_time, build_time,
+                           iterations, slack, res.info, basis, self._S_flat)
 
-    def _load(self, t: float, x_body: np.ndarray, guess: np.ndarray, ref: np.ndarray, u_prev: np.ndarray) -> np.ndarray:
-        """Put the bounds of the QP in w = x - x_c, centred on the plan ``guess`` (3N,), into DAQP
-        (module doc); returns p_g (6N,), the exact prediction of ``guess``."""
-        theta_k = self.model.theta0_rad + self.model.w_rel * t
-        nu = self.n_u
-        inp = self._inp
-        inp[:6] = x_body
-        inp[6:9] = u_prev
-        if guess is not self._guess:
-            self._guess[:] = guess
-        inp[9 + nu :] = ref
-        finite = _shifted_qp_data(theta_k, self.model.w_rel, self.a_max, self._shift, self.n_var, inp, self._consts,
-                                  self._PB, self._WS, self._HS, self._G, self._work)
+    def _load(self, theta_k: float, x_body: np.ndarray, ref: np.ndarray, u_prev: np.ndarray, plan: np.ndarray,
+              how: int) -> np.ndarray:
+        """Write the data of the QP in w = x - x_c (hard) or dU (soft) into the persistent buffers and hand
+        them to the solver (module doc). The QP is centred on the plan guess g: ``u_prev`` held
+        (``how`` = 0), ``plan`` (3N,) shifted by one step (1), or ``plan`` itself (2). Returns the new
+        array [g (3N), p_g (6N)], p_g the exact prediction of g (body frame, m, m/s)."""
+        basis = np.empty(self._n_basis)
+        finite = _qp_data(theta_k, how, x_body, u_prev, ref, plan, self._consts, self._PB, self._KK, self._H_inv,
+                          self._G, basis, self._work)
         f = None if self._shift else self._f
-        if self._solver is None:
-            self._solver = DaqpQP(max_iter=self.cfg.max_iter)
-            self._solver.setup(self._H, None if f is None else f.copy(), self._A, bu=self._b.copy(),
-                               lb=self._lb_w.copy(), ub=self._ub_w.copy())
+        solver = self._solver
+        if solver is None:
+            solver = self._solver = DaqpQP(max_iter=self.cfg.max_iter)
+            solver.setup(self._H, None if f is None else f.copy(), self._A, bu=self._b.copy(),
+                         lb=self._lb_w.copy(), ub=self._ub_w.copy())
         elif finite:  # finite data: rows stay inequalities, no bound crossed
-            self._solver.update_fast(f=f, bu=self._b, lb=self._lb_w, ub=self._ub_w)
+            solver.update_fast(f=f, bu=self._b, lb=self._lb_w, ub=self._ub_w)
         else:  # NaN/inf state: the checked path turns it into a NUMERICAL_ERROR status
-            self._solver.update(f=f, bu=self._b, lb=self._lb_w, ub=self._ub_w)
-        return self._pred
+            solver.update(f=f, bu=self._b, lb=self._lb_w, ub=self._ub_w)
+        return basis
 
     def _shifted_plan(self) -> np.ndarray:
         """Fallback input after a failed solve: the previous plan shifted by one step, else zero."""
-        if self._plan is None or len(self._plan) < 2:
+        if self._plan is None or self.N < 2:
             self._plan = None
             return np.zeros(3)
-        self._plan = self._plan[1:]
-        if len(self._plan) < self.N:
-            self._plan = np.vstack([self._plan, np.zeros((self.N - len(self._plan), 3))])
-        return np.clip(self._plan[0], -self.a_max, self.a_max)
+        plan = np.zeros(self.n_u)
+        plan[:-3] = self._plan[3:]  # shifted, zero last input
+        self._plan = plan
+        return np.clip(plan[:3], -self.a_max, self.a_max)
 
     def reset(self) -> None:
         """Forget the warm start and the stored plan."""
@@ -439,43 +457,60 @@ class LosMpc:
 
 
 _ZERO3 = np.zeros(3)
+_HOLD_U_PREV, _SHIFT_PLAN, _PLAN_AS_IS = 0, 1, 2  # how the kernel forms the plan guess g
 
 
 @njit(cache=True)
-def _shifted_qp_data(theta_k, w_rel, a_max, shift, n_var, inp, consts, PB, WS, HS, G, work):  # pragma: no cover
-    """Per-step data of the QP (module doc), written into ``work``: in w = U - U_c without a
-    linear term (``shift`` True) or in dU = U - g with the linear term f (False). Returns True
-    when every output is finite.
+def _qp_data(theta_k, how, x_body, u_prev, plan_ref, plan, consts, PB, KK, H_inv, G, basis, work):  # pragma: no cover
+    """Per-step data of the QP (module doc), written into ``basis`` and ``work``: in w = U - U_c
+    without a linear term (hard mode) or in dU = U - g with the linear term f (soft mode). Returns
+    True when every output is finite.
 
-    theta_k (rad), w_rel (rad/s), a_max (m/s^2); inp = [x_0 (6), u_prev (3), plan g (3N,
-    body-axes m/s^2), ref (6N)]; consts = [o_j = theta_j - theta_k, cos o_j, sin o_j (N+1 each),
-    diag R_u (3N), diag R_du (3N), h (r)]; PB = [Phi | B_d] (6, 9) CW ZOH step; WS = W S (6N, 3N); HS = [H^-1 (symmetric);
-    S_pos^T] (2, 3N, 3N), S_pos the position rows of S; G (r, 3) corridor rows.
-    work = [p_g (6N), f (n_var; [:3N] written: the linear term in dU), x_c (n_var; [:3N] = U_c
+    theta_k (rad); how: plan guess g = u_prev held (0), ``plan`` shifted by one step (1), ``plan``
+    itself (2); x_body (6,) body-frame state (m, m/s); u_prev (3,) previous input (body axes, m/s^2);
+    plan_ref (N, 6) reference states; plan (3N,) body-axes inputs (m/s^2);
+    consts = [w_rel (rad/s), a_max (m/s^2), shift (1/0), rho, n_var, cos o_j, sin o_j (N+1 each),
+    diag R_u (3N), diag R_du (3N), h (r)]; PB = [Phi | B_d] (6, 9) CW ZOH step; KK (15, 3N) the
+    Toeplitz blocks K_d of S (LosMpc._geometry_blocks); H_inv (3N, 3N) symmetric; G (r, 3) corridor rows.
+    basis = [g (3N), p_g (6N)]; work = [f (n_var; [:3N] the linear term in dU), x_c (n_var; [:3N] = U_c
     (shift) or g), lb_w, ub_w (n_var; [:3N] = -+a_max - x_c), b (N r) = h - G (p_g + S (x_c - g))_pos].
-    Loops run over the nonzero blocks of S only (x_j+1 depends on u_0..u_j) and are written as
-    column sweeps (axpy) so that they vectorise without reordering any sum."""
-    n3 = WS.shape[1]
+    Every sum runs over the nonzero blocks of S only (x_j+1 depends on u_0..u_j) as contiguous sweeps
+    (axpy) that vectorise without reordering any sum; the O(N^2) part reads H^-1 and O(N) data."""
+    n3 = H_inv.shape[0]
     N = n3 // 3
     n_rows = G.shape[0]
-    x_body = inp[0:6]
-    u_prev = inp[6:9]
-    guess = inp[9 : 9 + n3]
-    ref = inp[9 + n3 :]
-    cos_o = consts[N + 1 : 2 * N + 2]
-    sin_o = consts[2 * N + 2 : 3 * N + 3]
-    r_u = consts[3 * N + 3 : 3 * N + 3 + n3]
-    r_d = consts[3 * N + 3 + n3 : 3 * N + 3 + 2 * n3]
-    h = consts[3 * N + 3 + 2 * n3 :]
-    H_inv = HS[0]
-    S_posT = HS[1]
-    n6 = 6 * N
-    pred = work[0:n6]
-    f = work[n6 : n6 + n_var]
-    x_c = work[n6 + n_var : n6 + 2 * n_var]
-    lb_w = work[n6 + 2 * n_var : n6 + 3 * n_var]
-    ub_w = work[n6 + 3 * n_var : n6 + 4 * n_var]
-    b = work[n6 + 4 * n_var :]
+    w_rel = consts[0]
+    a_max = consts[1]
+    shift = consts[2] != 0.0
+    rho = consts[3]
+    n_var = int(consts[4])
+    c0 = 5
+    cos_o = consts[c0 : c0 + N + 1]
+    sin_o = consts[c0 + N + 1 : c0 + 2 * N + 2]
+    r_u = consts[c0 + 2 * N + 2 : c0 + 2 * N + 2 + n3]
+    r_d = consts[c0 + 2 * N + 2 + n3 : c0 + 2 * N + 2 + 2 * n3]
+    h = consts[c0 + 2 * N + 2 + 2 * n3 :]
+    guess = basis[0:n3]
+    pred = basis[n3 : n3 + 6 * N]
+    f = work[0:n_var]
+    x_c = work[n_var : 2 * n_var]
+    lb_w = work[2 * n_var : 3 * n_var]
+    ub_w = work[3 * n_var : 4 * n_var]
+    b = work[4 * n_var :]
+    # 0. the plan guess g
+    if how == 0:
+        for j in range(N):
+            guess[3 * j] = u_prev[0]
+            guess[3 * j + 1] = u_prev[1]
+            guess[3 * j + 2] = u_prev[2]
+    elif how == 1:
+        for i in range(n3 - 3):
+            guess[i] = plan[i + 3]
+        for i in range(n3 - 3, n3):
+            guess[i] = plan[i]
+    else:
+        for i in range(n3):
+            guess[i] = plan[i]
     # 1. p_g: exact LTV prediction of the plan (LVLH recursion, rotated to the body frame)
     ck = math.cos(theta_k)
     sk = math.sin(theta_k)
@@ -512,14 +547,18 @@ def _shifted_qp_data(theta_k, w_rel, a_max, shift, n_var, inp, consts, PB, WS, H
         pred[k + 3] = c * xl[3] + s * xl[4] + w_rel * rb1
         pred[k + 4] = -s * xl[3] + c * xl[4] - w_rel * rb0
         pred[k + 5] = xl[5]
-    # 2. f = S'W (p_g - ref) + (R_u + D'R_du D) g - [R_du u_prev; 0]
+    # 2. f = S'W (p_g - ref) + (R_u + D'R_du D) g - [R_du u_prev; 0]; block (j, i) of W S is
+    #    W_j K_(j-i) = KK[r (+6 at j = N-1), 3(N-1-j) + 3i + c]
     for i in range(n3):
         f[i] = 0.0
-    for row in range(6 * N):
-        d = pred[row] - ref[row]
-        lim = 3 * (row // 6 + 1)
-        for i in range(lim):
-            f[i] += WS[row, i] * d
+    for j in range(N):
+        off = 3 * (N - 1 - j)
+        lim = 3 * (j + 1)
+        kr = 6 if j == N - 1 else 0
+        for r in range(6):
+            d = pred[6 * j + r] - plan_ref[j, r]
+            for i in range(lim):
+                f[i] += KK[kr + r, off + i] * d
     for i in range(n3):
         dg = guess[i] - guess[i - 3] if i >= 3 else guess[i]
         e = r_d[i] * dg
@@ -536,16 +575,18 @@ def _shifted_qp_data(theta_k, w_rel, a_max, shift, n_var, inp, consts, PB, WS, H
             fj = f[j]
             for i in range(n3):
                 x_c[i] -= H_inv[j, i] * fj
-    # 4. positions of p_g + S (U_c - g): column sweeps over the lower block triangle
+    # 4. positions of p_g + S (U_c - g): column sweeps, S_pos[3j + a, 3i + c] = K_(j-i)[a, c] = KK[12 + c, 3(j-i) + a]
     xp = np.empty(n3)
     for j in range(N):
         xp[3 * j] = pred[6 * j]
         xp[3 * j + 1] = pred[6 * j + 1]
         xp[3 * j + 2] = pred[6 * j + 2]
-    for i in range(n3):
-        di = x_c[i]
-        for r in range(3 * (i // 3), n3):
-            xp[r] += S_posT[i, r] * di
+    for i in range(N):
+        base = 3 * i
+        for cc in range(3):
+            di = x_c[base + cc]
+            for q in range(n3 - base):
+                xp[base + q] += KK[12 + cc, q] * di
     # 5. corridor rows and input bounds in w
     for j in range(N):
         p0, p1, p2 = xp[3 * j], xp[3 * j + 1], xp[3 * j + 2]
@@ -557,6 +598,11 @@ def _shifted_qp_data(theta_k, w_rel, a_max, shift, n_var, inp, consts, PB, WS, H
         lb_w[i] = -a_max - x_c[i]
         ub_w[i] = a_max - x_c[i]
         total += ub_w[i] + f[i]
+    for i in range(n3, n_var):  # soft mode: the slacks s >= 0, cost rho s + w/2 s^2
+        f[i] = rho
+        x_c[i] = 0.0
+        lb_w[i] = 0.0
+        ub_w[i] = DAQP_INF
     for i in range(b.shape[0]):
         total += b[i]
     return math.isfinite(total)
