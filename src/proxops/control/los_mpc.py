@@ -475,7 +475,7 @@ def _qp_data(theta_k, how, x_body, u_prev, plan_ref, plan, consts, PB, KK, H_inv
     basis = [g (3N), p_g (6N)]; work = [f (n_var; [:3N] the linear term in dU), x_c (n_var; [:3N] = U_c
     (shift) or g), lb_w, ub_w (n_var; [:3N] = -+a_max - x_c), b (N r) = h - G (p_g + S (x_c - g))_pos].
     Every sum runs over the nonzero blocks of S only (x_j+1 depends on u_0..u_j) as contiguous sweeps
-    (axpy) that vectorise without reordering any sum; the O(N^2) part reads H^-1 and O(N) data."""
+    that vectorise (one sweep per block row/column); the O(N^2) part reads H^-1 and O(N) data."""
     n3 = H_inv.shape[0]
     N = n3 // 3
     n_rows = G.shape[0]
@@ -551,14 +551,19 @@ def _qp_data(theta_k, how, x_body, u_prev, plan_ref, plan, consts, PB, KK, H_inv
     #    W_j K_(j-i) = KK[r (+6 at j = N-1), 3(N-1-j) + 3i + c]
     for i in range(n3):
         f[i] = 0.0
-    for j in range(N):
+    for j in range(N):  # one sweep per step j over its 6 rows
         off = 3 * (N - 1 - j)
-        lim = 3 * (j + 1)
         kr = 6 if j == N - 1 else 0
-        for r in range(6):
-            d = pred[6 * j + r] - plan_ref[j, r]
-            for i in range(lim):
-                f[i] += KK[kr + r, off + i] * d
+        d0 = pred[6 * j] - plan_ref[j, 0]
+        d1 = pred[6 * j + 1] - plan_ref[j, 1]
+        d2 = pred[6 * j + 2] - plan_ref[j, 2]
+        d3 = pred[6 * j + 3] - plan_ref[j, 3]
+        d4 = pred[6 * j + 4] - plan_ref[j, 4]
+        d5 = pred[6 * j + 5] - plan_ref[j, 5]
+        k0, k1, k2 = KK[kr, off:], KK[kr + 1, off:], KK[kr + 2, off:]
+        k3, k4, k5 = KK[kr + 3, off:], KK[kr + 4, off:], KK[kr + 5, off:]
+        for i in range(3 * (j + 1)):
+            f[i] += k0[i] * d0 + k1[i] * d1 + k2[i] * d2 + k3[i] * d3 + k4[i] * d4 + k5[i] * d5
     for i in range(n3):
         dg = guess[i] - guess[i - 3] if i >= 3 else guess[i]
         e = r_d[i] * dg
@@ -581,12 +586,12 @@ def _qp_data(theta_k, how, x_body, u_prev, plan_ref, plan, consts, PB, KK, H_inv
         xp[3 * j] = pred[6 * j]
         xp[3 * j + 1] = pred[6 * j + 1]
         xp[3 * j + 2] = pred[6 * j + 2]
-    for i in range(N):
+    k0, k1, k2 = KK[12], KK[13], KK[14]
+    for i in range(N):  # one sweep per input step i over its 3 columns
         base = 3 * i
-        for cc in range(3):
-            di = x_c[base + cc]
-            for q in range(n3 - base):
-                xp[base + q] += KK[12 + cc, q] * di
+        d0, d1, d2 = x_c[base], x_c[base + 1], x_c[base + 2]
+        for q in range(n3 - base):
+            xp[base + q] += k0[q] * d0 + k1[q] * d1 + k2[q] * d2
     # 5. corridor rows and input bounds in w
     for j in range(N):
         p0, p1, p2 = xp[3 * j], xp[3 * j + 1], xp[3 * j + 2]
