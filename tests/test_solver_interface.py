@@ -18,7 +18,7 @@ from proxops.solvers import (
     SolveStatus,
     TrustRegion,
     check_feasibility,
-    make_qp_solver,
+    make_solver,
     successive_convexification,
 )
 from proxops.solvers.casadi_nlp import CasadiNLP, NonlinearProgram, status_of
@@ -39,7 +39,7 @@ def _qp(b=3.0, u=1.5):
 
 @pytest.mark.parametrize("name", ["daqp", "piqp", "clarabel"])
 def test_same_calls_same_answer_on_every_qp_adapter(name):
-    s = make_qp_solver(name)
+    s = make_solver("QP", name)
     s.setup(_qp())
     steps = [({}, [0.25, 1.25, 1.5]), ({"bu": [2.5]}, [0.0, 1.0, 2.0]), ({"b_eq": [6.0]}, [1.25, 2.25, 2.5])]
     for fields, expected in steps:
@@ -105,7 +105,7 @@ def test_highs_lp_refuses_integer_variables():
 # (a supporting half-space of the disc's complement, so every iterate satisfies the true constraint).
 def test_successive_convexification_converges_to_the_nearest_point_outside_the_disc():
     p = np.array([0.3, 0.4])
-    s = make_qp_solver("daqp")
+    s = make_solver("QP", "daqp")
     s.setup(QuadraticProgram(P=np.eye(2), q=-p, A=np.array([[1.0, 0.0]]), bl=[1.0], bu=[np.inf]))
 
     def solve():
@@ -170,3 +170,58 @@ def test_campaign_public_names_still_importable():
     from proxops import api
 
     assert api.run_campaign is run_campaign and api.load_campaign is load_campaign
+
+
+# ---------------------------------------------------------------- the adapter base and make_solver
+def test_every_adapter_derives_from_the_base_and_make_solver_checks_the_pair():
+    from proxops.solvers import ClarabelSOCP, DaqpQP, PiqpQP, SolverAdapter, make_solver
+
+    for cls in (DaqpQP, PiqpQP, ClarabelSOCP, HighsLP, HighsMILP):
+        assert issubclass(cls, SolverAdapter)
+    assert isinstance(make_solver("MILP", "highs"), HighsMILP)
+    assert isinstance(make_solver(_ilp(True), "highs"), HighsMILP)  # an instance: kind from integrality
+    # a wrong pair: one line naming the form, the name and the allowed names
+    with pytest.raises(ProxopsInputError) as err:
+        make_solver("SOCP", "daqp")
+    msg = str(err.value)
+    assert "\n" not in msg and "SOCP" in msg and "ConicProblem" in msg and "'daqp'" in msg and "clarabel" in msg
+    with pytest.raises(ProxopsInputError, match="allowed: daqp, piqp, clarabel"):
+        make_solver(_qp(), "highs")
+    with pytest.raises(ProxopsInputError, match="MILP.*'piqp'.*allowed: highs"):
+        make_solver(_ilp(True), "piqp")
+    with pytest.raises(ProxopsInputError, match="setup_native"):
+        make_solver("QP", "daqp").setup(np.eye(2))  # native arguments are not a form
+
+
+def test_clarabel_setup_native_then_update_fast():
+    """Issue 31: ``setup_native`` then ``update_fast`` raised AttributeError (``_qp`` was only set by
+    ``setup``). min x s.t. x >= b (nonneg row -x <= -b): the optimum is x = b, for b = 1 then 3."""
+    from proxops.solvers import ClarabelSOCP
+
+    s = ClarabelSOCP()
+    s.setup_native(None, [1.0], [[-1.0]], [-1.0], [("nonneg", 1)])
+    s.update_fast(b=np.array([-3.0]))
+    res = s.solve()
+    assert res.status == SolveStatus.OPTIMAL
+    assert res.x[0] == pytest.approx(3.0, abs=1e-7)
+    # and the QP-form set-up followed by a native set-up forgets the QP (update takes the native names)
+    s.setup(QuadraticProgram(P=None, q=[1.0], lb=[2.0]))
+    s.setup_native(None, [1.0], [[-1.0]], [-1.0], [("nonneg", 1)])
+    s.update(b=[-5.0])
+    assert s.solve().x[0] == pytest.approx(5.0, abs=1e-7)
+
+
+@pytest.mark.parametrize("name", ["highs", "daqp", "piqp", "clarabel"])
+def test_one_lp_form_on_every_lp_solver(name):
+    # The LP of _ilp(False) (vertex x = y = 2.4, value -4.8), then its cost changed through the LP's
+    # own field name c: min -x s.t. the same rows -> x = 4 (3x + 2y <= 12 with y = 0), value -4.
+    s = make_solver(_ilp(False), name, **({"settings": {"eps_prox": 1e-2}} if name == "daqp" else {}))
+    res = s.solve()
+    assert res.status == SolveStatus.OPTIMAL and res.objective == pytest.approx(-4.8, abs=1e-6)
+    np.testing.assert_allclose(res.x, [2.4, 2.4], atol=1e-6)
+    s.update(c=[-1.0, 0.0])
+    res = s.solve()
+    assert res.status == SolveStatus.OPTIMAL
+    np.testing.assert_allclose(res.x, [4.0, 0.0], atol=1e-6)
+    with pytest.raises(ProxopsInputError, match="allowed: c, A, rl, ru, lb, ub"):
+        s.update(q=[1.0, 1.0])

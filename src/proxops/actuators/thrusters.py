@@ -111,7 +111,7 @@ class Allocator:
         ub = np.concatenate([np.ones(n), np.full(6, np.inf)])
         self.lp = solver or HighsLP(settings={"primal_feasibility_tolerance": 1e-10, "dual_feasibility_tolerance": 1e-10})
         zero = np.zeros(6)
-        self.lp.setup(cost, self.A, np.concatenate([np.full(6, -np.inf), zero]), np.concatenate([zero, np.full(6, np.inf)]),
+        self.lp.setup_native(cost, self.A, np.concatenate([np.full(6, -np.inf), zero]), np.concatenate([zero, np.full(6, np.inf)]),
                       lb, ub)
 
     def solve(self, command) -> Allocation:

@@ -214,7 +214,7 @@ class TrackingSOCP:
                                         dtype=np.intp).reshape(-1, 3) for blk in range(3)]
         self.solver_settings = DEFAULT_SOLVER_SETTINGS if solver_settings is None else solver_settings
         self.solver = ClarabelSOCP(**self.solver_settings)
-        self.solver.setup(None, self.q, A, self.b, cones)
+        self.solver.setup_native(None, self.q, A, self.b, cones)
         self._A_dirty = False
 
     def set_plume(self, g_rows) -> None:
@@ -256,7 +256,7 @@ class TrackingSOCP:
         self._set_rhs(x_k, x_T)
         if rebuild:
             self.solver = ClarabelSOCP(**self.solver_settings)
-            self.solver.setup(None, self.q, self.A, self.b, self.cones)
+            self.solver.setup_native(None, self.q, self.A, self.b, self.cones)
         else:
             self.solver.update_fast(b=self.b, A_values=self.A.data if self._A_dirty else None)
         self._A_dirty = False

@@ -432,8 +432,8 @@ class LosMpc:
         solver = self._solver
         if solver is None:
             solver = self._solver = DaqpQP(max_iter=self.cfg.max_iter)
-            solver.setup(self._H, None if f is None else f.copy(), self._A, bu=self._b.copy(),
-                         lb=self._lb_w.copy(), ub=self._ub_w.copy())
+            solver.setup_native(self._H, None if f is None else f.copy(), self._A, bu=self._b.copy(),
+                                lb=self._lb_w.copy(), ub=self._ub_w.copy())
         elif finite:  # finite data: rows stay inequalities, no bound crossed
             solver.update_fast(f=f, bu=self._b, lb=self._lb_w, ub=self._ub_w)
         else:  # NaN/inf state: the checked path turns it into a NUMERICAL_ERROR status

@@ -80,7 +80,7 @@ class ConvexSection:
         self.n_var = self.A.shape[1]
         self.lp = HighsLP(settings=self.HOT_SETTINGS)
         self._current = (np.zeros(self.n_var), self.lb.copy(), self.ub.copy())
-        self.lp.setup(self._current[0], self.A, None, self.b, self.lb, self.ub)
+        self.lp.setup_native(self._current[0], self.A, None, self.b, self.lb, self.ub)
         self.n_lp = 0
         self.n_retry = 0  # cold re-solves after numerical trouble
         self.n_highs = 0  # support LPs DAQP left to HiGHS (counted in n_lp)
@@ -125,12 +125,12 @@ class ConvexSection:
             return res
         c, lb, ub = self._current
         fresh = HighsLP()
-        fresh.setup(c, self.A, None, self.b, lb, ub)
+        fresh.setup_native(c, self.A, None, self.b, lb, ub)
         res = fresh.solve()
         self.n_lp += 1
         self.n_retry += 1
         self.lp = HighsLP(settings=self.HOT_SETTINGS)
-        self.lp.setup(c, self.A, None, self.b, lb, ub)
+        self.lp.setup_native(c, self.A, None, self.b, lb, ub)
         return res
 
     def _set(self, c=None, lb=None, ub=None) -> None:
