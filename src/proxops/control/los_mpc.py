@@ -63,8 +63,15 @@ Constraint handling (``constraint_mode``):
   step's corridor multipliers (``slack_penalty`` default 1e7; the multipliers seen in the
   runs here are below ~1e4, the test checks the equality).
 
-Solved by DAQP through :class:`proxops.solvers.daqp_qp.DaqpQP`, warm-started from the
-previous active set.
+Solver: the one named by ``LosMpcConfig.solver`` through :func:`proxops.solvers.make_solver`
+(the :class:`proxops.solvers.forms.QuadraticProgram` P = H, q, A = corridor rows, bu, lb, ub; data
+updated in place each step by the form's field names). Default DAQP, warm-started from the previous
+active set, with its lean paths: no linear term in hard mode (``setup_native`` with f = None) and
+``update_fast``. PIQP and Clarabel (interior point) start cold every step.
+
+Per-step cost (benchmarks/bench_los.py prints it for N = 20..160): the kernel reads H^-1 (3N x 3N) and
+O(N) data, ~22 N^2 multiply-adds, below one DAQP iteration (its constraint check reads M = A R^-1,
+9N x 3N); everything else is O(N) or fixed.
 """
 
 from __future__ import annotations
@@ -80,7 +87,8 @@ from proxops.constraints.los_corridor import LosCorridor
 from proxops.dynamics.tumbling_target import BodyFrameModel, body_from_hill_matrix, hill_from_body_matrix, rotate_z
 from proxops.core.memo import memo_get
 from proxops.errors import input_error
-from proxops.solvers.daqp_qp import DaqpQP
+from proxops.solvers.forms import QuadraticProgram
+from proxops.solvers.front import QP_SOLVERS, make_solver
 from proxops.status import Status
 
 PAPER_Q = (15.0, 30.0, 15.0, 1.0, 1.0, 1.0)
@@ -103,6 +111,8 @@ class LosMpcConfig:
     slack_quadratic: float = 1.0  # w, keeps the Hessian positive definite (soft mode)
     max_iter: int = 2000
     refinements: int = 0  # extra solves re-centred on the new plan (0 = one QP per step)
+    solver: str = "daqp"  # QP solver by name (proxops.solvers.make_solver): daqp, piqp, clarabel
+    solver_settings: dict = field(default_factory=dict)  # keyword settings of that solver's adapter
 
     @classmethod
     def single_run(cls, **kw) -> "LosMpcConfig":
@@ -126,6 +136,8 @@ class LosMpcConfig:
             raise input_error("mpc.constraint_mode", self.constraint_mode, "allowed: hard, soft")
         if not self.slack_penalty > 0:
             raise input_error("mpc.slack_penalty", self.slack_penalty, "must be > 0")
+        if self.solver not in QP_SOLVERS:
+            raise input_error("mpc.solver", self.solver, f"allowed: {', '.join(QP_SOLVERS)}")
 
 
 @dataclass
@@ -255,7 +267,9 @@ class LosMpc:
         self._H = H
         self._A = A
         self._lb, self._ub = lb, ub
-        self._solver: DaqpQP | None = None
+        self._solver = None  # the QP solver's adapter (proxops.solvers.base.SolverAdapter), made at the first solve
+        self._fast = False  # DAQP: bounds (and f) through update_fast
+        self._form = True  # set up with the QuadraticProgram form (update takes its names)
         self._plan: np.ndarray | None = None  # (3N,) last planned body-axes inputs (a fresh array per solve)
         self._zeros_n = np.zeros(nu)  # the "plan" argument before the first solve
         # constants of the kernel, packed (a jitted call costs ~0.2 us per argument):
@@ -431,14 +445,41 @@ class LosMpc:
         f = None if self._shift else self._f
         solver = self._solver
         if solver is None:
-            solver = self._solver = DaqpQP(max_iter=self.cfg.max_iter)
-            solver.setup_native(self._H, None if f is None else f.copy(), self._A, bu=self._b.copy(),
-                                lb=self._lb_w.copy(), ub=self._ub_w.copy())
-        elif finite:  # finite data: rows stay inequalities, no bound crossed
+            self._make_solver(f)
+        elif finite and self._fast:  # DAQP, finite data: rows stay inequalities, no bound crossed
             solver.update_fast(f=f, bu=self._b, lb=self._lb_w, ub=self._ub_w)
-        else:  # NaN/inf state: the checked path turns it into a NUMERICAL_ERROR status
-            solver.update(f=f, bu=self._b, lb=self._lb_w, ub=self._ub_w)
+        else:  # other solvers, or a NaN/inf state (the checked path turns it into a NUMERICAL_ERROR status)
+            if not self._fast and self.soft:
+                self._ub_w[self.n_u :] = np.inf  # the slacks' missing upper bound (DAQP's is 1e30)
+            if self._form:
+                solver.update(bu=self._b, lb=self._lb_w, ub=self._ub_w, **({} if f is None else {"q": f}))
+            else:
+                solver.update(bu=self._b, lb=self._lb_w, ub=self._ub_w, **({} if f is None else {"f": f}))
         return basis
+
+    def _make_solver(self, f: np.ndarray | None) -> None:
+        """The QP solver named by ``config.solver`` (proxops.solvers.make_solver) for the problem in the
+        buffers. DAQP in hard mode is set up without a linear term (``setup_native`` with f = None: it keeps
+        no v, so a bound update costs O(m); module doc) and updated through ``update_fast``; every other
+        case is the :class:`QuadraticProgram` form, updated by its field names (bu, lb, ub, and q in soft mode)."""
+        name = self.cfg.solver
+        settings = dict(self.cfg.solver_settings)
+        if name == "daqp":
+            settings.setdefault("max_iter", self.cfg.max_iter)
+        ub = self._ub_w.copy()
+        if name != "daqp":
+            ub[self.n_u :] = np.inf
+        form = QuadraticProgram(P=self._H, q=np.zeros(self.n_var) if f is None else f.copy(), A=self._A,
+                                bu=self._b.copy(), lb=self._lb_w.copy(), ub=ub)
+        if name == "daqp" and f is None:
+            solver = make_solver("QP", "daqp", **settings)
+            solver.setup_native(form.P, None, form.A, bu=form.bu, lb=form.lb, ub=form.ub)
+            self._form = False
+        else:
+            solver = make_solver(form, name, **settings)
+            self._form = True
+        self._fast = name == "daqp"
+        self._solver = solver
 
     def _shifted_plan(self) -> np.ndarray:
         """Fallback input after a failed solve: the previous plan shifted by one step, else zero."""
