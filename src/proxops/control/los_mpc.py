@@ -407,22 +407,25 @@ class LosMpc:
         build_time = time.perf_counter() - t_build
         res = self._solver.solve()
         solve_time, iterations = res.solve_time_s, res.iterations
-        for _ in range(self.cfg.refinements):
-            if res.x is None or not res.ok:
-                break
-            x = res.x
-            x += self._u_c
-            basis = self._load(theta_k, x_body, ref, u_prev, x[: self.n_u], _PLAN_AS_IS)
-            res = self._solver.solve()
-            solve_time += res.solve_time_s
-            iterations += res.iterations
+        if self.cfg.refinements:
+            for _ in range(self.cfg.refinements):
+                if res.x is None or not res.ok:
+                    break
+                basis = self._load(theta_k, x_body, ref, u_prev, res.x[: self.n_u] + self._u_c[: self.n_u],
+                                   _PLAN_AS_IS)
+                res = self._solver.solve()
+                solve_time += res.solve_time_s
+                iterations += res.iterations
         status = res.status
-        x = res.x  # a fresh array from the solver
-        if x is None or not status.ok:
+        x = res.x
+        if x is None or (status is not _OPTIMAL and not status.ok):
             u0 = self._shifted_plan()
             return MpcSolution(status, u0, theta_k, None, solve_time, build_time, iterations,
                                info={"raw_status": res.info.get("raw_status")})
-        x += self._u_c  # w + x_c
+        if self._fast:
+            x += self._u_c  # w + x_c (DAQP's x is a fresh array)
+        else:
+            x = x + self._u_c  # another adapter's x may be its own buffer
         if self.soft:
             U = self._plan = x[: self.n_u]
             slack = float(x[self.n_u :].max())
@@ -499,6 +502,7 @@ class LosMpc:
 
 _ZERO3 = np.zeros(3)
 _HOLD_U_PREV, _SHIFT_PLAN, _PLAN_AS_IS = 0, 1, 2  # how the kernel forms the plan guess g
+_OPTIMAL = Status.OPTIMAL
 
 
 @njit(cache=True)
