@@ -8,9 +8,10 @@
    shares from sums over the steps not preempted (step < 3x the median), and the log-log growth of
    the medians between successive N. Goal: own < 30 % of the step at N = 40, own growing no faster
    than DAQP. On a loaded machine the ratios inside one run are the figures (the load average is
-   printed); a second table splits "own" into guidance, LosMpc and the solver adapter's Python. ``--ab REV`` runs the same loop with ``control/los_mpc.py`` of commit REV
-   (read with ``git show``; its ``solver.setup(`` call renamed to ``setup_native(`` as the
-   solver adapters now require) alternated with this tree's, in the same process.
+   printed); a second table splits "own" into guidance, LosMpc and the solver adapter's Python.
+   ``--ab REV`` runs the same loop with ``control/los_mpc.py`` of commit REV (read with ``git show``;
+   its ``solver.setup(`` call renamed to ``setup_native(`` as the solver adapters now require)
+   alternated with this tree's, in the same process.
 2. QP solve time per step (median, p95) of the eq.-(11) MPC on DAQP, N_p = 20 and 40,
    measured inside closed-loop runs against J2 truth (goal: median < 0.2 ms at N_p = 40;
    issue reference: 0.09 ms).

@@ -47,8 +47,10 @@ U_c = g - H^-1 f. DAQP is given the QP in w = U - U_c, which has no linear term
 G (S w)_pos,j <= h - G (p_g + S (U_c - g))_pos,j. This is the same LDP DAQP builds from
 (H, f) (its u = R (U - U_c) either way), but DAQP then keeps no linear term, so a step
 only rewrites bound vectors (O(m)) instead of DAQP recomputing R^-T f and d = b + M v
-(O(m n), ~40 us at N = 40). One jitted kernel (:func:`_shifted_qp_data`) computes p_g, f,
-U_c and the bounds using the lower block-triangular structure of S; U = w + U_c. Soft mode
+(O(m n), ~40 us at N = 40). One jitted kernel (:func:`_qp_data`) forms g, computes p_g, f,
+U_c and the bounds in place in preallocated buffers (the corridor rows G S_pos and H never change),
+using that S is block lower-triangular Toeplitz (block (j, i) = K_(j-i), see
+``LosMpc._geometry_blocks``): its products read the N blocks K_d, not S; U = w + U_c. Soft mode
 keeps the linear term (the QP in dU with f, DAQP's own update): shifting the slack to its
 unconstrained minimiser -rho / w = -1e7 m would put 1e7 m offsets into every row and cost
 ~1e-9 of accuracy (tests/test_los_mpc.py compares both forms with the direct QP).
@@ -93,7 +95,7 @@ from proxops.status import Status
 
 PAPER_Q = (15.0, 30.0, 15.0, 1.0, 1.0, 1.0)
 _PREDICTION_CACHE: dict = {}  # (n, w_rel, dt, N) -> prediction blocks (Monte Carlo reuses them)
-_WEIGHTS_CACHE: dict = {}  # (prediction key, weights) -> (W S, H, H^-1)
+_WEIGHTS_CACHE: dict = {}  # (prediction key, weights[, corridor]) -> (H, H^-1) [, geometry blocks]
 DAQP_INF = 1e30  # DAQP's "no bound" (proxops.solvers.daqp_qp.DAQP_INF)
 
 
@@ -238,7 +240,7 @@ class LosMpc:
         self._r_u = np.tile(np.asarray(self.cfg.R_u, float), N)
         self._r_d = np.tile(np.asarray(self.cfg.R_du, float), N)
         weights = (tuple(self.cfg.Q), float(self.cfg.terminal_factor), tuple(self.cfg.R_u), tuple(self.cfg.R_du))
-        self._WS, H, self._H_inv = memo_get(_WEIGHTS_CACHE, (key, weights), self._weighted_blocks)
+        H, self._H_inv = memo_get(_WEIGHTS_CACHE, (key, weights), self._weighted_blocks)
         self._r_d0 = np.asarray(self.cfg.R_du, float)
         G, self._h = corridor.G, corridor.h
         self._G_T = np.ascontiguousarray(G.T)
@@ -331,7 +333,7 @@ class LosMpc:
         return A, KK, PB
 
     def _weighted_blocks(self):
-        """(W S (6N, 3N), H (3N, 3N), H^-1 (3N, 3N), exactly symmetric) for this configuration."""
+        """(H (3N, 3N), H^-1 (3N, 3N), exactly symmetric) for this configuration."""
         N, nu = self.N, self.n_u
         W = np.tile(np.asarray(self.cfg.Q, float), (N, 1))
         W[-1] *= self.cfg.terminal_factor
@@ -341,7 +343,7 @@ class LosMpc:
         H = self._S_flat.T @ WS + np.diag(self._r_u) + D.T @ (self._r_d[:, None] * D)
         H = 0.5 * (H + H.T)
         H_inv = np.linalg.inv(H)
-        return WS, H, np.ascontiguousarray(0.5 * (H_inv + H_inv.T))
+        return H, np.ascontiguousarray(0.5 * (H_inv + H_inv.T))
 
     def exact_map(self, theta_k: float) -> np.ndarray:
         """Exact d x_j / d [x_0, U] (body frame, body-axes inputs) at angle theta_k, (N, 6, 6 + 3N)."""
