@@ -230,6 +230,7 @@ class LosMpc:
         self._offsets = model.w_rel * model.dt * np.arange(N + 1)  # theta_j - theta_k
         self._ref_shape = (N, 6)
         self._plan_shape = (N, 3)
+        self._ref_buffer = np.zeros((N, 6))  # a single reference state held over the horizon
         key = (model.n, model.w_rel, model.dt, N)
         cached = memo_get(_PREDICTION_CACHE, key, lambda: self._prediction_blocks(model, N))
         self._Phi_pow, self._Su_L, self._S = cached
@@ -384,11 +385,15 @@ class LosMpc:
         return out
 
     def _reference(self, x_ref) -> np.ndarray:
+        """The (N, 6) reference trajectory: ``x_ref`` itself, or one state (6,) written into every row of
+        a buffer kept per controller (the kernel reads it during the solve only)."""
         ref = np.asarray(x_ref, float)
         if ref.shape == (6,):
-            return np.tile(ref, (self.N, 1))
+            buf = self._ref_buffer
+            buf[:] = ref
+            return buf
         if ref.shape == (self.N, 6):
-            return ref
+            return np.ascontiguousarray(ref)
         raise input_error("x_ref.shape", ref.shape, f"must be (6,) or ({self.N}, 6)")
 
     # ------------------------------------------------------------------ solve
