@@ -461,10 +461,11 @@ class LosMpc:
         else:  # other solvers, or a NaN/inf state (the checked path turns it into a NUMERICAL_ERROR status)
             if not self._fast and self.soft:
                 self._ub_w[self.n_u :] = np.inf  # the slacks' missing upper bound (DAQP's is 1e30)
-            if self._form:
-                solver.update(bu=self._b, lb=self._lb_w, ub=self._ub_w, **({} if f is None else {"q": f}))
-            else:
-                solver.update(bu=self._b, lb=self._lb_w, ub=self._ub_w, **({} if f is None else {"f": f}))
+            # copies: an adapter may keep what it is given (the buffers are rewritten next step)
+            data = {"bu": self._b.copy(), "lb": self._lb_w.copy(), "ub": self._ub_w.copy()}
+            if f is not None:
+                data["q" if self._form else "f"] = f.copy()
+            solver.update(**data)
         return basis
 
     def _make_solver(self, f: np.ndarray | None) -> None:
