@@ -628,11 +628,12 @@ def _qp_data(theta_k, how, x_body, u_prev, plan_ref, plan, consts, PB, KK, H_inv
     # 3. U_c - g = -H^-1 f (shift), else 0
     for i in range(n3):
         x_c[i] = 0.0
-    if shift:
-        for j in range(n3):
-            fj = f[j]
+    if shift:  # one sweep per 3 rows of H^-1 (symmetric: rows = columns)
+        for j in range(0, n3, 3):
+            f0, f1, f2 = f[j], f[j + 1], f[j + 2]
+            h0, h1, h2 = H_inv[j], H_inv[j + 1], H_inv[j + 2]
             for i in range(n3):
-                x_c[i] -= H_inv[j, i] * fj
+                x_c[i] -= h0[i] * f0 + h1[i] * f1 + h2[i] * f2
     # 4. positions of p_g + S (U_c - g): column sweeps, S_pos[3j + a, 3i + c] = K_(j-i)[a, c] = KK[12 + c, 3(j-i) + a]
     xp = np.empty(n3)
     for j in range(N):
