@@ -955,8 +955,8 @@ class SrfMpc:
         if out.converged:
             _, gmin, rmin = checked["drift"]
             return _Solve(out.iterate, Status.OPTIMAL, self._clock[0], self._clock[1], relax, gmin, rmin), Status.OPTIMAL
-        if out.failure:  # the subproblem's status (solve() below returns Status members)
-            return None, Status.parse(out.failure)
+        if out.status is Status.FAILED:  # the subproblem's status (solve() above returns Status members)
+            return None, out.failure
         return None, Status.CBF_VIOLATION
 
     # ------------------------------------------------------------------ safety

@@ -14,6 +14,7 @@ nothing checked); every adapter derives from :class:`SolverAdapter` (:mod:`proxo
 - :class:`ClarabelSOCP` conic QP / SOCP, interior point (cones, robust fallback)
 - :class:`HighsLP`      pure LP, dual simplex hot-started from the last basis
 - :class:`HighsMILP`    mixed-integer LP, HiGHS branch and cut
+- :class:`IpoptSOCP`    SOCP as a smooth NLP by IPOPT (a second, independent SOCP engine for cross-checks)
 - :class:`~proxops.solvers.casadi_nlp.CasadiNLP` NLP by IPOPT or fatrop (CasADi)
 
 :func:`make_solver` picks an adapter by form and name (QP, SOCP, LP, MILP), so a consumer is
@@ -35,7 +36,7 @@ import importlib
 # of a short CLI run); ``from proxops.solvers import DaqpQP`` works as before.
 _HOME = {
     "ClarabelSOCP": "clarabel_socp", "DaqpQP": "daqp_qp", "PiqpQP": "piqp_qp", "HighsLP": "highs_lp",
-    "HighsMILP": "highs_lp", "FeasibilityReport": "feasibility", "check_conic_feasibility": "feasibility",
+    "HighsMILP": "highs_lp", "IpoptSOCP": "ipopt_socp", "FeasibilityReport": "feasibility", "check_conic_feasibility": "feasibility",
     "check_feasibility": "feasibility", "farkas_margin": "feasibility", "max_violation": "feasibility", "ConicProblem": "forms",
     "LinearProgram": "forms", "QuadraticProgram": "forms", "build_conic_problem": "forms",
     "conic_from_program": "forms", "conic_from_qp": "forms", "soc_rows": "forms", "make_solver": "front",
@@ -66,6 +67,7 @@ __all__ = [
     "FeasibilityReport",
     "HighsLP",
     "HighsMILP",
+    "IpoptSOCP",
     "LinearProgram",
     "PiqpQP",
     "QuadraticProgram",

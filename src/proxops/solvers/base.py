@@ -19,6 +19,8 @@ Fast paths, for callers that own their data layout (per-step MPC loops):
 - ``update_native(**native_fields)``: checked update in the native names, whatever the set-up.
 - ``update_fast(**native_fields)``: trusted update in the native names (nothing checked; each
   adapter documents which fields take its lean path). The default is :meth:`update_native`.
+- ``native_name(field)``: the native keyword of a form field in the current set-up, so a consumer
+  set up from a form reaches the lean path of whichever solver it named.
 
 Every ``solve`` ends in :meth:`SolverAdapter._result` (the one place a SolverResult of a run is
 built: x and objective only for the statuses that carry an iterate), and refuses unusable data
@@ -112,6 +114,27 @@ class SolverAdapter:
         """Trusted update in the solver's native names (nothing checked); adapters with a lean
         path override it. Default: :meth:`update_native`."""
         self.update_native(**native_fields)
+
+    def native_name(self, field: str) -> str:
+        """The keyword ``update_native`` / ``update_fast`` take for the form field ``field`` of this
+        set-up (the same name after ``setup_native``), so a consumer can use an adapter's lean path
+        whichever solver it named: ``s.update_fast(**{s.native_name("c"): c})``. Raises
+        ProxopsInputError when the field has no in-place native counterpart in this set-up (e.g. the
+        rows of a QP converted to Clarabel's cones)."""
+        if self._form_fields is None:
+            return field
+        if field not in self._form_fields:
+            raise input_error(f"{type(self).__name__}.native_name", field, f"allowed: {', '.join(self._form_fields)}")
+        key = self._renames.get(field, field) if self._renames is not None else field
+        native = self._native_fields().get(key)
+        if native is None:
+            raise input_error(f"{type(self).__name__}.native_name", field,
+                              "has no in-place native counterpart in this set-up; use update()")
+        return native
+
+    def _native_fields(self) -> dict:
+        """Form field -> native keyword for the current form set-up (fields that map one to one)."""
+        return {}
 
     def warm_start(self, x=None, y=None) -> bool:
         """Give a primal (and dual) guess; True when the next solve uses it. Default: not used."""

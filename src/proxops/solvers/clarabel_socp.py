@@ -201,6 +201,10 @@ class ClarabelSOCP(SolverAdapter):
         return cl.DefaultSolver(self._data["P"], self._data["q"], A, b, [makers[k](d) for k, d in cones], settings)
 
     # ------------------------------------------------------------------ update
+    def _native_fields(self) -> dict:
+        # a QP set-up keeps P and q as they are; its rows become cone rows (no one-to-one field)
+        return {k: k for k in (("P", "q") if self._qp is not None else ("P", "q", "A", "b"))}
+
     def _update_form(self, **fields) -> None:
         """:meth:`update` after ``setup(form)``: a ConicProblem's P, q, A, b in place; a
         QuadraticProgram's fields re-converted (set up again when the equality split changes the cones)."""
@@ -266,7 +270,7 @@ class ClarabelSOCP(SolverAdapter):
             except Exception as exc:
                 self._solver_error = error_message(exc)
 
-    def update_fast(self, *, b: np.ndarray | None = None, A_values: np.ndarray | None = None) -> None:
+    def update_fast(self, *, b: np.ndarray | None = None, A_values: np.ndarray | None = None, **others) -> None:
         """Lean :meth:`update_native` of ``b`` and the values of ``A`` for trusted data (per-step use).
 
         ``A_values``: the nonzero values of A in the set-up sparsity pattern, in the order of the
@@ -275,8 +279,11 @@ class ClarabelSOCP(SolverAdapter):
         zero/soc rows and no nonneg row switching between finite and +inf b. Nothing is checked
         or converted (saves the ~0.1-0.4 ms of :meth:`update`'s checks and matrix copies);
         after a failed set-up, with rows removed (+inf b) or with a
-        :class:`QuadraticProgram` set-up it falls back to :meth:`update_native`."""
+        :class:`QuadraticProgram` set-up it falls back to :meth:`update_native`, as do the other
+        native fields (``others``: P, q, A)."""
         d = self._data
+        if others:
+            self.update_native(**others)
         if (d is None or self._qp is not None or self._solver is None or self._solver_error is not None
                 or self._bad.fields or self._crossed is not None or self._keep is None or not self._keep.all()):
             A = None

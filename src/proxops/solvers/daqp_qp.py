@@ -195,6 +195,11 @@ class DaqpQP(SolverAdapter):
         return sense
 
     # ------------------------------------------------------------------ update
+    def _native_fields(self) -> dict:
+        # the rows of A are DAQP's rows only without A_eq (those are stacked on top)
+        same = {"P": "H", "q": "f", "lb": "lb", "ub": "ub"}
+        return same if self._p_eq else {**same, "A": "A", "bl": "bl", "bu": "bu"}
+
     def _update_form(self, *, P=None, q=None, A=None, bl=None, bu=None, lb=None, ub=None, A_eq=None,
                      b_eq=None) -> None:
         """:meth:`update` after ``setup(QuadraticProgram)``: ``A``, ``bl``, ``bu`` are the rows of the

@@ -20,7 +20,7 @@ from proxops.solvers.result import SolverResult
 # form kind -> {solver name: (module, adapter class)}; the first name is the default of the kind
 SOLVERS_FOR = {
     "QP": {"daqp": ("daqp_qp", "DaqpQP"), "piqp": ("piqp_qp", "PiqpQP"), "clarabel": ("clarabel_socp", "ClarabelSOCP")},
-    "SOCP": {"clarabel": ("clarabel_socp", "ClarabelSOCP")},
+    "SOCP": {"clarabel": ("clarabel_socp", "ClarabelSOCP"), "ipopt": ("ipopt_socp", "IpoptSOCP")},
     "LP": {"highs": ("highs_lp", "HighsLP"), "daqp": ("daqp_qp", "DaqpQP"), "piqp": ("piqp_qp", "PiqpQP"),
            "clarabel": ("clarabel_socp", "ClarabelSOCP")},
     "MILP": {"highs": ("highs_lp", "HighsMILP")},
@@ -53,7 +53,8 @@ def make_solver(form, name: str, **settings):
     """A persistent adapter (:class:`proxops.solvers.base.SolverAdapter`) named ``name`` for ``form``.
 
     form: a form instance (the adapter is also set up with it), a form class, or "QP", "SOCP", "LP",
-    "MILP". Solvers by form: QP daqp, piqp, clarabel; SOCP clarabel; LP highs, daqp (give
+    "MILP". Solvers by form: QP daqp, piqp, clarabel; SOCP clarabel, ipopt (the cone rows as smooth NLP
+constraints, for cross-checks: :mod:`proxops.solvers.ipopt_socp`); LP highs, daqp (give
     ``settings={"eps_prox": e}``, e > 0), piqp, clarabel; MILP highs. ``settings`` go to the adapter's
     constructor. A name the form does not allow raises a one-line ProxopsInputError."""
     kind = form_kind(form)

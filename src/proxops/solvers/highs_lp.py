@@ -118,6 +118,9 @@ class HighsLP(SolverAdapter):
                 raise input_error("integrality", "integer variables", "HighsLP solves LPs; use HighsMILP")
         self._setup(problem.c, problem.A, problem.rl, problem.ru, problem.lb, problem.ub, integ if self.mip else None)
 
+    def _native_fields(self) -> dict:
+        return {k: k for k in ("c", "A", "rl", "ru", "lb", "ub")}
+
     def warm_start(self, x=None, y=None) -> bool:
         """Hand HiGHS a starting point ``x`` (n,) (``setSolution``; for a MILP a first incumbent);
         without ``x`` the last basis is kept (hot start). Returns True when HiGHS accepted it."""

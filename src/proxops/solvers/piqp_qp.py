@@ -113,6 +113,9 @@ class PiqpQP(SolverAdapter):
         pr = problem
         self.setup_native(pr.P, pr.q, pr.A_eq, pr.b_eq, pr.A, pr.bl, pr.bu, pr.lb, pr.ub)
 
+    def _native_fields(self) -> dict:
+        return _FORM_NAMES
+
     def _update_form(self, **fields) -> None:
         self.update_native(**{_FORM_NAMES[k]: v for k, v in fields.items()})
 
