@@ -148,8 +148,9 @@ def test_fast_prediction_equals_exact_rollout(w_deg, make_cfg):
         plan = rng.uniform(-0.1, 0.1, size=(N, 3))
         F, Gam = _rollout_matrices(model, t, N)
         exact = F @ x0 + Gam @ plan.ravel()
-        p_g = mpc._load(t, x0, plan.ravel(), np.zeros(6 * N), np.zeros(3))
-        np.testing.assert_allclose(p_g, exact, rtol=0, atol=1e-9)
+        basis = mpc._load(float(model.theta(t)), x0, np.zeros((N, 6)), np.zeros(3), plan.ravel(), 2)
+        np.testing.assert_allclose(basis[: 3 * N], plan.ravel(), rtol=0, atol=0)  # g = the plan as given
+        np.testing.assert_allclose(basis[3 * N :], exact, rtol=0, atol=1e-9)
 
 
 @pytest.mark.parametrize("mode", ["hard", "soft"])
@@ -209,3 +210,82 @@ def test_nan_state_is_a_status_and_the_next_step_recovers():
     assert bad.status == "numerical_error" and not bad.ok
     assert np.all(np.isfinite(bad.u0)) and np.all(np.abs(bad.u0) <= 0.1)
     assert mpc.solve(2.0, x0, ref).ok
+
+
+def _direct_qp(mpc, t, x0, ref, u_prev, g):
+    """The MPC's QP in dU = U - g written the direct way (exact rollout matrices for p_g, the MPC's
+    averaged S and the weights of its config), with its linear term: an independent build of the
+    QuadraticProgram the MPC hands its solver (which is shifted to w = U - U_c in hard mode)."""
+    from proxops.solvers import QuadraticProgram
+
+    cfg, corridor, N, nu = mpc.cfg, mpc.corridor, mpc.N, mpc.n_u
+    F, Gam = _rollout_matrices(mpc.model, t, N)
+    p_g = F @ x0 + Gam @ g
+    S = mpc._S_flat
+    W = np.tile(np.asarray(cfg.Q, float), N)
+    W[-6:] *= cfg.terminal_factor
+    D = np.eye(nu) - np.eye(nu, k=-3)
+    rd = np.tile(cfg.R_du, N)
+    R = np.diag(np.tile(cfg.R_u, N)) + D.T @ (rd[:, None] * D)
+    H = S.T @ (W[:, None] * S) + R
+    f = S.T @ (W * (p_g - np.tile(ref, N))) + R @ g
+    f[:3] -= np.asarray(cfg.R_du) * u_prev
+    rows = np.vstack([corridor.G @ S[6 * j : 6 * j + 3] for j in range(N)])
+    h_rows = np.concatenate([corridor.h - corridor.G @ p_g[6 * j : 6 * j + 3] for j in range(N)])
+    return QuadraticProgram(P=H, q=f, A=rows, bu=h_rows, lb=-mpc.a_max - g, ub=mpc.a_max - g)
+
+
+@pytest.mark.parametrize("mode", ["hard", "soft"])
+def test_solver_by_name_daqp_and_piqp_agree_with_an_independent_clarabel_solve(mode):
+    """The same MPC on two QP solvers chosen by name (DAQP: active set, warm-started; PIQP: interior
+    point), three closed-loop steps from a state that drives the plan onto the corridor faces: the
+    first controls agree with each other and with Clarabel solving the independently built QP of the
+    first step; the corridor binds (some predicted row within 1e-6 m of its face)."""
+    from proxops.solvers import solve_qp
+
+    model, corridor, a_max = _model(), LosCorridor(), 0.05
+    x_start = np.array([12.0, 60.0, -3.0, 0.3, -0.4, 0.05])
+    ref = np.array([0.0, 10.0, 0.0, 0.0, 0.0, 0.0])
+    u_start = np.array([0.01, -0.02, 0.0])
+    t0 = 37.0
+    controls = {}
+    for name, settings in (("daqp", {}), ("piqp", {"eps_abs": 1e-11, "eps_rel": 1e-11})):
+        mpc = LosMpc(model, corridor, a_max, LosMpcConfig.single_run(constraint_mode=mode, solver=name,
+                                                                     solver_settings=settings))
+        x, u_prev, us = x_start.copy(), u_start.copy(), []
+        for k in range(3):
+            sol = mpc.solve(t0 + k, x, ref, u_prev)
+            assert sol.ok, (name, k, sol.status)
+            assert sol.max_slack_m < 1e-6
+            if k == 0:
+                X = sol.states
+                assert corridor.slack_body(X[:, :3]).min() < 1e-6  # a face is active: the test binds
+            us.append(sol.u0)
+            u_prev = sol.u0
+            x = model.step(t0 + k, x, sol.u0_hill)
+        controls[name] = np.array(us)
+    np.testing.assert_allclose(controls["piqp"], controls["daqp"], rtol=0, atol=1e-8 * a_max)
+    qp = _direct_qp(mpc, t0, x_start, ref, u_start, np.tile(u_start, mpc.N))  # first call: g = u_prev held
+    res = solve_qp(qp, "clarabel", tol_gap_rel=1e-12, tol_feas=1e-12)
+    assert res.ok
+    np.testing.assert_allclose(controls["daqp"][0], res.x[:3] + u_start, rtol=0, atol=1e-8 * a_max)
+    np.testing.assert_allclose(controls["piqp"][0], res.x[:3] + u_start, rtol=0, atol=1e-8 * a_max)
+
+
+def test_unknown_solver_name_is_an_input_error():
+    with pytest.raises(ProxopsInputError, match="mpc.solver"):
+        LosMpc(_model(), LosCorridor(), 0.1, LosMpcConfig(solver="osqp"))
+
+
+@pytest.mark.parametrize("N", [20, 160])
+def test_averaged_input_map_is_block_toeplitz(N):
+    """The kernel uses S's N blocks K_d = S[d, :, 0:3] for every block (j, i) with j - i = d (the
+    16-angle average is exact for the harmonics <= 2 of the rotated CW map, so it does not depend on
+    the common shift of the angles); blocks above the diagonal are zero (causality)."""
+    mpc = LosMpc(_model(5.0), LosCorridor(), 0.1, LosMpcConfig(horizon=N))
+    S = mpc._S
+    scale = np.abs(S).max(axis=(0, 2))  # per state component
+    blocks = S.reshape(N, 6, N, 3).transpose(0, 2, 1, 3)  # [j, i] = block (j, i), (6, 3)
+    lag = np.arange(N)[:, None] - np.arange(N)[None, :]  # j - i
+    expected = np.where((lag >= 0)[:, :, None, None], S[:, :, 0:3][np.clip(lag, 0, None)], 0.0)
+    assert np.all(np.abs(blocks - expected) <= 1e-13 * scale[None, None, :, None])

@@ -47,8 +47,10 @@ U_c = g - H^-1 f. DAQP is given the QP in w = U - U_c, which has no linear term
 G (S w)_pos,j <= h - G (p_g + S (U_c - g))_pos,j. This is the same LDP DAQP builds from
 (H, f) (its u = R (U - U_c) either way), but DAQP then keeps no linear term, so a step
 only rewrites bound vectors (O(m)) instead of DAQP recomputing R^-T f and d = b + M v
-(O(m n), ~40 us at N = 40). One jitted kernel (:func:`_shifted_qp_data`) computes p_g, f,
-U_c and the bounds using the lower block-triangular structure of S; U = w + U_c. Soft mode
+(O(m n), ~40 us at N = 40). One jitted kernel (:func:`_qp_data`) forms g, computes p_g, f,
+U_c and the bounds in place in preallocated buffers (the corridor rows G S_pos and H never change),
+using that S is block lower-triangular Toeplitz (block (j, i) = K_(j-i), see
+``LosMpc._geometry_blocks``): its products read the N blocks K_d, not S; U = w + U_c. Soft mode
 keeps the linear term (the QP in dU with f, DAQP's own update): shifting the slack to its
 unconstrained minimiser -rho / w = -1e7 m would put 1e7 m offsets into every row and cost
 ~1e-9 of accuracy (tests/test_los_mpc.py compares both forms with the direct QP).
@@ -63,8 +65,15 @@ Constraint handling (``constraint_mode``):
   step's corridor multipliers (``slack_penalty`` default 1e7; the multipliers seen in the
   runs here are below ~1e4, the test checks the equality).
 
-Solved by DAQP through :class:`proxops.solvers.daqp_qp.DaqpQP`, warm-started from the
-previous active set.
+Solver: the one named by ``LosMpcConfig.solver`` through :func:`proxops.solvers.make_solver`
+(the :class:`proxops.solvers.forms.QuadraticProgram` P = H, q, A = corridor rows, bu, lb, ub; data
+updated in place each step by the form's field names). Default DAQP, warm-started from the previous
+active set, with its lean paths: no linear term in hard mode (``setup_native`` with f = None) and
+``update_fast``. PIQP and Clarabel (interior point) start cold every step.
+
+Per-step cost (benchmarks/bench_los.py prints it for N = 20..160): the kernel reads H^-1 (3N x 3N) and
+O(N) data, ~22 N^2 multiply-adds, below one DAQP iteration (its constraint check reads M = A R^-1,
+9N x 3N); everything else is O(N) or fixed.
 """
 
 from __future__ import annotations
@@ -80,12 +89,13 @@ from proxops.constraints.los_corridor import LosCorridor
 from proxops.dynamics.tumbling_target import BodyFrameModel, body_from_hill_matrix, hill_from_body_matrix, rotate_z
 from proxops.core.memo import memo_get
 from proxops.errors import input_error
-from proxops.solvers.daqp_qp import DaqpQP
+from proxops.solvers.forms import QuadraticProgram
+from proxops.solvers.front import QP_SOLVERS, make_solver
 from proxops.status import Status
 
 PAPER_Q = (15.0, 30.0, 15.0, 1.0, 1.0, 1.0)
 _PREDICTION_CACHE: dict = {}  # (n, w_rel, dt, N) -> prediction blocks (Monte Carlo reuses them)
-_WEIGHTS_CACHE: dict = {}  # (prediction key, weights) -> (W S, H, H^-1)
+_WEIGHTS_CACHE: dict = {}  # (prediction key, weights[, corridor]) -> (H, H^-1) [, geometry blocks]
 DAQP_INF = 1e30  # DAQP's "no bound" (proxops.solvers.daqp_qp.DAQP_INF)
 
 
@@ -103,6 +113,8 @@ class LosMpcConfig:
     slack_quadratic: float = 1.0  # w, keeps the Hessian positive definite (soft mode)
     max_iter: int = 2000
     refinements: int = 0  # extra solves re-centred on the new plan (0 = one QP per step)
+    solver: str = "daqp"  # QP solver by name (proxops.solvers.make_solver): daqp, piqp, clarabel
+    solver_settings: dict = field(default_factory=dict)  # keyword settings of that solver's adapter
 
     @classmethod
     def single_run(cls, **kw) -> "LosMpcConfig":
@@ -126,6 +138,8 @@ class LosMpcConfig:
             raise input_error("mpc.constraint_mode", self.constraint_mode, "allowed: hard, soft")
         if not self.slack_penalty > 0:
             raise input_error("mpc.slack_penalty", self.slack_penalty, "must be > 0")
+        if self.solver not in QP_SOLVERS:
+            raise input_error("mpc.solver", self.solver, f"allowed: {', '.join(QP_SOLVERS)}")
 
 
 @dataclass
@@ -138,12 +152,14 @@ class MpcSolution:
     u0: np.ndarray
     theta_rad: float
     inputs: np.ndarray | None  # (N, 3) planned body-axes inputs (m/s^2; the MPC's own plan: do not modify)
-    prediction: tuple | None  # (p_g (6N,), S (6N, 3N), dU (3N,)): predicted states p_g + S dU, or None
-    solve_time_s: float  # DAQP solve call
-    build_time_s: float  # condensing + update
+    solve_time_s: float  # QP solver's solve call(s)
+    build_time_s: float  # QP data update (kernel + solver update)
     iterations: int
     max_slack_m: float = 0.0  # soft mode: largest corridor slack used
     info: dict = field(default_factory=dict)
+    # [plan guess g (3N), p_g (6N)] of this solve (a fresh array) and the averaged map S (6N, 3N)
+    basis: np.ndarray | None = field(default=None, repr=False)
+    S: np.ndarray | None = field(default=None, repr=False)
 
     @property
     def ok(self) -> bool:
@@ -155,13 +171,22 @@ class MpcSolution:
         return rotate_z(self.theta_rad, self.u0)
 
     @property
-    def states(self) -> np.ndarray | None:
-        """(N, 6) predicted body-frame states x_1..x_N = p_g + S dU (p_g: exact prediction of the
-        plan the QP was centred on, dU: the change of plan; computed when asked: the closed loop
-        does not use them)."""
-        if self.prediction is None:
+    def prediction(self) -> tuple | None:
+        """(p_g (6N,), S (6N, 3N), dU (3N,)): the predicted states are p_g + S dU (p_g: exact
+        prediction of the plan g the QP was centred on, dU = U - g the change of plan); None
+        after a failed solve. Computed when asked (the closed loop does not use it)."""
+        if self.basis is None or self.inputs is None:
             return None
-        base, S, dU = self.prediction
+        n3 = self.S.shape[1]
+        return self.basis[n3:], self.S, self.inputs.reshape(n3) - self.basis[:n3]
+
+    @property
+    def states(self) -> np.ndarray | None:
+        """(N, 6) predicted body-frame states x_1..x_N = p_g + S dU (see ``prediction``)."""
+        pred = self.prediction
+        if pred is None:
+            return None
+        base, S, dU = pred
         return (base + S @ dU).reshape(-1, 6)
 
 
@@ -204,6 +229,8 @@ class LosMpc:
         self.n_var = nu + (N if self.soft else 0)
         self._offsets = model.w_rel * model.dt * np.arange(N + 1)  # theta_j - theta_k
         self._ref_shape = (N, 6)
+        self._plan_shape = (N, 3)
+        self._ref_buffer = np.zeros((N, 6))  # a single reference state held over the horizon
         key = (model.n, model.w_rel, model.dt, N)
         cached = memo_get(_PREDICTION_CACHE, key, lambda: self._prediction_blocks(model, N))
         self._Phi_pow, self._Su_L, self._S = cached
@@ -214,19 +241,19 @@ class LosMpc:
         self._r_u = np.tile(np.asarray(self.cfg.R_u, float), N)
         self._r_d = np.tile(np.asarray(self.cfg.R_du, float), N)
         weights = (tuple(self.cfg.Q), float(self.cfg.terminal_factor), tuple(self.cfg.R_u), tuple(self.cfg.R_du))
-        self._WS, H, self._H_inv = memo_get(_WEIGHTS_CACHE, (key, weights), self._weighted_blocks)
+        H, self._H_inv = memo_get(_WEIGHTS_CACHE, (key, weights), self._weighted_blocks)
         self._r_d0 = np.asarray(self.cfg.R_du, float)
         G, self._h = corridor.G, corridor.h
         self._G_T = np.ascontiguousarray(G.T)
         self._G = np.ascontiguousarray(G, dtype=float)
         self._n_rows = G.shape[0]
         # per-geometry arrays, shared by every run of a campaign (read only)
-        self._S_posT, A, self._HS, self._PB = memo_get(
+        A, self._KK, self._PB = memo_get(
             _WEIGHTS_CACHE, (key, weights, self._G.tobytes(), np.asarray(self._h, float).tobytes()),
             lambda: self._geometry_blocks(model))
         lb = np.full(self.n_var, -self.a_max)
         ub = np.full(self.n_var, self.a_max)
-        # hard mode: DAQP gets the QP in w = U - U_c without a linear term (module doc); soft mode
+        # hard mode: the solver gets the QP in w = U - U_c without a linear term (module doc); soft mode
         # keeps the linear term (QP in dU = U - g): shifting the slack to its unconstrained
         # minimiser -rho / w_s = -1e7 m would put 1e7 m offsets into every row (errors ~1e-9)
         self._shift = not self.soft
@@ -243,30 +270,27 @@ class LosMpc:
         self._H = H
         self._A = A
         self._lb, self._ub = lb, ub
-        self._solver: DaqpQP | None = None
-        self._plan: np.ndarray | None = None  # (N, 3) last planned body-axes inputs
-        # per-step buffers written by the kernel (DaqpQP copies the bounds into its own vectors)
-        # the kernel's arguments, packed (a jitted call costs ~0.3 us per argument):
-        # inputs [x_0 (6), u_prev (3), g (3N), ref (6N)], constants [o_j = theta_j - theta_k, cos o_j,
-        # sin o_j (N+1 each), R_u (3N), R_du (3N), h (r)], [Phi | Bd] (6, 9), [H^-1; S_pos^T] (2, 3N, 3N), outputs
-        # [p_g (6N), f, x_c, lb - x_c, ub - x_c (n_var each), rows (N r)]
-        nv, n6, nb = self.n_var, 6 * N, self._n_rows * N
-        self._inp = np.zeros(9 + nu + n6)
-        self._guess = self._inp[9 : 9 + nu]
-        self._consts = np.concatenate([self._offsets, np.cos(self._offsets), np.sin(self._offsets), self._r_u,
+        self._solver = None  # the QP solver's adapter (proxops.solvers.base.SolverAdapter), made at the first solve
+        self._fast = False  # DAQP: bounds (and f) through update_fast
+        self._form = True  # set up with the QuadraticProgram form (update takes its names)
+        self._plan: np.ndarray | None = None  # (3N,) last planned body-axes inputs (a fresh array per solve)
+        self._zeros_n = np.zeros(nu)  # the "plan" argument before the first solve
+        # constants of the kernel, packed (a jitted call costs ~0.2 us per argument):
+        # [w_rel, a_max, shift (1/0), rho, n_var, cos o_j, sin o_j (N+1 each; o_j = theta_j - theta_k), R_u (3N),
+        #  R_du (3N), h (r)]
+        self._consts = np.concatenate([[model.w_rel, self.a_max, float(self._shift), self.cfg.slack_penalty,
+                                        float(self.n_var)], np.cos(self._offsets), np.sin(self._offsets), self._r_u,
                                        self._r_d, np.asarray(self._h, float)])
-        self._work = np.empty(n6 + 4 * nv + nb)
-        self._pred = self._work[:n6]  # p_g
-        self._f = self._work[n6 : n6 + nv]  # linear term in dU (soft mode: DAQP's f)
-        self._u_c = self._work[n6 + nv : n6 + 2 * nv]  # x = DAQP's solution + this (U_c or g; slack: 0)
-        self._lb_w = self._work[n6 + 2 * nv : n6 + 3 * nv]
-        self._ub_w = self._work[n6 + 3 * nv : n6 + 4 * nv]
-        self._b = self._work[n6 + 4 * nv :]
-        if self.soft:
-            self._f[nu:] = self.cfg.slack_penalty
-            self._u_c[nu:] = 0.0
-            self._lb_w[nu:] = 0.0
-            self._ub_w[nu:] = DAQP_INF
+        # persistent outputs of the kernel, rewritten in place every step and handed to the solver (which
+        # copies the bounds): [f, x_c, lb - x_c, ub - x_c (n_var each), corridor bounds b (N r)]
+        nv = self.n_var
+        self._work = np.empty(4 * nv + self._n_rows * N)
+        self._f = self._work[:nv]  # linear term in dU (soft mode: the solver's f)
+        self._u_c = self._work[nv : 2 * nv]  # x = the solver's solution + this (U_c or g; slack: 0)
+        self._lb_w = self._work[2 * nv : 3 * nv]
+        self._ub_w = self._work[3 * nv : 4 * nv]
+        self._b = self._work[4 * nv :]
+        self._n_basis = 9 * N  # per solve, fresh: [g (3N), p_g (6N)] (MpcSolution.prediction)
 
     # ------------------------------------------------------------------ prediction
     def _prediction_blocks(self, model: BodyFrameModel, N: int):
@@ -288,16 +312,29 @@ class LosMpc:
         return self._Phi_pow, Su, S
 
     def _geometry_blocks(self, model: BodyFrameModel):
-        """(S_pos^T (3N, 3N), corridor rows G S_pos (N r, 3N), [H^-1; S_pos^T] (2, 3N, 3N), [Phi | Bd] (6, 9))."""
+        """(corridor rows G S_pos (N r, 3N), KK (15, 3N), [Phi | Bd] (6, 9)).
+
+        S is block lower-triangular Toeplitz: its block (j, i) is K_(j-i) = S[j-i, :, 0:3] (6 x 3). The
+        rotation average of T(a + o_(j+1)) Phi^(j-i) Bd R(a + o_i) over 16 angles equals the continuous
+        average (harmonics <= 2), which does not depend on the common shift o_i; checked to 1e-15
+        relative in tests/test_los_mpc.py. So the per-step products with S use the N blocks
+        K_d (L1-resident) instead of S itself (6N x 3N): rows 0-5 of KK are W_r K_(N-1-m)[r, c] at
+        column 3m + c (weights of steps 1..N-1), rows 6-11 the same with the terminal weights, rows
+        12-14 K_d[a, c] at column 3d + a (row c): the kernel's sums become contiguous sweeps."""
         N, nu = self.N, self.n_u
-        S_posT = np.ascontiguousarray(self._S[:, 0:3, :].reshape(3 * N, nu).T)
         A = np.matmul(self._G, self._S[:, 0:3, :]).reshape(self._n_rows * N, nu)
-        HS = np.ascontiguousarray(np.stack([self._H_inv, S_posT]))
+        K = self._S[:, :, 0:3]  # (N, 6, 3): K_d
+        Wq = np.asarray(self.cfg.Q, float)
+        KK = np.zeros((15, nu))
+        rev = K[::-1]  # rev[m] = K_(N-1-m)
+        KK[0:6] = (Wq[None, :, None] * rev).transpose(1, 0, 2).reshape(6, nu)
+        KK[6:12] = (self.cfg.terminal_factor * Wq[None, :, None] * rev).transpose(1, 0, 2).reshape(6, nu)
+        KK[12:15] = K[:, 0:3, :].transpose(2, 0, 1).reshape(3, nu)
         PB = np.ascontiguousarray(np.hstack([model.Phi, model.Bd]))
-        return S_posT, A, HS, PB
+        return A, KK, PB
 
     def _weighted_blocks(self):
-        """(W S (6N, 3N), H (3N, 3N), H^-1 (3N, 3N), exactly symmetric) for this configuration."""
+        """(H (3N, 3N), H^-1 (3N, 3N), exactly symmetric) for this configuration."""
         N, nu = self.N, self.n_u
         W = np.tile(np.asarray(self.cfg.Q, float), (N, 1))
         W[-1] *= self.cfg.terminal_factor
@@ -307,7 +344,7 @@ class LosMpc:
         H = self._S_flat.T @ WS + np.diag(self._r_u) + D.T @ (self._r_d[:, None] * D)
         H = 0.5 * (H + H.T)
         H_inv = np.linalg.inv(H)
-        return WS, H, np.ascontiguousarray(0.5 * (H_inv + H_inv.T))
+        return H, np.ascontiguousarray(0.5 * (H_inv + H_inv.T))
 
     def exact_map(self, theta_k: float) -> np.ndarray:
         """Exact d x_j / d [x_0, U] (body frame, body-axes inputs) at angle theta_k, (N, 6, 6 + 3N)."""
@@ -348,89 +385,122 @@ class LosMpc:
         return out
 
     def _reference(self, x_ref) -> np.ndarray:
+        """The (N, 6) reference trajectory: ``x_ref`` itself, or one state (6,) written into every row of
+        a buffer kept per controller (the kernel reads it during the solve only)."""
         ref = np.asarray(x_ref, float)
         if ref.shape == (6,):
-            return np.tile(ref, (self.N, 1))
+            buf = self._ref_buffer
+            buf[:] = ref
+            return buf
         if ref.shape == (self.N, 6):
-            return ref
+            return np.ascontiguousarray(ref)
         raise input_error("x_ref.shape", ref.shape, f"must be (6,) or ({self.N}, 6)")
 
     # ------------------------------------------------------------------ solve
     def solve(self, t: float, x_body: np.ndarray, x_ref, u_prev: np.ndarray | None = None) -> MpcSolution:
         """Solve eq. (11) from body-frame state ``x_body`` (m, m/s) at time ``t`` (s)."""
         t_build = time.perf_counter()
-        N, nu = self.N, self.n_u
-        x_body = np.asarray(x_body, float)
-        u_prev = _ZERO3 if u_prev is None else np.asarray(u_prev, float)
+        theta_k = self.model.theta0_rad + self.model.w_rel * t
+        if x_body.__class__ is not np.ndarray or x_body.dtype != np.float64:
+            x_body = np.asarray(x_body, float)
+        u_prev = _ZERO3 if u_prev is None else u_prev
+        if u_prev.__class__ is not np.ndarray or u_prev.dtype != np.float64:
+            u_prev = np.asarray(u_prev, float)
         ref = (x_ref if x_ref.__class__ is np.ndarray and x_ref.shape == self._ref_shape
-               else self._reference(x_ref)).reshape(6 * N)
-        guess = self._guess
-        if self._plan is None:
-            guess.reshape(N, 3)[:] = u_prev
-        else:
-            guess[: nu - 3] = self._plan.reshape(nu)[3:]
-            guess[nu - 3 :] = self._plan[-1]
-        self._load(t, x_body, guess, ref, u_prev)
+               else self._reference(x_ref))
+        plan = self._plan
+        basis = self._load(theta_k, x_body, ref, u_prev, self._zeros_n if plan is None else plan,
+                           _HOLD_U_PREV if plan is None else _SHIFT_PLAN)
         build_time = time.perf_counter() - t_build
         res = self._solver.solve()
         solve_time, iterations = res.solve_time_s, res.iterations
-        for _ in range(self.cfg.refinements):
-            if res.x is None or not res.ok:
-                break
-            np.add(res.x[:nu], self._u_c[:nu], out=guess)
-            self._load(t, x_body, guess, ref, u_prev)
-            res = self._solver.solve()
-            solve_time += res.solve_time_s
-            iterations += res.iterations
+        if self.cfg.refinements:
+            for _ in range(self.cfg.refinements):
+                if res.x is None or not res.ok:
+                    break
+                basis = self._load(theta_k, x_body, ref, u_prev, res.x[: self.n_u] + self._u_c[: self.n_u],
+                                   _PLAN_AS_IS)
+                res = self._solver.solve()
+                solve_time += res.solve_time_s
+                iterations += res.iterations
         status = res.status
-        theta_k = self.model.theta0_rad + self.model.w_rel * t
-        if res.x is None or not res.ok:
+        x = res.x
+        if x is None or (status is not _OPTIMAL and not status.ok):
             u0 = self._shifted_plan()
-            return MpcSolution(status, u0, theta_k, None, None, solve_time, build_time,
-                               iterations, info={"raw_status": res.info.get("raw_status")})
-        x = res.x  # DAQP's w, a fresh array
-        x += self._u_c  # w + x_c
-        U = x[:nu]
-        plan = self._plan = U.reshape(N, 3)  # never modified in place (the next guess is a copy)
-        u0 = U[:3].copy()
-        slack = float(x[nu:].max()) if self.soft else 0.0
-        return MpcSolution(status, u0, theta_k, plan, (self._pred.copy(), self._S_flat,
-                           U - guess), solve_time, build_time, iterations, max_slack_m=slack,
-                           info={"raw_status": res.info.get("raw_status"), "dual": res.info.get("dual")})
+            return MpcSolution(status, u0, theta_k, None, solve_time, build_time, iterations,
+                               info={"raw_status": res.info.get("raw_status")})
+        if self._fast:
+            x += self._u_c  # w + x_c (DAQP's x is a fresh array)
+        else:
+            x = x + self._u_c  # another adapter's x may be its own buffer
+        if self.soft:
+            U = self._plan = x[: self.n_u]
+            slack = float(x[self.n_u :].max())
+        else:
+            U = self._plan = x
+            slack = 0.0
+        # the plan is never modified in place (the next guess is written into a new array)
+        return MpcSolution(status, U[:3].copy(), theta_k, U.reshape(self._plan_shape), solve_time, build_time,
+                           iterations, slack, res.info, basis, self._S_flat)
 
-    def _load(self, t: float, x_body: np.ndarray, guess: np.ndarray, ref: np.ndarray, u_prev: np.ndarray) -> np.ndarray:
-        """Put the bounds of the QP in w = x - x_c, centred on the plan ``guess`` (3N,), into DAQP
-        (module doc); returns p_g (6N,), the exact prediction of ``guess``."""
-        theta_k = self.model.theta0_rad + self.model.w_rel * t
-        nu = self.n_u
-        inp = self._inp
-        inp[:6] = x_body
-        inp[6:9] = u_prev
-        if guess is not self._guess:
-            self._guess[:] = guess
-        inp[9 + nu :] = ref
-        finite = _shifted_qp_data(theta_k, self.model.w_rel, self.a_max, self._shift, self.n_var, inp, self._consts,
-                                  self._PB, self._WS, self._HS, self._G, self._work)
+    def _load(self, theta_k: float, x_body: np.ndarray, ref: np.ndarray, u_prev: np.ndarray, plan: np.ndarray,
+              how: int) -> np.ndarray:
+        """Write the data of the QP in w = x - x_c (hard) or dU (soft) into the persistent buffers and hand
+        them to the solver (module doc). The QP is centred on the plan guess g: ``u_prev`` held
+        (``how`` = 0), ``plan`` (3N,) shifted by one step (1), or ``plan`` itself (2). Returns the new
+        array [g (3N), p_g (6N)], p_g the exact prediction of g (body frame, m, m/s)."""
+        basis = np.empty(self._n_basis)
+        finite = _qp_data(theta_k, how, x_body, u_prev, ref, plan, self._consts, self._PB, self._KK, self._H_inv,
+                          self._G, basis, self._work)
         f = None if self._shift else self._f
-        if self._solver is None:
-            self._solver = DaqpQP(max_iter=self.cfg.max_iter)
-            self._solver.setup_native(self._H, None if f is None else f.copy(), self._A, bu=self._b.copy(),
-                                      lb=self._lb_w.copy(), ub=self._ub_w.copy())
-        elif finite:  # finite data: rows stay inequalities, no bound crossed
-            self._solver.update_fast(f=f, bu=self._b, lb=self._lb_w, ub=self._ub_w)
-        else:  # NaN/inf state: the checked path turns it into a NUMERICAL_ERROR status
-            self._solver.update(f=f, bu=self._b, lb=self._lb_w, ub=self._ub_w)
-        return self._pred
+        solver = self._solver
+        if solver is None:
+            self._make_solver(f)
+        elif finite and self._fast:  # DAQP, finite data: rows stay inequalities, no bound crossed
+            solver.update_fast(f=f, bu=self._b, lb=self._lb_w, ub=self._ub_w)
+        else:  # other solvers, or a NaN/inf state (the checked path turns it into a NUMERICAL_ERROR status)
+            if not self._fast and self.soft:
+                self._ub_w[self.n_u :] = np.inf  # the slacks' missing upper bound (DAQP's is 1e30)
+            # copies: an adapter may keep what it is given (the buffers are rewritten next step)
+            data = {"bu": self._b.copy(), "lb": self._lb_w.copy(), "ub": self._ub_w.copy()}
+            if f is not None:
+                data["q" if self._form else "f"] = f.copy()
+            solver.update(**data)
+        return basis
+
+    def _make_solver(self, f: np.ndarray | None) -> None:
+        """The QP solver named by ``config.solver`` (proxops.solvers.make_solver) for the problem in the
+        buffers. DAQP in hard mode is set up without a linear term (``setup_native`` with f = None: it keeps
+        no v, so a bound update costs O(m); module doc) and updated through ``update_fast``; every other
+        case is the :class:`QuadraticProgram` form, updated by its field names (bu, lb, ub, and q in soft mode)."""
+        name = self.cfg.solver
+        settings = dict(self.cfg.solver_settings)
+        if name == "daqp":
+            settings.setdefault("max_iter", self.cfg.max_iter)
+        ub = self._ub_w.copy()
+        if name != "daqp":
+            ub[self.n_u :] = np.inf
+        form = QuadraticProgram(P=self._H, q=np.zeros(self.n_var) if f is None else f.copy(), A=self._A,
+                                bu=self._b.copy(), lb=self._lb_w.copy(), ub=ub)
+        if name == "daqp" and f is None:
+            solver = make_solver("QP", "daqp", **settings)
+            solver.setup_native(form.P, None, form.A, bu=form.bu, lb=form.lb, ub=form.ub)
+            self._form = False
+        else:
+            solver = make_solver(form, name, **settings)
+            self._form = True
+        self._fast = name == "daqp"
+        self._solver = solver
 
     def _shifted_plan(self) -> np.ndarray:
         """Fallback input after a failed solve: the previous plan shifted by one step, else zero."""
-        if self._plan is None or len(self._plan) < 2:
+        if self._plan is None or self.N < 2:
             self._plan = None
             return np.zeros(3)
-        self._plan = self._plan[1:]
-        if len(self._plan) < self.N:
-            self._plan = np.vstack([self._plan, np.zeros((self.N - len(self._plan), 3))])
-        return np.clip(self._plan[0], -self.a_max, self.a_max)
+        plan = np.zeros(self.n_u)
+        plan[:-3] = self._plan[3:]  # shifted, zero last input
+        self._plan = plan
+        return np.clip(plan[:3], -self.a_max, self.a_max)
 
     def reset(self) -> None:
         """Forget the warm start and the stored plan."""
@@ -439,43 +509,61 @@ class LosMpc:
 
 
 _ZERO3 = np.zeros(3)
+_HOLD_U_PREV, _SHIFT_PLAN, _PLAN_AS_IS = 0, 1, 2  # how the kernel forms the plan guess g
+_OPTIMAL = Status.OPTIMAL
 
 
 @njit(cache=True)
-def _shifted_qp_data(theta_k, w_rel, a_max, shift, n_var, inp, consts, PB, WS, HS, G, work):  # pragma: no cover
-    """Per-step data of the QP (module doc), written into ``work``: in w = U - U_c without a
-    linear term (``shift`` True) or in dU = U - g with the linear term f (False). Returns True
-    when every output is finite.
+def _qp_data(theta_k, how, x_body, u_prev, plan_ref, plan, consts, PB, KK, H_inv, G, basis, work):  # pragma: no cover
+    """Per-step data of the QP (module doc), written into ``basis`` and ``work``: in w = U - U_c
+    without a linear term (hard mode) or in dU = U - g with the linear term f (soft mode). Returns
+    True when every output is finite.
 
-    theta_k (rad), w_rel (rad/s), a_max (m/s^2); inp = [x_0 (6), u_prev (3), plan g (3N,
-    body-axes m/s^2), ref (6N)]; consts = [o_j = theta_j - theta_k, cos o_j, sin o_j (N+1 each),
-    diag R_u (3N), diag R_du (3N), h (r)]; PB = [Phi | B_d] (6, 9) CW ZOH step; WS = W S (6N, 3N); HS = [H^-1 (symmetric);
-    S_pos^T] (2, 3N, 3N), S_pos the position rows of S; G (r, 3) corridor rows.
-    work = [p_g (6N), f (n_var; [:3N] written: the linear term in dU), x_c (n_var; [:3N] = U_c
+    theta_k (rad); how: plan guess g = u_prev held (0), ``plan`` shifted by one step (1), ``plan``
+    itself (2); x_body (6,) body-frame state (m, m/s); u_prev (3,) previous input (body axes, m/s^2);
+    plan_ref (N, 6) reference states; plan (3N,) body-axes inputs (m/s^2);
+    consts = [w_rel (rad/s), a_max (m/s^2), shift (1/0), rho, n_var, cos o_j, sin o_j (N+1 each),
+    diag R_u (3N), diag R_du (3N), h (r)]; PB = [Phi | B_d] (6, 9) CW ZOH step; KK (15, 3N) the
+    Toeplitz blocks K_d of S (LosMpc._geometry_blocks); H_inv (3N, 3N) symmetric; G (r, 3) corridor rows.
+    basis = [g (3N), p_g (6N)]; work = [f (n_var; [:3N] the linear term in dU), x_c (n_var; [:3N] = U_c
     (shift) or g), lb_w, ub_w (n_var; [:3N] = -+a_max - x_c), b (N r) = h - G (p_g + S (x_c - g))_pos].
-    Loops run over the nonzero blocks of S only (x_j+1 depends on u_0..u_j) and are written as
-    column sweeps (axpy) so that they vectorise without reordering any sum."""
-    n3 = WS.shape[1]
+    Every sum runs over the nonzero blocks of S only (x_j+1 depends on u_0..u_j) as contiguous sweeps
+    that vectorise (one sweep per block row/column); the O(N^2) part reads H^-1 and O(N) data."""
+    n3 = H_inv.shape[0]
     N = n3 // 3
     n_rows = G.shape[0]
-    x_body = inp[0:6]
-    u_prev = inp[6:9]
-    guess = inp[9 : 9 + n3]
-    ref = inp[9 + n3 :]
-    cos_o = consts[N + 1 : 2 * N + 2]
-    sin_o = consts[2 * N + 2 : 3 * N + 3]
-    r_u = consts[3 * N + 3 : 3 * N + 3 + n3]
-    r_d = consts[3 * N + 3 + n3 : 3 * N + 3 + 2 * n3]
-    h = consts[3 * N + 3 + 2 * n3 :]
-    H_inv = HS[0]
-    S_posT = HS[1]
-    n6 = 6 * N
-    pred = work[0:n6]
-    f = work[n6 : n6 + n_var]
-    x_c = work[n6 + n_var : n6 + 2 * n_var]
-    lb_w = work[n6 + 2 * n_var : n6 + 3 * n_var]
-    ub_w = work[n6 + 3 * n_var : n6 + 4 * n_var]
-    b = work[n6 + 4 * n_var :]
+    w_rel = consts[0]
+    a_max = consts[1]
+    shift = consts[2] != 0.0
+    rho = consts[3]
+    n_var = int(consts[4])
+    c0 = 5
+    cos_o = consts[c0 : c0 + N + 1]
+    sin_o = consts[c0 + N + 1 : c0 + 2 * N + 2]
+    r_u = consts[c0 + 2 * N + 2 : c0 + 2 * N + 2 + n3]
+    r_d = consts[c0 + 2 * N + 2 + n3 : c0 + 2 * N + 2 + 2 * n3]
+    h = consts[c0 + 2 * N + 2 + 2 * n3 :]
+    guess = basis[0:n3]
+    pred = basis[n3 : n3 + 6 * N]
+    f = work[0:n_var]
+    x_c = work[n_var : 2 * n_var]
+    lb_w = work[2 * n_var : 3 * n_var]
+    ub_w = work[3 * n_var : 4 * n_var]
+    b = work[4 * n_var :]
+    # 0. the plan guess g
+    if how == 0:
+        for j in range(N):
+            guess[3 * j] = u_prev[0]
+            guess[3 * j + 1] = u_prev[1]
+            guess[3 * j + 2] = u_prev[2]
+    elif how == 1:
+        for i in range(n3 - 3):
+            guess[i] = plan[i + 3]
+        for i in range(n3 - 3, n3):
+            guess[i] = plan[i]
+    else:
+        for i in range(n3):
+            guess[i] = plan[i]
     # 1. p_g: exact LTV prediction of the plan (LVLH recursion, rotated to the body frame)
     ck = math.cos(theta_k)
     sk = math.sin(theta_k)
@@ -512,14 +600,23 @@ def _shifted_qp_data(theta_k, w_rel, a_max, shift, n_var, inp, consts, PB, WS, H
         pred[k + 3] = c * xl[3] + s * xl[4] + w_rel * rb1
         pred[k + 4] = -s * xl[3] + c * xl[4] - w_rel * rb0
         pred[k + 5] = xl[5]
-    # 2. f = S'W (p_g - ref) + (R_u + D'R_du D) g - [R_du u_prev; 0]
+    # 2. f = S'W (p_g - ref) + (R_u + D'R_du D) g - [R_du u_prev; 0]; block (j, i) of W S is
+    #    W_j K_(j-i) = KK[r (+6 at j = N-1), 3(N-1-j) + 3i + c]
     for i in range(n3):
         f[i] = 0.0
-    for row in range(6 * N):
-        d = pred[row] - ref[row]
-        lim = 3 * (row // 6 + 1)
-        for i in range(lim):
-            f[i] += WS[row, i] * d
+    for j in range(N):  # one sweep per step j over its 6 rows
+        off = 3 * (N - 1 - j)
+        kr = 6 if j == N - 1 else 0
+        d0 = pred[6 * j] - plan_ref[j, 0]
+        d1 = pred[6 * j + 1] - plan_ref[j, 1]
+        d2 = pred[6 * j + 2] - plan_ref[j, 2]
+        d3 = pred[6 * j + 3] - plan_ref[j, 3]
+        d4 = pred[6 * j + 4] - plan_ref[j, 4]
+        d5 = pred[6 * j + 5] - plan_ref[j, 5]
+        k0, k1, k2 = KK[kr, off:], KK[kr + 1, off:], KK[kr + 2, off:]
+        k3, k4, k5 = KK[kr + 3, off:], KK[kr + 4, off:], KK[kr + 5, off:]
+        for i in range(3 * (j + 1)):
+            f[i] += k0[i] * d0 + k1[i] * d1 + k2[i] * d2 + k3[i] * d3 + k4[i] * d4 + k5[i] * d5
     for i in range(n3):
         dg = guess[i] - guess[i - 3] if i >= 3 else guess[i]
         e = r_d[i] * dg
@@ -531,21 +628,24 @@ def _shifted_qp_data(theta_k, w_rel, a_max, shift, n_var, inp, consts, PB, WS, H
     # 3. U_c - g = -H^-1 f (shift), else 0
     for i in range(n3):
         x_c[i] = 0.0
-    if shift:
-        for j in range(n3):
-            fj = f[j]
+    if shift:  # one sweep per 3 rows of H^-1 (symmetric: rows = columns)
+        for j in range(0, n3, 3):
+            f0, f1, f2 = f[j], f[j + 1], f[j + 2]
+            h0, h1, h2 = H_inv[j], H_inv[j + 1], H_inv[j + 2]
             for i in range(n3):
-                x_c[i] -= H_inv[j, i] * fj
-    # 4. positions of p_g + S (U_c - g): column sweeps over the lower block triangle
+                x_c[i] -= h0[i] * f0 + h1[i] * f1 + h2[i] * f2
+    # 4. positions of p_g + S (U_c - g): column sweeps, S_pos[3j + a, 3i + c] = K_(j-i)[a, c] = KK[12 + c, 3(j-i) + a]
     xp = np.empty(n3)
     for j in range(N):
         xp[3 * j] = pred[6 * j]
         xp[3 * j + 1] = pred[6 * j + 1]
         xp[3 * j + 2] = pred[6 * j + 2]
-    for i in range(n3):
-        di = x_c[i]
-        for r in range(3 * (i // 3), n3):
-            xp[r] += S_posT[i, r] * di
+    k0, k1, k2 = KK[12], KK[13], KK[14]
+    for i in range(N):  # one sweep per input step i over its 3 columns
+        base = 3 * i
+        d0, d1, d2 = x_c[base], x_c[base + 1], x_c[base + 2]
+        for q in range(n3 - base):
+            xp[base + q] += k0[q] * d0 + k1[q] * d1 + k2[q] * d2
     # 5. corridor rows and input bounds in w
     for j in range(N):
         p0, p1, p2 = xp[3 * j], xp[3 * j + 1], xp[3 * j + 2]
@@ -557,6 +657,11 @@ def _shifted_qp_data(theta_k, w_rel, a_max, shift, n_var, inp, consts, PB, WS, H
         lb_w[i] = -a_max - x_c[i]
         ub_w[i] = a_max - x_c[i]
         total += ub_w[i] + f[i]
+    for i in range(n3, n_var):  # soft mode: the slacks s >= 0, cost rho s + w/2 s^2
+        f[i] = rho
+        x_c[i] = 0.0
+        lb_w[i] = 0.0
+        ub_w[i] = DAQP_INF
     for i in range(b.shape[0]):
         total += b[i]
     return math.isfinite(total)
