@@ -47,7 +47,7 @@ def _plant_class():
 
 class Hold:
     def __init__(self, dt):
-        from proxops.sim.protocols import Command
+        from proxops.contracts import Command
 
         self.dt, self.cmd = dt, Command(u=np.zeros(3))
 
@@ -82,7 +82,7 @@ def per_step_full_us(n_steps: int, repeats: int = 5) -> float:
     from proxops.constraints.keep_out import KeepOutSphere
     from proxops.navigation import GaussianNavigation
     from proxops.sim.engine import Setup, simulate
-    from proxops.sim.protocols import Command
+    from proxops.contracts import Command
 
     class Push(Hold):
         def __init__(self, dt):

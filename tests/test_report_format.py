@@ -94,7 +94,8 @@ def test_run_summaries_round_but_json_keeps_full_precision():
 
 def test_campaign_report_rounds_tables_and_csv_keeps_full_precision(tmp_path):
     import test_campaign_toy as toy
-    from proxops.analysis.campaign import run_campaign, write_report
+    from proxops.analysis.campaign import run_campaign
+    from proxops.report.campaign import write_report
 
     data = copy.deepcopy(toy.TOY_SCENARIO)
     res = run_campaign(data, n_runs=6, workers=1, seed=2, out=tmp_path / "c", progress=False)
