@@ -376,6 +376,13 @@ class _Loop:
         self.can_coast = coast and hooks.can_coast(setup, sched)
         self.outcome, self.stop_reason = "completed", StopReason.COMPLETED
         self.u_idle = self.zero_u  # the applied idle command of the current coast
+        # the per-tick path's constants and bound methods, looked up once
+        self.h, self.single_rate, self.k_ctrl, self.k_act = sched.h, sched.single_rate, sched.k_ctrl, sched.k_act
+        self.n_sub, self.sub_dt, self.has_events = sched.n_sub, sched.sub_dt, self.plant.has_events
+        self.one_piece = self.n_sub == 1 and not self.has_events
+        self.step, self.apply, self.plant_propagate = self.ctrl.step, self.act.apply, self.plant.propagate
+        self.delta_v, self.observe_truth = hooks.delta_v, hooks.observe_truth
+        self.nav_command, self.act_limited = hooks.nav_command, hooks.act_limited
 
     def stop(self, outcome: str, reason: StopReason, t: float) -> None:
         self.outcome, self.stop_reason = outcome, reason
@@ -433,9 +440,9 @@ class _Loop:
     def tick(self, k: int, t: float, state, xr, xe, cmd: Command | None, u):
         """Steps 2-4 of tick ``k`` after the sample: the controller (on its ticks) or the held command,
         the actuator and the propagation. Returns ``(state, cmd, u, coast_to)``; cmd None: stopped."""
-        sched, rec = self.sched, self.rec
+        rec = self.rec
         coast_to = 0
-        ctrl_tick = sched.single_rate or k % sched.k_ctrl == 0
+        ctrl_tick = self.single_rate or k % self.k_ctrl == 0
         if ctrl_tick:
             cmd, u, coast_to = self.control(k, t, xr, xe)
             if cmd is None:
@@ -443,36 +450,38 @@ class _Loop:
         else:  # between controller samples: the command is held (an impulse is not repeated)
             if cmd.kind == "impulse":
                 u = self.zero_u
-            elif k % sched.k_act == 0:
-                u = np.asarray(self.act.apply(t, cmd.u, cmd.kind, self.rng_act), dtype=float)
+            elif k % self.k_act == 0:
+                u = np.asarray(self.apply(t, cmd.u, cmd.kind, self.rng_act), dtype=float)
             rec.held(k, self.zero_u if cmd.kind == "impulse" else cmd.u, u)
         kind = cmd.kind
         rec.kinds_seen.add(kind)
-        rec.delta_v(k, 1, self.hooks.delta_v(u, kind, sched.h))
+        rec.delta_v(k, 1, self.delta_v(u, kind, self.h))
         if kind == "impulse":
             if ctrl_tick and u.any():
                 state = self.plant.apply_impulse(t, state, u)
             u_hold = self.zero_u
         else:
             u_hold = u
+        if self.one_piece:
+            return self.plant_propagate(t, state, u_hold, self.sub_dt), cmd, u, coast_to
         return self.propagate(t, state, u_hold), cmd, u, coast_to
 
     def control(self, k: int, t: float, xr, xe) -> tuple[Command | None, np.ndarray, int]:
         """A controller tick: step, actuator, record. Returns ``(cmd, u applied, coast_to)``; cmd None
         when the controller stopped the run; coast_to > k + 1 when its idle ticks may be coasted."""
-        hooks, rec = self.hooks, self.rec
-        if hooks.observe_truth is not None:
-            hooks.observe_truth(t, xr)
-        cmd = self.ctrl.step(t, xe)
+        rec = self.rec
+        if self.observe_truth is not None:
+            self.observe_truth(t, xr)
+        cmd = self.step(t, xe)
         st = Status.parse(cmd.status)
         if cmd.stop:
             self.stop(cmd.mode or "stopped", StopReason.CONTROLLER, t)
             rec.status.append(st)
             rec.modes.append(cmd.mode)
             return None, self.zero_u, 0
-        u = np.asarray(self.act.apply(t, cmd.u, cmd.kind, self.rng_act), dtype=float)
-        if hooks.nav_command is not None:
-            hooks.nav_command(t, cmd.u if hooks.act_limited is None else hooks.act_limited(cmd.u), cmd.kind)
+        u = np.asarray(self.apply(t, cmd.u, cmd.kind, self.rng_act), dtype=float)
+        if self.nav_command is not None:
+            self.nav_command(t, cmd.u if self.act_limited is None else self.act_limited(cmd.u), cmd.kind)
         rec.commands(k, 1, cmd, u, st)
         events = rec.events
         if st not in NOT_FLAGGED:  # st.flagged, inline
@@ -480,7 +489,7 @@ class _Loop:
         rec.mode(t, cmd.mode, events)
         if cmd.events:
             events.extend((t, kind, msg) for kind, msg in cmd.events)
-        return cmd, u, self.coast_end(k, t, cmd)
+        return cmd, u, (self.coast_end(k, t, cmd) if cmd.idle is not None and self.can_coast else 0)
 
     def coast_end(self, k: int, t: float, cmd: Command) -> int:
         """The sample a coast after controller tick ``k`` runs to (0: none): the command announces its
@@ -498,9 +507,8 @@ class _Loop:
     def propagate(self, t: float, state, u_hold):
         """Step 4: ZOH over one base step in ``n_sub`` pieces, constraints checked between them; a
         plant with events records the events it located."""
-        sched, plant = self.sched, self.plant
-        n_sub, sub_dt, has_events = sched.n_sub, sched.sub_dt, plant.has_events
-        if n_sub == 1 and not has_events:
+        plant, n_sub, sub_dt, has_events = self.plant, self.n_sub, self.sub_dt, self.has_events
+        if self.one_piece:
             return plant.propagate(t, state, u_hold, sub_dt)  # = the loop below with one piece (t + 0 * sub_dt)
         for j in range(n_sub):
             if has_events:
