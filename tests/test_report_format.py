@@ -12,7 +12,8 @@ import pandas as pd
 import pytest
 from typer.testing import CliRunner
 
-from proxops.analysis.formatting import format_number, format_percent, format_quantity, unit_of_metric
+from proxops.analysis.formatting import format_number, format_percent, format_quantity
+from proxops.scenarios.loader import unit_of_metric
 from proxops.analysis.statistics import describe, format_table4, format_text_table
 from proxops.cli import app, format_summary
 from proxops.runner import summary_markdown
