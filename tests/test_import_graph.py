@@ -3,9 +3,9 @@
 Every ``import`` / ``from ... import`` statement of every file counts, at module level and inside
 functions (relative imports resolved; ``from pkg import name`` is an edge to ``pkg.name`` when that
 is a module, else to ``pkg``). Asserted: no file-level circle between proxops modules, no circle
-between the first-level packages, at most 2 ``ignore_imports`` lines in ``.importlinter`` and no
+between the first-level packages, at most 2 ``ignore_imports`` lines in ``.importlinter``, no
 ``getattr`` / ``hasattr`` lookup of an engine capability in ``src/proxops/sim/`` (the capabilities
-are protocols of :mod:`proxops.contracts`, checked by ``isinstance``).
+are protocols of :mod:`proxops.contracts`, checked by ``isinstance``) and no function over 80 lines there.
 """
 
 from __future__ import annotations
@@ -170,3 +170,13 @@ def test_no_capability_lookup_by_name_in_sim():
                     and node.args[1].value in CAPABILITIES):
                 found.append(f"{path.name}:{node.lineno} {node.func.id}(..., {node.args[1].value!r})")
     assert not found, found
+
+
+def test_sim_functions_fit_on_a_screen():
+    """The engine split (issue 31): no function in src/proxops/sim/ over 80 lines."""
+    long = []
+    for path in (PKG / "sim").rglob("*.py"):
+        for node in ast.walk(ast.parse(path.read_text(), str(path))):
+            if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)) and node.end_lineno - node.lineno + 1 > 80:
+                long.append(f"{path.name}:{node.name} {node.end_lineno - node.lineno + 1} lines")
+    assert not long, long
