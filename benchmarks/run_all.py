@@ -1,6 +1,8 @@
-"""Run every benchmark (``make bench``): each benchmarks/bench_*.py has a main() that prints
-its figures and the ratios against the papers' numbers. ``python benchmarks/run_all.py srf los``
-runs a subset."""
+"""Run every benchmark (``make bench``): first the A/B table of this checkout against the previous
+release (benchmarks/ab.py: solver shares, goals, ratios), then each benchmarks/bench_*.py, whose
+main() prints its figures and the ratios against the papers' numbers.
+``python benchmarks/run_all.py srf los`` runs a subset of bench_*.py and skips the A/B table;
+``python benchmarks/run_all.py ab`` runs only the A/B table."""
 
 from __future__ import annotations
 
@@ -14,6 +16,14 @@ HERE = Path(__file__).parent
 
 def main(selected: list[str]) -> int:
     failures = 0
+    if not selected or "ab" in selected:
+        print("=== A/B against the previous release " + "=" * 34, flush=True)
+        t0 = time.perf_counter()
+        sys.path.insert(0, str(HERE))
+        import ab
+
+        failures += ab.main([]) != 0
+        print(f"[ab: {time.perf_counter() - t0:.1f} s]", flush=True)
     for path in sorted(HERE.glob("bench_*.py")):
         name = path.stem[len("bench_"):]
         if selected and name not in selected:

@@ -161,6 +161,9 @@ def test_units_named_from_key_suffix():
     assert unit_of("stiffness_N_per_m") == "N/m"
     assert unit_of("damping_Ns_per_m") == "N s/m"
     assert unit_of("rot_damping_Nms_per_rad") == "N m s/rad"
+    # a drift per orbital period; a count per orbit stays unitless
+    assert unit_of("drift_median_m_per_orbit") == "m/orbit"
+    assert unit_of("samples_per_orbit") == ""
 
 
 def test_pointing_rotation_matches_rotation_matrix():

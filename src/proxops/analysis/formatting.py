@@ -19,6 +19,7 @@ from proxops.scenarios.loader import unit_of_metric
 DECIMALS = {
     "m": 3, "km": 6, "m/s": 4, "m/s^2": 6, "s": 2, "ms": 3, "deg": 3, "deg/s": 4, "deg/s^2": 4,
     "rad": 5, "rad/s": 6, "rad/s^2": 6, "N": 4, "N m": 6, "N m s": 6, "N s": 4, "kg": 3, "kg m^2": 6, "%": 1,
+    "m/orbit": 3,
 }
 SIGNIFICANT = 4  # keys without a unit (ratios, weights, counts as means)
 

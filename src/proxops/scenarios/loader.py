@@ -20,6 +20,7 @@ from proxops.scenarios.registry import get_system
 BUILTIN_DIR = Path(__file__).parent / "builtin"
 
 UNIT_SUFFIXES = (  # longest first: "_deg_s2" before "_deg_s" before "_s"
+    ("_m_per_orbit", "m/orbit"),  # a drift per orbital period (passive_safety.drift_median_m_per_orbit)
     ("_deg_s2", "deg/s^2"),
     ("_rad_s2", "rad/s^2"),
     ("_deg_s", "deg/s"),

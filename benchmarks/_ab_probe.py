@@ -1,0 +1,118 @@
+"""One measurement for benchmarks/ab.py, run in a fresh process with PYTHONPATH set to the
+sources under test (this checkout or the previous release), so both use the same probe.
+
+    python _ab_probe.py loop SCENARIO REPS [key=value ...]   -> one JSON line
+    python _ab_probe.py cli ARG ...                          -> runs the proxops CLI (exit code kept)
+
+``loop``: runs the scenario once to warm up (numba cache, solver set-up), then REPS times,
+timing the whole ``api.run`` (set-up + closed loop) and, inside it, every solver adapter's
+``solve()`` (wrapped on the class, so it works on any version that has the adapters).
+"""
+
+from __future__ import annotations
+
+import importlib
+import json
+import sys
+import time
+
+ADAPTERS = {  # module -> adapter classes (present in every release since the solver layer)
+    "proxops.solvers.daqp_qp": ["DaqpQP"],
+    "proxops.solvers.piqp_qp": ["PiqpQP"],
+    "proxops.solvers.clarabel_socp": ["ClarabelSOCP"],
+    "proxops.solvers.highs_lp": ["HighsLP", "HighsMILP"],
+    "proxops.solvers.casadi_nlp": ["CasadiNLP"],
+}
+_clock = {"solver_s": 0.0, "calls": 0, "depth": 0}
+
+
+def _wrap(cls) -> None:
+    solve = cls.__dict__.get("solve")
+    if solve is None or getattr(solve, "_ab_wrapped", False):
+        return
+
+    def timed(self, *args, **kwargs):
+        outer = _clock["depth"] == 0  # an adapter that calls another (a fallback) counts once
+        _clock["depth"] += 1
+        t0 = time.perf_counter()
+        try:
+            return solve(self, *args, **kwargs)
+        finally:
+            _clock["depth"] -= 1
+            if outer:
+                _clock["solver_s"] += time.perf_counter() - t0
+                _clock["calls"] += 1
+
+    timed._ab_wrapped = True
+    cls.solve = timed
+
+
+def _instrument() -> None:
+    for module, names in ADAPTERS.items():
+        try:
+            mod = importlib.import_module(module)
+        except ImportError:
+            continue
+        for name in names:
+            cls = getattr(mod, name, None)
+            if cls is not None:
+                for klass in [cls, *cls.__subclasses__()]:
+                    _wrap(klass)
+
+
+def _timed(fn) -> tuple[float, float, int, object]:
+    _clock.update(solver_s=0.0, calls=0)
+    t0 = time.perf_counter()
+    out = fn()
+    return time.perf_counter() - t0, _clock["solver_s"], _clock["calls"], out
+
+
+def loop(scenario: str, reps: int, overrides: list[str]) -> dict:
+    """The closed loop alone (``simulate`` of the system's set-up, as the README's API section does)
+    and the whole run (``api.run``: set-up, loop, summary with its certificates)."""
+    from proxops import api
+
+    loaded = api.load_scenario(scenario, overrides)
+    _instrument()
+
+    def closed_loop():
+        setup = loaded.system.build(loaded.scenario)
+        t0 = time.perf_counter()
+        res = api.simulate(setup, seed=0)
+        return time.perf_counter() - t0, res
+
+    api.run(loaded)  # warm-up: numba cache load, lazy imports, solver set-up
+    closed_loop()
+    best: dict = {}
+    for _ in range(reps):
+        wall, solver, calls, summary = _timed(lambda: api.run(loaded)[0])
+        _, loop_solver, loop_calls, (loop_wall, res) = _timed(closed_loop)
+        if not best or loop_wall < best["wall_s"]:
+            steps = len(getattr(res, "t", ())) or summary.get("steps")
+            best = {
+                "wall_s": loop_wall, "solver_s": loop_solver, "solver_calls": loop_calls,
+                "solver_share": loop_solver / loop_wall if loop_wall > 0 else None,
+                "steps": steps, "step_ms": 1e3 * loop_wall / steps if steps else None,
+                "run_wall_s": wall, "run_solver_share": solver / wall if wall > 0 else None,
+                "status": summary.get("status") or summary.get("outcome"),
+            }
+    return best
+
+
+def cli(args: list[str]) -> int:
+    """Run the proxops CLI as its console script does (``main()`` reads ``sys.argv``)."""
+    for name in ("proxops.exec.entry", "proxops.entry"):  # the console script's home moved between releases
+        try:
+            entry = importlib.import_module(name)
+        except ModuleNotFoundError:
+            continue
+        sys.argv = ["proxops", *args]
+        return entry.main() or 0
+    raise SystemExit("no proxops entry point found")
+
+
+if __name__ == "__main__":
+    if sys.argv[1] == "loop":
+        print(json.dumps(loop(sys.argv[2], int(sys.argv[3]), sys.argv[4:])))
+    else:
+        sys.exit(cli(sys.argv[2:]))

@@ -1,0 +1,26 @@
+"""The A/B benchmark's probe (benchmarks/_ab_probe.py) counts what it says it counts.
+
+Independent reference: the srf summary's own count of MPC solves (``solves``), which the srf
+controller keeps itself; the probe wraps the solver adapters' ``solve`` from outside.
+"""
+
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def test_probe_counts_every_solver_call_once_and_share_is_a_fraction():
+    env = dict(os.environ, PYTHONPATH=str(ROOT / "src"))
+    out = subprocess.run([sys.executable, str(ROOT / "benchmarks" / "_ab_probe.py"), "loop", "srf-rbar", "1"],
+                         env=env, capture_output=True, text=True, check=True)
+    probe = json.loads(out.stdout.strip().splitlines()[-1])
+    from proxops import api
+
+    summary, _ = api.run(api.load_scenario("srf-rbar", []))
+    assert probe["solver_calls"] == summary["solves"] > 0
+    assert 0.0 < probe["solver_share"] < 1.0 and 0.0 < probe["run_solver_share"] < 1.0
+    assert probe["solver_s"] < probe["wall_s"] <= probe["run_wall_s"]
