@@ -21,6 +21,14 @@ for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
 import numpy as np  # noqa: E402
 
 
+def _command_class():
+    try:
+        from proxops.contracts import Command
+    except ImportError:  # the tree before the contracts moved to the ground floor
+        from proxops.sim.protocols import Command
+    return Command
+
+
 def _plant_class():
     try:
         from proxops.dynamics.plant import PlantBase
@@ -47,9 +55,7 @@ def _plant_class():
 
 class Hold:
     def __init__(self, dt):
-        from proxops.sim.protocols import Command
-
-        self.dt, self.cmd = dt, Command(u=np.zeros(3))
+        self.dt, self.cmd = dt, _command_class()(u=np.zeros(3))
 
     def reset(self, t0, x0):
         pass
@@ -82,7 +88,7 @@ def per_step_full_us(n_steps: int, repeats: int = 5) -> float:
     from proxops.constraints.keep_out import KeepOutSphere
     from proxops.navigation import GaussianNavigation
     from proxops.sim.engine import Setup, simulate
-    from proxops.sim.protocols import Command
+    Command = _command_class()
 
     class Push(Hold):
         def __init__(self, dt):

@@ -64,7 +64,7 @@ SYSTEM_MODULES = {
     "srf": ["guidance/hop_times.py", "control/srf_mpc.py", "constraints/keep_out.py", "constraints/passive_safety.py",
             "frames/lvlh.py", "systems/srf.py", "cli_srf.py", "plotting/srf.py"],
     "los": ["dynamics/tumbling_target.py", "constraints/los_corridor.py", "control/los_mpc.py",
-            "guidance/los_regimes.py", "analysis/reach.py", "analysis/feasibility_maps.py",
+            "control/los_regimes.py", "analysis/reach.py", "analysis/feasibility_maps.py",
             "analysis/los_boundary.py", "analysis/los_sweep.py", "systems/los.py", "cli_reach.py"],
     "cortex": ["guidance/cortex/reference.py", "guidance/cortex/phases.py", "guidance/cortex/holds.py",
                "control/cortex_supervisor.py", "control/cortex_tracking.py", "constraints/approach_cone.py",

@@ -34,8 +34,8 @@ from proxops.analysis.campaign import (
     rerun,
     run_campaign,
     run_seeds,
-    write_report,
 )
+from proxops.report.campaign import write_report
 from proxops.analysis.dispersions import parse_dispersions
 from proxops.analysis.statistics import describe, outcome_counts
 from proxops.cli import app

@@ -173,7 +173,7 @@ def test_ground_abort_ends_passively_safe():
 class _DeadThrusters:
     """Injected fault: every thruster fails at ``t_fail`` (engine failure, §5.2.2)."""
 
-    period_s = None  # applied once per controller sample (sim.protocols.Actuator)
+    period_s = None  # applied once per controller sample (contracts.Actuator)
 
     def __init__(self, t_fail):
         self.t_fail = t_fail

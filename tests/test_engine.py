@@ -6,7 +6,7 @@ import pytest
 from proxops.actuators import ThrusterModel
 from proxops.navigation import GaussianNavigation
 from proxops.sim.engine import Setup, simulate
-from proxops.sim.protocols import Command
+from proxops.contracts import Command
 from proxops.sim.result import SimResult
 from proxops.dynamics.plant import PlantBase
 

@@ -19,7 +19,7 @@ from proxops.constraints.keep_out import KeepOutSphere
 from proxops.navigation import GaussianNavigation
 from proxops.propagation.truth import CWPlant
 from proxops.sim.engine import Setup, simulate
-from proxops.sim.protocols import Command
+from proxops.contracts import Command
 from proxops.status import Status
 
 N_ORB = 0.0011  # rad/s

@@ -41,7 +41,7 @@ from proxops.propagation.hybrid_plant import (
     sat_gap_kernel,
 )
 from proxops.sim.engine import Setup, simulate
-from proxops.sim.protocols import Command
+from proxops.contracts import Command
 
 PARAMS = HybridParams()
 X78 = truth_state_from_initial(PARAMS, HybridInitialState())

@@ -10,7 +10,7 @@ import pytest
 
 from proxops.errors import ProxopsInputError
 from proxops.dynamics.tumbling_target import sync_range
-from proxops.guidance.los_regimes import auto_hold_range, cw_feedforward
+from proxops.control.los_regimes import auto_hold_range, cw_feedforward
 from proxops.systems.los import PAPER_TABLE3, SWEEP_A_MAX_MPS2, SWEEP_RATES_DEG_S, run_case, sweep_table
 
 

@@ -10,7 +10,7 @@ import pytest
 from proxops.dynamics.bouncing_ball import BouncingBall
 from proxops.dynamics.plant import locate_guard
 from proxops.sim.engine import Setup, simulate
-from proxops.sim.protocols import Command
+from proxops.contracts import Command
 
 G, E, H0 = 9.81, 0.8, 5.0
 

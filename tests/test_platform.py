@@ -13,7 +13,7 @@ from proxops.dynamics.plant import PlantBase
 from proxops.errors import ProxopsInputError
 from proxops.navigation import GaussianNavigation, PerfectNavigation
 from proxops.sim.engine import Setup, component_streams, schedule, simulate
-from proxops.sim.protocols import Command
+from proxops.contracts import Command
 from proxops.sim.result import SimResult
 from proxops.status import Status, StopReason
 from proxops.solvers import SolveStatus

@@ -21,7 +21,7 @@ from proxops.frames.elements import OrbitalElements, circular_orbit, eci_to_elem
 from proxops.frames.hill import eci_offset_to_hill
 from proxops.propagation import kernels
 from proxops.propagation.truth import CWPlant, RelativeTruth, propagate_free_drift
-from proxops.sim.protocols import Plant
+from proxops.contracts import Plant
 
 ISS_LIKE = circular_orbit(altitude=500e3, inc=math.radians(51.6), raan=0.3, arg_lat=0.2)
 PERIOD = orbital_period(ISS_LIKE.sma)

@@ -12,7 +12,8 @@ import pandas as pd
 import pytest
 from typer.testing import CliRunner
 
-from proxops.analysis.formatting import format_number, format_percent, format_quantity, unit_of_metric
+from proxops.analysis.formatting import format_number, format_percent, format_quantity
+from proxops.scenarios.loader import unit_of_metric
 from proxops.analysis.statistics import describe, format_table4, format_text_table
 from proxops.cli import app, format_summary
 from proxops.runner import summary_markdown
@@ -94,7 +95,8 @@ def test_run_summaries_round_but_json_keeps_full_precision():
 
 def test_campaign_report_rounds_tables_and_csv_keeps_full_precision(tmp_path):
     import test_campaign_toy as toy
-    from proxops.analysis.campaign import run_campaign, write_report
+    from proxops.analysis.campaign import run_campaign
+    from proxops.report.campaign import write_report
 
     data = copy.deepcopy(toy.TOY_SCENARIO)
     res = run_campaign(data, n_runs=6, workers=1, seed=2, out=tmp_path / "c", progress=False)

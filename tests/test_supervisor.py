@@ -8,7 +8,7 @@ from proxops.control.supervisor import Hysteresis, Supervisor
 from proxops.dynamics.plant import PlantBase
 from proxops.errors import ProxopsInputError
 from proxops.sim.engine import Setup, simulate
-from proxops.sim.protocols import Command
+from proxops.contracts import Command
 
 
 class Constant:
@@ -103,7 +103,7 @@ def test_bad_supervisor_input():
 
 
 def test_los_regimes_are_a_supervisor():
-    from proxops.guidance.los_regimes import LosGuidanceController
+    from proxops.control.los_regimes import LosGuidanceController
     from proxops.systems.los import build_setup, default_scenario
 
     sc = default_scenario(sim={"duration_s": 300.0, "dt_s": 1.0}, target={"tumble_rate_deg_s": 2.0},

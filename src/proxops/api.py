@@ -23,7 +23,7 @@ from proxops.errors import ProxopsError, ProxopsInputError
 from proxops.report.campaign import write_report
 from proxops.scenarios.loader import load_scenario
 from proxops.sim.engine import Setup, simulate
-from proxops.sim.protocols import Actuator, Command, Constraint, Controller, Navigation, Periodic, Plant, System
+from proxops.contracts import Actuator, Command, Constraint, Controller, Navigation, Periodic, Plant, System
 from proxops.sim.result import SimResult
 from proxops.solvers import (
     ConicProblem,

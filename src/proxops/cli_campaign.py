@@ -54,7 +54,8 @@ def mc(
         from proxops.cli_prestart import prestart
 
         prestart(scenario, runs, workers, set_)
-    from proxops.analysis.campaign import CampaignInterrupted, run_campaign, write_report
+    from proxops.analysis.campaign import CampaignInterrupted, run_campaign
+    from proxops.report.campaign import write_report
     from proxops.cli_common import Interrupted
 
     log = logging.getLogger("proxops.mc")
@@ -105,7 +106,8 @@ def report(
     as_json: Annotated[bool, typer.Option("--json", help="One JSON object on stdout.")] = False,
 ):
     """Rebuild the statistics tables, report.md and figures of a campaign folder."""
-    from proxops.analysis.campaign import load_campaign, write_report
+    from proxops.analysis.campaign import load_campaign
+    from proxops.report.campaign import write_report
     from proxops.cli_common import check_out_dir
 
     if max_overlay < 0:

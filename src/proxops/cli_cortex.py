@@ -152,9 +152,11 @@ def references(
     st["paper"] = PAPER_5_1_1
     files = []
     if out is not None and figures:
+        from proxops.analysis.campaign import _campaign_system, load_campaign  # noqa: PLC2701
         from proxops.plotting.cortex import campaign_figures
 
-        files = [str(p) for p in campaign_figures(Path(out))]
+        camp = load_campaign(out)
+        files = [str(p) for p in campaign_figures(camp, _campaign_system(camp.manifest).scenario, PAPER_5_1_1, Path(out))]
         st["files"] = files
     if out is not None:
         st["out"] = str(out)

@@ -1,6 +1,6 @@
 """Thruster models between the controller's command and the truth (all effects optional).
 
-Every model follows :class:`proxops.sim.protocols.Actuator`: ``apply(t, u, kind, rng)`` and
+Every model follows :class:`proxops.contracts.Actuator`: ``apply(t, u, kind, rng)`` and
 ``period_s`` (None = once per controller sample)."""
 
 from __future__ import annotations

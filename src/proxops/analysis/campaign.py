@@ -459,13 +459,6 @@ def rerun(row: dict, campaign, keep_series: bool = True):
     return campaign_run(spec, item)
 
 
-def write_report(campaign, report_dir=None, figures: bool = True, max_overlay: int = 100) -> dict:
-    """Kept for existing callers: :func:`proxops.report.campaign.write_report` (the report layer)."""
-    from proxops.report.campaign import write_report as _write_report  # compatibility re-export (layer exception)
-
-    return _write_report(campaign, report_dir, figures=figures, max_overlay=max_overlay)
-
-
 def _campaign_system(manifest: dict):
     """The campaign's nominal scenario, validated, with its system (for the report hooks)."""
     from proxops.scenarios.loader import validate_scenario
@@ -494,5 +487,4 @@ __all__ = [
     "run_seeds",
     "default_workers",
     "is_timing_column",
-    "write_report",
 ]

@@ -12,7 +12,7 @@ from __future__ import annotations
 import math
 import numbers
 
-from proxops.scenarios.loader import unit_of
+from proxops.scenarios.loader import unit_of_metric
 
 # decimals per unit: positions to 1 mm, speeds and delta-v to 0.1 mm/s, accelerations to
 # 1 um/s^2, times to 10 ms (solve times to 1 us), angles to 0.001 deg, rates to 1e-4 deg/s
@@ -22,16 +22,6 @@ DECIMALS = {
     "m/orbit": 3,
 }
 SIGNIFICANT = 4  # keys without a unit (ratios, weights, counts as means)
-
-
-def unit_of_metric(key: str) -> str:
-    """Unit of a key or a dotted metric name (``solve_time_ms.median`` -> ``ms``): the last dotted
-    part that carries a unit suffix ('' if none)."""
-    for part in reversed(str(key).split(".")):
-        unit = unit_of(part.split("[")[0])
-        if unit:
-            return unit
-    return ""
 
 
 def format_number(value, unit: str = "") -> str:

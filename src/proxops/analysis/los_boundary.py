@@ -52,7 +52,7 @@ def holds(omega_deg_s: float, a_max_mps2: float, fraction: float, start: str = "
           horizon: int | None = None, duration_s: float = 600.0) -> tuple[bool, dict]:
     """One closed loop from ``fraction * r_sync`` on the docking axis (hard constraints, J2 truth,
     the single-run MPC configuration, ``horizon`` overriding N_p): (zero violations and feasible, summary)."""
-    from proxops.guidance.los_regimes import sync_range
+    from proxops.control.los_regimes import sync_range
     from proxops.systems.los import build_setup, default_scenario, summarize_result
     from proxops.sim.engine import simulate
 
@@ -76,7 +76,7 @@ def boundary_fraction(omega_deg_s: float, a_max_mps2: float, start: str = "body"
     """Bisection for the largest zero-violation start fraction of r_sync in [lo, hi] (to ``tol``).
     Assumes one boundary (holds below, fails above); checks both ends first: ``fraction = 0`` when
     even ``lo`` fails, ``fraction = hi`` when ``hi`` holds."""
-    from proxops.guidance.los_regimes import sync_range
+    from proxops.control.los_regimes import sync_range
 
     r_sync = sync_range(a_max_mps2, math.radians(omega_deg_s))
     runs = 0
@@ -136,7 +136,7 @@ def open_loop_feasible(omega_deg_s: float, a_max_mps2: float, fraction: float, s
     from proxops.core.constants import MU_EARTH, R_EARTH
     from proxops.core.cw import mean_motion
     from proxops.dynamics.tumbling_target import BodyFrameModel
-    from proxops.guidance.los_regimes import sync_range
+    from proxops.control.los_regimes import sync_range
     from proxops.solvers.highs_lp import HighsLP
 
     w = math.radians(omega_deg_s)

@@ -13,7 +13,8 @@ import math
 import numpy as np
 import pandas as pd
 
-from proxops.analysis.formatting import format_number, unit_of_metric
+from proxops.analysis.formatting import format_number
+from proxops.scenarios.loader import unit_of_metric
 
 from proxops.analysis.campaign_worker import DISP_PREFIX, METRIC_PREFIX  # noqa: E402,F401 (one home)
 STAT_COLUMNS = ("n", "mean", "std", "q1", "median", "q3", "p99", "min", "max")

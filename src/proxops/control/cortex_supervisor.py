@@ -97,7 +97,7 @@ from proxops.control.cortex_tracking import TrackingSOCP, substeps
 from proxops.core.cw import cw_stm
 from proxops.errors import ProxopsInputError, input_error
 from proxops.guidance.cortex.phases import DV_ZERO_MPS
-from proxops.sim.protocols import Command
+from proxops.contracts import Command
 
 TRACK_PHASES = ("hold1", "flyaround", "hold2", "approach")
 PHASE_INDEX = {"hold1": 0, "flyaround": 1, "hold2": 2, "approach": 3, "null": 4, "retreat": 5, "abort_null": 6}

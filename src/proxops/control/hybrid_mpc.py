@@ -143,7 +143,7 @@ from proxops.dynamics.hybrid_relative import (
 )
 from proxops.dynamics.two_rigid_bodies import HybridParams
 from proxops.errors import input_error
-from proxops.sim.protocols import Command
+from proxops.contracts import Command
 from proxops.solvers import ClarabelSOCP, DaqpQP, build_conic_problem
 from proxops.status import Status
 

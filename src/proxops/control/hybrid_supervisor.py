@@ -35,7 +35,7 @@ import numpy as np
 from proxops.control.supervisor import Supervisor
 from proxops.errors import input_error
 from proxops.propagation.hybrid_plant import M_CONTACTS, M_LATCHED, CaptureEnvelope
-from proxops.sim.protocols import Command
+from proxops.contracts import Command
 
 CAPTURE, POST_CAPTURE = "capture", "post-capture"
 N_REL = 32
@@ -43,7 +43,7 @@ N_REL = 32
 
 class RelativeStateController:
     """A controller with ``period_s``, ``reset(t0, x_rel)``, ``step(t, x_rel) -> Command`` on the
-    paper's 32-state, seen by the engine as a :class:`proxops.sim.protocols.Controller` on the
+    paper's 32-state, seen by the engine as a :class:`proxops.contracts.Controller` on the
     plant's measured state (32 + contact count + latch). If the wrapped controller has
     ``set_collision_count(c)``, it receives the contact count before each step."""
 

@@ -11,7 +11,7 @@ Problem at time t with body-frame state x_0 (m, m/s) and inputs u_j (m/s^2)::
 Input frame. The decision variables u_j are *target-body-axes* components of the
 chaser acceleration, taken at the sample instant t_j and then held constant in LVLH
 over the step (ZOH): the plant receives u_L,j = R_LB(theta_j) u_j, the rotation being done
-here (``MpcSolution.u0_hill``) and in :mod:`proxops.guidance.los_regimes`. So the box
+here (``MpcSolution.u0_hill``) and in :mod:`proxops.control.los_regimes`. So the box
 (11e) is a box on the body axes. The paper does not say in which frame its input box is
 written (its eq. 11 is posed in the body frame, its plant takes LVLH accelerations); a box
 in LVLH axes would be a different, rotating set in body axes (same per-axis limit, up to

@@ -72,7 +72,7 @@ from proxops.dynamics.planar_cubesat import (
     wrap_angle,
 )
 from proxops.errors import input_error
-from proxops.sim.protocols import Command
+from proxops.contracts import Command
 from proxops.solvers.casadi_nlp import Buffered as _Buffered
 from proxops.solvers.casadi_nlp import CasadiNLP, NonlinearProgram
 from proxops.status import Status
@@ -364,7 +364,7 @@ def _make_solver(cfg: NMPCConfig, name: str, problem: NonlinearProgram, warm: bo
 
 
 class UnderactuatedNMPC:
-    """NMPC controller (proxops.sim.protocols.Controller) for the planar CubeSat.
+    """NMPC controller (proxops.contracts.Controller) for the planar CubeSat.
 
     ``step(t, s)`` takes the planar state ``[x, y, theta, vx, vy, omega]`` and returns
     ``Command(u=[thrust N, wheel_acc rad/s^2], kind="acceleration")`` whose ``info`` holds

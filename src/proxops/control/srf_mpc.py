@@ -119,7 +119,7 @@ from proxops.constraints.keep_out import KeepOutSphere
 from proxops.core.cw import cw_stm
 from proxops.core.memo import memo_get
 from proxops.errors import input_error
-from proxops.sim.protocols import Command
+from proxops.contracts import Command
 from proxops.solvers import QuadraticProgram, SolveStatus, make_solver, solve_qp, successive_convexification
 from proxops.status import Status
 

@@ -10,7 +10,7 @@ import numpy as np
 from scipy.linalg import solve_discrete_are
 
 from proxops.core.cw import cw_discretize_zoh, cw_rhs
-from proxops.sim.protocols import Command
+from proxops.contracts import Command
 
 
 class LqrStationKeeping:

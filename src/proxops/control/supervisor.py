@@ -1,7 +1,7 @@
 """One generic mode-switching controller: named sub-controllers, a mode rule, hysteresis and
 dwell time; every switch is an event.
 
-:class:`Supervisor` is itself a :class:`proxops.sim.protocols.Controller`. Each sample it asks
+:class:`Supervisor` is itself a :class:`proxops.contracts.Controller`. Each sample it asks
 ``rule(t, x_est, mode) -> proposed mode`` (``mode`` is None before the first sample), switches
 when the proposal differs, the current mode is not absorbing and the current mode has lasted at
 least ``dwell_s`` seconds, then returns the active sub-controller's Command with ``mode`` set to
@@ -11,7 +11,7 @@ the active mode (unless the sub-controller named its own, e.g. a terminal mode w
 ``switch_log`` = [(t s, old, new)]). Hysteresis belongs to the rule, which sees the current
 mode: :class:`Hysteresis` is the two-threshold rule on a scalar signal.
 
-Users: the LOS approach regimes (far / close / hold, :mod:`proxops.guidance.los_regimes`).
+Users: the LOS approach regimes (far / close / hold, :mod:`proxops.control.los_regimes`).
 """
 
 from __future__ import annotations
@@ -23,7 +23,7 @@ from typing import Callable, Mapping, Sequence
 import numpy as np
 
 from proxops.errors import input_error
-from proxops.sim.protocols import Command, Controller
+from proxops.contracts import Command, Controller
 
 Rule = Callable[[float, np.ndarray, "str | None"], str]
 

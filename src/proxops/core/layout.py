@@ -161,7 +161,7 @@ def translational_layout() -> StateLayout:
 def make_control_layout(names: tuple[str, ...], units: tuple[str, ...], frame: str = "") -> StateLayout:
     """Layout of a plant's control input ``u`` (one ``other`` block per component, with its unit).
     A unit ``"kind"`` is resolved when a run is recorded: m/s for impulse commands, m/s^2 for
-    accelerations (:class:`proxops.sim.protocols.Command`)."""
+    accelerations (:class:`proxops.contracts.Command`)."""
     return StateLayout(len(names), tuple(Block(n, "other", i, i + 1, (n,), u, frame)
                                          for i, (n, u) in enumerate(zip(names, units))))
 

@@ -26,7 +26,7 @@ from proxops.dynamics.plant import PlantBase, locate_guard
 
 
 class BouncingBall(PlantBase):
-    """Plant (proxops.sim.protocols.Plant) with events: floor contacts with restitution."""
+    """Plant (proxops.contracts.Plant) with events: floor contacts with restitution."""
 
     n_x, n_u = 2, 1
     layout = StateLayout(2, (Block("position", "position", 0, 1, ("h",)), Block("velocity", "velocity", 1, 2, ("v",))))

@@ -255,7 +255,7 @@ def wrap_angle(a: float) -> float:
 
 
 class PlanarCubeSatPlant(PlantBase):
-    """Truth plant (proxops.sim.protocols.Plant) for the planar deputy.
+    """Truth plant (proxops.contracts.Plant) for the planar deputy.
 
     The full state is the planar state itself: ``n_x = 6`` ``[x, y, theta, vx, vy, omega]``
     (``relative_state`` wraps theta to [-pi, pi)),

@@ -1,4 +1,4 @@
-"""Base class of truth plants (the defaults of :class:`proxops.sim.protocols.Plant`) and guard
+"""Base class of truth plants (the defaults of :class:`proxops.contracts.Plant`) and guard
 location for plants with events and jump maps (hybrid contacts, latch, decoupling).
 
 A plant subclasses :class:`PlantBase` and overrides what differs from a translational Hill

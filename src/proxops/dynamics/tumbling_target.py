@@ -349,7 +349,7 @@ class NonlinearBodyStep:
 # truth plant reporting the body-frame relative state
 # --------------------------------------------------------------------------------------
 class TumblingTargetTruth(PlantBase):
-    """Plant (proxops.sim.protocols) around an Encke truth (e.g.
+    """Plant (proxops.contracts) around an Encke truth (e.g.
     :class:`proxops.propagation.truth.RelativeTruth`, two-body + J2) and a tumbling target.
 
     Full state (16,): the inner 12-state ``[r_t, v_t, dr, dv]`` (ECI, m, m/s) and the

@@ -334,3 +334,28 @@ def plan_hops(theta: float, n_hops: int, gamma: float, start_m: float, end_m: fl
         plan.hops.append(Hop(float(d[k]), float(d[k + 1]), float(rho), float(phi), float(phi / mean_motion),
                              float(phi / (2 * math.pi)), sol.velocity_lvlh * mean_motion * d[k]))
     return plan
+
+
+def fig8a_curve(rho: float = 0.7, step_deg: float = 1.0) -> tuple[np.ndarray, np.ndarray]:
+    """Fig. 8a data: approach angles (deg, 0..360 every ``step_deg``) and the hop's orbital-period
+    fraction from eq. (25) (NaN where no passively safe hop exists)."""
+    angles = np.arange(0.0, 360.0 + 1e-9, step_deg)
+    frac = np.array([np.nan if (s := try_solve_hop(math.radians(a), rho)) is None else s.period_fraction
+                     for a in angles])
+    return angles, frac
+
+
+def fig8b_hops(rho: float = 0.7, angles_deg=(0, 20, 40, 60, 90, 100, 110, 200, 250), d0: float = 1.0) -> list:
+    """Fig. 8b data: per angle with a solution, ``(angle deg, CW trajectory over one orbit (400, 2),
+    point where it crosses the axis (2,))`` in units of ``d0`` (LVLH x V-bar, z R-bar; eq. 24 velocity)."""
+    out = []
+    for a in angles_deg:
+        th = math.radians(a)
+        sol = try_solve_hop(th, rho)
+        if sol is None:
+            continue
+        pp, pv, _, _ = cw_blocks(np.linspace(0.0, 2 * math.pi, 400))
+        p0 = d0 * np.array([math.cos(th), math.sin(th)])
+        ppx, pvx, _, _ = cw_blocks(sol.phi_rad)
+        out.append((a, pp @ p0 + pv @ (sol.velocity_lvlh * d0), ppx @ p0 + pvx @ (sol.velocity_lvlh * d0)))
+    return out

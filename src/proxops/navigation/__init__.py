@@ -1,6 +1,6 @@
 """Navigation models: what the controller sees of the true relative state.
 
-Every model follows :class:`proxops.sim.protocols.Navigation`: ``measure(t, x_true, rng)``
+Every model follows :class:`proxops.contracts.Navigation`: ``measure(t, x_true, rng)``
 and ``period_s`` (s between measurements, None = every controller sample). Noise is drawn
 per block of the plant's :class:`proxops.core.layout.StateLayout`: additive on position,
 velocity, angle and rate blocks, a small random rotation on a quaternion block. :mod:`proxops.navigation.ekf` holds the relative-navigation filter

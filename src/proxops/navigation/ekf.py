@@ -276,7 +276,7 @@ class SensorModel:
 
 @dataclass
 class RelativeEKF:
-    """EKF navigation (:class:`proxops.sim.protocols.Navigation`) on the Hill state.
+    """EKF navigation (:class:`proxops.contracts.Navigation`) on the Hill state.
 
     ``n``: mean motion (rad/s); ``q_m2_s3``: white-acceleration PSD per axis; ``p0``: initial
     covariance (6x6, SI, positive definite): the initial estimate is the truth plus one draw from

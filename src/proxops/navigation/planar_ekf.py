@@ -46,7 +46,7 @@ from proxops.navigation.mekf import van_loan
 
 @dataclass
 class PlanarPoseEKF:
-    """Navigation (:class:`proxops.sim.protocols.Navigation`) of the planar deputy (module docstring)."""
+    """Navigation (:class:`proxops.contracts.Navigation`) of the planar deputy (module docstring)."""
 
     params: PlanarCubeSatParams
     p0: np.ndarray

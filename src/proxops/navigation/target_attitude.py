@@ -18,7 +18,7 @@ Visibility: the pose is measured while the chaser's line of sight in the target 
 lies within half of ``sensor.fov_rad`` of the target's docking axis (the sensor's boresight,
 default +y_B: the face whose features the camera tracks), outside random outages.
 
-For the controller (:class:`proxops.guidance.los_regimes.LosGuidanceController`), whose body-frame
+For the controller (:class:`proxops.control.los_regimes.LosGuidanceController`), whose body-frame
 model knows the frame angle theta(t) about the orbit normal from the scenario, :meth:`frame_angle_error`
 gives the angle psi about z_B between the estimated and the true body frame: the controller turns
 its frame to theta + psi, so its Hill reconstruction R_LB^ r_B^ equals the true Hill position and
@@ -49,7 +49,7 @@ def _cross(a, b):
 
 @dataclass
 class TargetAttitudeNavigation:
-    """Navigation (:class:`proxops.sim.protocols.Navigation`) of the body-frame relative state with the
+    """Navigation (:class:`proxops.contracts.Navigation`) of the body-frame relative state with the
     target attitude and rate estimated by an MEKF (module docstring).
 
     ``truth_attitude``: callable t -> (q_IB (4,), w_B (3,) rad/s); ``sensor``: the pose-attitude

@@ -10,9 +10,8 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from proxops.analysis.formatting import unit_of_metric
-from proxops.analysis.metric_order import ordered_metrics
 from proxops.plotting.common import plt, save
+from proxops.scenarios.loader import unit_of_metric
 
 OUTCOME_COLORS = {"success": "tab:green", "failure": "tab:red", "error": "black"}
 METRIC = "metric."
@@ -68,11 +67,10 @@ def plot_dv_distribution(table: pd.DataFrame, path: Path, metric: str = "metric.
     return save(fig, path)
 
 
-def plot_metric_histograms(table: pd.DataFrame, path: Path, metrics: list[str] | None = None) -> Path | None:
-    """One histogram per metric (up to 12), the informative ones in reading order
-    (:func:`proxops.analysis.metric_order.ordered_metrics`: total Δv first; no timings)."""
-    cols = metrics or ordered_metrics(table, include_timing=False)
-    cols = cols[:12]
+def plot_metric_histograms(table: pd.DataFrame, path: Path, metrics: list[str]) -> Path | None:
+    """One histogram per metric of ``metrics`` (up to 12; the report passes the informative ones in
+    reading order, :func:`proxops.analysis.metric_order.ordered_metrics`: total Δv first, no timings)."""
+    cols = list(metrics)[:12]
     if not cols:
         return None
     ncol = min(3, len(cols))

@@ -50,9 +50,8 @@ def plan_figure(sc, plan, path: Path) -> Path:
 
 
 def plan_figure_from_result(sc, result, path: Path) -> Path:
-    from proxops.systems.cortex import scenario_axis
-
-    return _plan_figure(sc, result.x_true, result.mode, scenario_axis(sc), path, sc.name)
+    """:func:`plan_figure` of a plan stored as a SimResult (its docking axis in ``meta["axis"]``)."""
+    return _plan_figure(sc, result.x_true, result.mode, np.asarray(result.meta["axis"], dtype=float), path, sc.name)
 
 
 def _plan_figure(sc, x, phase, axis, path, title) -> Path:
@@ -91,10 +90,9 @@ def fig11_trajectories(sc, results, path: Path) -> Path:
     return save(fig, path)
 
 
-def fig12_histograms(table, path: Path) -> Path:
-    """Fig. 12: histograms of compute time, TOF (tau_1 + tau_2) and delta-v of the successful plans."""
-    from proxops.systems.cortex import PAPER_5_1_1
-
+def fig12_histograms(table, path: Path, paper: dict) -> Path:
+    """Fig. 12: histograms of compute time, TOF (tau_1 + tau_2) and delta-v of the successful plans;
+    ``paper``: the §5.1.1 medians (:data:`proxops.systems.cortex.PAPER_5_1_1`)."""
     ok = table[table["success"].astype(bool)] if "success" in table else table
     fig, axes = plt.subplots(1, 3, figsize=(13, 3.8))
     items = (("metric.plan_wall_time_s", 1.0, "compute time per plan [s]", "compute_median_s"),
@@ -105,9 +103,9 @@ def fig12_histograms(table, path: Path) -> Path:
         ax.hist(v, bins=20, color="C0", alpha=0.8)
         ax.axvline(np.median(v), color="k", lw=1.2, label=f"median {np.median(v):.3g}")
         if key != "compute_median_s":
-            ax.axvline(PAPER_5_1_1[key], color="r", ls="--", lw=1.2, label=f"paper {PAPER_5_1_1[key]:g}")
+            ax.axvline(paper[key], color="r", ls="--", lw=1.2, label=f"paper {paper[key]:g}")
         else:
-            ax.set_title(f"paper median {PAPER_5_1_1[key]:g} s (off scale)", fontsize=9)
+            ax.set_title(f"paper median {paper[key]:g} s (off scale)", fontsize=9)
         ax.set_xlabel(label)
         ax.legend(fontsize=8)
         ax.grid(alpha=0.3)
@@ -115,20 +113,18 @@ def fig12_histograms(table, path: Path) -> Path:
     return save(fig, path)
 
 
-def campaign_figures(out: Path) -> list[Path]:
-    """Figs. 11-12 of a ``proxops cortex references`` campaign folder."""
-    from proxops.analysis.campaign import _campaign_system, load_campaign  # noqa: PLC2701
-
-    camp = load_campaign(out)
+def campaign_figures(camp, sc, paper: dict, out: Path) -> list[Path]:
+    """Figs. 11-12 of a ``proxops cortex references`` campaign (``camp``: its loaded
+    :class:`proxops.analysis.campaign.CampaignResult`, ``sc`` its scenario, ``paper`` the §5.1.1
+    medians) into the folder ``out``."""
     table = camp.table
-    sc = _campaign_system(camp.manifest).scenario
     results = []
     for rid in table[table["success"].astype(bool)]["run_id"].tolist():
         try:
             results.append(camp.series(int(rid)))
         except Exception:  # a campaign without series: Fig. 12 only
             break
-    paths = [fig12_histograms(table, Path(out) / "fig12_histograms.png")]
+    paths = [fig12_histograms(table, Path(out) / "fig12_histograms.png", paper)]
     if results:
         paths.insert(0, fig11_trajectories(sc, results, Path(out) / "fig11_trajectories.png"))
     return paths

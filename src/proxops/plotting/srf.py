@@ -135,19 +135,14 @@ def plot_mc_overlay(results: list, path: Path, *, theta_deg: float, koz_radius_m
     return save(fig, path)
 
 
-def plot_fig8a(path: Path, rho: float = 0.7, step_deg: float = 1.0) -> Path:
-    """Fig. 8a: orbital-period fraction of the hop against the approach angle (eq. 25 solved for phi)."""
-    from proxops.guidance.hop_times import try_solve_hop
-
-    angles = np.arange(0.0, 360.0 + 1e-9, step_deg)
-    frac = np.array([np.nan if (s := try_solve_hop(math.radians(a), rho)) is None else s.period_fraction
-                     for a in angles])
+def plot_fig8a(path: Path, angles_deg: np.ndarray, period_fraction: np.ndarray, rho: float = 0.7) -> Path:
+    """Fig. 8a: orbital-period fraction of the hop against the approach angle (eq. 25 solved for phi;
+    data: :func:`proxops.guidance.hop_times.fig8a_curve`, NaN where no passively safe hop exists)."""
+    angles, frac = np.asarray(angles_deg, dtype=float), np.asarray(period_fraction, dtype=float)
     fig, ax = plt.subplots(figsize=(8, 4.5))
     ax.plot(angles, frac, ".", ms=3, color="tab:blue", label=f"eq. (25), rho = {rho}")
-    for a in (0.0, 90.0, 180.0, 270.0, 360.0):
-        s = try_solve_hop(math.radians(a), rho)
-        if s is not None:
-            ax.plot(a, s.period_fraction, "o", color="tab:red")
+    axes_pts = (angles % 90.0 == 0.0) & ~np.isnan(frac)
+    ax.plot(angles[axes_pts], frac[axes_pts], "o", color="tab:red")
     bad = np.isnan(frac)
     ax.fill_between(angles, 0, 0.55, where=bad, color="0.85", step="mid", label="no passively safe hop")
     ax.axhline(0.21, ls="--", color="0.4", lw=0.8, label="0.21 t_orb")
@@ -161,26 +156,16 @@ def plot_fig8a(path: Path, rho: float = 0.7, step_deg: float = 1.0) -> Path:
     return save(fig, path)
 
 
-def plot_fig8b(path: Path, rho: float = 0.7, angles_deg=(0, 20, 40, 60, 90, 100, 110, 200, 250), d0: float = 1.0) -> Path:
+def plot_fig8b(path: Path, hops: list, rho: float = 0.7, d0: float = 1.0) -> Path:
     """Fig. 8b: single-hop CW trajectories (velocity of eq. 24) per angle over one orbit; crosses at
-    the axis crossing."""
-    from proxops.guidance.hop_times import cw_blocks, try_solve_hop
-
+    the axis crossing. ``hops``: ``(angle deg, trajectory (n, 2), crossing (2,))`` in units of d0
+    (:func:`proxops.guidance.hop_times.fig8b_hops`)."""
     fig, ax = plt.subplots(figsize=(7, 7))
-    for a in angles_deg:
+    for a, traj, cross in hops:
         th = math.radians(a)
-        sol = try_solve_hop(th, rho)
-        if sol is None:
-            continue
-        tau = np.linspace(0.0, 2 * math.pi, 400)
-        pp, pv, _, _ = cw_blocks(tau)
-        p0 = d0 * np.array([math.cos(th), math.sin(th)])
-        traj = pp @ p0 + pv @ (sol.velocity_lvlh * d0)
         red = a % 90 == 0
         ax.plot(traj[:, 0], traj[:, 1], color="tab:red" if red else "tab:blue", lw=1.4 if red else 0.8)
         ax.plot([0, 1.2 * d0 * math.cos(th)], [0, 1.2 * d0 * math.sin(th)], ":", color="0.6", lw=0.8)
-        ppx, pvx, _, _ = cw_blocks(sol.phi_rad)
-        cross = ppx @ p0 + pvx @ (sol.velocity_lvlh * d0)
         ax.plot(cross[0], cross[1], "kx")
     ax.plot(0, 0, "k*")
     ax.set_xlabel("V-bar x [d0]")
@@ -208,13 +193,13 @@ def plot_cbf_comparison(no_cbf, with_cbf, path: Path, *, theta_deg: float, koz_r
 
 def scenario_figures(sc, results: dict, out_dir: Path) -> list[Path]:
     """The figures of one ``proxops run`` of an srf scenario."""
-    from proxops.frames.lvlh import hill_vector_to_lvlh
-    from proxops.systems.srf import keep_out_hill
+    from proxops.frames.lvlh import hill_vector_to_lvlh, lvlh_vector_to_hill
 
     out_dir = Path(out_dir)
     theta = sc.approach.angle_deg
     r = sc.keep_out.radius_m
-    center = tuple(hill_vector_to_lvlh(keep_out_hill(sc).center_m))
+    # the keep-out centre the run used (Hill, as proxops.systems.srf.keep_out_hill builds it), drawn in LVLH
+    center = tuple(hill_vector_to_lvlh(np.asarray(lvlh_vector_to_hill(np.array(sc.keep_out.center_m)), dtype=float)))
     paths = []
     if "no_cbf" in results:
         paths.append(plot_cbf_comparison(results["no_cbf"], results["cbf"], out_dir / "fig11_cbf.png",

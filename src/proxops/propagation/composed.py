@@ -2,7 +2,7 @@
 
 :class:`ForceModels` says what is on (point mass always; ``gravity`` = "point" | "j2" |
 "harmonics" with degree/order; drag; Sun; Moon; SRP) and with which spacecraft and
-space weather. :class:`ComposedTruth` is a Plant (:mod:`proxops.sim.protocols`) like
+space weather. :class:`ComposedTruth` is a Plant (:mod:`proxops.contracts`) like
 :class:`proxops.propagation.truth.RelativeTruth`, with the chaser propagated relative to
 the target in Encke form and every perturbation evaluated at both spacecraft and
 differenced (:mod:`proxops.propagation.kernels_full`).

@@ -332,7 +332,7 @@ def envelope_kernel(x, P_c, P_d, n):
 
 
 class HybridCapturePlant(PlantBase):
-    """Plant (:class:`proxops.sim.protocols.Plant`) of the chief-deputy pair with contacts,
+    """Plant (:class:`proxops.contracts.Plant`) of the chief-deputy pair with contacts,
     latch and latch snap (module doc)."""
 
     n_x, n_u = N_MEASURED, 6

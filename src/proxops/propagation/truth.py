@@ -1,4 +1,4 @@
-"""Truth plants for the closed-loop engine (:class:`proxops.sim.protocols.Plant`).
+"""Truth plants for the closed-loop engine (:class:`proxops.contracts.Plant`).
 
 * :class:`RelativeTruth` -- nonlinear two-body (+ J2) truth. Full state (12,):
   target ECI ``[r_t, v_t]`` and chaser ECI offset ``[dr, dv] = chaser - target`` (m, m/s),

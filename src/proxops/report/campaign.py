@@ -93,7 +93,7 @@ def write_report(campaign, report_dir: str | Path | None = None, figures: bool =
 
         figs = [
             cplot.plot_dv_distribution(table, rdir / "dv_distribution.png"),
-            cplot.plot_metric_histograms(table, rdir / "metrics.png"),
+            cplot.plot_metric_histograms(table, rdir / "metrics.png", ordered_metrics(table, include_timing=False)),
             cplot.plot_outcome_map(table, m, rdir / "outcome_map.png"),
         ]
         if result.out is not None and (result.out / "series").is_dir():

@@ -55,6 +55,16 @@ def unit_of(key: str) -> str:
     return ""
 
 
+def unit_of_metric(key: str) -> str:
+    """Unit of a key or a dotted metric name (``solve_time_ms.median`` -> ``ms``): the last dotted
+    part that carries a unit suffix ('' if none)."""
+    for part in reversed(str(key).split(".")):
+        unit = unit_of(part.split("[")[0])
+        if unit:
+            return unit
+    return ""
+
+
 @dataclass
 class LoadedScenario:
     """A validated scenario, the system that runs it and where it came from."""

@@ -1,5 +1,5 @@
 """Base class of every system: the defaults of the optional hooks of
-:class:`proxops.sim.protocols.System`.
+:class:`proxops.contracts.System`.
 
 A system overrides ``build`` and ``summarize`` (and ``Scenario``); everything else has a
 default here: ``run`` is one closed loop, ``check`` builds it, ``success`` is "the controller did
@@ -14,7 +14,7 @@ from proxops.status import Status, StopReason
 
 
 class SystemBase:
-    """Defaults for :class:`proxops.sim.protocols.System` (see module doc)."""
+    """Defaults for :class:`proxops.contracts.System` (see module doc)."""
 
     Scenario: type
 

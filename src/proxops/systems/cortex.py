@@ -286,7 +286,7 @@ def plan_to_result(sc: CortexScenario, plan):
         dv_cum=np.cumsum(np.linalg.norm(dv, axis=1)), status=[plan.status] * n,
         solve_time_s=np.zeros(n), mode=list(traj["phase"]), info={},
         meta={"system": "cortex", "outcome": plan.status, "wall_time_s": plan.compute_time_s,
-              "control": "impulse", "frame": "Hill/RTN"},
+              "control": "impulse", "frame": "Hill/RTN", "axis": np.asarray(plan.axis, dtype=float).tolist()},
     )
 
 

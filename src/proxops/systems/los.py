@@ -8,7 +8,7 @@ Scenario ``los-tumble`` (src/proxops/scenarios/builtin/los-tumble.toml), e.g.::
 Truth: two-body + J2 (RelativeTruth, Encke, DOP853) on the 500 km circular orbit of
 Table 1 plus the target quaternion (eq. 2); the measured relative state is the
 body-frame state of eqs. (7)-(8). Controller: §7 regimes + eq.-(11) MPC
-(:class:`proxops.guidance.los_regimes.LosGuidanceController`).
+(:class:`proxops.control.los_regimes.LosGuidanceController`).
 
 Programmatic use (Monte Carlo)::
 
@@ -148,7 +148,7 @@ def build_setup(sc: LosScenario) -> Setup:
     from proxops.control.los_mpc import LosMpcConfig
     from proxops.dynamics.tumbling_target import BodyFrameModel, TumblingTarget, TumblingTargetTruth
     from proxops.frames.elements import OrbitalElements, elements_to_eci
-    from proxops.guidance.los_regimes import LosGuidanceConfig, LosGuidanceController
+    from proxops.control.los_regimes import LosGuidanceConfig, LosGuidanceController
     from proxops.errors import input_error
     from proxops.propagation.truth import RelativeTruth
     from proxops.systems.common import actuator_model, navigation_model

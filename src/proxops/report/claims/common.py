@@ -140,7 +140,8 @@ def campaign(name: str, ctx: Context, runs: int | None, overrides=(), seed: int 
     there is reused (its rows read back), an interrupted one completed (``seed=None``: the scenario's
     ``sim.seed``; ``scenario``: a scenario dict to run instead of the built-in ``name``, which then only
     names the cache; ``runs=None``: its grid size). Without ``out`` (--quick) the rows stay in memory."""
-    from proxops.analysis.campaign import MANIFEST, run_campaign, write_report
+    from proxops.analysis.campaign import MANIFEST, run_campaign
+    from proxops.report.campaign import write_report
 
     key = cache_key(name, runs, seed, overrides)
     out = ctx.sub(f"cache/{key}")

@@ -11,7 +11,7 @@ from proxops.report.claims.common import EXPLAINED, REPRODUCED, UNEXPLAINED, Cla
 
 def los_claims(ctx: Context) -> list[Claim]:
     from proxops.analysis.los_boundary import boundary_fraction, open_loop_boundary
-    from proxops.guidance.los_regimes import sync_range
+    from proxops.control.los_regimes import sync_range
     from proxops.systems.los import PAPER_TABLE3, SWEEP_A_MAX_MPS2, SWEEP_RATES_DEG_S, run_case
 
     rows: list[Claim] = []

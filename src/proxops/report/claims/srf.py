@@ -6,6 +6,7 @@ import math
 
 import numpy as np
 
+from proxops.guidance.hop_times import fig8a_curve, fig8b_hops
 from proxops.plotting.srf import plot_fig8a, plot_fig8b
 from proxops.report.claims.common import (EXPLAINED, INCONSISTENT, NOT_ATTEMPTED, REPRODUCED, UNEXPLAINED, Claim,
                                           Context, abort_items, campaign, f, run, sig_round)
@@ -146,8 +147,8 @@ def srf_claims(ctx: Context) -> list[Claim]:
     period = v["period_s"]
     rows += [eq16_row(), fig8a_row()]
     if fig:  # Fig. 8a/8b of the paper from eqs. 17-25 (no MPC): the hop geometry behind the Fig. 8a row
-        plot_fig8a(fig / "fig8" / "fig8a-hop-time-vs-angle.png", step_deg=5.0 if ctx.quick else 1.0)
-        plot_fig8b(fig / "fig8" / "fig8b-single-hops.png")
+        plot_fig8a(fig / "fig8" / "fig8a-hop-time-vs-angle.png", *fig8a_curve(step_deg=5.0 if ctx.quick else 1.0))
+        plot_fig8b(fig / "fig8" / "fig8b-single-hops.png", fig8b_hops())
     # Fig. 4: the first hop's start impulse vs the second hop's start (brake of hop 1 + start of hop 2)
     imp_t, imp_dv = np.array(v["impulse_times_s"]), np.array(v["impulse_dv_mps"])
     starts = v["hop_start_times_s"]

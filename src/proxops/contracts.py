@@ -1,7 +1,15 @@
 """Interfaces shared by every plant, controller, navigation, actuator, constraint and system.
 
-The closed-loop engine (:mod:`proxops.sim.engine`) only talks to these protocols, so
-a new paper's system is a new controller (and maybe a plant) plus scenarios.
+The ground floor of proxops (the layer just above ``core``; it imports numpy, the state layout
+record of :mod:`proxops.core.layout` and :mod:`proxops.status` only), so every layer implements
+these contracts without an upward import. The closed-loop engine
+(:mod:`proxops.sim.engine`) only talks to these protocols, so a new paper's system is a new
+controller (and maybe a plant) plus scenarios.
+
+Optional capabilities are declared protocols too (``ObservesTruth``, ``ObservesCoast``,
+``MeasuresMany``, ``ReceivesCommand``, ``EmitsEvents``, ``ReportsConsistency``, ``LimitsCommand``,
+``PassesZero``, ``ViolationsMany``, ``Coasts``): the engine checks each component against them
+once, at set-up (``isinstance``), and never looks a hook up by name.
 
 Conventions: SI units; relative states in Hill/RTN ``[x, y, z, vx, vy, vz]``
 (x radial out, y along-track, z orbit normal); time in seconds from scenario start.
@@ -15,13 +23,12 @@ systems :class:`proxops.systems.base.SystemBase`. Outcomes use :class:`proxops.s
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from pathlib import Path
 from typing import Protocol, runtime_checkable
 
 import numpy as np
 
-from proxops.core.layout import Block, StateLayout  # noqa: F401  (re-exported: the layout record)
-from proxops.status import Status, StopReason  # noqa: F401  (re-exported)
+from proxops.core.layout import StateLayout
+from proxops.status import Status
 
 
 @dataclass
@@ -198,3 +205,87 @@ class System(Protocol):
         ...
 
     def campaign_table(self, sc, table) -> str: ...
+
+
+# --- optional capabilities (checked once by the engine at set-up) ------------------------------
+
+
+@runtime_checkable
+class ObservesTruth(Protocol):
+    """Controller hook: shown the true measured state ``x_true`` (plant units, e.g. m, m/s) at
+    ``t`` (s) before each of its steps (a safety monitor, e.g. the cortex triggers of Table 1);
+    a controller with it is never coasted."""
+
+    def observe_truth(self, t: float, x_true: np.ndarray) -> None: ...
+
+
+@runtime_checkable
+class ObservesCoast(Protocol):
+    """Controller hook: the estimates ``x_est`` (n, n_x) at the times ``t`` (n,) s of the ticks the
+    engine coasted over (in time order, before the next ``step``): what those steps would have seen."""
+
+    def observe_coast(self, t: np.ndarray, x_est: np.ndarray) -> None: ...
+
+
+@runtime_checkable
+class MeasuresMany(Protocol):
+    """Navigation hook: estimates (n, n_x) of the samples ``x_true`` (n, n_x) at times ``t`` (n,) s:
+    the numbers and random draws of ``measure`` called on each in turn (the idle-step coast)."""
+
+    def measure_many(self, t: np.ndarray, x_true: np.ndarray, rng: np.random.Generator) -> np.ndarray: ...
+
+
+@runtime_checkable
+class ReceivesCommand(Protocol):
+    """Navigation (filter) hook: each controller command ``u`` of ``kind`` at ``t`` (s) after the
+    actuator's known saturations (m/s^2 or m/s), e.g. for the filter's propagation."""
+
+    def command(self, t: float, u: np.ndarray, kind: str) -> None: ...
+
+
+@runtime_checkable
+class EmitsEvents(Protocol):
+    """Navigation (filter) hook: a list of ``(kind, message)`` (e.g. rejected measurements) that the
+    engine drains into the run's events after each measurement (stamped with its time, s)."""
+
+    events: list
+
+
+@runtime_checkable
+class ReportsConsistency(Protocol):
+    """Navigation (filter) hook: ``(series, meta)`` at the end of a run, series ``{key: (t s, values)}``
+    (e.g. ``nav_nees``, ``nav_nis``, dimensionless) stored as ``info`` columns on their ticks."""
+
+    def consistency_record(self) -> tuple[dict, dict]: ...
+
+
+@runtime_checkable
+class LimitsCommand(Protocol):
+    """Actuator hook: the deterministic part of ``apply`` (saturations, minimum impulse bit) of a
+    command ``u`` (its unit, m/s^2 or m/s): what the vehicle knows it commanded."""
+
+    def limited(self, u: np.ndarray) -> np.ndarray: ...
+
+
+@runtime_checkable
+class PassesZero(Protocol):
+    """Actuator flag: ``zero_passthrough`` True when ``apply`` of a zero command returns zero and
+    draws nothing, so the engine may coast idle ticks (False: unknown, never coast)."""
+
+    zero_passthrough: bool
+
+
+@runtime_checkable
+class ViolationsMany(Protocol):
+    """Constraint hook: ``violation`` vectorised, (n,) in the constraint's unit (m) for states
+    (n, n_x) at times ``t`` (n,) s, equal up to rounding (the engine screens a coast with it)."""
+
+    def violations(self, t: np.ndarray, x: np.ndarray) -> np.ndarray: ...
+
+
+@runtime_checkable
+class Coasts(Protocol):
+    """Plant hook (default :class:`proxops.dynamics.plant.PlantBase`): ``coast(times (n,) s, state,
+    u, dt s) -> (states (n + 1), relative states (n + 1, n_x))``, each piece exactly ``propagate``."""
+
+    def coast(self, times: np.ndarray, state, u: np.ndarray, dt: float): ...

@@ -45,7 +45,7 @@ from proxops.control.los_mpc import LosMpc, LosMpcConfig
 from proxops.control.supervisor import Supervisor
 from proxops.dynamics.tumbling_target import BodyFrameModel, cross3, rot_z, rotate_z, sync_range
 from proxops.errors import input_error
-from proxops.sim.protocols import Command
+from proxops.contracts import Command
 from proxops.status import Status
 
 
@@ -106,7 +106,7 @@ class _Regime:
 
 
 class LosGuidanceController(Supervisor):
-    """Controller (proxops.sim.protocols): §7 regimes + eq.-(11) MPC safety filter, on the
+    """Controller (proxops.contracts): §7 regimes + eq.-(11) MPC safety filter, on the
     generic :class:`proxops.control.supervisor.Supervisor`: sub-controllers ``far``, ``close``
     and ``hold`` (absorbing: the hold is latched), mode rule :meth:`regime_rule`, no dwell.
 
