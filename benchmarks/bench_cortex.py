@@ -24,14 +24,11 @@ import time  # noqa: E402
 
 import numpy as np  # noqa: E402
 
-from proxops.guidance.cortex.reference import PAPER_FIXED_AXIS_HILL, fibonacci_axes, plan_reference  # noqa: E402
+from proxops.guidance.cortex.config import PAPER_FIXED_AXIS_HILL, fibonacci_axes  # noqa: E402
+from proxops.guidance.cortex.reference import plan_reference  # noqa: E402
 from proxops.scenarios.loader import load_scenario  # noqa: E402
-from proxops.systems.cortex import (  # noqa: E402
-    PAPER_5_1_1,
-    PAPER_5_1_2,
-    config_from_scenario,
-    eclipse_profile,
-)
+from proxops.systems.cortex import PAPER_5_1_1, PAPER_5_1_2  # noqa: E402
+from proxops.systems.cortex_setup import config_from_scenario, eclipse_profile  # noqa: E402
 
 GOAL_MEDIAN_S = 0.1
 GOAL_CAMPAIGN_S = 15.0

@@ -9,17 +9,14 @@ import numpy as np
 import pytest
 from typer.testing import CliRunner
 
-from proxops.constraints.approach_cone import ApproachCone, PlumeConstraint
+from proxops.constraints.approach_cone import ApproachCone
+from proxops.constraints.plume import PlumeConstraint
 from proxops.core.cw import cw_stm, mean_motion
 from proxops.errors import ProxopsInputError
 from proxops.guidance.cortex import holds
 from proxops.guidance.cortex.phases import solve_final_approach, solve_flyaround
-from proxops.guidance.cortex.reference import (
-    PAPER_FIXED_AXIS_HILL,
-    CortexConfig,
-    fibonacci_axes,
-    plan_reference,
-)
+from proxops.guidance.cortex.config import PAPER_FIXED_AXIS_HILL, CortexConfig, fibonacci_axes
+from proxops.guidance.cortex.reference import plan_reference
 
 N_CSO = mean_motion(6878.1e3)  # §5.1
 
@@ -287,7 +284,7 @@ def test_real_eclipse_profile_hold_is_sunlit_by_an_independent_illumination_call
     from proxops.environment.ephemeris import sun_position_eci
     from proxops.scenarios.loader import load_scenario
     from proxops.systems.common import target_elements
-    from proxops.systems.cortex import config_from_scenario, eclipse_profile, plan_scenario, scenario_axis
+    from proxops.systems.cortex_setup import config_from_scenario, eclipse_profile, plan_scenario, scenario_axis
 
     sc = load_scenario("cortex-reference").scenario
     t, eta = eclipse_profile(sc)

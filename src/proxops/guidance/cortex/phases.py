@@ -50,7 +50,8 @@ from dataclasses import dataclass, field
 import numpy as np
 import scipy.sparse as sp
 
-from proxops.constraints.approach_cone import ApproachCone, PlumeConstraint
+from proxops.constraints.approach_cone import ApproachCone
+from proxops.constraints.plume import PlumeConstraint
 from proxops.constraints.keep_out import KeepOutSphere
 from proxops.core.cw import cw_discretize_impulsive, cw_stm
 from proxops.solvers import ClarabelSOCP, ConicProblem, SolveStatus, TrustRegion, soc_rows, successive_convexification
@@ -259,14 +260,12 @@ class _PhaseSOCP:
         self.vals[self._arc_entries[k]] = coef
         self.b[self.arc_row0 + k] = -rho_m / self.L
 
-    def set_plume(self, a, g, bb) -> None:
-        """Plume rows a_k . r_k + g_k . dv_k <= b_k for all nodes (physical units), each row normalised."""
-        a_s = np.asarray(a) * self.L
-        g_s = np.asarray(g) * self.V
-        scale = np.maximum(np.maximum(np.abs(a_s).max(axis=1), np.abs(g_s).max(axis=1)), 1e-300)
-        coef = np.concatenate([a_s, g_s], axis=1) / scale[:, None]
+    def set_plume(self, a_s, g_s, b_s) -> None:
+        """Plume rows a'_k . r'_k + g'_k . dv'_k <= b'_k for all nodes in this problem's units (r = L r',
+        dv = V dv'), as :meth:`PlumeConstraint.rows` gives them (eq. 22, each row normalised)."""
+        coef = np.concatenate([a_s, g_s], axis=1)
         self.vals[self._plume_entries.ravel()] = coef.ravel()
-        self.b[self.plume_row0 : self.plume_row0 + self.M] = np.asarray(bb) / scale
+        self.b[self.plume_row0 : self.plume_row0 + self.M] = b_s
 
     def set_trust(self, dv_ref, delta_mps: float) -> None:
         ref = np.asarray(dv_ref, float).ravel() / self.V
@@ -367,9 +366,11 @@ def solve_final_approach(n_rad_s: float, tau_s: float, dt_s: float, x0, xf, a_ba
     trust = TrustRegion(a_bar_mps2 * float(prob.dt.max()))
 
     def relinearize(prev, delta):
-        a, g, bb = plume.linearization(prev["x"][:, :3], prev["dv"], DV_ZERO_MPS)
-        if not linearize_position:
-            a, bb = np.zeros_like(a), np.zeros_like(bb)
+        if linearize_position:
+            a, g, bb = plume.rows(prev["x"][:, :3], prev["dv"], DV_ZERO_MPS, prob.L, prob.V)
+        else:  # the dv part of grad h only (r frozen at the previous iterate)
+            _, g, _ = plume.rows(prev["x"][:, :3], prev["dv"], DV_ZERO_MPS, None, prob.V)
+            a, bb = np.zeros_like(g), np.zeros(len(g))
         prob.set_plume(a, g, bb)
         prob.set_trust(prev["dv"], delta)
         prob.push()
