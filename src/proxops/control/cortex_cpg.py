@@ -46,10 +46,13 @@ from proxops.constraints.approach_cone import ApproachCone
 from proxops.constraints.plume import PlumeConstraint
 from proxops.control.cortex_tracking import TrackingSOCP
 from proxops.control.relaxation import climb
+from proxops.core.memo import memo_get
 from proxops.errors import input_error
 from proxops.guidance.cortex.phases import DV_ZERO_MPS
 from proxops.solvers import successive_convexification
 from proxops.status import Status
+
+_PROBLEMS: dict = {}  # CP_g structures by their data (proxops.core.memo)
 
 
 class CpgGuidance:
@@ -81,12 +84,17 @@ class CpgGuidance:
         self.relaxed: str | None = None
 
     def problem(self, n_sub: int, coned, plume: bool) -> TrackingSOCP:
-        """``coned``: False (no 27g), True (27g at alpha_c) or "tight" (27g at alpha_c - tracking_cone_margin)."""
+        """``coned``: False (no 27g), True (27g at alpha_c) or "tight" (27g at alpha_c - tracking_cone_margin).
+        Shared by every run of the process with the same data (a campaign's runs): each solve writes its
+        state, target and plume rows first, and Clarabel keeps nothing from one solve to the next."""
         key = (n_sub, coned, plume)
         if key not in self._socp:
             cone = self.tight_cone if coned == "tight" else (self.cone if coned else None)
-            self._socp[key] = TrackingSOCP(self.n, n_sub, self.dt, self.a_max, self.s.terminal_penalty,
-                                           cone=cone, plume=plume, plume_weight=self.s.plume_weight)
+            data = (self.n, n_sub, self.dt, self.a_max, self.s.terminal_penalty, plume, self.s.plume_weight,
+                    None if cone is None else (*cone.axis.tolist(), cone.half_angle_rad))
+            self._socp[key] = memo_get(_PROBLEMS, data, lambda: TrackingSOCP(
+                self.n, n_sub, self.dt, self.a_max, self.s.terminal_penalty, cone=cone, plume=plume,
+                plume_weight=self.s.plume_weight))
         return self._socp[key]
 
     def solve(self, t: float, x_est, seg, timeline, approach: bool):

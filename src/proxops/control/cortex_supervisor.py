@@ -186,7 +186,8 @@ class CortexSupervisor:
             if trig is not None:
                 return self._trigger(t, x_est, trig, events, solve_time, status)
         self.queue.pop(0)
-        err = math.sqrt(sum((float(a) - float(b)) ** 2 for a, b in zip(r_true, r_ref)))
+        (ax, ay, az), (bx, by, bz) = r_true.tolist(), r_ref.tolist()
+        err = math.sqrt((ax - bx) ** 2 + (ay - by) ** 2 + (az - bz) ** 2)
         return self._cmd(np.array(dv), events, status=status, solve_time_s=solve_time,
                          info={"track_err_m": err, "phase": PHASE_INDEX[self.mode]})
 

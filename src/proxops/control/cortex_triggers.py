@@ -47,18 +47,22 @@ class CortexTriggers:
     cone_buffer_tol_rad: float = math.radians(1.0)
 
     def __post_init__(self):
+        self._axis = _floats(self.cone_bar.axis)
+        self._cone_axis = _floats(self.cone.axis)
+        self._cos_cone = math.cos(self.cone.half_angle_rad)
         for phase, v in self.eps_r_m.items():
             if not (math.isfinite(v) and v > 0):
                 raise input_error(f"guidance.recompute_{phase}_m", v, "must be a finite number > 0 (eps_r of Table 1)", "m")
 
     def buffered_kos(self, phase: str, r) -> bool:
         """Buffered-KOS recompute condition (holds and fly-around): range below rho_bar - buffer_tol."""
-        return phase in HOLD_PHASES and _norm(r) < self.rho_bar_m - self.buffer_tol_m
+        return phase in HOLD_PHASES and _norm(_floats(r)) < self.rho_bar_m - self.buffer_tol_m
 
     def off_axis_rad(self, r) -> float:
         """Angle between r and the docking axis (rad)."""
+        r = _floats(r)
         rng = max(_norm(r), 1e-12)
-        return math.acos(max(-1.0, min(1.0, _dot(r, self.cone_bar.axis) / rng)))
+        return math.acos(max(-1.0, min(1.0, _dot(r, self._axis) / rng)))
 
     def buffered_cone(self, phase: str, r) -> bool:
         """Buffered-cone recompute condition (approach): more than alpha_c_bar + cone_buffer_tol off the axis."""
@@ -69,21 +73,22 @@ class CortexTriggers:
         buffered conditions ("C_KOS_bar", "C_cone_bar") not evaluated (see CortexSupervisor.suspended);
         ``recompute=False``: the abort conditions only. Runs at every impulse: 3-vectors in plain floats
         (the angles as :meth:`PlumeConstraint.angle_rad` and :meth:`ApproachCone.margin` define them)."""
-        r = (float(r[0]), float(r[1]), float(r[2]))
+        r = _floats(r)
         rng = _norm(r)
-        thrusting = dv is not None and _norm(dv) > self.plume_min_dv_mps
+        thrusting = dv is not None and _norm(_floats(dv)) > self.plume_min_dv_mps
         if phase in HOLD_PHASES and rng < self.r_kos_m:
             return "abort", f"C_KOS: range {rng:.3f} m < r_KOS {self.r_kos_m:g} m"
         if phase == "approach":
             ang = _angle(r, rng, dv) if thrusting else math.nan
             if ang < self.plume.half_angle_rad:
                 return "abort", f"C_plume: thrust {math.degrees(ang):.2f} deg from the target direction < alpha_p"
-            outside = rng * math.cos(self.cone.half_angle_rad) - _dot(r, self.cone.axis)
+            outside = rng * self._cos_cone - _dot(r, self._cone_axis)
             if outside > 0:
                 return "abort", f"C_cone: outside the approach cone by {outside:.4f} m"
         if not recompute:
             return None
-        err = math.sqrt((r[0] - float(r_ref[0])) ** 2 + (r[1] - float(r_ref[1])) ** 2 + (r[2] - float(r_ref[2])) ** 2)
+        rr = _floats(r_ref)
+        err = math.sqrt((r[0] - rr[0]) ** 2 + (r[1] - rr[1]) ** 2 + (r[2] - rr[2]) ** 2)
         eps = self.eps_r_m.get(phase, math.inf)
         if err > eps:
             return "recompute", f"C_trk: tracking error {err:.3f} m > eps_r {eps:g} m ({phase})"
@@ -98,8 +103,13 @@ class CortexTriggers:
         return None
 
 
+def _floats(a) -> list:
+    """A 3-vector as Python floats (one conversion, then scalar math at a fraction of numpy's call cost)."""
+    return a.tolist()[:3] if isinstance(a, np.ndarray) else [float(v) for v in a[:3]]
+
+
 def _dot(a, b) -> float:
-    return float(a[0]) * float(b[0]) + float(a[1]) * float(b[1]) + float(a[2]) * float(b[2])
+    return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
 
 
 def _norm(a) -> float:
@@ -108,6 +118,7 @@ def _norm(a) -> float:
 
 def _angle(r, rng: float, dv) -> float:
     """Angle between the impulse dv and r (rad); NaN when either is zero (no plume condition then)."""
+    dv = _floats(dv)
     nd = _norm(dv)
     if rng == 0.0 or nd == 0.0:
         return math.nan

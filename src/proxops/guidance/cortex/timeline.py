@@ -10,12 +10,14 @@ replaced by this, which has no interpolation error between nodes). Times absolut
 from __future__ import annotations
 
 import math
+from bisect import bisect_right
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from proxops.core.cw import cw_stm
 from proxops.errors import input_error
+
 
 @dataclass
 class Segment:
@@ -29,6 +31,12 @@ class Segment:
     x: np.ndarray | None = None
     dv: np.ndarray | None = None
     _stms: dict = field(default_factory=dict, repr=False)  # Phi(tau) by tau: the loop asks for the same offsets
+
+    def __post_init__(self):
+        if self.x_hold is None:  # node times as floats and node states after their impulses, once
+            self._t = np.asarray(self.t, float).tolist()
+            self._xp = np.array(self.x, float)
+            self._xp[:, 3:] += np.asarray(self.dv, float)[: len(self._xp)]
 
     def impulse(self, t: float) -> np.ndarray:
         """Reference thrust direction at time t for the plume half-spaces of CP_g. CP_g targets the
@@ -48,20 +56,16 @@ class Segment:
         burn at and after t_end): exact CW propagation of the plan between nodes."""
         if self.x_hold is not None:
             return self.x_hold.copy()
-        if t >= self.t[-1] - 1e-9:
-            xf = self.x[-1].copy()
-            xf[3:] += self.dv[-1]  # after the terminal burn: the phase's target state
-            return xf
-        k = max(0, int(np.searchsorted(self.t, t + 1e-9, side="right")) - 1)
-        xk = self.x[k].copy()
-        xk[3:] += self.dv[k]
-        tau = t - float(self.t[k])
+        if t >= self._t[-1] - 1e-9:
+            return self._xp[-1].copy()  # after the terminal burn: the phase's target state
+        k = max(0, bisect_right(self._t, t + 1e-9) - 1)
+        tau = t - self._t[k]
         phi = self._stms.get(tau)
         if phi is None:
             phi = cw_stm(n, tau)
             if len(self._stms) < 4096:
                 self._stms[tau] = phi
-        return phi @ xk
+        return phi @ self._xp[k]
 
 
 class Timeline:
