@@ -17,6 +17,7 @@ from proxops.guidance.cortex import holds
 from proxops.guidance.cortex.phases import solve_final_approach, solve_flyaround
 from proxops.guidance.cortex.config import PAPER_FIXED_AXIS_HILL, CortexConfig, fibonacci_axes
 from proxops.guidance.cortex.reference import plan_reference
+from proxops.status import Status
 
 N_CSO = mean_motion(6878.1e3)  # §5.1
 
@@ -374,7 +375,7 @@ def test_phase_end_time_is_monotone_so_shortest_durations_minimise_J():
 def test_profile_too_short_is_a_status(cfg):
     t, eta = square_profile(period=5700.0, sun=3600.0, dt=5.7, orbits=1)
     plan = plan_reference(PAPER_FIXED_AXIS_HILL, cfg, eclipse=(t, eta), t0_s=3500.0)
-    assert plan.status == "eclipse_profile_short" and "extend" in plan.reason
+    assert plan.status is Status.FAILED and "eclipse profile short" in plan.reason and "extend" in plan.reason
 
 
 def test_cli_references_applies_overrides():

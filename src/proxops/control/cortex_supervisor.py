@@ -22,14 +22,12 @@ Choices the paper leaves open (documented keys of the scenario, stated in the re
   re-fired the same trigger at the replan instant and the recompute cap was reached at once);
 * nulling (recompute and abort): impulses of at most a_max delta_t_g against the measured velocity
   until |v| <= ``null_tol_mps`` (the paper nulls "immediately");
-* regeneration in the final approach re-plans CP2 only (from the current state to x_f2) and, when
-  that fails, the whole planner (back out to x_f1, then CP2); in the holds and the fly-around the whole
-  planner runs from the current state (holds re-evaluated on the sunlight profile); none converged ->
-  abort. After ``max_recomputes`` the next recompute trigger aborts;
-* retreat: CP1 (same planner, KOS planes) from the nulled state to the safe circumnavigation
-  state x_S = [0, r_AS/2, 0, n r_AS/4, 0, 0] (x_dot = (n/2) y, y_dot = 0, y = r_AS/2, §3.4),
-  tracked with CP_g; on arrival the insertion is verified (:mod:`proxops.control.cortex_insertion`);
-  the run ends ``aborted`` and the system verifies passive safety on the thrust-free truth.
+* regeneration in the final approach re-plans CP2 only and, when that fails, the whole planner (back
+  out to x_f1, then CP2); elsewhere the whole planner (holds re-evaluated on the sunlight profile); none
+  converged -> abort. After ``max_recomputes`` the next recompute trigger aborts;
+* retreat: CP1 from the nulled state to the safe circumnavigation state x_S (§3.4), tracked with CP_g,
+  the insertion verified (:mod:`proxops.control.cortex_insertion`); the run ends ``aborted`` and the
+  system verifies passive safety on the thrust-free truth.
 """
 
 from __future__ import annotations
@@ -122,10 +120,6 @@ class CortexSupervisor:
         self.x_for_next_solve = None  # the next CP_g starts from this state (the coast's mean estimate)
         self.recompute_tag = None
 
-    @property
-    def solve_times(self) -> list[float]:
-        return self.cpg.solve_times
-
     def observe_truth(self, t: float, x_true: np.ndarray) -> None:
         """Engine hook: the true relative state at this sample (triggers are evaluated on it)."""
         self.x_true = np.asarray(x_true, float)
@@ -141,10 +135,9 @@ class CortexSupervisor:
                 and self.mode in TRACK_PHASES + ("null",)):
             self.ground_abort_done = True
             return self._start_abort(t, x_est, "ground abort command", events)
-        if self.mode == "null":  # nulling before a re-plan: the abort conditions still apply
-            trig = self.triggers.check(self.null_phase, x_true[:3], x_true[:3], None, recompute=False)
-            if trig is not None:
-                return self._start_abort(t, x_est, trig[1], events)
+        if self.mode == "null" and (trig := self.triggers.check(self.null_phase, x_true[:3], x_true[:3], None,
+                                                                 recompute=False)):
+            return self._start_abort(t, x_est, trig[1], events)  # nulling before a re-plan: aborts still apply
         if self.mode in ("null", "abort_null"):
             return self._null(t, x_est, events)
         if self.mode not in TRACK_PHASES and self.mode != "retreat":
@@ -193,9 +186,8 @@ class CortexSupervisor:
 
     def _rearm(self, r_true) -> None:
         """Re-arm a suspended buffered condition once the true state no longer violates it."""
-        if "C_KOS_bar" in self.suspended and not self.triggers.buffered_kos(self.mode, r_true):
-            if self.mode in HOLD_PHASES:
-                self.suspended.discard("C_KOS_bar")
+        if "C_KOS_bar" in self.suspended and self.mode in HOLD_PHASES and not self.triggers.buffered_kos(self.mode, r_true):
+            self.suspended.discard("C_KOS_bar")
         if "C_cone_bar" in self.suspended and self.mode == "approach" and not self.triggers.buffered_cone(self.mode, r_true):
             self.suspended.discard("C_cone_bar")
 
@@ -262,7 +254,7 @@ class CortexSupervisor:
             events.append(("retreat", f"transfer to the safe orbit in {res.t[-1]:.0f} s"))
             self.mode = "retreat"
         self.queue = []
-        return self.step(t, x_est) if not events else self._merge(self.step(t, x_est), events)
+        return self._merge(self.step(t, x_est), events) if events else self.step(t, x_est)
 
     @staticmethod
     def _merge(cmd: Command, events) -> Command:
@@ -301,5 +293,4 @@ class CortexSupervisor:
         if action[0] == "trim":
             return self._cmd(action[2], events)
         self.x_for_next_solve = action[2]  # "extend": one more CP_g interval from the coast's mean estimate
-        cmd = self.step(t, x_est)
-        return self._merge(cmd, events) if events else cmd
+        return self._merge(self.step(t, x_est), events) if events else self.step(t, x_est)

@@ -47,12 +47,12 @@ class CortexTriggers:
     cone_buffer_tol_rad: float = math.radians(1.0)
 
     def __post_init__(self):
-        self._axis = _floats(self.cone_bar.axis)
-        self._cone_axis = _floats(self.cone.axis)
-        self._cos_cone = math.cos(self.cone.half_angle_rad)
         for phase, v in self.eps_r_m.items():
             if not (math.isfinite(v) and v > 0):
                 raise input_error(f"guidance.recompute_{phase}_m", v, "must be a finite number > 0 (eps_r of Table 1)", "m")
+        self._axis = _floats(self.cone_bar.axis)
+        self._cone_axis = _floats(self.cone.axis)
+        self._cos_cone = math.cos(self.cone.half_angle_rad)
 
     def buffered_kos(self, phase: str, r) -> bool:
         """Buffered-KOS recompute condition (holds and fly-around): range below rho_bar - buffer_tol."""

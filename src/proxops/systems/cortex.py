@@ -226,7 +226,7 @@ def plan_to_result(sc: CortexScenario, plan):
         t=traj["t"], x_true=traj["x"], x_est=traj["x"].copy(), u_cmd=dv, u_applied=dv.copy(),
         dv_cum=np.cumsum(np.linalg.norm(dv, axis=1)), status=[plan.status] * n,
         solve_time_s=np.zeros(n), mode=list(traj["phase"]), info={},
-        meta={"system": "cortex", "outcome": plan.status, "wall_time_s": plan.compute_time_s,
+        meta={"system": "cortex", "outcome": plan.status.value, "wall_time_s": plan.compute_time_s,
               "control": "impulse", "frame": "Hill/RTN"},
     )
 

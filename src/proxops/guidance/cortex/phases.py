@@ -54,7 +54,8 @@ from proxops.constraints.approach_cone import ApproachCone
 from proxops.constraints.plume import PlumeConstraint
 from proxops.constraints.keep_out import KeepOutSphere
 from proxops.core.cw import cw_discretize_impulsive, cw_stm
-from proxops.solvers import ClarabelSOCP, ConicProblem, SolveStatus, TrustRegion, soc_rows, successive_convexification
+from proxops.solvers import ClarabelSOCP, ConicProblem, TrustRegion, soc_rows, successive_convexification
+from proxops.status import Status
 
 SLACK_WEIGHT = 1e3  # cost of the plume-row slacks (scaled units; the plan's cost is ~1-10)
 # Clarabel settings of CP1 / CP2 (as CP_g's, proxops.control.cortex_tracking): iterative refinement of the KKT
@@ -81,10 +82,11 @@ def node_times(tau_s: float, dt_s: float) -> np.ndarray:
 
 @dataclass
 class PhaseResult:
-    """Outcome of one convex phase. ``status``: "converged", "infeasible", "not_converged"
-    (iteration cap) or "solver_error"; ``x`` (N+1, 6) node states, ``dv`` (N, 3) impulses."""
+    """Outcome of one convex phase. ``status`` (:class:`proxops.status.Status`): OPTIMAL (converged),
+    INFEASIBLE, MAX_ITER (iteration cap: KOS planes or plume SCP still changing) or the solver's failure
+    status; ``x`` (N+1, 6) node states, ``dv`` (N, 3) impulses."""
 
-    status: str
+    status: Status
     reason: str = ""
     t: np.ndarray | None = None
     x: np.ndarray | None = None
@@ -95,7 +97,7 @@ class PhaseResult:
 
     @property
     def ok(self) -> bool:
-        return self.status == "converged"
+        return self.status is Status.OPTIMAL
 
     @property
     def dv_total_mps(self) -> float:
@@ -296,12 +298,13 @@ class _PhaseSOCP:
         return res, x, dv
 
 
-def _status_of(res) -> tuple[str, str]:
-    if res.status in (SolveStatus.INFEASIBLE,):
-        return "infeasible", f"SOCP infeasible ({res.info.get('raw_status', '')})"
-    if res.status == SolveStatus.UNBOUNDED:
-        return "solver_error", "SOCP reported unbounded"
-    return "solver_error", f"solver status {res.status.value} ({res.info.get('raw_status', res.info.get('error', ''))})"
+def _status_of(res) -> tuple[Status, str]:
+    if res.status is Status.INFEASIBLE:
+        return Status.INFEASIBLE, f"SOCP infeasible ({res.info.get('raw_status', '')})"
+    if res.status is Status.UNBOUNDED:
+        return Status.UNBOUNDED, "SOCP reported unbounded"
+    status = res.status if res.status.failed else Status.NUMERICAL_ERROR
+    return status, f"solver status {res.status.value} ({res.info.get('raw_status', res.info.get('error', ''))})"
 
 
 def solve_flyaround(n_rad_s: float, tau_s: float, dt_s: float, x0, xf, a_bar_mps2: float, rho_bar_m: float,
@@ -315,16 +318,16 @@ def solve_flyaround(n_rad_s: float, tau_s: float, dt_s: float, x0, xf, a_bar_mps
     t = node_times(tau_s, dt_s)
     prob = _PhaseSOCP(n_rad_s, t, x0, xf, a_bar_mps2, kos=True, arc=arc_planes, solver_settings=solver_settings)
     has_arc = np.zeros(prob.N, bool)
-    out = PhaseResult(status="not_converged", t=t, setup_time_s=prob.setup_time_s)
+    out = PhaseResult(status=Status.MAX_ITER, t=t, setup_time_s=prob.setup_time_s)
     sphere = KeepOutSphere(rho_bar_m)
     has_plane = np.zeros(prob.N - 1, bool)
     for it in range(1, kos_max_iter + 1):
         res, x, dv = prob.solve()
         out.iterations = it
         out.solve_times_s.append(res.solve_time_s)
-        if x is None or res.status not in (SolveStatus.OPTIMAL, SolveStatus.OPTIMAL_INACCURATE):
+        if x is None or not res.status.ok:
             out.status, out.reason = _status_of(res)
-            if it > 1 and out.status == "infeasible":
+            if it > 1 and out.status is Status.INFEASIBLE:
                 out.reason += f" after {int(has_plane.sum())} KOS planes"
             return out
         out.x, out.dv = x, dv
@@ -344,7 +347,7 @@ def solve_flyaround(n_rad_s: float, tau_s: float, dt_s: float, x0, xf, a_bar_mps
                 prob.push()
                 continue
         if bad.size == 0:
-            out.status, out.reason = "converged", ""
+            out.status, out.reason = Status.OPTIMAL, ""
             return out
         normals, _ = sphere.halfspace(np.where(np.linalg.norm(x[1 + bad, :3], axis=1)[:, None] > 1e-9,
                                                x[1 + bad, :3], np.asarray(x0, float)[:3]))
@@ -370,7 +373,7 @@ def solve_final_approach(n_rad_s: float, tau_s: float, dt_s: float, x0, xf, a_ba
     angles = None if cone_half_angle_at is None else np.array([cone_half_angle_at(float(tk)) for tk in t])
     prob = _PhaseSOCP(n_rad_s, t, x0, xf, a_bar_mps2, cone=cone, plume=True, solver_settings=solver_settings,
                       cone_half_angles_rad=angles)
-    out = PhaseResult(status="not_converged", t=t, setup_time_s=prob.setup_time_s)
+    out = PhaseResult(status=Status.MAX_ITER, t=t, setup_time_s=prob.setup_time_s)
     # the largest impulse: no restriction at first; halved when the plume violation grows
     trust = TrustRegion(a_bar_mps2 * float(prob.dt.max()))
 
@@ -388,7 +391,7 @@ def solve_final_approach(n_rad_s: float, tau_s: float, dt_s: float, x0, xf, a_ba
         res, x, dv = prob.solve()
         out.iterations += 1
         out.solve_times_s.append(res.solve_time_s)
-        if x is None or res.status not in (SolveStatus.OPTIMAL, SolveStatus.OPTIMAL_INACCURATE):
+        if x is None or not res.status.ok:
             out.status, out.reason = _status_of(res)
             if out.iterations > 1:
                 out.reason += f" at successive-convexification iteration {out.iterations}"
@@ -408,7 +411,7 @@ def solve_final_approach(n_rad_s: float, tau_s: float, dt_s: float, x0, xf, a_ba
     scp = successive_convexification(solve, converged, relinearize, max_iter=scp_max_iter, trust=trust,
                                      merit=lambda it: it["viol"], merit_tol=plume_tol_rad)
     if scp.converged:
-        out.status, out.reason = "converged", ""
+        out.status, out.reason = Status.OPTIMAL, ""
     elif scp.status == "max_iter":
         out.reason = f"plume successive convexification not converged in {scp_max_iter} iterations"
     return out

@@ -63,6 +63,7 @@ from proxops.guidance.cortex.phases import (
     solve_final_approach,
     solve_flyaround,
 )
+from proxops.status import Status
 
 def _last_impulse(phase) -> float:
     """|dv| of a phase's last-node (terminal) impulse (m/s), NaN without a solution."""
@@ -100,9 +101,11 @@ TOL_PLUME_DEG = 0.01
 
 @dataclass
 class CortexPlan:
-    """A reference (or the reason there is none). Times in s, delta-v in m/s, Hill frame."""
+    """A reference (or the reason there is none). Times in s, delta-v in m/s, Hill frame. ``status``: OK,
+    INFEASIBLE (a phase converged for no duration), INFEASIBLE_SOLUTION (the independent plan check failed)
+    or FAILED (the eclipse profile is too short); ``reason`` says which and why."""
 
-    status: str
+    status: Status
     reason: str
     axis: np.ndarray
     tau1_s: float = math.nan
@@ -126,7 +129,7 @@ class CortexPlan:
 
     @property
     def ok(self) -> bool:
-        return self.status == "ok"
+        return self.status is Status.OK
 
     @property
     def dv_total_mps(self) -> float:
@@ -146,7 +149,7 @@ class CortexPlan:
         """Flat, JSON-ready keys (units in the names)."""
         c = self.checks
         out = {
-            "status": self.status, "reason": self.reason,
+            "status": self.status.value, "reason": self.reason,
             "axis_x": float(self.axis[0]), "axis_y": float(self.axis[1]), "axis_z": float(self.axis[2]),
             "tau1_s": self.tau1_s, "tau2_s": self.tau2_s, "hold1_s": self.hold1_s, "hold2_s": self.hold2_s,
             "dv1_mps": self.dv1_mps, "dv2_mps": self.dv2_mps, "dv_total_mps": self.dv_total_mps,
@@ -271,7 +274,7 @@ def plan_reference(axis, cfg: CortexConfig, eclipse=None, t0_s: float = 0.0) -> 
     plume = PlumeConstraint(cfg.alpha_p_bar)
     if eclipse is not None:
         t_ecl, eta = hold_logic.check_profile(*eclipse)
-    plan = CortexPlan(status="infeasible", reason="", axis=e)
+    plan = CortexPlan(status=Status.INFEASIBLE, reason="", axis=e)
     n = cfg.mean_motion_rad_s
 
     def cp1(tau):
@@ -314,7 +317,7 @@ def plan_reference(axis, cfg: CortexConfig, eclipse=None, t0_s: float = 0.0) -> 
         plan.dv2_mps = plan.cp2.dv_total_mps
         plan.scp_iterations = plan.cp2.iterations
     if reasons:
-        plan.status, plan.reason = "infeasible", "; ".join(reasons)
+        plan.status, plan.reason = Status.INFEASIBLE, "; ".join(reasons)
         plan.objective_s = math.inf
         plan.compute_time_s = clock()
         return plan
@@ -329,11 +332,11 @@ def plan_reference(axis, cfg: CortexConfig, eclipse=None, t0_s: float = 0.0) -> 
     plan.checks = check_plan(plan, cfg, x_i1, x_f1, x_f2, cone, plume, eclipse=(t_ecl, eta) if eclipse is not None else None,
                              t0_s=t0_s)
     if not (math.isfinite(plan.hold1_s) and math.isfinite(plan.hold2_s)):
-        plan.status, plan.reason = "eclipse_profile_short", "the eclipse profile ends before a sunlit window fits; extend it"
+        plan.status, plan.reason = Status.FAILED, "eclipse profile short: it ends before a sunlit window fits; extend it"
     elif not plan.checks.passed:
-        plan.status, plan.reason = "check_failed", "; ".join(plan.checks.failures)
+        plan.status, plan.reason = Status.INFEASIBLE_SOLUTION, "plan check failed: " + "; ".join(plan.checks.failures)
     else:
-        plan.status, plan.reason = "ok", ""
+        plan.status, plan.reason = Status.OK, ""
     plan.compute_time_s = clock()
     return plan
 
