@@ -521,7 +521,11 @@ def test_cpg_equals_a_tight_solve_of_eq27_built_independently():
         assert dv is not None and res.status.value == "optimal", label
         j_cpg = _cost(prob, x_k, x_t, dv, eps_p, g, weight)
         j_ref = _cost(prob, x_k, x_t, dv_ref, eps_p, g, weight)
-        assert j_ref == pytest.approx(obj_ref, rel=1e-7), label  # the reference's own objective
+        # the reference's own objective: its stacked build puts the plume slacks in m/s at weight 1e4, so its
+        # reported objective is only good to a few 1e-7 relative in plume cases (measured 1.0e-7 at 1e-9 and
+        # 3.9e-7 at 1e-10 tolerances on one case, after the planner's Clarabel settings moved the reference
+        # states by < 1 mm); the comparison with CP_g below is on the propagated costs
+        assert j_ref == pytest.approx(obj_ref, rel=1e-6), label
         assert j_cpg == pytest.approx(j_ref, rel=1e-6), label
         np.testing.assert_allclose(dv, dv_ref, atol=5e-6, err_msg=label)
         assert np.linalg.norm(dv, axis=1).max() <= a_max * 2.0 * (1 + 1e-9), label
