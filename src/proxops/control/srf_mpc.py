@@ -883,7 +883,6 @@ class SrfMpc:
         c = self.cfg
         self._clock = [0.0, 0]  # solver seconds, iterations
         events = []
-        status = Status.INFEASIBLE
         first_ref = self.plan[i].copy()
         if self.cfg.drift_free_tol_mps is not None and not np.any(first_ref):
             # no plan yet: the drift-free hold is much nearer the drift-free solution than a drifting
