@@ -9,7 +9,10 @@
 2. Wall time of one nominal run with the high-fidelity truth (``proxops run cortex-nominal``, in this
    process after a warm-up run that pays numba compilation; goal < 10 s).
 3. The thruster chain on the nominal run: delta-v and propellant against the impulsive actuator.
-4. Wall time of the 100-run high-error campaign on 2 workers (``proxops mc cortex-high-mc --runs 100
+4. The supervisor's own CPU per engine step (Table 1, reference states, CP_g data: the step minus its
+   CP_g solves) against one CP_g solve, and the solver share of the controller's time (issue 32: the
+   supervisor's step below the CP_g solve), over repeated nominal runs in this process (CW truth).
+5. Wall time of the 100-run high-error campaign on 2 workers (``proxops mc cortex-high-mc --runs 100
    --workers 2``, process start included; goal < 5 min). ``--no-campaign`` skips it.
 
 Run: ``.venv/bin/python benchmarks/bench_cortex_tracking.py [--runs 100] [--no-campaign]``.
@@ -195,6 +198,48 @@ def campaign(runs: int):
           f"{'met' if wall < GOAL_CAMPAIGN_S else 'NOT met'}; exit {proc.returncode})")
 
 
+def supervisor_share(repeats: int = 3):
+    """Own CPU of CortexSupervisor.step per engine step (CP_g solves excluded) vs the CPU of one CP_g
+    solve (TrackingSOCP.solve: data update + Clarabel), cortex-nominal on CW truth, ``repeats`` runs."""
+    from proxops.control.cortex_tracking import TrackingSOCP
+    from proxops.sim.engine import simulate
+
+    solve_cpu = [0.0]
+    orig = TrackingSOCP.solve
+
+    def timed_solve(self, *a, **kw):
+        c0 = time.process_time()
+        try:
+            return orig(self, *a, **kw)
+        finally:
+            solve_cpu[0] += time.process_time() - c0
+
+    TrackingSOCP.solve = timed_solve
+    sc = load_scenario("cortex-nominal", ["truth.model=cw"]).scenario
+    try:
+        for rep in range(repeats):
+            setup, ctrl, _ = build_setup(sc)
+            step, acc = ctrl.step, [0.0, 0]
+
+            def timed(t, x, _step=step, _acc=acc):
+                c0 = time.process_time()
+                cmd = _step(t, x)
+                _acc[0] += time.process_time() - c0
+                _acc[1] += 1
+                return cmd
+
+            ctrl.step = timed
+            solve_cpu[0] = 0.0
+            simulate(setup, seed=0)
+            n_solve = len(ctrl.cpg.solve_times)
+            own = (acc[0] - solve_cpu[0]) / acc[1]
+            print(f"supervisor run {rep + 1}{' (builds the CP_g structures)' if rep == 0 else ''}: own CPU "
+                  f"{own * 1e6:.1f} us per step over {acc[1]} steps; CP_g solve {solve_cpu[0] / n_solve * 1e3:.3f} ms "
+                  f"CPU ({n_solve} solves); solver share of the controller {solve_cpu[0] / acc[0]:.0%} ({_load()})")
+    finally:
+        TrackingSOCP.solve = orig
+
+
 def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--runs", type=int, default=100)
@@ -204,6 +249,7 @@ def main():
     cpg_accuracy()
     nominal_run()
     thruster_chain()
+    supervisor_share()
     if not args.no_campaign:
         campaign(args.runs)
 

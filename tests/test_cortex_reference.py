@@ -9,17 +9,15 @@ import numpy as np
 import pytest
 from typer.testing import CliRunner
 
-from proxops.constraints.approach_cone import ApproachCone, PlumeConstraint
+from proxops.constraints.approach_cone import ApproachCone
+from proxops.constraints.plume import PlumeConstraint
 from proxops.core.cw import cw_stm, mean_motion
 from proxops.errors import ProxopsInputError
 from proxops.guidance.cortex import holds
 from proxops.guidance.cortex.phases import solve_final_approach, solve_flyaround
-from proxops.guidance.cortex.reference import (
-    PAPER_FIXED_AXIS_HILL,
-    CortexConfig,
-    fibonacci_axes,
-    plan_reference,
-)
+from proxops.guidance.cortex.config import PAPER_FIXED_AXIS_HILL, CortexConfig, fibonacci_axes
+from proxops.guidance.cortex.reference import plan_reference
+from proxops.status import Status
 
 N_CSO = mean_motion(6878.1e3)  # §5.1
 
@@ -287,7 +285,7 @@ def test_real_eclipse_profile_hold_is_sunlit_by_an_independent_illumination_call
     from proxops.environment.ephemeris import sun_position_eci
     from proxops.scenarios.loader import load_scenario
     from proxops.systems.common import target_elements
-    from proxops.systems.cortex import config_from_scenario, eclipse_profile, plan_scenario, scenario_axis
+    from proxops.systems.cortex_setup import config_from_scenario, eclipse_profile, plan_scenario, scenario_axis
 
     sc = load_scenario("cortex-reference").scenario
     t, eta = eclipse_profile(sc)
@@ -377,7 +375,7 @@ def test_phase_end_time_is_monotone_so_shortest_durations_minimise_J():
 def test_profile_too_short_is_a_status(cfg):
     t, eta = square_profile(period=5700.0, sun=3600.0, dt=5.7, orbits=1)
     plan = plan_reference(PAPER_FIXED_AXIS_HILL, cfg, eclipse=(t, eta), t0_s=3500.0)
-    assert plan.status == "eclipse_profile_short" and "extend" in plan.reason
+    assert plan.status is Status.FAILED and "eclipse profile short" in plan.reason and "extend" in plan.reason
 
 
 def test_cli_references_applies_overrides():

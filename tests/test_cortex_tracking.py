@@ -7,11 +7,13 @@ import numpy as np
 import pytest
 
 from proxops.actuators import ThrusterModel, perturb_angles
-from proxops.constraints.approach_cone import ApproachCone, PlumeConstraint
-from proxops.control.cortex_supervisor import CortexTriggers, safe_orbit_state
-from proxops.control.cortex_tracking import TrackingSOCP, substeps
+from proxops.constraints.approach_cone import ApproachCone
+from proxops.constraints.plume import PlumeConstraint
+from proxops.control.cortex_tracking import TrackingSOCP
+from proxops.control.cortex_triggers import CortexTriggers
 from proxops.core.cw import cw_stm, mean_motion
 from proxops.errors import ProxopsInputError
+from proxops.guidance.cortex.timeline import safe_orbit_state, substeps
 from proxops.navigation import GaussianNavigation
 
 N_RAD = mean_motion(6878.1e3)
@@ -262,10 +264,10 @@ def test_predicted_passive_range_of_the_safe_orbit():
     sc = load_scenario("cortex-nominal", ["truth.model=cw", "eclipse.model=none"]).scenario
     _, ctrl, _ = build_setup(sc)
     x_s = safe_orbit_state(ctrl.n, 75.0)
-    assert ctrl.predicted_min_range(x_s) == pytest.approx(75.0 / 4, rel=1e-4)
+    assert ctrl.insertion.predicted_min_range(x_s) == pytest.approx(75.0 / 4, rel=1e-4)
     x_bad = x_s.copy()
     x_bad[4] += 2e-3  # 2 mm/s along-track: drifts ~34 m per orbit
-    assert ctrl.predicted_min_range(x_bad) < 15.0
+    assert ctrl.insertion.predicted_min_range(x_bad) < 15.0
 
 
 def test_high_error_abort_is_trimmed_onto_a_passively_safe_orbit():
@@ -327,9 +329,9 @@ def _approach_probe(margin_deg):
     x[:3] -= 0.05 * lateral
     x[3:] -= 0.008 * lateral
     start_deg = math.degrees(math.acos(x[:3] @ AXIS / np.linalg.norm(x[:3])))
-    dv, _, status = ctrl._guidance(t, x, seg)
-    assert dv is not None and ctrl.relaxed is None
-    xp = ctrl._problem(len(dv), False, False).predicted_states(x, dv)
+    dv, _, status = ctrl.cpg.solve(t, x, seg, ctrl.timeline, True)
+    assert dv is not None and ctrl.cpg.relaxed is None
+    xp = ctrl.cpg.problem(len(dv), False, False).predicted_states(x, dv)
     off = [math.degrees(math.acos(r @ AXIS / np.linalg.norm(r))) for r in xp[1:, :3]]
     return start_deg, max(off)
 
@@ -519,7 +521,11 @@ def test_cpg_equals_a_tight_solve_of_eq27_built_independently():
         assert dv is not None and res.status.value == "optimal", label
         j_cpg = _cost(prob, x_k, x_t, dv, eps_p, g, weight)
         j_ref = _cost(prob, x_k, x_t, dv_ref, eps_p, g, weight)
-        assert j_ref == pytest.approx(obj_ref, rel=1e-7), label  # the reference's own objective
+        # the reference's own objective: its stacked build puts the plume slacks in m/s at weight 1e4, so its
+        # reported objective is only good to a few 1e-7 relative in plume cases (measured 1.0e-7 at 1e-9 and
+        # 3.9e-7 at 1e-10 tolerances on one case, after the planner's Clarabel settings moved the reference
+        # states by < 1 mm); the comparison with CP_g below is on the propagated costs
+        assert j_ref == pytest.approx(obj_ref, rel=1e-6), label
         assert j_cpg == pytest.approx(j_ref, rel=1e-6), label
         np.testing.assert_allclose(dv, dv_ref, atol=5e-6, err_msg=label)
         assert np.linalg.norm(dv, axis=1).max() <= a_max * 2.0 * (1 + 1e-9), label
@@ -589,9 +595,9 @@ def _braking_probe(linearization, plume_margin_deg=0.0):
     x = ctrl.timeline.state(t).copy()
     x[:3] -= 0.3 * AXIS
     x[3:] -= 0.005 * AXIS
-    dv, _, status = ctrl._guidance(t, x, seg)
-    assert dv is not None and ctrl.relaxed is None
-    xp = ctrl._problem(len(dv), False, False).predicted_states(x, dv)
+    dv, _, status = ctrl.cpg.solve(t, x, seg, ctrl.timeline, True)
+    assert dv is not None and ctrl.cpg.relaxed is None
+    xp = ctrl.cpg.problem(len(dv), False, False).predicted_states(x, dv)
     x_T = ctrl.timeline.state(t + 30.0)
     thrust = np.linalg.norm(dv, axis=1) > 1e-4
     ang = np.degrees(PlumeConstraint(math.radians(24)).angle_rad(xp[:-1, :3][thrust], dv[thrust]))

@@ -21,10 +21,8 @@ PKG = SRC / "proxops"
 # Temporary, named allow-list of file circles outside the platform branch; each entry is removed
 # when the other helper's work on issue 31 is merged (the test then holds with an empty list):
 # - cli <-> entry: the exec wing / process start-up move (helper "startup", issue 31 item 5);
-# - systems.cortex <-> systems.cortex_loop: cortex set-up in one module both import (helper "cortex", item 4).
 ALLOWED_FILE_CIRCLES = [
     {"proxops.cli", "proxops.entry"},
-    {"proxops.systems.cortex", "proxops.systems.cortex_loop"},
 ]
 
 # Hooks the engine finds through the protocols of proxops.contracts (never by name).

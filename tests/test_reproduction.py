@@ -126,7 +126,7 @@ def test_cortex_eclipse_hold_waits_until_the_eclipse_ends():
     """Contribution 1: a plan started 150 s before eclipse entry (less than the 300 s shortest transfer)
     holds until sunlight returns: tau_h1 = (first eclipse exit on the profile) - start."""
     from proxops.scenarios.loader import load_scenario
-    from proxops.systems.cortex import eclipse_profile
+    from proxops.systems.cortex_setup import eclipse_profile
 
     row = cortex.eclipse_hold_row()
     t, eta = eclipse_profile(load_scenario("cortex-reference").scenario)

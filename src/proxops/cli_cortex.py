@@ -13,6 +13,7 @@ and prints median/IQR of delta-v, TOF and compute time next to §5.1.1.
 
 from __future__ import annotations
 
+import json
 import math
 import time
 from pathlib import Path
@@ -20,7 +21,12 @@ from typing import Annotated, Optional
 
 import typer
 
-from proxops.cli_common import emit, friendly_errors
+from proxops.cli_common import check_out_dir, emit, friendly_errors, json_default
+from proxops.errors import input_error
+from proxops.exec.backends import MAX_WORKERS
+from proxops.scenarios.loader import load_scenario
+from proxops.systems.cortex import (PAPER_5_1_1, campaign_statistics, plan_scenario, references_scenario,
+                                    statistics_table)
 
 cortex_app = typer.Typer(help="CORTEX convex reference generation (fly-around + final approach, eclipse holds).",
                          no_args_is_help=True, rich_markup_mode=None)
@@ -28,16 +34,12 @@ cortex_app = typer.Typer(help="CORTEX convex reference generation (fly-around + 
 
 def _load(scenario: str, overrides: list[str]):
     """A cortex scenario, or a one-line error naming --scenario (another system has no [geometry])."""
-    from proxops.scenarios.loader import load_scenario
-
     loaded = load_scenario(scenario, overrides)
     _require_cortex(scenario, loaded.scenario.system)
     return loaded
 
 
 def _require_cortex(scenario: str, system) -> None:
-    from proxops.errors import input_error
-
     if system != "cortex":
         raise input_error("--scenario", scenario, f"is a {system!r} scenario; give a cortex one (system = "
                           "\"cortex\", e.g. cortex-reference)")
@@ -53,9 +55,6 @@ def reference(
     as_json: Annotated[bool, typer.Option("--json", help="One JSON object on stdout.")] = False,
 ):
     """Plan one reference (outer search, CP1, CP2, holds) and print its summary."""
-    from proxops.cli_common import check_out_dir
-    from proxops.systems.cortex import plan_scenario
-
     if out is not None:
         check_out_dir(out)
 
@@ -70,12 +69,9 @@ def reference(
 
 def write_plan(sc, plan, out: Path, summary: dict) -> list[Path]:
     """trajectory.parquet (t, phase, x..vz, dvx..dvz), summary.json, reference_3d.png."""
-    import json
-
     import pandas as pd
 
-    from proxops.cli_common import json_default
-    from proxops.plotting.cortex import plan_figure
+    from proxops.plotting.cortex import plan_figure  # matplotlib: only with --out
 
     out.mkdir(parents=True, exist_ok=True)
     traj = plan.trajectory()
@@ -130,12 +126,7 @@ def references(
     as_json: Annotated[bool, typer.Option("--json", help="One JSON object on stdout.")] = False,
 ):
     """Plan the references of N Fibonacci-sphere axes as a campaign; statistics next to §5.1.1."""
-    from proxops.analysis.campaign import run_campaign
-    from proxops.errors import input_error
-    from proxops.systems.cortex import PAPER_5_1_1, campaign_statistics, references_scenario, statistics_table
-
-    from proxops.cli_common import check_out_dir
-    from proxops.exec.backends import MAX_WORKERS
+    from proxops.analysis.campaign import run_campaign  # the campaign engine: not for `cortex reference`
 
     if workers is not None and not 1 <= workers <= MAX_WORKERS:
         raise input_error("--workers", workers, f"must be a whole number from 1 to {MAX_WORKERS}")

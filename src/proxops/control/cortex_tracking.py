@@ -54,6 +54,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from proxops.core.cw import cw_stm
+from proxops.constraints.plume import scaled_rows
 from proxops.errors import input_error
 from proxops.solvers import ConicProblem, SolveStatus, make_solver, soc_rows
 
@@ -64,19 +65,6 @@ from proxops.solvers import ConicProblem, SolveStatus, make_solver, soc_rows
 # ended inaccurate or failed, all 12 retries optimal.
 DEFAULT_SOLVER_SETTINGS = {"settings": {"iterative_refinement_enable": False},
                            "retry_settings": {"iterative_refinement_enable": True}}
-
-
-def substeps(dt_g_s: float, substep_s: float) -> int:
-    """N_sub = dt_g / delta_t_g; raises a clear error unless delta_t_g divides dt_g."""
-    for name, v in (("guidance.dt_g_s", dt_g_s), ("guidance.substep_s", substep_s)):
-        if not (math.isfinite(v) and v > 0):
-            raise input_error(name, v, "must be a finite number > 0", "s")
-    ratio = dt_g_s / substep_s
-    n = int(round(ratio))
-    if n < 1 or abs(ratio - n) > 1e-9 * max(1.0, ratio):
-        raise input_error("guidance.substep_s", substep_s,
-                          f"must divide guidance.dt_g_s = {dt_g_s:g} s into a whole number of impulses", "s")
-    return n
 
 
 def impulse_maps(phi: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
@@ -230,8 +218,7 @@ class TrackingSOCP:
         normalised here, sig in units of a_max delta_t_g): the
         dv-linearisation of eq. (21) about the reference (r_ref_j, dv_ref_j), a half-space inside the
         allowed thrust set at r = r_ref_j (:meth:`PlumeConstraint.linearization`)."""
-        g = np.asarray(g_rows, float)
-        g = g / np.maximum(np.abs(g).max(axis=1), 1e-300)[:, None]
+        _, g, _ = scaled_rows(None, g_rows, None, None)
         data = self.A.data
         iR, iS, iT = self._plume_idx  # g_j . dv'_j = (g_j R') d'_{j+1} + (g_j S') d'_j + (g_j T') d'_{j-1}
         data[iR] = g @ self._R

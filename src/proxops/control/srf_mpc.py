@@ -116,6 +116,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from proxops.constraints.keep_out import KeepOutSphere
+from proxops.control.relaxation import climb
 from proxops.core.cw import cw_stm
 from proxops.core.memo import memo_get
 from proxops.errors import input_error
@@ -882,7 +883,6 @@ class SrfMpc:
         c = self.cfg
         self._clock = [0.0, 0]  # solver seconds, iterations
         events = []
-        status = Status.INFEASIBLE
         first_ref = self.plan[i].copy()
         if self.cfg.drift_free_tol_mps is not None and not np.any(first_ref):
             # no plan yet: the drift-free hold is much nearer the drift-free solution than a drifting
@@ -893,7 +893,8 @@ class SrfMpc:
             hold = self.hold_impulse(x)
             if self.check_drift(x, hold)[0]:
                 first_ref, ref_safe = hold, True  # linearise about a safe drift: half-spaces face the right way
-        for relax in range(4):
+
+        def attempt(relax: int) -> tuple[_Solve | None, Status]:
             sol, status = self._scp(i, x, first_ref, relax)
             # A reference whose drift is safe gives CBF rows that the reference itself satisfies, so an
             # infeasible problem is then blamed on the other rows (relax them); otherwise check without
@@ -916,13 +917,17 @@ class SrfMpc:
                 # half-spaces on a safe but far-off reference (e.g. no plan yet and a drifting start) can cut
                 # off every drift-free impulse: retry about the hold drift before relaxing anything
                 sol, status = self._scp(i, x, hold, relax)
-            if sol is not None:
-                sol.events = events
-                return sol
-            if relax < 3:
-                events.append(("relaxed", ["design_rows_relaxed", "terminal_set_relaxed", "hops_relaxed"][relax]
-                               + f" at node {i} ({status})"))
-        return _Solve(None, status, self._clock[0], self._clock[1], relax, events=events)
+            return sol, status
+
+        def note(relax: int, _rung, status: Status) -> None:
+            events.append(("relaxed", ["design_rows_relaxed", "terminal_set_relaxed", "hops_relaxed"][relax]
+                           + f" at node {i} ({status})"))
+
+        out = climb(range(4), attempt, note)  # the shared ladder (proxops.control.relaxation)
+        if out.solved:
+            out.result.events = events
+            return out.result
+        return _Solve(None, out.status, self._clock[0], self._clock[1], out.level, events=events)
 
     def _scp(self, i: int, x: np.ndarray, u_ref: np.ndarray, relax: int) -> tuple[_Solve | None, Status]:
         """Solve, check the true (29j), re-linearise about the solution; at most cbf_iterations solves

@@ -22,7 +22,7 @@ import pkgutil
 
 SYSTEMS_PACKAGE = "proxops.systems"
 ENTRY_POINT_GROUP = "proxops.systems"
-_HELPERS = {"common", "base", "cortex_loop"}  # modules of proxops.systems that are not systems (helpers, SystemBase, the cortex closed loop)
+_HELPERS = {"common", "base", "cortex_loop", "cortex_setup"}  # modules of proxops.systems that are not systems (helpers, SystemBase, the cortex closed loop and set-up)
 
 
 def _discover() -> dict[str, str]:

@@ -20,17 +20,22 @@ of §5.1 from ``orbit.epoch_utc`` (:func:`proxops.environment.eclipse.eclipse_pr
 
 from __future__ import annotations
 
+import copy
 import math
 from typing import Annotated, Literal
 
 import numpy as np
 from pydantic import Field, model_validator
 
+from proxops.errors import input_error
+from proxops.scenarios.loader import read_toml, resolve
 from proxops.scenarios.registry import register_system
 from proxops.scenarios.schema import (ActuatorSection, OrbitSection, Probability, ScenarioBase, Section, TruthSection,
                                       Vector3)
+from proxops.sim.result import SimResult
 from proxops.status import Status
 from proxops.systems.base import SystemBase
+from proxops.systems.cortex_setup import check_loop, config_from_scenario, plan_scenario, scenario_axis
 
 PAPER_5_1_1 = {  # §5.1.1, 100 Fibonacci axes
     "dv_median_mps": 0.6579, "dv_iqr_mps": 0.1600,
@@ -208,72 +213,8 @@ class CortexScenario(ScenarioBase):
     actuator: CortexActuatorSection = Field(CortexActuatorSection(), description="closed loop: impulsive or the thruster chain of §4.1.3-4.1.4")
 
 
-def config_from_scenario(sc: CortexScenario):
-    """The planner configuration (SI) of a scenario; the checks of CortexConfig.validate apply."""
-    from proxops.core.cw import mean_motion
-    from proxops.guidance.cortex.reference import CortexConfig
-
-    g, m, p = sc.geometry, sc.margins, sc.planner
-    start = g.start_position_m if g.start_position_m is not None else [0.0, -g.r_as_m / 2.0, 0.0]
-    return CortexConfig(
-        mean_motion_rad_s=mean_motion(sc.orbit.sma_m), a_max_mps2=sc.servicer.a_max_mps2,
-        r_kos_m=g.r_kos_m, r_as_m=g.r_as_m, r_rs_m=g.r_rs_m,
-        plume_half_angle_rad=math.radians(g.plume_half_angle_deg), cone_half_angle_rad=math.radians(g.cone_half_angle_deg),
-        thrust_margin=m.thrust, kos_margin=m.kos, plume_margin=m.plume, cone_margin=m.cone,
-        tau_lb_s=p.tau_lb_s, tau_ub_s=p.tau_ub_s, tau1_s=p.tau1_s, tau2_s=p.tau2_s, convergence_penalty_s=p.convergence_penalty_s,
-        dt_cp1_s=p.dt_cp1_s, dt_cp2_s=p.dt_cp2_s, start_state=tuple(list(start) + list(g.start_velocity_mps)),
-        flyaround_end_range_m=g.flyaround_end_range_m, approach_end_range_m=g.approach_end_range_m,
-        approach_end_position_m=None if g.approach_end_position_m is None else tuple(g.approach_end_position_m),
-        kos_max_iter=p.kos_max_iter, kos_arc_planes=p.kos_arc_planes, scp_max_iter=p.scp_max_iter, scp_tol_mps=p.scp_tol_mps,
-        plume_tol_rad=math.radians(p.plume_tol_deg), search=p.search,
-    )
-
-
-def scenario_axis(sc: CortexScenario) -> np.ndarray:
-    from proxops.guidance.cortex.reference import fibonacci_axes, unit_axis
-
-    if sc.axis.fibonacci_index is not None:
-        return fibonacci_axes(sc.axis.fibonacci_n)[sc.axis.fibonacci_index]
-    return unit_axis(sc.axis.docking_axis)
-
-
-_PROFILES: dict = {}
-
-
-def eclipse_profile(sc: CortexScenario):
-    """(t_s, eta) sunlight flags along the CSO orbit from orbit.epoch_utc, or None (model "none").
-    Cached per process (every axis of a campaign shares it)."""
-    e = sc.eclipse
-    if e.model == "none":
-        return None
-    o = sc.orbit
-    key = (o.sma_m, o.ecc, o.inc_deg, o.raan_deg, o.argp_deg, o.nu_deg, o.epoch_utc, e.model, e.samples_per_orbit,
-           e.orbits, e.sunlit_threshold)
-    got = _PROFILES.get(key)
-    if got is None:
-        from proxops.environment.eclipse import eclipse_profile as profile
-        from proxops.guidance.cortex.holds import sunlit_flags
-        from proxops.systems.common import target_elements
-
-        t, illum = profile(target_elements(o), o.epoch_utc, n_per_orbit=e.samples_per_orbit, n_orbits=e.orbits,
-                           model=e.model)
-        got = (t, sunlit_flags(illum, e.sunlit_threshold))
-        _PROFILES[key] = got
-    return got
-
-
-def plan_scenario(sc: CortexScenario, axis=None):
-    """Plan the reference of a scenario (its axis, or ``axis`` when given)."""
-    from proxops.guidance.cortex.reference import plan_reference
-
-    cfg = config_from_scenario(sc)
-    e = scenario_axis(sc) if axis is None else axis
-    return plan_reference(e, cfg, eclipse=eclipse_profile(sc), t0_s=sc.planner.start_delay_s)
-
-
 def plan_to_result(sc: CortexScenario, plan):
     """The plan as a SimResult (t, node states, impulses as u_cmd, phase as mode)."""
-    from proxops.sim.result import SimResult
 
     traj = plan.trajectory()
     if len(traj["t"]) == 0:
@@ -285,7 +226,7 @@ def plan_to_result(sc: CortexScenario, plan):
         t=traj["t"], x_true=traj["x"], x_est=traj["x"].copy(), u_cmd=dv, u_applied=dv.copy(),
         dv_cum=np.cumsum(np.linalg.norm(dv, axis=1)), status=[plan.status] * n,
         solve_time_s=np.zeros(n), mode=list(traj["phase"]), info={},
-        meta={"system": "cortex", "outcome": plan.status, "wall_time_s": plan.compute_time_s,
+        meta={"system": "cortex", "outcome": plan.status.value, "wall_time_s": plan.compute_time_s,
               "control": "impulse", "frame": "Hill/RTN", "axis": np.asarray(plan.axis, dtype=float).tolist()},
     )
 
@@ -294,15 +235,20 @@ def summarize_plan(plan) -> dict:
     return plan.summary()
 
 
+def _loop():
+    """The closed loop's module (engine, solvers, numba): imported only when a loop is run or built."""
+    from proxops.systems import cortex_loop
+
+    return cortex_loop
+
+
 @register_system("cortex")
 class CortexSystem(SystemBase):
     Scenario = CortexScenario
 
     def run(self, sc: CortexScenario, seed: int = 0, progress: bool = False):
         if sc.guidance.closed_loop:
-            from proxops.systems.cortex_loop import run_closed_loop
-
-            return run_closed_loop(sc, seed=seed, progress=progress)
+            return _loop().run_closed_loop(sc, seed=seed, progress=progress)
         plan = plan_scenario(sc)
         return summarize_plan(plan), {"plan": plan_to_result(sc, plan)}
 
@@ -311,17 +257,11 @@ class CortexSystem(SystemBase):
         config_from_scenario(sc).validate()
         scenario_axis(sc)
         if sc.guidance.closed_loop:
-            from proxops.systems.cortex_loop import check_loop
-
             check_loop(sc)
 
     def build(self, sc: CortexScenario):
-        from proxops.errors import input_error
-
         if sc.guidance.closed_loop:
-            from proxops.systems.cortex_loop import build_setup
-
-            return build_setup(sc)[0]
+            return _loop().build_setup(sc)[0]
         raise input_error("system", "cortex", "is a planner: use proxops run / proxops cortex reference (no closed loop)")
 
     def summarize(self, sc: CortexScenario, result) -> dict:
@@ -334,9 +274,7 @@ class CortexSystem(SystemBase):
 
     def campaign_table(self, sc: CortexScenario, table) -> str:
         if sc.guidance.closed_loop:
-            from proxops.systems.cortex_loop import table4
-
-            return table4(sc, table)
+            return _loop().table4(sc, table)
         if "metric.dv_total_mps" not in table:
             return ""
         return statistics_table(campaign_statistics(table))
@@ -345,11 +283,6 @@ class CortexSystem(SystemBase):
 def references_scenario(scenario: str, n: int) -> dict:
     """The scenario data with the Fibonacci grid: ``axis.fibonacci_index`` = 0..n-1 (overrides are
     applied by the campaign engine)."""
-    import copy
-
-    from proxops.errors import input_error
-    from proxops.scenarios.loader import read_toml, resolve
-
     if isinstance(n, bool) or not 1 <= n <= MAX_FIBONACCI_N:
         raise input_error("--n", n, f"must be a whole number from 1 to {MAX_FIBONACCI_N:,}")
     data = copy.deepcopy(read_toml(resolve(scenario)))

@@ -22,6 +22,23 @@ import math
 
 import numpy as np
 
+from proxops.actuators import IdealActuator, ThrusterModel, propellant_mass_kg
+from proxops.actuators.thrusters import ThrusterChainActuator, six_thruster_layout
+from proxops.constraints.approach_cone import ApproachCone
+from proxops.constraints.keep_out import KeepOutSphere
+from proxops.constraints.plume import PlumeConstraint
+from proxops.control.cortex_supervisor import CortexSupervisor, SupervisorSettings
+from proxops.control.cortex_triggers import CortexTriggers
+from proxops.core.constants import J2_EARTH, R_EARTH
+from proxops.errors import ProxopsError
+from proxops.guidance.cortex.replanner import CortexReplanner
+from proxops.guidance.cortex.timeline import timeline_from_plan
+from proxops.navigation import GaussianNavigation, PerfectNavigation
+from proxops.sim.engine import Setup, simulate
+from proxops.systems.common import ekf_navigation, passive_safety_certificate, translational_plant
+from proxops.systems.cortex_setup import (eps_r, check_loop, check_navigation, config_from_scenario, eclipse_profile,
+                                          plan_scenario, scenario_axis)
+
 
 PAPER_TABLE4 = {  # Wijayatunga et al. Table 4: mean, std, Q1, Q2, Q3, P99
     "low": {"tof_s": (1179.82, 0.00, 1179.82, 1179.82, 1179.82, 1179.82),
@@ -38,29 +55,6 @@ PAPER_TABLE4 = {  # Wijayatunga et al. Table 4: mean, std, Q1, Q2, Q3, P99
 PAPER_CPG_SOLVE_MS = (38.43, 12.8)  # §5.1.2, mean and std of one CP_g solve
 
 
-def _eps_r(g) -> dict:
-    return {"hold1": g.recompute_hold1_m, "flyaround": g.recompute_flyaround_m, "hold2": g.recompute_hold2_m,
-            "approach": g.recompute_approach_m}
-
-
-def check_loop(sc) -> None:
-    """Input checks of the loop (one clear error each): eps_r > 0, delta_t_g divides Delta_t_g."""
-    from proxops.control.cortex_tracking import substeps
-    from proxops.errors import input_error
-
-    g = sc.guidance
-    substeps(g.dt_g_s, g.substep_s)
-    navigation_of(sc)
-    for phase, v in _eps_r(g).items():
-        if not (math.isfinite(v) and v > 0):
-            raise input_error(f"guidance.recompute_{phase}_m", v, "must be > 0 (recompute threshold eps_r of Table 1)", "m")
-    if sc.actuator.min_on_time_s > g.substep_s:
-        raise input_error("actuator.min_on_time_s", sc.actuator.min_on_time_s,
-                          f"must not exceed the PWM period guidance.substep_s = {g.substep_s:g} s", "s")
-    if not g.terminal_penalty > 0:
-        raise input_error("guidance.terminal_penalty", g.terminal_penalty, "must be > 0 (eps_P of eq. 27a)")
-
-
 def navigation_of(sc, layout=None, actuator=None):
     """The navigation slot of the closed loop. ``[navigation] model = "noise"`` (default): the
     injection errors of Algorithm 3 (``[errors] delta_r_m``, §5.1.2 range law, white on the truth;
@@ -68,21 +62,10 @@ def navigation_of(sc, layout=None, actuator=None):
     relative-navigation filter (:func:`proxops.systems.common.ekf_navigation`) at the impulse
     period delta_t_g on the plant's Hill blocks (``layout``); ``errors.delta_r_m`` must then be 0
     (the sensor sets the measurement errors)."""
-    from proxops.errors import input_error
-    from proxops.navigation import GaussianNavigation, PerfectNavigation
-
+    check_navigation(sc)
     e, nav = sc.errors, sc.navigation
     if nav.model == "ekf":
-        if e.delta_r_m != 0.0:
-            raise input_error("errors.delta_r_m", e.delta_r_m, "must be 0 with navigation.model = ekf (the injection "
-                              "errors of Algorithm 3 are the noise option; the filter's sensor sets the errors)", "m")
-        from proxops.systems.common import ekf_navigation
-
         return ekf_navigation(nav, sc.orbit, sc.guidance.substep_s, system="cortex", layout=layout, actuator=actuator)
-    for key in ("position_sigma_m", "velocity_sigma_mps"):
-        if getattr(nav, key) != 0.0:
-            raise input_error(f"navigation.{key}", getattr(nav, key), "is not used by cortex: give the injection "
-                              "errors as errors.delta_r_m (Algorithm 3), or navigation.model = ekf")
     if e.delta_r_m == 0.0:
         return PerfectNavigation()
     sigma_axis = e.delta_r_m / 3.0 / math.sqrt(3.0)
@@ -93,7 +76,6 @@ def navigation_of(sc, layout=None, actuator=None):
 def actuator_of(sc):
     """The engine's actuator slot: the Algorithm 3 execution errors ([errors], through
     :class:`ThrusterModel`), then -- with ``actuator.model = "thrusters"`` -- the thruster chain."""
-    from proxops.actuators import IdealActuator, ThrusterModel
 
     e = sc.errors
     errors = None
@@ -103,8 +85,6 @@ def actuator_of(sc):
                                missed_window_s=sc.guidance.dt_g_s)
     a = sc.actuator
     if a.model == "thrusters":
-        from proxops.actuators.thrusters import ThrusterChainActuator, six_thruster_layout
-
         return ThrusterChainActuator(six_thruster_layout(a.thruster_force_n), sc.servicer.mass_kg, a.isp_s,
                                      sc.guidance.substep_s, errors=errors, min_on_time_s=a.min_on_time_s)
     return errors if errors is not None else IdealActuator()
@@ -112,13 +92,6 @@ def actuator_of(sc):
 
 def build_setup(sc):
     """(Setup, supervisor, plan) of a closed-loop scenario; the initial plan is made here."""
-    from proxops.constraints.approach_cone import ApproachCone, PlumeConstraint
-    from proxops.control.cortex_supervisor import (CortexReplanner, CortexSupervisor, CortexTriggers,
-                                                   SupervisorSettings, timeline_from_plan)
-    from proxops.errors import ProxopsError
-    from proxops.sim.engine import Setup
-    from proxops.systems.common import translational_plant
-    from proxops.systems.cortex import config_from_scenario, eclipse_profile, plan_scenario, scenario_axis
 
     check_loop(sc)
     cfg = config_from_scenario(sc)
@@ -133,7 +106,7 @@ def build_setup(sc):
         r_kos_m=cfg.r_kos_m, rho_bar_m=cfg.rho_bar,
         cone=ApproachCone(axis, cfg.cone_half_angle_rad), cone_bar=ApproachCone(axis, cfg.alpha_c_bar),
         plume=PlumeConstraint(cfg.plume_half_angle_rad), plume_bar=PlumeConstraint(cfg.alpha_p_bar),
-        eps_r_m=_eps_r(g), buffer_tol_m=g.buffer_tol_m,
+        eps_r_m=eps_r(g), buffer_tol_m=g.buffer_tol_m,
         cone_buffer_tol_rad=math.radians(g.cone_buffer_tol_deg), plume_min_dv_mps=g.plume_min_dv_mps)
     settings = SupervisorSettings(dt_g_s=g.dt_g_s, substep_s=g.substep_s, terminal_penalty=g.terminal_penalty,
                                   max_recomputes=g.max_recomputes, null_tol_mps=g.null_tol_mps, abort_at_s=g.abort_at_s,
@@ -161,9 +134,7 @@ def build_setup(sc):
 def _j2_drift_term(sc) -> dict:
     """Settings of the J2 term of the insertion check's predicted drift (J2 or full truth; 0 on CW and
     two-body): gain 9 pi J2 (Re / a)^2 sin^2 i (m/orbit per m of along-track offset, see
-    CortexSupervisor.predicted_drift_m_per_orbit) and the target's argument of latitude at t = 0."""
-    from proxops.core.constants import J2_EARTH, R_EARTH
-
+    SafeOrbitInsertion.predicted_drift_m_per_orbit) and the target's argument of latitude at t = 0."""
     if sc.truth.model not in ("j2", "full"):
         return {"j2_drift_gain": 0.0, "u0_rad": 0.0}
     o = sc.orbit
@@ -174,10 +145,6 @@ def _j2_drift_term(sc) -> dict:
 def passive_safety(sc, plant, final_state) -> dict:
     """The passive-safety certificate (:func:`proxops.systems.common.passive_safety_certificate`) of an
     aborted run: thrust-free TRUTH from the final state over ``guidance.passive_orbits`` orbits, KOZ = r_KOS."""
-    from proxops.constraints.keep_out import KeepOutSphere
-    from proxops.systems.common import passive_safety_certificate
-    from proxops.systems.cortex import config_from_scenario
-
     cfg = config_from_scenario(sc)
     return passive_safety_certificate(plant, final_state, KeepOutSphere(cfg.r_kos_m, name="r_KOS"),
                                       2 * math.pi / cfg.mean_motion_rad_s, sc.guidance.passive_orbits)
@@ -207,8 +174,6 @@ def run_trace(result, step_s: float) -> dict:
 def violation_counts(result, cfg, axis, plume_min_dv_mps: float) -> dict:
     """Samples of the TRUE state that break a true constraint in the phase where it applies
     (KOS in holds/fly-around, cone and plume in the approach), from the recorded series."""
-    from proxops.constraints.approach_cone import ApproachCone, PlumeConstraint
-
     modes = np.array(result.mode)
     r = result.x_true[:, :3]
     rng = np.linalg.norm(r, axis=1)
@@ -225,9 +190,6 @@ def violation_counts(result, cfg, axis, plume_min_dv_mps: float) -> dict:
 
 
 def run_closed_loop(sc, seed: int = 0, progress: bool = False):
-    from proxops.sim.engine import simulate
-    from proxops.systems.cortex import config_from_scenario, scenario_axis
-
     setup, ctrl, plan = build_setup(sc)
     result = simulate(setup, seed=seed, progress=progress)
     cfg = config_from_scenario(sc)
@@ -266,8 +228,6 @@ def run_closed_loop(sc, seed: int = 0, progress: bool = False):
         "plan_tof_s": float(plan.tof_s), "plan_total_time_s": float(plan.total_time_s),
         "plan_dv_mps": float(plan.dv_total_mps),
     }
-    from proxops.actuators import propellant_mass_kg
-
     act = setup.actuator
     if hasattr(act, "propellant_kg"):  # thruster chain: propellant of the PWM on-times (eq. 32 mass depletion)
         summary.update(actuator_model="thrusters", propellant_kg=float(act.propellant_kg),
@@ -281,18 +241,18 @@ def run_closed_loop(sc, seed: int = 0, progress: bool = False):
         cert = passive_safety(sc, setup.plant, result.meta["final_plant_state"])
         # safe only when the truth certificate holds AND the onboard insertion check passed: a retreat that could
         # not be verified (trim cap reached) is never reported safe, whatever the truth did
-        verified = bool(ctrl.insertion_verified)
+        verified = bool(ctrl.insertion.verified)
         cert["truth_safe"] = cert["safe"]
         cert["safe"] = bool(cert["safe"] and verified)
-        cert["stop_reason"] = ctrl.stop_reason
+        cert["stop_reason"] = ctrl.insertion.stop_reason
         if not verified:
-            cert["verdict"] = f"not safe: retreat not verified onboard ({ctrl.stop_reason}); truth: {cert['verdict']}"
+            cert["verdict"] = f"not safe: retreat not verified onboard ({ctrl.insertion.stop_reason}); truth: {cert['verdict']}"
         summary.update(safe_orbit_error_m=dr, passive_orbits=sc.guidance.passive_orbits,
                        passive_min_range_m=cert["min_range_m"], passive_safe=cert["safe"],
-                       passive_safety=cert, insertion_trims=int(ctrl.insertion_extensions),
-                       drift_trims=int(ctrl.drift_trims), insertion_verified=verified,
-                       predicted_passive_min_range_m=ctrl.predicted_passive_min_m,
-                       predicted_drift_m_per_orbit=ctrl.predicted_drift_m)
+                       passive_safety=cert, insertion_trims=int(ctrl.insertion.extensions),
+                       drift_trims=int(ctrl.insertion.drift_trims), insertion_verified=verified,
+                       predicted_passive_min_range_m=ctrl.insertion.predicted_passive_min_m,
+                       predicted_drift_m_per_orbit=ctrl.insertion.predicted_drift_m)
     summary["trace"] = run_trace(result, sc.guidance.trace_step_s)
     result.meta["cortex_summary"] = {k: v for k, v in summary.items() if not isinstance(v, dict)}
     clean = {k: (None if isinstance(v, float) and not math.isfinite(v) else v) for k, v in summary.items()}

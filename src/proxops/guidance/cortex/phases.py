@@ -50,12 +50,22 @@ from dataclasses import dataclass, field
 import numpy as np
 import scipy.sparse as sp
 
-from proxops.constraints.approach_cone import ApproachCone, PlumeConstraint
+from proxops.constraints.approach_cone import ApproachCone
+from proxops.constraints.plume import PlumeConstraint
 from proxops.constraints.keep_out import KeepOutSphere
 from proxops.core.cw import cw_discretize_impulsive, cw_stm
-from proxops.solvers import ClarabelSOCP, ConicProblem, SolveStatus, TrustRegion, soc_rows, successive_convexification
+from proxops.solvers import ClarabelSOCP, ConicProblem, TrustRegion, soc_rows, successive_convexification
+from proxops.status import Status
 
 SLACK_WEIGHT = 1e3  # cost of the plume-row slacks (scaled units; the plan's cost is ~1-10)
+# Clarabel settings of CP1 / CP2 (as CP_g's, proxops.control.cortex_tracking): iterative refinement of the KKT
+# solves off, a solve that then ends inaccurate, failed or at the iteration limit solved again with it on.
+# Measured on 25 Fibonacci axes (issue 32, CPU time alternated in one process): the plan 0.12 -> 0.065 s;
+# same statuses, durations and SCP iteration counts, total delta-v within 6.5e-8 m/s, single CP2 impulses
+# within 6.7e-6 m/s (the fuel-optimal CP2 is degenerate: equal-cost impulse distributions; its SCP stops on
+# changes below scp_tol_mps = 1e-5 m/s), CP1 impulses within 7.7e-9 m/s.
+DEFAULT_SOLVER_SETTINGS = {"settings": {"iterative_refinement_enable": False},
+                           "retry_settings": {"iterative_refinement_enable": True}}
 DV_ZERO_MPS = 1e-6  # impulses below this are "no thrust" for the plume linearisation and checks
 
 
@@ -72,10 +82,11 @@ def node_times(tau_s: float, dt_s: float) -> np.ndarray:
 
 @dataclass
 class PhaseResult:
-    """Outcome of one convex phase. ``status``: "converged", "infeasible", "not_converged"
-    (iteration cap) or "solver_error"; ``x`` (N+1, 6) node states, ``dv`` (N, 3) impulses."""
+    """Outcome of one convex phase. ``status`` (:class:`proxops.status.Status`): OPTIMAL (converged),
+    INFEASIBLE, MAX_ITER (iteration cap: KOS planes or plume SCP still changing) or the solver's failure
+    status; ``x`` (N+1, 6) node states, ``dv`` (N, 3) impulses."""
 
-    status: str
+    status: Status
     reason: str = ""
     t: np.ndarray | None = None
     x: np.ndarray | None = None
@@ -86,7 +97,7 @@ class PhaseResult:
 
     @property
     def ok(self) -> bool:
-        return self.status == "converged"
+        return self.status is Status.OPTIMAL
 
     @property
     def dv_total_mps(self) -> float:
@@ -116,41 +127,40 @@ class _PhaseSOCP:
         self.smax = a_bar_mps2 * np.append(self.dt, self.dt.max()) / self.V
 
         rows, cols, vals, b = [], [], [], []
-        r = 0
 
         def put(row, col, val):
-            rows.append(np.atleast_1d(row))
-            cols.append(np.atleast_1d(col))
-            vals.append(np.atleast_1d(np.asarray(val, float)))
+            row, col = np.broadcast_arrays(np.asarray(row), np.asarray(col))
+            rows.append(row.ravel())
+            cols.append(col.ravel())
+            vals.append(np.broadcast_to(np.asarray(val, float), row.shape).ravel())
 
-        # --- equalities: x_0 = x_i, dynamics, x_N = x_f
-        put(np.arange(6), np.arange(6), np.ones(6))
+        i3, i6 = np.arange(3), np.arange(6)
+        k_n, k_m = np.arange(N), np.arange(M)
+        # --- equalities: x_0 = x_i, dynamics, x_N = x_f (all blocks at once; explicit zeros kept in the pattern)
+        put(i6, i6, 1.0)
         b.append(self.x0 / self.D)
-        r = 6
         phis = {}
-        for k in range(N):
-            key = round(float(self.dt[k]), 9)
-            if key not in phis:
-                Ad, Bd = cw_discretize_impulsive(n_rad_s, float(self.dt[k]))
-                phis[key] = (Ad / self.D[:, None] * self.D[None, :], Bd / self.D[:, None] * self.V)
-            Ad, Bd = phis[key]
-            rr = r + np.arange(6)
-            put(rr, 6 * (k + 1) + np.arange(6), np.ones(6))
-            ii, jj = np.meshgrid(rr, 6 * k + np.arange(6), indexing="ij")
-            put(ii.ravel(), jj.ravel(), -Ad.ravel())
-            ii, jj = np.meshgrid(rr, self.iv + 3 * k + np.arange(3), indexing="ij")
-            put(ii.ravel(), jj.ravel(), -Bd.ravel())
-            b.append(np.zeros(6))
-            r += 6
+        for key in np.unique(np.round(self.dt, 9)):
+            Ad, Bd = cw_discretize_impulsive(n_rad_s, float(self.dt[np.flatnonzero(np.round(self.dt, 9) == key)[0]]))
+            phis[float(key)] = (Ad / self.D[:, None] * self.D[None, :], Bd / self.D[:, None] * self.V)
+        keys = np.round(self.dt, 9)
+        Ads = np.array([phis[float(kk)][0] for kk in keys]).reshape(N, 6, 6)
+        Bds = np.array([phis[float(kk)][1] for kk in keys]).reshape(N, 6, 3)
+        rr = 6 + 6 * k_n[:, None] + i6[None, :]  # (N, 6) row of each dynamics equation
+        put(rr, 6 * (k_n[:, None] + 1) + i6[None, :], 1.0)
+        put(rr[:, :, None], (6 * k_n[:, None] + i6[None, :])[:, None, :], -Ads)
+        put(rr[:, :, None], (self.iv + 3 * k_n[:, None] + i3[None, :])[:, None, :], -Bds)
+        b.append(np.zeros(6 * N))
+        r = 6 + 6 * N
         # x_N + [0; dv_N] = x_f: the end state is the state after the terminal burn
-        put(r + np.arange(6), 6 * N + np.arange(6), np.ones(6))
-        put(r + 3 + np.arange(3), self.iv + 3 * N + np.arange(3), np.ones(3))
+        put(r + i6, 6 * N + i6, 1.0)
+        put(r + 3 + i3, self.iv + 3 * N + i3, 1.0)
         b.append(self.xf / self.D)
         r += 6
         cones = [("zero", r)]
         n_nonneg = 0
         # --- s_k <= a_bar dt_k (17e)
-        put(r + np.arange(M), self.isv + np.arange(M), np.ones(M))
+        put(r + k_m, self.isv + k_m, 1.0)
         b.append(self.smax.copy())
         r += M
         n_nonneg += M
@@ -158,8 +168,7 @@ class _PhaseSOCP:
         self.kos_row0 = r
         if kos:
             nk = N - 1
-            for j in range(nk):
-                put(np.full(3, r + j), 6 * (j + 1) + np.arange(3), np.zeros(3))
+            put(r + np.arange(nk)[:, None], 6 * (np.arange(nk)[:, None] + 1) + i3[None, :], 0.0)
             b.append(np.ones(nk))
             r += nk
             n_nonneg += nk
@@ -167,64 +176,69 @@ class _PhaseSOCP:
         # r_k(s) linear in (x_k, dv_k); inactive: 0 <= 1
         self.arc_row0 = r
         if arc:
-            for k in range(N):
-                put(np.full(9, r + k), np.concatenate([6 * k + np.arange(6), self.iv + 3 * k + np.arange(3)]),
-                    np.zeros(9))
+            put(r + k_n[:, None], np.concatenate([6 * k_n[:, None] + i6[None, :], self.iv + 3 * k_n[:, None] + i3[None, :]],
+                                                 axis=1), 0.0)
             b.append(np.ones(N))
             r += N
             n_nonneg += N
         # --- plume rows at nodes 0..N: a . r_k + g . dv_k <= b (eq. 22), inactive: 0 <= 1
         self.plume_row0 = r
         if plume:
-            for k in range(M):
-                put(np.full(6, r + k), np.concatenate([6 * k + np.arange(3), self.iv + 3 * k + np.arange(3)]),
-                    np.zeros(6))
-                put(r + k, self.isig + k, -1.0)
+            put(r + k_m[:, None], np.concatenate([6 * k_m[:, None] + i3[None, :], self.iv + 3 * k_m[:, None] + i3[None, :]],
+                                                 axis=1), 0.0)
+            put(r + k_m, self.isig + k_m, -1.0)
             b.append(np.ones(M))
             r += M
             # slacks sigma_k >= 0
-            put(r + np.arange(M), self.isig + np.arange(M), -np.ones(M))
+            put(r + k_m, self.isig + k_m, -1.0)
             b.append(np.zeros(M))
             r += M
             n_nonneg += M
             # trust region |dv - dv_m|_inf <= delta (as two rows per component)
             self.trust_row0 = r
-            put(r + np.arange(3 * M), self.iv + np.arange(3 * M), np.ones(3 * M))
-            put(r + 3 * M + np.arange(3 * M), self.iv + np.arange(3 * M), -np.ones(3 * M))
+            put(r + np.arange(3 * M), self.iv + np.arange(3 * M), 1.0)
+            put(r + 3 * M + np.arange(3 * M), self.iv + np.arange(3 * M), -1.0)
             b.append(np.full(6 * M, 10.0))
             r += 6 * M
             n_nonneg += 7 * M
         cones.append(("nonneg", n_nonneg))
-        # --- ||dv_k|| <= s_k (17d)
-        for k in range(M):
-            put(*soc_rows(r, self.isv + k, 1.0, 1 + np.arange(3), self.iv + 3 * k + np.arange(3), np.ones(3)))
-            b.append(np.zeros(4))
-            cones.append(("soc", 4))
-            r += 4
+        # --- ||dv_k|| <= s_k (17d): head row r + 4k on s_k, tail rows r + 4k + 1..3 on dv_k (A holds -coefficients)
+        head = r + 4 * k_m
+        put(head, self.isv + k_m, -1.0)
+        put(head[:, None] + 1 + i3[None, :], self.iv + 3 * k_m[:, None] + i3[None, :], -1.0)
+        b.append(np.zeros(4 * M))
+        cones += [("soc", 4)] * M
+        r += 4 * M
         # --- approach cone (20f) at free nodes 1..N-1: ||r|| <= e . r / cos(alpha)
-        if cone is not None:
+        if cone is not None and N > 1:
             angles = (np.full(N + 1, cone.half_angle_rad) if cone_half_angles_rad is None
                       else np.asarray(cone_half_angles_rad, float))
-            for k in range(1, N):
-                c = cone.axis / math.cos(float(angles[k]))
-                put(*soc_rows(r, 6 * k + np.arange(3), c, 1 + np.arange(3), 6 * k + np.arange(3), np.ones(3)))
-                b.append(np.zeros(4))
-                cones.append(("soc", 4))
-                r += 4
+            kk = np.arange(1, N)
+            c = cone.axis[None, :] / np.cos(angles[kk])[:, None]  # (N-1, 3)
+            head = r + 4 * (kk - 1)
+            pos = 6 * kk[:, None] + i3[None, :]
+            put(head[:, None], pos, -c)
+            put(head[:, None] + 1 + i3[None, :], pos, -1.0)
+            b.append(np.zeros(4 * (N - 1)))
+            cones += [("soc", 4)] * (N - 1)
+            r += 4 * (N - 1)
         self.m = r
-        self.rows = np.concatenate(rows)
-        self.cols = np.concatenate(cols)
-        self.vals = np.concatenate(vals)
+        rows, cols, vals = np.concatenate(rows), np.concatenate(cols), np.concatenate(vals)
+        # entries in the order of the canonical CSC matrix (by column, then row; no duplicates), so the
+        # edited values are handed to the solver as they are (ClarabelSOCP.update_fast)
+        order = np.lexsort((rows, cols))
+        self.rows, self.cols, self.vals = rows[order], cols[order], vals[order]
+        if np.any((np.diff(self.cols) == 0) & (np.diff(self.rows) == 0)):
+            raise RuntimeError("duplicate entries in the phase SOCP pattern")  # a construction bug, not bad input
+        self._indptr = np.concatenate([[0], np.cumsum(np.bincount(self.cols, minlength=self.nz))])
         self.b = np.concatenate(b)
-        # entry index of each (row, col) in self.vals, for in-place edits of plane/plume rows
-        self._entry = {}
         self.cones = cones
         q = np.zeros(self.nz)
         q[self.isv : self.isv + M] = 1.0
         if plume:
             q[self.isig :] = SLACK_WEIGHT
         self.q = q
-        self.solver = ClarabelSOCP(**(solver_settings or {}))
+        self.solver = ClarabelSOCP(**(DEFAULT_SOLVER_SETTINGS if solver_settings is None else solver_settings))
         t0 = time.perf_counter()
         self.solver.setup(ConicProblem(None, q, self._A(), self.b, cones))
         self.setup_time_s = time.perf_counter() - t0
@@ -233,15 +247,13 @@ class _PhaseSOCP:
         self._plume_entries = self._row_entries(self.plume_row0, M) if plume else None
 
     def _A(self) -> sp.csc_matrix:
-        return sp.csc_matrix((self.vals, (self.rows, self.cols)), shape=(self.m, self.nz))
+        return sp.csc_matrix((self.vals.copy(), self.rows.copy(), self._indptr), shape=(self.m, self.nz))
 
     def _row_entries(self, row0: int, count: int) -> np.ndarray:
         """Indices into self.vals of the entries of rows row0..row0+count-1, (count, k) in column order."""
-        out = []
-        for j in range(count):
-            idx = np.flatnonzero((self.rows == row0 + j) & (self.cols < self.isv))
-            out.append(idx[np.argsort(self.cols[idx])])
-        return np.array(out)
+        idx = np.flatnonzero((self.rows >= row0) & (self.rows < row0 + count) & (self.cols < self.isv))
+        idx = idx[np.lexsort((self.cols[idx], self.rows[idx]))]
+        return idx.reshape(count, -1)
 
     # ------------------------------------------------------------------ edits
     def set_plane(self, j: int, normal) -> None:
@@ -259,14 +271,12 @@ class _PhaseSOCP:
         self.vals[self._arc_entries[k]] = coef
         self.b[self.arc_row0 + k] = -rho_m / self.L
 
-    def set_plume(self, a, g, bb) -> None:
-        """Plume rows a_k . r_k + g_k . dv_k <= b_k for all nodes (physical units), each row normalised."""
-        a_s = np.asarray(a) * self.L
-        g_s = np.asarray(g) * self.V
-        scale = np.maximum(np.maximum(np.abs(a_s).max(axis=1), np.abs(g_s).max(axis=1)), 1e-300)
-        coef = np.concatenate([a_s, g_s], axis=1) / scale[:, None]
+    def set_plume(self, a_s, g_s, b_s) -> None:
+        """Plume rows a'_k . r'_k + g'_k . dv'_k <= b'_k for all nodes in this problem's units (r = L r',
+        dv = V dv'), as :meth:`PlumeConstraint.rows` gives them (eq. 22, each row normalised)."""
+        coef = np.concatenate([a_s, g_s], axis=1)
         self.vals[self._plume_entries.ravel()] = coef.ravel()
-        self.b[self.plume_row0 : self.plume_row0 + self.M] = np.asarray(bb) / scale
+        self.b[self.plume_row0 : self.plume_row0 + self.M] = b_s
 
     def set_trust(self, dv_ref, delta_mps: float) -> None:
         ref = np.asarray(dv_ref, float).ravel() / self.V
@@ -276,7 +286,7 @@ class _PhaseSOCP:
         self.b[self.trust_row0 + n3 : self.trust_row0 + 2 * n3] = -ref + d
 
     def push(self, A: bool = True) -> None:
-        self.solver.update(A=self._A() if A else None, b=self.b)
+        self.solver.update_fast(b=self.b, A_values=self.vals if A else None)
 
     def solve(self):
         res = self.solver.solve()
@@ -288,12 +298,13 @@ class _PhaseSOCP:
         return res, x, dv
 
 
-def _status_of(res) -> tuple[str, str]:
-    if res.status in (SolveStatus.INFEASIBLE,):
-        return "infeasible", f"SOCP infeasible ({res.info.get('raw_status', '')})"
-    if res.status == SolveStatus.UNBOUNDED:
-        return "solver_error", "SOCP reported unbounded"
-    return "solver_error", f"solver status {res.status.value} ({res.info.get('raw_status', res.info.get('error', ''))})"
+def _status_of(res) -> tuple[Status, str]:
+    if res.status is Status.INFEASIBLE:
+        return Status.INFEASIBLE, f"SOCP infeasible ({res.info.get('raw_status', '')})"
+    if res.status is Status.UNBOUNDED:
+        return Status.UNBOUNDED, "SOCP reported unbounded"
+    status = res.status if res.status.failed else Status.NUMERICAL_ERROR
+    return status, f"solver status {res.status.value} ({res.info.get('raw_status', res.info.get('error', ''))})"
 
 
 def solve_flyaround(n_rad_s: float, tau_s: float, dt_s: float, x0, xf, a_bar_mps2: float, rho_bar_m: float,
@@ -307,16 +318,16 @@ def solve_flyaround(n_rad_s: float, tau_s: float, dt_s: float, x0, xf, a_bar_mps
     t = node_times(tau_s, dt_s)
     prob = _PhaseSOCP(n_rad_s, t, x0, xf, a_bar_mps2, kos=True, arc=arc_planes, solver_settings=solver_settings)
     has_arc = np.zeros(prob.N, bool)
-    out = PhaseResult(status="not_converged", t=t, setup_time_s=prob.setup_time_s)
+    out = PhaseResult(status=Status.MAX_ITER, t=t, setup_time_s=prob.setup_time_s)
     sphere = KeepOutSphere(rho_bar_m)
     has_plane = np.zeros(prob.N - 1, bool)
     for it in range(1, kos_max_iter + 1):
         res, x, dv = prob.solve()
         out.iterations = it
         out.solve_times_s.append(res.solve_time_s)
-        if x is None or res.status not in (SolveStatus.OPTIMAL, SolveStatus.OPTIMAL_INACCURATE):
+        if x is None or not res.status.ok:
             out.status, out.reason = _status_of(res)
-            if it > 1 and out.status == "infeasible":
+            if it > 1 and out.status is Status.INFEASIBLE:
                 out.reason += f" after {int(has_plane.sum())} KOS planes"
             return out
         out.x, out.dv = x, dv
@@ -336,7 +347,7 @@ def solve_flyaround(n_rad_s: float, tau_s: float, dt_s: float, x0, xf, a_bar_mps
                 prob.push()
                 continue
         if bad.size == 0:
-            out.status, out.reason = "converged", ""
+            out.status, out.reason = Status.OPTIMAL, ""
             return out
         normals, _ = sphere.halfspace(np.where(np.linalg.norm(x[1 + bad, :3], axis=1)[:, None] > 1e-9,
                                                x[1 + bad, :3], np.asarray(x0, float)[:3]))
@@ -362,14 +373,16 @@ def solve_final_approach(n_rad_s: float, tau_s: float, dt_s: float, x0, xf, a_ba
     angles = None if cone_half_angle_at is None else np.array([cone_half_angle_at(float(tk)) for tk in t])
     prob = _PhaseSOCP(n_rad_s, t, x0, xf, a_bar_mps2, cone=cone, plume=True, solver_settings=solver_settings,
                       cone_half_angles_rad=angles)
-    out = PhaseResult(status="not_converged", t=t, setup_time_s=prob.setup_time_s)
+    out = PhaseResult(status=Status.MAX_ITER, t=t, setup_time_s=prob.setup_time_s)
     # the largest impulse: no restriction at first; halved when the plume violation grows
     trust = TrustRegion(a_bar_mps2 * float(prob.dt.max()))
 
     def relinearize(prev, delta):
-        a, g, bb = plume.linearization(prev["x"][:, :3], prev["dv"], DV_ZERO_MPS)
-        if not linearize_position:
-            a, bb = np.zeros_like(a), np.zeros_like(bb)
+        if linearize_position:
+            a, g, bb = plume.rows(prev["x"][:, :3], prev["dv"], DV_ZERO_MPS, prob.L, prob.V)
+        else:  # the dv part of grad h only (r frozen at the previous iterate)
+            _, g, _ = plume.rows(prev["x"][:, :3], prev["dv"], DV_ZERO_MPS, None, prob.V)
+            a, bb = np.zeros_like(g), np.zeros(len(g))
         prob.set_plume(a, g, bb)
         prob.set_trust(prev["dv"], delta)
         prob.push()
@@ -378,7 +391,7 @@ def solve_final_approach(n_rad_s: float, tau_s: float, dt_s: float, x0, xf, a_ba
         res, x, dv = prob.solve()
         out.iterations += 1
         out.solve_times_s.append(res.solve_time_s)
-        if x is None or res.status not in (SolveStatus.OPTIMAL, SolveStatus.OPTIMAL_INACCURATE):
+        if x is None or not res.status.ok:
             out.status, out.reason = _status_of(res)
             if out.iterations > 1:
                 out.reason += f" at successive-convexification iteration {out.iterations}"
@@ -398,7 +411,7 @@ def solve_final_approach(n_rad_s: float, tau_s: float, dt_s: float, x0, xf, a_ba
     scp = successive_convexification(solve, converged, relinearize, max_iter=scp_max_iter, trust=trust,
                                      merit=lambda it: it["viol"], merit_tol=plume_tol_rad)
     if scp.converged:
-        out.status, out.reason = "converged", ""
+        out.status, out.reason = Status.OPTIMAL, ""
     elif scp.status == "max_iter":
         out.reason = f"plume successive convexification not converged in {scp_max_iter} iterations"
     return out

@@ -48,7 +48,7 @@ def eclipse_hold_row(holds=()) -> Claim:
     from proxops.systems.cortex import plan_scenario
 
     sc = load_scenario("cortex-reference").scenario
-    from proxops.systems.cortex import eclipse_profile
+    from proxops.systems.cortex_setup import eclipse_profile
 
     tt, eta = eclipse_profile(sc)
     eta = np.asarray(eta).astype(int)
