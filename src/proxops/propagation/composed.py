@@ -68,7 +68,7 @@ import numpy as np
 
 from proxops.core.constants import J2_EARTH, MU_EARTH, R_EARTH
 from proxops.environment.earth import earth_rotation, geodetic_many, geodetic_to_ecef
-from proxops.environment.ephemeris import AU, GM_MOON, GM_SUN, R_SUN
+from proxops.environment.ephemeris import AU, GM_MOON, GM_SUN, N_FIT, R_SUN, third_body_fit
 from proxops.environment.epochs import Epoch, check_time_range, parse_epoch
 from proxops.environment.forces import Atmosphere, Spacecraft, SpaceWeather
 from proxops.environment.harmonics import SphericalHarmonics, check_degree_order
@@ -237,6 +237,8 @@ class ComposedTruth(PlantBase):
         p[kf.I_D0] = self.epoch.days_tt_since_j2000()
         p[kf.I_THETA0], p[kf.I_OMEGA] = self.rotation.theta0, self.rotation.omega
         p[kf.I_PM : kf.I_PM + 9] = (self.rotation.polar - np.eye(3)).ravel()
+        if m.sun or m.moon or m.srp:
+            p[kf.I_EPH : kf.I_EPH + N_FIT] = third_body_fit(self.epoch)
         from proxops.core.constants import OMEGA_EARTH
 
         p[kf.I_WX : kf.I_WZ + 1] = OMEGA_EARTH * self.rotation.pole_eci
@@ -431,14 +433,14 @@ class ComposedTruth(PlantBase):
         """Event functions g(t, y) of the shadow boundaries (target and chaser; penumbra and
         umbra, one for the cylindrical model) for scipy's solve_ivp."""
         from proxops.environment.eclipse import shadow_boundaries
-        from proxops.environment.ephemeris import sun_eci_kernel
+        from proxops.environment.ephemeris import fitted_position
 
         p = self.p
         conical = self.models.shadow == "conical"
 
         def make(body: int, which: int):
             def g(t, y):
-                sx, sy, sz = sun_eci_kernel(p[kf.I_D0] + t / 86400.0)
+                sx, sy, sz = fitted_position(0, p[kf.I_D0] + t / 86400.0, t / 86400.0, p, kf.I_EPH)
                 r = y[:3] + y[6:9] if body else y[:3]
                 return shadow_boundaries(r[0], r[1], r[2], sx, sy, sz, p[kf.I_R_EARTH], p[kf.I_R_SUN], conical)[which]
 

@@ -55,7 +55,7 @@ from numba import njit
 from proxops.core.twobody import accel_differential, accel_j2, accel_twobody
 from proxops.environment.earth import geodetic_height
 from proxops.environment.eclipse import shadow_boundaries, shadow_factor
-from proxops.environment.ephemeris import moon_eci_kernel, sun_eci_kernel
+from proxops.environment.ephemeris import fitted_position
 from proxops.environment.forces import accel_drag, accel_srp, accel_third_body
 from proxops.environment.harmonics import accel_harmonics, accel_harmonics_pair, pair_arrays_fit
 from proxops.propagation.kernels import (
@@ -109,7 +109,8 @@ I_DENS_T0 = 27  # density table start time (s) and spacing (s)
 I_DENS_DT = 28
 I_SAFETY = 29  # step-size safety factor of the DOP853 loop (see SAFETY_HARMONICS)
 I_PM = 30  # polar motion W - I (9 values, row-major; all 0: none): r_itrf = W r_pef
-N_P = 39
+I_EPH = 39  # Sun and Moon correction to erfa (ephemeris.third_body_fit, N_FIT = 24 values; 0: series alone)
+N_P = 63
 
 # Step-size safety factor with spherical harmonics: 0.8 instead of the J2 loop's 0.9 (kept
 # for point mass and J2, whose results stay bit-identical to RelativeTruth). The 100x100
@@ -288,9 +289,9 @@ def third_bodies(t: float, p: np.ndarray):
     sun = (0.0, 0.0, 0.0)
     moon = (0.0, 0.0, 0.0)
     if p[I_SUN] != 0.0 or p[I_SRP] != 0.0:
-        sun = sun_eci_kernel(d)
+        sun = fitted_position(0, d, t / 86400.0, p, I_EPH)
     if p[I_MOON] != 0.0:
-        moon = moon_eci_kernel(d)
+        moon = fitted_position(1, d, t / 86400.0, p, I_EPH)
     return sun, moon
 
 
@@ -474,7 +475,7 @@ def _shadow_side(t, h, s, y0, f0, y1, f1, p) -> int:
     """Bit mask of the shadow event functions that are > 0 (bits: target penumbra, target
     umbra, chaser penumbra, chaser umbra) at t + s h on the step's Hermite interpolant
     (s = 0 and 1: the step's end states themselves)."""
-    sx, sy, sz = sun_eci_kernel(p[I_D0] + (t + s * h) / 86400.0)
+    sx, sy, sz = fitted_position(0, p[I_D0] + (t + s * h) / 86400.0, (t + s * h) / 86400.0, p, I_EPH)
     conical = p[I_SRP] == 1.0
     mask = 0
     for body in range(2):
