@@ -50,10 +50,9 @@ def force_models(orbit: OrbitSection, truth: TruthSection):
     order = truth.gravity_degree if truth.gravity_order is None else truth.gravity_order
     weather = SpaceWeather(truth.f107, truth.f107a, truth.ap)
     if truth.space_weather == "cssi" and truth.drag:
-        from proxops.environment.spaceweather import space_weather_at
+        from proxops.environment.spaceweather import weather_history
 
-        day = space_weather_at(orbit.epoch_utc)
-        weather = SpaceWeather(day.f107, day.f107a, day.ap)
+        weather = weather_history(orbit.epoch_utc)
     return ForceModels(
         epoch=orbit.epoch_utc,
         gravity="harmonics",
