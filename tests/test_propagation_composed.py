@@ -18,7 +18,6 @@ from proxops.cli import app
 from proxops.core.constants import R_EARTH
 from proxops.core.twobody import accel_twobody
 from proxops.environment.ephemeris import R_SUN, fitted_position
-from proxops.environment.epochs import parse_epoch
 from proxops.errors import ProxopsInputError
 from proxops.frames.elements import circular_orbit, orbital_period
 from proxops.frames.hill import eci_offset_to_hill
@@ -31,7 +30,6 @@ from proxops.systems.common import translational_plant
 ORBIT = circular_orbit(altitude=500e3, inc=math.radians(51.6), raan=0.3, arg_lat=0.2)
 PERIOD = orbital_period(ORBIT.sma)
 EPOCH = "2022-05-01T00:00:00Z"
-EPOCH_TT_DAYS = parse_epoch(EPOCH).days_tt_since_j2000()
 
 
 @pytest.mark.parametrize("gravity, j2", [("point", False), ("j2", True)])

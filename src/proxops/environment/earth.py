@@ -40,18 +40,8 @@ WGS84_A = 6378137.0  # m
 WGS84_F = 1.0 / 298.257223563
 
 
-def _r1(a: float) -> np.ndarray:
-    """Frame rotation about x (Vallado ROT1)."""
-    c, s = math.cos(a), math.sin(a)
-    return np.array([[1.0, 0.0, 0.0], [0.0, c, s], [0.0, -s, c]])
-
-
-def _r2(a: float) -> np.ndarray:
-    c, s = math.cos(a), math.sin(a)
-    return np.array([[c, 0.0, -s], [0.0, 1.0, 0.0], [s, 0.0, c]])
-
-
 def _r3(a: float) -> np.ndarray:
+    """Frame rotation about z (Vallado ROT3)."""
     c, s = math.cos(a), math.sin(a)
     return np.array([[c, s, 0.0], [-s, c, 0.0], [0.0, 0.0, 1.0]])
 
