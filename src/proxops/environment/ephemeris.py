@@ -29,6 +29,7 @@ Time argument: TT (TDB - TT < 1.7 ms neglected); T = TT Julian centuries from J2
 from __future__ import annotations
 
 import math
+from functools import lru_cache
 
 import erfa
 import numpy as np
@@ -145,26 +146,47 @@ def _many(which: int, d0: float, t: np.ndarray) -> np.ndarray:
     return out
 
 
-def _erfa_positions(epoch: Epoch, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """(Sun, Moon) geocentric positions (n, 3) m from erfa at ``t`` s after ``epoch`` (TT)."""
-    day = epoch.jd_utc_day + np.floor(epoch.jd_utc_frac + (epoch.tt_minus_utc_s + t) / 86400.0)
-    frac = epoch.jd_utc_day - day + epoch.jd_utc_frac + (epoch.tt_minus_utc_s + t) / 86400.0
-    pvh, _ = erfa.epv00(day, frac)
-    return -pvh["p"] * AU, erfa.moon98(day, frac)["p"] * AU
+def _erfa_positions(epoch: Epoch, t: np.ndarray, which: tuple[int, ...] = (0, 1)) -> list[np.ndarray]:
+    """Geocentric positions (n, 3) m from erfa at ``t`` s after ``epoch`` (TT) of the Sun (0,
+    ``erfa.epv00``) and/or the Moon (1, ``erfa.moon98``), in the order of ``which``."""
+    tt = epoch.jd_utc_frac + (epoch.tt_minus_utc_s + t) / 86400.0
+    day = epoch.jd_utc_day + np.floor(tt)
+    frac = tt - np.floor(tt)
+    return [-erfa.epv00(day, frac)[0]["p"] * AU if w == 0 else erfa.moon98(day, frac)["p"] * AU for w in which]
 
 
 def sun_position_eci(epoch: Epoch | str, t_s) -> np.ndarray:
-    """Geocentric Sun position (n, 3) m in ECI (GCRF axes) at ``t_s`` s after ``epoch``
-    (``erfa.epv00``; <= 0.015 arcsec from DE421, see module doc)."""
-    epoch, t = _times(epoch, t_s)
-    return np.ascontiguousarray(_erfa_positions(epoch, t)[0])
+    """Geocentric Sun position (n, 3) m in ECI (GCRF axes) at ``t_s`` s after ``epoch``:
+    erfa (``epv00``; <= 0.015 arcsec from DE421), through the kernels' fitted series when all
+    times are in [0, FIT_DAYS] (the same numbers the propagation sees; <= 0.01" from erfa)."""
+    return _position(0, epoch, t_s)
 
 
 def moon_position_eci(epoch: Epoch | str, t_s) -> np.ndarray:
-    """Geocentric Moon position (n, 3) m in ECI (GCRF axes) at ``t_s`` s after ``epoch``
-    (``erfa.moon98``; <= 10 arcsec from DE421, see module doc)."""
+    """Geocentric Moon position (n, 3) m in ECI (GCRF axes) at ``t_s`` s after ``epoch``:
+    erfa (``moon98``; <= 10 arcsec from DE421), through the kernels' fitted series when all
+    times are in [0, FIT_DAYS] (<= 0.2" from erfa)."""
+    return _position(1, epoch, t_s)
+
+
+def _position(which: int, epoch: Epoch | str, t_s) -> np.ndarray:
     epoch, t = _times(epoch, t_s)
-    return np.ascontiguousarray(_erfa_positions(epoch, t)[1])
+    if t.size and 0.0 <= float(np.min(t)) and float(np.max(t)) <= FIT_DAYS * 86400.0:
+        return _fitted_many(which, epoch.days_tt_since_j2000(0.0), np.ascontiguousarray(t), _cached_fit(epoch.iso))
+    return np.ascontiguousarray(_erfa_positions(epoch, t, (which,))[0])
+
+
+@lru_cache(maxsize=16)
+def _cached_fit(iso: str) -> np.ndarray:
+    return third_body_fit(iso)
+
+
+@njit(cache=True)
+def _fitted_many(which: int, d0: float, t: np.ndarray, c: np.ndarray) -> np.ndarray:
+    out = np.empty((t.size, 3))
+    for k in range(t.size):
+        out[k, 0], out[k, 1], out[k, 2] = fitted_position(which, d0 + t[k] / 86400.0, t[k] / 86400.0, c, 0)
+    return out
 
 
 def third_body_fit(epoch: Epoch | str) -> np.ndarray:
