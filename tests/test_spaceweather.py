@@ -128,6 +128,9 @@ def test_iers_earth_orientation_reaches_the_truth():
     _, _, u1, _ = finals(54730)
     frac = 0.51782528  # the TLE epoch's fraction of 2008-09-20
     assert force_models(sc.orbit, sc.truth).ut1_utc_s == pytest.approx(u0 + frac * (u1 - u0), abs=1e-9)
+    (x0, y0, _, _), (x1, y1, _, _) = finals(54729), finals(54730)
+    assert force_models(sc.orbit, sc.truth).polar_motion_arcsec == pytest.approx(
+        (x0 + frac * (x1 - x0), y0 + frac * (y1 - y0)), abs=1e-9)
     assert force_models(sc.orbit, load_scenario("station-keeping-iss").scenario.truth).ut1_utc_s == 0.0
 
 
