@@ -30,7 +30,7 @@ from scipy.integrate import solve_ivp
 
 from proxops.core.twobody import accel_j2, accel_twobody
 from proxops.environment.eclipse import shadow_factor
-from proxops.environment.ephemeris import moon_eci_kernel, sun_eci_kernel
+from proxops.environment.ephemeris import fitted_position
 from proxops.environment.forces import Spacecraft, accel_drag, accel_srp, accel_third_body
 from proxops.frames.elements import circular_orbit, orbital_period
 from proxops.frames.hill import eci_offset_to_hill
@@ -76,13 +76,13 @@ def _loop(which, n, p, npm, C, S, K, V, W, dens):
             rho = kf.density_at(t, x, y, z, 0.0, p, npm, dens)
             a = accel_drag(x, y, z, 0.0, 7612.0, 0.0, rho, 0.0088, p[kf.I_WX], p[kf.I_WY], p[kf.I_WZ])
         elif which == 4:
-            s = sun_eci_kernel(p[kf.I_D0] + t / 86400.0)
+            s = fitted_position(0, p[kf.I_D0] + t / 86400.0, t / 86400.0, p, kf.I_EPH)
             a = accel_third_body(x, y, z, s[0], s[1], s[2], p[kf.I_GM_SUN])
         elif which == 5:
-            m = moon_eci_kernel(p[kf.I_D0] + t / 86400.0)
+            m = fitted_position(1, p[kf.I_D0] + t / 86400.0, t / 86400.0, p, kf.I_EPH)
             a = accel_third_body(x, y, z, m[0], m[1], m[2], p[kf.I_GM_MOON])
         else:
-            s = sun_eci_kernel(p[kf.I_D0] + t / 86400.0)
+            s = fitted_position(0, p[kf.I_D0] + t / 86400.0, t / 86400.0, p, kf.I_EPH)
             nu = shadow_factor(x, y, z, s[0], s[1], s[2], p[kf.I_R_EARTH], p[kf.I_R_SUN], True)
             a = accel_srp(x, y, z, s[0], s[1], s[2], 0.0052, nu, p[kf.I_AU])
         acc += a[0]
@@ -126,8 +126,8 @@ def absolute_reference(truth: ComposedTruth) -> np.ndarray:
     p, arrays = truth.p, truth._arrays()
 
     def one(t, s, chaser):
-        sun = sun_eci_kernel(p[kf.I_D0] + t / 86400.0)
-        moon = moon_eci_kernel(p[kf.I_D0] + t / 86400.0)
+        sun = fitted_position(0, p[kf.I_D0] + t / 86400.0, t / 86400.0, p, kf.I_EPH)
+        moon = fitted_position(1, p[kf.I_D0] + t / 86400.0, t / 86400.0, p, kf.I_EPH)
         a0 = accel_twobody(s[0], s[1], s[2], p[kf.I_MU])
         ap = kf.accel_perturbations(t, s[0], s[1], s[2], s[3], s[4], s[5], chaser, 0.0, sun, moon, p, *arrays)
         return np.array(a0) + np.array(ap)

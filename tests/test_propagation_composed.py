@@ -17,8 +17,7 @@ from typer.testing import CliRunner
 from proxops.cli import app
 from proxops.core.constants import R_EARTH
 from proxops.core.twobody import accel_twobody
-from proxops.environment.ephemeris import R_SUN, moon_eci_kernel, sun_eci_kernel
-from proxops.environment.epochs import parse_epoch
+from proxops.environment.ephemeris import R_SUN, fitted_position
 from proxops.errors import ProxopsInputError
 from proxops.frames.elements import circular_orbit, orbital_period
 from proxops.frames.hill import eci_offset_to_hill
@@ -31,7 +30,6 @@ from proxops.systems.common import translational_plant
 ORBIT = circular_orbit(altitude=500e3, inc=math.radians(51.6), raan=0.3, arg_lat=0.2)
 PERIOD = orbital_period(ORBIT.sma)
 EPOCH = "2022-05-01T00:00:00Z"
-EPOCH_TT_DAYS = parse_epoch(EPOCH).days_tt_since_j2000()
 
 
 @pytest.mark.parametrize("gravity, j2", [("point", False), ("j2", True)])
@@ -53,7 +51,12 @@ def test_scenario_j2_truth_is_still_the_relative_truth():
     assert type(plant) is RelativeTruth and plant.j2
 
 
-def _shadow_crossings(position, duration, step=2.0):
+def _body(which, t, p):
+    """The kernels' Sun (0) or Moon (1) of the run whose parameters are ``p`` (series + fit)."""
+    return np.array(fitted_position(which, p[kf.I_D0] + t / 86400.0, t / 86400.0, p, kf.I_EPH))
+
+
+def _shadow_crossings(position, duration, p, step=2.0):
     """Times (s) in (0, duration) where the spacecraft at ``position(t)`` (m, ECI) crosses a
     conical shadow boundary, from the test's own geometry (Montenbruck & Gill sec. 3.4.2:
     the Sun's and the Earth's apparent radii a, b and their separation c; penumbra at
@@ -61,7 +64,7 @@ def _shadow_crossings(position, duration, step=2.0):
 
     def g(t):
         r = position(t)
-        s = np.array(sun_eci_kernel(EPOCH_TT_DAYS + t / 86400.0)) - r
+        s = _body(0, t, p) - r
         a = math.asin(R_SUN / np.linalg.norm(s))
         b = math.asin(R_EARTH / np.linalg.norm(r))
         c = math.atan2(np.linalg.norm(np.cross(-r, s)), float(-r @ s))
@@ -88,8 +91,8 @@ def _absolute_reference(models: ForceModels, x0_hill, duration, rtol=1e-13):
     p, arrays = truth.p, truth._arrays()
 
     def one(t, s, chaser):
-        sun = sun_eci_kernel(p[kf.I_D0] + t / 86400.0)
-        moon = moon_eci_kernel(p[kf.I_D0] + t / 86400.0)
+        sun = tuple(_body(0, t, p))
+        moon = tuple(_body(1, t, p))
         a0 = accel_twobody(s[0], s[1], s[2], p[kf.I_MU])
         ap = kf.accel_perturbations(t, s[0], s[1], s[2], s[3], s[4], s[5], chaser, 0.0, sun, moon, p, *arrays)
         return np.array(a0) + np.array(ap)
@@ -101,8 +104,8 @@ def _absolute_reference(models: ForceModels, x0_hill, duration, rtol=1e-13):
     if models.srp:
         assert models.shadow == "conical"
         first = solve_ivp(fun, (0.0, duration), absolute, method="DOP853", rtol=1e-11, atol=1e-8, dense_output=True)
-        edges = [0.0] + _shadow_crossings(lambda t: first.sol(t)[:3], duration) + \
-            _shadow_crossings(lambda t: first.sol(t)[6:9], duration) + [duration]  # fmt: skip
+        edges = [0.0] + _shadow_crossings(lambda t: first.sol(t)[:3], duration, p) + \
+            _shadow_crossings(lambda t: first.sol(t)[6:9], duration, p) + [duration]  # fmt: skip
         edges.sort()
     end = absolute
     for t_a, t_b in zip(edges[:-1], edges[1:]):
@@ -305,8 +308,8 @@ def test_located_shadow_crossings_match_the_geometry():
         return np.concatenate(acc)
 
     sol = solve_ivp(fun, (0.0, PERIOD), absolute, method="DOP853", rtol=1e-12, atol=1e-9, dense_output=True)
-    expected = sorted(_shadow_crossings(lambda t: sol.sol(t)[:3], PERIOD)
-                      + _shadow_crossings(lambda t: sol.sol(t)[6:9], PERIOD))  # fmt: skip
+    expected = sorted(_shadow_crossings(lambda t: sol.sol(t)[:3], PERIOD, p)
+                      + _shadow_crossings(lambda t: sol.sol(t)[6:9], PERIOD, p))  # fmt: skip
     assert len(expected) == 8
     assert np.max(np.abs(np.sort(found[:8]) - expected)) < 1e-6
 

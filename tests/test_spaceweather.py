@@ -128,4 +128,29 @@ def test_iers_earth_orientation_reaches_the_truth():
     _, _, u1, _ = finals(54730)
     frac = 0.51782528  # the TLE epoch's fraction of 2008-09-20
     assert force_models(sc.orbit, sc.truth).ut1_utc_s == pytest.approx(u0 + frac * (u1 - u0), abs=1e-9)
+    (x0, y0, _, _), (x1, y1, _, _) = finals(54729), finals(54730)
+    assert force_models(sc.orbit, sc.truth).polar_motion_arcsec == pytest.approx(
+        (x0 + frac * (x1 - x0), y0 + frac * (y1 - y0)), abs=1e-9)
     assert force_models(sc.orbit, load_scenario("station-keeping-iss").scenario.truth).ut1_utc_s == 0.0
+
+
+def test_weather_varies_over_the_run_as_the_published_rows():
+    """truth.space_weather = 'cssi' drives NRLMSISE-00 per UT day and 3-hour slot (not the
+    epoch's constants): on 2022-04-30 22:00 the row of 04-30, on 05-01 13:00 the F10.7 of 04-30
+    and the 81-day mean and Ap of 05-01; ap[1..5] the 3-hour ap of 05-01 12-15 h, 9-12 h, 6-9 h,
+    3-6 h and the mean of the eight slots 12-33 h earlier (CSSI columns Ap*8, read by hand)."""
+    import numpy as np
+
+    from proxops.environment.spaceweather import weather_history
+
+    ap8 = {d: [float(x) for x in CSSI[d].split()[14:22]] for d in ("2022-04-30", "2022-05-01")}
+    h = weather_history("2022-04-30T06:00:00Z")
+    f107, f107a, ap = h.drivers(np.array(["2022-04-30T22:00", "2022-05-01T13:00"], dtype="datetime64[ns]"))
+    assert (f107a[0], ap[0, 0]) == (cssi("2022-04-30")["f107a_obs"], cssi("2022-04-30")["ap"])
+    assert (f107[1], f107a[1], ap[1, 0]) == (cssi("2022-04-30")["f107_obs"], cssi("2022-05-01")["f107a_obs"],
+                                             cssi("2022-05-01")["ap"])  # fmt: skip
+    day = ap8["2022-05-01"]
+    assert ap[1, 1:5].tolist() == [day[4], day[3], day[2], day[1]]
+    assert ap[1, 5] == pytest.approx(np.mean([day[0]] + ap8["2022-04-30"][1:8]))
+    assert ap[0, 1] == ap8["2022-04-30"][7]
+    assert (h.f107, h.f107a, h.ap) == (h.epoch_day.f107, cssi("2022-04-30")["f107a_obs"], cssi("2022-04-30")["ap"])

@@ -1,75 +1,49 @@
-"""Earth orientation (ECI = GCRF/J2000 axes -> Earth-fixed) and WGS-84 geodetic coordinates.
+"""Earth orientation (ECI = GCRF axes -> Earth-fixed ITRF) and WGS-84 geodetic coordinates.
 
-Rotation model (Vallado, *Fundamentals of Astrodynamics and Applications*, 4th ed.,
-sec. 3.7, the IAU-76/FK5 reduction, truncated):
+Rotation model (IERS Conventions 2010, ch. 5, the equinox-based form, through ``pyerfa``,
+the IAU SOFA library; nothing hand-written):
 
-    r_ecef = R3(theta(t)) N P r_eci,     theta(t) = GAST(epoch) + w_sid t
+    r_itrf = W R3(theta(t)) NPB r_gcrf,     theta(t) = GAST(epoch) + w_era t
 
-* P: IAU 1976 precession (Lieske's zeta, theta, z; Vallado eq. 3-88).
-* N: IAU 1980 nutation, the four largest terms (Meeus, *Astronomical Algorithms*, ch. 22:
-  |error| < 0.5" in longitude, < 0.1" in obliquity), with the mean obliquity of date.
-* GAST = GMST (IAU 1982, Vallado eq. 3-47, UT1 ~ UTC) + dpsi cos(eps).
-* P and N are frozen at the epoch for a run (they drift by < 0.2" per day); the Earth
-  turns at the mean sidereal rate w_sid = 1.00273781191135448 * 2 pi / 86400 rad/s about
-  the frozen pole, so theta(t) equals GMST(t) + equation of equinoxes exactly.
-* Neglected: polar motion (< 0.5" = 2.4e-6 rad); UT1 - UTC (< 0.9 s = 6.6e-5 rad about the
-  pole; it only moves tesseral terms and the atmosphere, common to both spacecraft) unless
-  given (``ut1_utc_s``; ``truth.earth_orientation = "iers"`` takes it from the shipped IERS table).
+* NPB: frame bias, IAU 2006 precession and IAU 2000A nutation (``erfa.pnm06a``; 1365 terms;
+  the celestial pole offsets dX, dY, < 0.5 mas, are not applied).
+* GAST: Greenwich apparent sidereal time, IAU 2006 (``erfa.gst06``) from UT1 = UTC + (UT1 - UTC).
+* W: polar motion (x_p, y_p) with the TIO locator s' (``erfa.pom00``, ``erfa.sp00``).
+* UT1 - UTC and x_p, y_p: 0 (UT1 = UTC, CIP = ITRF pole) unless given; ``truth.earth_orientation
+  = "iers"`` takes them from the shipped IERS table (:func:`proxops.environment.spaceweather.eop_at`).
+* NPB and W are frozen at the epoch for a run and the Earth turns at the rate of the Earth
+  rotation angle, w_era = 1.00273781191135448 * 2 pi / 86400 rad/s, about the frozen pole:
+  with NPB = R3(-EO) C (C: GCRS -> CIRS, no rotation about the pole), R3(GAST + w_era t) NPB =
+  R3(ERA(t)) C, so what is left out is the motion of the pole in the sky (precession and
+  nutation, < 0.15 arcsec per day; tests/test_earth_orientation.py measures it over 3 h and 1 day)
+  and of the polar motion (< 2 mas per day).
 
-Size of what is left out for the gravity field at LEO: a tilt of the pole by 2.4e-6 rad
-changes the J2 acceleration by ~4e-8 m/s^2 absolute and ~1e-11 m/s^2 between two
-spacecraft 2 km apart (< 0.1 mm after one orbit).
+Size of what is left out for the gravity field at LEO: a tilt of the pole by 0.15" (7e-7 rad)
+changes the J2 acceleration by ~1e-8 m/s^2 absolute and ~3e-12 m/s^2 between two
+spacecraft 2 km apart (< 0.1 mm after one day).
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
+import erfa
 import numpy as np
 from numba import njit
 
-from proxops.environment.epochs import Epoch, parse_epoch
+from proxops.environment.epochs import SECONDS_PER_DAY, Epoch, parse_epoch
 
 ARCSEC = math.pi / (180.0 * 3600.0)
-OMEGA_SIDEREAL = 1.00273781191135448 * 2.0 * math.pi / 86400.0  # rad/s, GMST rate per UT1 second
+OMEGA_SIDEREAL = 1.00273781191135448 * 2.0 * math.pi / 86400.0  # rad/s, Earth rotation angle rate per UT1 second
 WGS84_A = 6378137.0  # m
 WGS84_F = 1.0 / 298.257223563
 
 
-def _r1(a: float) -> np.ndarray:
-    """Frame rotation about x (Vallado ROT1)."""
-    c, s = math.cos(a), math.sin(a)
-    return np.array([[1.0, 0.0, 0.0], [0.0, c, s], [0.0, -s, c]])
-
-
-def _r2(a: float) -> np.ndarray:
-    c, s = math.cos(a), math.sin(a)
-    return np.array([[c, 0.0, -s], [0.0, 1.0, 0.0], [s, 0.0, c]])
-
-
 def _r3(a: float) -> np.ndarray:
+    """Frame rotation about z (Vallado ROT3)."""
     c, s = math.cos(a), math.sin(a)
     return np.array([[c, s, 0.0], [-s, c, 0.0], [0.0, 0.0, 1.0]])
-
-
-def precession_matrix(T: float) -> np.ndarray:
-    """IAU 1976 precession, J2000 mean equator/equinox -> mean of date; T = TT centuries."""
-    zeta = (2306.2181 * T + 0.30188 * T**2 + 0.017998 * T**3) * ARCSEC
-    theta = (2004.3109 * T - 0.42665 * T**2 - 0.041833 * T**3) * ARCSEC
-    z = (2306.2181 * T + 1.09468 * T**2 + 0.018203 * T**3) * ARCSEC
-    return _r3(-z) @ _r2(theta) @ _r3(-zeta)
-
-
-def nutation(T: float) -> tuple[float, float, float]:
-    """(dpsi, deps, mean obliquity) in rad: IAU 1980, four largest terms (Meeus ch. 22)."""
-    eps0 = (84381.448 - 46.8150 * T - 0.00059 * T**2 + 0.001813 * T**3) * ARCSEC
-    om = math.radians(125.04452 - 1934.136261 * T)
-    L = math.radians(280.4665 + 36000.7698 * T)
-    Lp = math.radians(218.3165 + 481267.8813 * T)
-    dpsi = (-17.20 * math.sin(om) - 1.32 * math.sin(2 * L) - 0.23 * math.sin(2 * Lp) + 0.21 * math.sin(2 * om)) * ARCSEC
-    deps = (9.20 * math.cos(om) + 0.57 * math.cos(2 * L) + 0.10 * math.cos(2 * Lp) - 0.09 * math.cos(2 * om)) * ARCSEC
-    return dpsi, deps, eps0
 
 
 def gmst(days_ut1: float) -> float:
@@ -81,21 +55,23 @@ def gmst(days_ut1: float) -> float:
 
 @dataclass(frozen=True)
 class EarthRotation:
-    """Frozen precession-nutation ``npm`` (3, 3) (ECI -> true of date), GAST at the epoch
-    ``theta0`` (rad) and the rotation rate ``omega`` (rad/s): r_ecef = R3(theta0 + omega t) npm r."""
+    """Frozen bias-precession-nutation ``npm`` (3, 3) (GCRF -> true of date), GAST at the epoch
+    ``theta0`` (rad), the rotation rate ``omega`` (rad/s) and the polar motion ``polar`` (3, 3)
+    (true of date Earth-fixed -> ITRF): r_itrf = polar R3(theta0 + omega t) npm r."""
 
     npm: np.ndarray
     theta0: float
     omega: float = OMEGA_SIDEREAL
+    polar: np.ndarray = field(default_factory=lambda: np.eye(3))
 
     @property
     def pole_eci(self) -> np.ndarray:
-        """Unit vector of the Earth's rotation axis (true pole of date) in ECI."""
+        """Unit vector of the Earth's rotation axis (celestial intermediate pole of date) in ECI."""
         return self.npm[2].copy()
 
     def matrix(self, t_s: float) -> np.ndarray:
-        """ECI -> Earth-fixed rotation matrix at ``t_s`` s after the epoch."""
-        return _r3(self.theta0 + self.omega * float(t_s)) @ self.npm
+        """ECI -> Earth-fixed (ITRF) rotation matrix at ``t_s`` s after the epoch."""
+        return self.polar @ _r3(self.theta0 + self.omega * float(t_s)) @ self.npm
 
     def to_ecef(self, t_s, r_eci: np.ndarray) -> np.ndarray:
         """Earth-fixed positions (n, 3) of ECI positions (n, 3) at times ``t_s`` (n,) or scalar."""
@@ -104,34 +80,44 @@ class EarthRotation:
         q = r @ self.npm.T
         th = self.theta0 + self.omega * t
         c, s = np.cos(th), np.sin(th)
-        return np.stack([c * q[:, 0] + s * q[:, 1], -s * q[:, 0] + c * q[:, 1], q[:, 2]], axis=-1)
+        return np.stack([c * q[:, 0] + s * q[:, 1], -s * q[:, 0] + c * q[:, 1], q[:, 2]], axis=-1) @ self.polar.T
+
+    def to_eci(self, t_s, r_ecef: np.ndarray) -> np.ndarray:
+        """ECI vectors (n, 3) of Earth-fixed vectors (n, 3) at times ``t_s`` (n,) or scalar (the
+        inverse of :meth:`to_ecef`)."""
+        v = np.atleast_2d(np.asarray(r_ecef, dtype=float)) @ self.polar
+        t = np.broadcast_to(np.asarray(t_s, dtype=float), (v.shape[0],))
+        th = self.theta0 + self.omega * t
+        c, s = np.cos(th), np.sin(th)
+        return np.stack([c * v[:, 0] - s * v[:, 1], s * v[:, 0] + c * v[:, 1], v[:, 2]], -1) @ self.npm
 
 
-def earth_rotation(epoch: Epoch | str, ut1_utc_s: float = 0.0) -> EarthRotation:
-    """Earth orientation at ``epoch`` (see module doc for the model and what it neglects);
-    ``ut1_utc_s``: UT1 - UTC (s) at the epoch (0: UT1 = UTC; the IERS value from
-    :func:`proxops.environment.spaceweather.eop_at` with ``truth.earth_orientation = "iers"``)."""
+def earth_rotation(epoch: Epoch | str, ut1_utc_s: float = 0.0, xp_arcsec: float = 0.0,
+                   yp_arcsec: float = 0.0) -> EarthRotation:
+    """Earth orientation at ``epoch`` (see module doc for the model and what it neglects):
+    ``ut1_utc_s`` UT1 - UTC (s), ``xp_arcsec``, ``yp_arcsec`` the pole coordinates (arcsec), all
+    0 by default; the IERS values from :func:`proxops.environment.spaceweather.eop_at` with
+    ``truth.earth_orientation = "iers"``."""
     epoch = parse_epoch(epoch)
-    T = epoch.days_tt_since_j2000() / 36525.0
-    dpsi, deps, eps0 = nutation(T)
-    N = _r1(-(eps0 + deps)) @ _r3(-dpsi) @ _r1(eps0)
-    gast = gmst(epoch.days_ut1_since_j2000() + float(ut1_utc_s) / 86400.0) + dpsi * math.cos(eps0 + deps)
-    return EarthRotation(N @ precession_matrix(T), gast % (2.0 * math.pi))
+    tt1, tt2 = epoch.jd_utc_day, epoch.jd_utc_frac + epoch.tt_minus_utc_s / SECONDS_PER_DAY
+    ut2 = epoch.jd_utc_frac + float(ut1_utc_s) / SECONDS_PER_DAY
+    npb = erfa.pnm06a(tt1, tt2)
+    gast = float(erfa.gst06(epoch.jd_utc_day, ut2, tt1, tt2, npb))
+    polar = erfa.pom00(float(xp_arcsec) * ARCSEC, float(yp_arcsec) * ARCSEC, float(erfa.sp00(tt1, tt2)))
+    return EarthRotation(np.ascontiguousarray(npb), gast % (2.0 * math.pi), OMEGA_SIDEREAL, np.ascontiguousarray(polar))
 
 
 def teme_to_eci_matrix(epoch: Epoch | str) -> np.ndarray:
     """Rotation (3, 3) from TEME of ``epoch`` (the frame of SGP4 states: true equator, mean
-    equinox of date) to this module's ECI, in the Earth model above:
+    equinox of date) to this module's ECI (GCRF axes):
 
-        r_eci = (N P)^T R3(-eqeq) r_teme,    eqeq = GAST - GMST = dpsi cos(eps)
+        r_eci = NPB^T R3(-(GAST - GMST82)) r_teme
 
-    (Vallado 4th ed. sec. 3.7.4, eq. 3-91, with this module's truncated N and P). It follows from
-    the two routes to the Earth-fixed frame, r_pef = R3(GMST) r_teme (the SGP4 convention,
-    Vallado eq. 3-90) and r_ecef = R3(GAST) N P r_eci (:func:`earth_rotation`): a TLE state keeps
-    its Earth-fixed position (and so its latitude, longitude and height) exactly, and its
-    orientation to the truth's equator. Against the full IAU-80 nutation the rotation differs
-    by the truncation of N (< 1.3 arcsec, ~40 m at 7000 km; tests/test_tle.py compares with
-    astropy's TEME -> GCRS). TEME is taken as inertial at the epoch: v_eci = M v_teme."""
+    (Vallado 4th ed. sec. 3.7.4, eqs. 3-90/3-91, with this module's NPB and GAST). It follows from
+    the two routes to the pseudo-Earth-fixed frame, r_pef = R3(GMST82) r_teme (the SGP4 convention,
+    GMST of IAU 1982 with UT1 = UTC) and r_pef = R3(GAST) NPB r_eci (:func:`earth_rotation`
+    without polar motion): a TLE state keeps its Earth-fixed position exactly. TEME is taken as
+    inertial at the epoch: v_eci = M v_teme (tests/test_tle.py compares with astropy's TEME -> GCRS)."""
     epoch = parse_epoch(epoch)
     rot = earth_rotation(epoch)
     eqeq = rot.theta0 - gmst(epoch.days_ut1_since_j2000())

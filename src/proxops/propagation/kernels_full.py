@@ -55,7 +55,7 @@ from numba import njit
 from proxops.core.twobody import accel_differential, accel_j2, accel_twobody
 from proxops.environment.earth import geodetic_height
 from proxops.environment.eclipse import shadow_boundaries, shadow_factor
-from proxops.environment.ephemeris import moon_eci_kernel, sun_eci_kernel
+from proxops.environment.ephemeris import fitted_position
 from proxops.environment.forces import accel_drag, accel_srp, accel_third_body
 from proxops.environment.harmonics import accel_harmonics, accel_harmonics_pair, pair_arrays_fit
 from proxops.propagation.kernels import (
@@ -108,7 +108,9 @@ I_R_SUN = 26
 I_DENS_T0 = 27  # density table start time (s) and spacing (s)
 I_DENS_DT = 28
 I_SAFETY = 29  # step-size safety factor of the DOP853 loop (see SAFETY_HARMONICS)
-N_P = 30
+I_PM = 30  # polar motion W - I (9 values, row-major; all 0: none): r_itrf = W r_pef
+I_EPH = 39  # Sun and Moon correction to erfa (ephemeris.third_body_fit, N_FIT = 24 values; 0: series alone)
+N_P = 63
 
 # Step-size safety factor with spherical harmonics: 0.8 instead of the J2 loop's 0.9 (kept
 # for point mass and J2, whose results stay bit-identical to RelativeTruth). The 100x100
@@ -168,13 +170,24 @@ def _to_ecef(t, x, y, z, p, npm):
     th = p[I_THETA0] + p[I_OMEGA] * t
     c = math.cos(th)
     s = math.sin(th)
-    return c * qx + s * qy, -s * qx + c * qy, qz
+    return _polar(c * qx + s * qy, -s * qx + c * qy, qz, p, 1)
+
+
+@njit(cache=True)
+def _polar(x, y, z, p, forward):
+    """r_itrf = W r_pef (``forward`` = 1) or r_pef = W^T r_itrf (0); W = I + p[I_PM:I_PM + 9]."""
+    if forward:
+        return (x + p[I_PM] * x + p[I_PM + 1] * y + p[I_PM + 2] * z, y + p[I_PM + 3] * x + p[I_PM + 4] * y
+                + p[I_PM + 5] * z, z + p[I_PM + 6] * x + p[I_PM + 7] * y + p[I_PM + 8] * z)  # fmt: skip
+    return (x + p[I_PM] * x + p[I_PM + 3] * y + p[I_PM + 6] * z, y + p[I_PM + 1] * x + p[I_PM + 4] * y
+            + p[I_PM + 7] * z, z + p[I_PM + 2] * x + p[I_PM + 5] * y + p[I_PM + 8] * z)  # fmt: skip
 
 
 @njit(cache=True)
 def _harmonics_eci(t, x, y, z, p, npm, C, S, K, V, W):
     ex, ey, ez = _to_ecef(t, x, y, z, p, npm)
     bx, by, bz = accel_harmonics(ex, ey, ez, p[I_GM_H], p[I_RE_H], C, S, int(p[I_NMAX]), int(p[I_MMAX]), 2, K, V, W)
+    bx, by, bz = _polar(bx, by, bz, p, 0)
     th = p[I_THETA0] + p[I_OMEGA] * t
     c = math.cos(th)
     s = math.sin(th)
@@ -203,6 +216,8 @@ def _harmonics_eci_pair(t, xa, ya, za, xb, yb, zb, p, npm, C, S, K, V, W):
     exb, eyb, ezb = _to_ecef(t, xb, yb, zb, p, npm)
     bxa, bya, bza, bxb, byb, bzb = accel_harmonics_pair(exa, eya, eza, exb, eyb, ezb, p[I_GM_H], p[I_RE_H], nmax,
                                                         int(p[I_MMAX]), 2, K, V)  # fmt: skip
+    bxa, bya, bza = _polar(bxa, bya, bza, p, 0)
+    bxb, byb, bzb = _polar(bxb, byb, bzb, p, 0)
     th = p[I_THETA0] + p[I_OMEGA] * t
     c = math.cos(th)
     s = math.sin(th)
@@ -274,9 +289,9 @@ def third_bodies(t: float, p: np.ndarray):
     sun = (0.0, 0.0, 0.0)
     moon = (0.0, 0.0, 0.0)
     if p[I_SUN] != 0.0 or p[I_SRP] != 0.0:
-        sun = sun_eci_kernel(d)
+        sun = fitted_position(0, d, t / 86400.0, p, I_EPH)
     if p[I_MOON] != 0.0:
-        moon = moon_eci_kernel(d)
+        moon = fitted_position(1, d, t / 86400.0, p, I_EPH)
     return sun, moon
 
 
@@ -460,7 +475,7 @@ def _shadow_side(t, h, s, y0, f0, y1, f1, p) -> int:
     """Bit mask of the shadow event functions that are > 0 (bits: target penumbra, target
     umbra, chaser penumbra, chaser umbra) at t + s h on the step's Hermite interpolant
     (s = 0 and 1: the step's end states themselves)."""
-    sx, sy, sz = sun_eci_kernel(p[I_D0] + (t + s * h) / 86400.0)
+    sx, sy, sz = fitted_position(0, p[I_D0] + (t + s * h) / 86400.0, (t + s * h) / 86400.0, p, I_EPH)
     conical = p[I_SRP] == 1.0
     mask = 0
     for body in range(2):

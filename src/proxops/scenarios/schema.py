@@ -334,12 +334,12 @@ class TruthSection(Section):
     f107a: Annotated[float, Field(ge=50.0, le=400.0)] = Field(150.0, description="full: 81-day mean F10.7, sfu")
     ap: Annotated[float, Field(ge=0.0, le=400.0)] = Field(15.0, description="full: daily geomagnetic Ap index")
     space_weather: Literal["constant", "cssi"] = Field(
-        "constant", description="full: constant (f107, f107a, ap above) or cssi (the shipped CSSI history of the "
-        "epoch's day: observed F10.7 of the day before, its 81-day centred mean, daily Ap; held for the run; "
+        "constant", description="full: constant (f107, f107a, ap above) or cssi (the shipped CSSI history, per UT "
+        "day over the run: observed F10.7 of the day before, its 81-day centred mean, daily Ap and the 3-hour ap; "
         "`proxops data` shows the range)")
     earth_orientation: Literal["model", "iers"] = Field(
-        "model", description="full: model (UT1 = UTC) or iers (UT1 - UTC of the epoch from the shipped IERS "
-        "finals.all; polar motion and nutation corrections are not applied)")
+        "model", description="full: model (UT1 = UTC, no polar motion) or iers (UT1 - UTC and polar motion of the "
+        "epoch from the shipped IERS finals.all); both with IAU 2006/2000A precession-nutation (erfa)")
     target: SpacecraftSection = Field(SpacecraftSection(), description="target spacecraft properties (full)")
     chaser: SpacecraftSection = Field(SpacecraftSection(), description="chaser spacecraft properties (full)")
 

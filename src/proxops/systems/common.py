@@ -50,10 +50,9 @@ def force_models(orbit: OrbitSection, truth: TruthSection):
     order = truth.gravity_degree if truth.gravity_order is None else truth.gravity_order
     weather = SpaceWeather(truth.f107, truth.f107a, truth.ap)
     if truth.space_weather == "cssi" and truth.drag:
-        from proxops.environment.spaceweather import space_weather_at
+        from proxops.environment.spaceweather import weather_history
 
-        day = space_weather_at(orbit.epoch_utc)
-        weather = SpaceWeather(day.f107, day.f107a, day.ap)
+        weather = weather_history(orbit.epoch_utc)
     return ForceModels(
         epoch=orbit.epoch_utc,
         gravity="harmonics",
@@ -67,17 +66,19 @@ def force_models(orbit: OrbitSection, truth: TruthSection):
         target=Spacecraft(**truth.target.model_dump(), name="truth.target"),
         chaser=Spacecraft(**truth.chaser.model_dump(), name="truth.chaser"),
         weather=weather,
-        ut1_utc_s=_ut1_utc(orbit, truth),
+        **_earth_orientation(orbit, truth),
     )
 
 
-def _ut1_utc(orbit: OrbitSection, truth: TruthSection) -> float:
-    """UT1 - UTC (s) of the epoch for ``truth.earth_orientation = "iers"``, else 0."""
+def _earth_orientation(orbit: OrbitSection, truth: TruthSection) -> dict:
+    """UT1 - UTC (s) and the pole coordinates (arcsec) of the epoch for ``truth.earth_orientation
+    = "iers"``, else zeros."""
     if truth.earth_orientation != "iers":
-        return 0.0
+        return {"ut1_utc_s": 0.0, "polar_motion_arcsec": (0.0, 0.0)}
     from proxops.environment.spaceweather import eop_at
 
-    return eop_at(orbit.epoch_utc, "truth.earth_orientation")["ut1_utc_s"]
+    eop = eop_at(orbit.epoch_utc, "truth.earth_orientation")
+    return {"ut1_utc_s": eop["ut1_utc_s"], "polar_motion_arcsec": (eop["x_arcsec"], eop["y_arcsec"])}
 
 
 def navigation_model(nav: NavigationSection, per_state_sigma=None, orbit: OrbitSection | None = None,
