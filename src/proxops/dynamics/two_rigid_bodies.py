@@ -330,6 +330,34 @@ def _cross(a, b):
 
 
 @njit(cache=True)
+def _mv(M, v):
+    """M @ v for a 3x3 M inside numba code (a loop: numba's ``@`` calls BLAS, ~1 us per call)."""
+    out = np.empty(3)
+    for i in range(3):
+        out[i] = M[i, 0] * v[0] + M[i, 1] * v[1] + M[i, 2] * v[2]
+    return out
+
+
+@njit(cache=True)
+def _mtv(M, v):
+    """M.T @ v for a 3x3 M inside numba code."""
+    out = np.empty(3)
+    for i in range(3):
+        out[i] = M[0, i] * v[0] + M[1, i] * v[1] + M[2, i] * v[2]
+    return out
+
+
+@njit(cache=True)
+def _mtm(A, B):
+    """A.T @ B for 3x3 matrices inside numba code."""
+    out = np.empty((3, 3))
+    for i in range(3):
+        for j in range(3):
+            out[i, j] = A[0, i] * B[0, j] + A[1, i] * B[1, j] + A[2, i] * B[2, j]
+    return out
+
+
+@njit(cache=True)
 def _cw(x, dx, i, F, m, n):
     """CW (eq. 21 with the standard G2 = -2 omega_t^x: x'' = 3n^2 x + 2n y') for the CoM
     whose position starts at index i (velocity at i + 3)."""
@@ -346,14 +374,14 @@ def truth_rhs_kernel(x, u, m_c, m_d, J_c, J_c_inv, J_d, J_d_inv, n):
     wt = np.array([0.0, 0.0, n])
     Rc = dcm_kernel(x[12:16])  # C_{T<-C}
     Rd = dcm_kernel(x[19:23])  # C_{T<-D}
-    F_T = Rd @ u[0:3]
+    F_T = _mv(Rd, u[0:3])
     _cw(x, dx, 0, np.zeros(3), m_c, n)  # chief CoM
     _cw(x, dx, 6, F_T, m_d, n)  # deputy CoM
     wc, wd = x[16:19], x[23:26]
-    dx[12:16] = kinematics_kernel(x[12:16], wc - Rc.T @ wt)
-    dx[16:19] = J_c_inv @ (-_cross(wc, J_c @ wc))  # eq. 23
-    dx[19:23] = kinematics_kernel(x[19:23], wd - Rd.T @ wt)
-    dx[23:26] = J_d_inv @ (u[3:6] - _cross(wd, J_d @ wd))  # eq. 24
+    dx[12:16] = kinematics_kernel(x[12:16], wc - _mtv(Rc, wt))
+    dx[16:19] = _mv(J_c_inv, -_cross(wc, _mv(J_c, wc)))  # eq. 23
+    dx[19:23] = kinematics_kernel(x[19:23], wd - _mtv(Rd, wt))
+    dx[23:26] = _mv(J_d_inv, u[3:6] - _cross(wd, _mv(J_d, wd)))  # eq. 24
     return dx
 
 
@@ -625,33 +653,32 @@ def port_kinematics_kernel(x, P_c, P_d, n):
     q = multiply_kernel(qc_conj, x[19:23])  # D rel. C
     if q[3] < 0:
         q = -q
-    Q = Rd.T @ Rc  # C_{D<-C}
-    R = Rc.T  # C_{C<-T}
+    Q = _mtm(Rd, Rc)  # C_{D<-C}
     wt = np.array([0.0, 0.0, n])
-    omc = x[16:19] - R @ wt
-    om = x[23:26] - Q @ x[16:19]
-    wd = om + Q @ omc
+    omc = x[16:19] - _mtv(Rc, wt)  # R = Rc^T = C_{C<-T}
+    om = x[23:26] - _mv(Q, x[16:19])
+    wd = om + _mv(Q, omc)
     rho0 = x[6:9] - x[0:3]
     rho0d = x[9:12] - x[3:6]
-    rho = R @ rho0 + Q.T @ P_d - P_c
-    rhod = R @ rho0d - _cross(omc, rho + P_c) + Q.T @ _cross(wd, P_d)
+    rho = _mtv(Rc, rho0) + _mtv(Q, P_d) - P_c
+    rhod = _mtv(Rc, rho0d) - _cross(omc, rho + P_c) + _mtv(Q, _cross(wd, P_d))
     return Rc, Rd, Q, q, om, rho, rhod
 
 
 @njit(cache=True)
 def _latch_kernel(x, P_c, P_d, KT, DT, KR, DR, n):
     Rc, Rd, Q, q, om, rho, rhod = port_kinematics_kernel(x, P_c, P_d, n)
-    F = -(Rc @ (KT * rho + DT * rhod))
+    F = -_mv(Rc, KT * rho + DT * rhod)
     s = math.sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2])
     if s > 1e-15:
         theta_e = 2.0 * math.atan2(s, q[3]) * q[0:3] / s
     else:
         theta_e = 2.0 * q[0:3]
     tau = -KR * theta_e - DR * om  # on D, D components
-    arm_d = Rd @ P_d
-    arm_c = Rc @ (P_c + rho)
-    tau_d = tau + Rd.T @ _cross(arm_d, F)
-    tau_c = -(Q.T @ tau) + Rc.T @ _cross(arm_c, -F)
+    arm_d = _mv(Rd, P_d)
+    arm_c = _mv(Rc, P_c + rho)
+    tau_d = tau + _mtv(Rd, _cross(arm_d, F))
+    tau_c = -_mtv(Q, tau) + _mtv(Rc, _cross(arm_c, -F))
     return F, tau_d, tau_c
 
 
