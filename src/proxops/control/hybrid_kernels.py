@@ -129,15 +129,58 @@ def expm_pade13(M):
     A = M / (2.0 ** sq)
     b = _B13
     ident = np.eye(n)
-    A2 = A @ A
-    A4 = A2 @ A2
-    A6 = A4 @ A2
-    U = A @ (A6 @ (b[13] * A6 + b[11] * A4 + b[9] * A2) + b[7] * A6 + b[5] * A4 + b[3] * A2 + b[1] * ident)
-    V = A6 @ (b[12] * A6 + b[10] * A4 + b[8] * A2) + b[6] * A6 + b[4] * A4 + b[2] * A2 + b[0] * ident
+    A2 = _mm(A, A)
+    A4 = _mm(A2, A2)
+    A6 = _mm(A4, A2)
+    U = _mm(A, _mm(A6, b[13] * A6 + b[11] * A4 + b[9] * A2) + b[7] * A6 + b[5] * A4 + b[3] * A2 + b[1] * ident)
+    V = _mm(A6, b[12] * A6 + b[10] * A4 + b[8] * A2) + b[6] * A6 + b[4] * A4 + b[2] * A2 + b[0] * ident
     R = np.ascontiguousarray(np.linalg.solve(V - U, V + U))
     for _ in range(sq):
-        R = R @ R
+        R = _mm(R, R)
     return R
+
+
+@njit(cache=True)
+def _mm(A, B):
+    """A @ B by loops (the blocks here are at most 12 x 12: numba's @ calls BLAS, ~1 us per call)."""
+    n, k = A.shape
+    m = B.shape[1]
+    out = np.zeros((n, m))
+    for i in range(n):
+        for l in range(k):
+            a = A[i, l]
+            if a != 0.0:
+                for j in range(m):
+                    out[i, j] += a * B[l, j]
+    return out
+
+
+@njit(cache=True)
+def _mtm(A, B):
+    """A.T @ B by loops."""
+    k, n = A.shape
+    m = B.shape[1]
+    out = np.zeros((n, m))
+    for l in range(k):
+        for i in range(n):
+            a = A[l, i]
+            if a != 0.0:
+                for j in range(m):
+                    out[i, j] += a * B[l, j]
+    return out
+
+
+@njit(cache=True)
+def _mv(A, x):
+    """A @ x by loops."""
+    n, k = A.shape
+    out = np.zeros(n)
+    for i in range(n):
+        s = 0.0
+        for l in range(k):
+            s += A[i, l] * x[l]
+        out[i] = s
+    return out
 
 
 @njit(cache=True)
@@ -164,11 +207,11 @@ def condensed_qp(A, B, dt, N, dx0, W, r_blk, ref, face_a, wf, rate_first, rate_w
     PB = np.empty((N, n, m))
     PB[0] = Bd
     for i in range(1, N):
-        PB[i] = Ad @ PB[i - 1]
+        PB[i] = _mm(Ad, PB[i - 1])
     free = np.empty(nX)
     x = dx0.copy()
     for k in range(N):
-        x = Ad @ x
+        x = _mv(Ad, x)
         free[k * n:(k + 1) * n] = x
     G = np.zeros((nX, nU))
     for k in range(N):
@@ -204,12 +247,12 @@ def condensed_qp(A, B, dt, N, dx0, W, r_blk, ref, face_a, wf, rate_first, rate_w
             P = Wt
             g = gj
         else:
-            P = Wt + AdT @ (P @ Ad)
-            g = gj + AdT @ g
-        PBj = P @ Bd
-        f[j * m:(j + 1) * m] = BdT @ g
+            P = Wt + _mtm(Ad, _mm(P, Ad))
+            g = gj + _mv(AdT, g)
+        PBj = _mm(P, Bd)
+        f[j * m:(j + 1) * m] = _mv(BdT, g)
         for i in range(j + 1):
-            H[i * m:(i + 1) * m, j * m:(j + 1) * m] = PB[j - i].T @ PBj
+            H[i * m:(i + 1) * m, j * m:(j + 1) * m] = _mtm(PB[j - i], PBj)
     for i in range(nU):  # the lower triangle (H symmetric up to round-off: mirrored)
         for l in range(i):
             H[i, l] = H[l, i]

@@ -79,6 +79,10 @@ from proxops.dynamics.two_rigid_bodies import (
     _latch_kernel,
     _mtv,
     _mv,
+    cross9,
+    dcm9,
+    mtv9,
+    mv9,
     contact_jump,
     contact_normal_velocity,
     latch_snap_jump,
@@ -201,34 +205,46 @@ def latch_stop_kernel(x, corners_d, v_c, plane_c, k, c, omega_t):
     unilateral spring-damper (k depth + c depth', never pulling) acting at that corner on the
     deputy and its opposite on the chief (momentum conserving). Returns (F_T on the deputy's
     CoM sum (N, T), tau_d (N m, D), tau_c (N m, C), deepest penetration m)."""
-    Rc = dcm_kernel(x[12:16])
-    Rd = dcm_kernel(x[19:23])
-    rho0 = x[6:9] - x[0:3]
-    vrel = x[9:12] - x[3:6] + _cross3(omega_t, rho0)
-    Wc = _mv(Rc, x[16:19])
-    Wd = _mv(Rd, x[23:26])
-    nT = _mv(Rc, v_c)
-    F_sum = np.zeros(3)
-    tau_d = np.zeros(3)
-    tau_c = np.zeros(3)
+    Rc = dcm9(x[12:16])
+    Rd = dcm9(x[19:23])
+    r0, r1, r2 = x[6] - x[0], x[7] - x[1], x[8] - x[2]
+    c0, c1, c2 = cross9(omega_t[0], omega_t[1], omega_t[2], r0, r1, r2)
+    vr0, vr1, vr2 = x[9] - x[3] + c0, x[10] - x[4] + c1, x[11] - x[5] + c2
+    Wc0, Wc1, Wc2 = mv9(Rc, x[16], x[17], x[18])
+    Wd0, Wd1, Wd2 = mv9(Rd, x[23], x[24], x[25])
+    n0, n1, n2 = mv9(Rc, v_c[0], v_c[1], v_c[2])
+    Fs0 = Fs1 = Fs2 = 0.0
+    td0 = td1 = td2 = 0.0
+    tc0 = tc1 = tc2 = 0.0
     deepest = 0.0
     for i in range(corners_d.shape[0]):
-        arm = _mv(Rd, corners_d[i])
-        pT = rho0 + arm
-        depth = plane_c - (nT[0] * pT[0] + nT[1] * pT[1] + nT[2] * pT[2])
+        a0, a1, a2 = mv9(Rd, corners_d[i, 0], corners_d[i, 1], corners_d[i, 2])
+        p0, p1, p2 = r0 + a0, r1 + a1, r2 + a2
+        depth = plane_c - (n0 * p0 + n1 * p1 + n2 * p2)
         if depth <= 0.0:
             continue
         deepest = max(deepest, depth)
-        w = vrel + _cross3(Wd, arm) - _cross3(Wc, pT)
-        rate = -(nT[0] * w[0] + nT[1] * w[1] + nT[2] * w[2])
+        b0, b1, b2 = cross9(Wd0, Wd1, Wd2, a0, a1, a2)
+        c0, c1, c2 = cross9(Wc0, Wc1, Wc2, p0, p1, p2)
+        rate = -(n0 * (vr0 + b0 - c0) + n1 * (vr1 + b1 - c1) + n2 * (vr2 + b2 - c2))
         f = k * depth + c * rate
         if f <= 0.0:
             continue
-        F = f * nT
-        F_sum += F
-        tau_d += _mtv(Rd, _cross3(arm, F))
-        tau_c += _mtv(Rc, _cross3(pT, -F))
-    return F_sum, tau_d, tau_c, deepest
+        F0, F1, F2 = f * n0, f * n1, f * n2
+        Fs0 += F0
+        Fs1 += F1
+        Fs2 += F2
+        b0, b1, b2 = cross9(a0, a1, a2, F0, F1, F2)
+        b0, b1, b2 = mtv9(Rd, b0, b1, b2)
+        td0 += b0
+        td1 += b1
+        td2 += b2
+        c0, c1, c2 = cross9(p0, p1, p2, -F0, -F1, -F2)
+        c0, c1, c2 = mtv9(Rc, c0, c1, c2)
+        tc0 += c0
+        tc1 += c1
+        tc2 += c2
+    return np.array([Fs0, Fs1, Fs2]), np.array([td0, td1, td2]), np.array([tc0, tc1, tc2]), deepest
 
 
 @njit(cache=True)
