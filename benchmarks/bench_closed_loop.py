@@ -198,13 +198,13 @@ def _measure_support_lps(repeats: int) -> dict:
         if name == "daqp":
             s.setup_native(np.zeros((n, n)), np.zeros(n), A, np.full(m, -np.inf), b, lb, ub)
         else:
-            s.setup(np.zeros(n), A, None, b, lb, ub)
+            s.setup_native(np.zeros(n), A, None, b, lb, ub)
         best = math.inf
         for _ in range(max(repeats, 3)):
             vals = []
             t0 = time.perf_counter()
             for c in costs:
-                s.update(q=c) if name == "daqp" else s.update(c=c)
+                s.update(f=c) if name == "daqp" else s.update(c=c)
                 vals.append(-s.solve().objective)
             best = min(best, time.perf_counter() - t0)
         out[f"{name}_ms"] = best / len(costs) * 1e3

@@ -84,7 +84,7 @@ def bench_condensed_mpc(steps=200):
     u_prev = np.zeros(nu)
     daqp = DaqpQP()
     f, bu = mpc_vectors(m, x, u_prev, ref)
-    daqp.setup(m["H"], f, m["A"], None, bu, lb, ub)
+    daqp.setup_native(m["H"], f, m["A"], None, bu, lb, ub)
     seq, t_daqp, t_daqp_step, it_daqp, worst = [], [], [], [], 0.0
     for _ in range(steps):
         f, bu = mpc_vectors(m, x, u_prev, ref)
@@ -117,19 +117,19 @@ def bench_condensed_mpc(steps=200):
 
     def make_cold():
         s = DaqpQP(warm_start=False)
-        s.setup(m["H"], seq[0][0], m["A"], None, seq[0][1], lb, ub)
+        s.setup_native(m["H"], seq[0][0], m["A"], None, seq[0][1], lb, ub)
         return s
 
     def make_piqp():
         s = PiqpQP()
-        s.setup(m["H"], seq[0][0], G=m["A"], h_u=seq[0][1], x_lb=lb, x_ub=ub)
+        s.setup_native(m["H"], seq[0][0], G=m["A"], h_u=seq[0][1], x_lb=lb, x_ub=ub)
         return s
 
     conic = build_conic_problem(seq[0][0], m["H"], ineq=(m["A"], seq[0][1]), lb=lb, ub=ub)
 
     def make_clarabel():
         s = ClarabelSOCP()
-        s.setup_problem(conic)
+        s.setup(conic)
         return s
 
     def clarabel_update(s, f, bu):
@@ -139,7 +139,7 @@ def bench_condensed_mpc(steps=200):
 
     def make_warm():
         s = DaqpQP()
-        s.setup(m["H"], seq[0][0], m["A"], None, seq[0][1], lb, ub)
+        s.setup_native(m["H"], seq[0][0], m["A"], None, seq[0][1], lb, ub)
         return s
 
     runs = [
@@ -219,11 +219,11 @@ def bench_fuel(runs=30):
         times, objs, viol = [], [], 0.0
         if name == "PIQP":
             s = PiqpQP()
-            s.setup(qp["P"], qp["c"], qp["Aeq"], fuel_rhs(qp, x0s[0]), x_lb=qp["lb"], x_ub=qp["ub"])
+            s.setup_native(qp["P"], qp["c"], qp["Aeq"], fuel_rhs(qp, x0s[0]), x_lb=qp["lb"], x_ub=qp["ub"])
         else:
             conic = build_conic_problem(qp["c"], qp["P"], eq=(qp["Aeq"], fuel_rhs(qp, x0s[0])), lb=qp["lb"], ub=qp["ub"])
             s = ClarabelSOCP()
-            s.setup_problem(conic)
+            s.setup(conic)
         for x0 in x0s:
             rhs = fuel_rhs(qp, x0)
             if name == "PIQP":
@@ -257,7 +257,7 @@ def bench_fuel(runs=30):
         r0 = lp_rows(x0s[0])
         if name == "HiGHS":
             s = HighsLP()
-            s.setup(lp["c"], A_lp, r0, r0, lp["lb"], lp["ub"])
+            s.setup_native(lp["c"], A_lp, r0, r0, lp["lb"], lp["ub"])
             upd = lambda s, r: s.update(rl=r, ru=r)  # noqa: E731
         elif name == "PIQP":
             s = PiqpQP()
@@ -266,7 +266,7 @@ def bench_fuel(runs=30):
         else:
             conic = build_conic_problem(lp["c"], eq=(A_lp, r0), lb=lp["lb"], ub=lp["ub"])
             s = ClarabelSOCP()
-            s.setup_problem(conic)
+            s.setup(conic)
 
             def upd(s, r, conic=conic):
                 b = conic.b.copy()

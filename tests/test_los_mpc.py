@@ -56,7 +56,7 @@ def _reference_qp(model, corridor, cfg, a_max, t, x0, ref, u_prev):
         Gp[9 * j : 9 * j + 9] = corridor.G @ Gam[6 * j : 6 * j + 3]
         hp[9 * j : 9 * j + 9] = corridor.h - corridor.G @ (F[6 * j : 6 * j + 3] @ x0)
     qp = PiqpQP(eps_abs=1e-10, eps_rel=1e-10)
-    qp.setup(P, c, G=Gp, h_l=np.full(9 * N, -np.inf), h_u=hp, x_lb=np.full(3 * N, -a_max), x_ub=np.full(3 * N, a_max))
+    qp.setup_native(P, c, G=Gp, h_l=np.full(9 * N, -np.inf), h_u=hp, x_lb=np.full(3 * N, -a_max), x_ub=np.full(3 * N, a_max))
     res = qp.solve()
     assert res.ok
     return res.x, F, Gam
@@ -191,7 +191,7 @@ def test_shifted_qp_equals_the_qp_with_its_linear_term(mode):
         H, f = Hs, np.concatenate([f, np.full(N, cfg.slack_penalty)])
         lb, ub = np.concatenate([lb, np.zeros(N)]), np.concatenate([ub, np.full(N, np.inf)])
     qp = DaqpQP()
-    qp.setup(H, f, rows, None, h_rows, lb, ub)
+    qp.setup_native(H, f, rows, None, h_rows, lb, ub)
     res = qp.solve()
     assert res.ok
     np.testing.assert_allclose(sol.inputs.ravel(), res.x[:nu] + g, rtol=0, atol=1e-12)

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 import scipy.sparse as sp
 
-from proxops.solvers import QuadraticProgram, SolveStatus, make_qp_solver, solve_qp
+from proxops.solvers import QuadraticProgram, SolveStatus, make_solver, solve_qp
 from proxops.solvers._util import keep_columns
 
 
@@ -40,9 +40,9 @@ def _objective(pr, x):
 @pytest.mark.parametrize("fixed_values", [False, True])
 def test_drop_fixed_solves_the_same_problem(seed, fixed_values):
     pr = _random_qp(np.random.default_rng(seed), fixed_values=fixed_values)
-    dropped = make_qp_solver("piqp", drop_fixed=True)
+    dropped = make_solver("QP", "piqp", drop_fixed=True)
     dropped.setup(pr)
-    full = make_qp_solver("piqp")
+    full = make_solver("QP", "piqp")
     full.setup(pr)
     a, b = dropped.solve(), full.solve()
     ref = solve_qp(pr, "clarabel")
@@ -58,7 +58,7 @@ def test_drop_fixed_solves_the_same_problem(seed, fixed_values):
 def test_drop_fixed_updates_in_place_and_rebuilds_for_a_new_fixed_set():
     rng = np.random.default_rng(11)
     pr = _random_qp(rng, fixed_values=False)
-    s = make_qp_solver("piqp", drop_fixed=True)
+    s = make_solver("QP", "piqp", drop_fixed=True)
     s.setup(pr)
     assert s.solve().status == SolveStatus.OPTIMAL
     # same fixed set, new right-hand sides: in place (no new set-up), same answer as Clarabel
@@ -84,7 +84,7 @@ def test_drop_fixed_reports_an_infeasible_problem():
     pr = QuadraticProgram(P=sp.csc_matrix(np.eye(3)), q=np.zeros(3), A=sp.csc_matrix([[1.0, 1.0, 0.0]]),
                           bl=np.array([3.0]), bu=np.array([np.inf]), lb=np.array([-1.0, 0.0, -1.0]),
                           ub=np.array([1.0, 0.0, 1.0]))
-    s = make_qp_solver("piqp", drop_fixed=True)
+    s = make_solver("QP", "piqp", drop_fixed=True)
     s.setup(pr)
     assert s.solve().status == SolveStatus.INFEASIBLE
 

@@ -26,7 +26,7 @@ def _cold_support(sec, d):
     c = np.zeros(sec.n_var)
     c[:2] = -d
     lp = HighsLP()
-    lp.setup(c, sec.A, None, sec.b, sec.lb, sec.ub)
+    lp.setup_native(c, sec.A, None, sec.b, sec.lb, sec.ub)
     res = lp.solve()
     assert res.status is SolveStatus.OPTIMAL
     return -res.objective

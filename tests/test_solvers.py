@@ -97,7 +97,7 @@ def test_daqp_qp_projection_and_warm_started_update():
     A, bu = np.array([[1.0, 1.0]]), np.array([1.0])
     lb, ub = -5 * np.ones(2), 5 * np.ones(2)
     s = DaqpQP()
-    s.setup(np.eye(2), -np.array([2.0, 1.0]), A, None, bu, lb, ub)
+    s.setup_native(np.eye(2), -np.array([2.0, 1.0]), A, None, bu, lb, ub)
     r = s.solve()
     x_ref, f_ref = projection_halfspace([2, 1], [1, 1], 1.0)
     assert r.status is SolveStatus.OPTIMAL and r.ok and r.solver == "daqp"
@@ -119,7 +119,7 @@ def test_daqp_update_fast_matches_validated_update():
     # sequence of (p, b) written through the lean path; also after a validated update.
     A = np.array([[1.0, 1.0]])
     s = DaqpQP()
-    s.setup(np.eye(2), -np.array([2.0, 1.0]), A, None, [1.0], -5 * np.ones(2), 5 * np.ones(2))
+    s.setup_native(np.eye(2), -np.array([2.0, 1.0]), A, None, [1.0], -5 * np.ones(2), 5 * np.ones(2))
     s.solve()
     for p, b in (([2.0, 1.0], 0.5), ([0.2, -0.1], 1.0), ([3.0, -1.0], -1.0)):
         s.update_fast(f=-np.array(p), bu=np.array([b]))
@@ -137,7 +137,7 @@ def test_daqp_without_linear_term_shifted_variable():
     # be the closed-form projection of p onto {x1 + x2 <= b} (inside the box), as with f = -p.
     a, lb, ub = np.array([1.0, 1.0]), -5 * np.ones(2), 5 * np.ones(2)
     s = DaqpQP()
-    s.setup(np.eye(2), None, a[None, :], None, [1.0], lb, ub)
+    s.setup_native(np.eye(2), None, a[None, :], None, [1.0], lb, ub)
     for p, b in (([2.0, 1.0], 0.5), ([0.2, -0.1], 1.0), ([3.0, -1.0], -1.0), ([4.0, 4.0], 1.0)):
         p = np.array(p)
         s.update_fast(bu=np.array([b - a @ p]), lb=lb - p, ub=ub - p)
@@ -160,7 +160,7 @@ def test_daqp_small_perturbation_keeps_active_set():
     # p = (2 + e, 1 - e): a'p = 3 > 1 so the half-space row stays the only active row;
     # the warm-started solve needs no new active-set change (<= 1 iteration).
     s = DaqpQP()
-    s.setup(np.eye(2), -np.array([2.0, 1.0]), np.array([[1.0, 1.0]]), None, [1.0])
+    s.setup_native(np.eye(2), -np.array([2.0, 1.0]), np.array([[1.0, 1.0]]), None, [1.0])
     s.solve()
     p = np.array([2.0 + 1e-3, 1.0 - 2e-3])
     s.update(f=-p)
@@ -171,14 +171,14 @@ def test_daqp_small_perturbation_keeps_active_set():
 
 def test_daqp_lp_vertex_and_equality_least_norm():
     s = DaqpQP()
-    s.setup(np.zeros((2, 2)), [1.0, 2.0], [[1.0, 1.0]], [1.0], None, [0, 0], [5, 5])
+    s.setup_native(np.zeros((2, 2)), [1.0, 2.0], [[1.0, 1.0]], [1.0], None, [0, 0], [5, 5])
     r = s.solve()
     assert r.status is SolveStatus.OPTIMAL
     np.testing.assert_allclose(r.x, [1.0, 0.0], atol=1e-8)
     assert r.objective == pytest.approx(1.0, abs=1e-8)
     # min 1/2||x||^2 s.t. a'x = 3, a = (1,1,1): least-norm x = 3 a/||a||^2 = (1,1,1), f = 1.5.
     s = DaqpQP()
-    s.setup(np.eye(3), np.zeros(3), np.ones((1, 3)), [3.0], [3.0])
+    s.setup_native(np.eye(3), np.zeros(3), np.ones((1, 3)), [3.0], [3.0])
     r = s.solve()
     np.testing.assert_allclose(r.x, [1, 1, 1], atol=1e-10)
     assert r.objective == pytest.approx(1.5)
@@ -188,7 +188,7 @@ def test_daqp_lp_vertex_and_equality_least_norm():
 def test_daqp_infeasible_unbounded_and_recovery():
     # x >= 0 and x1 + x2 <= -1 cannot hold together.
     s = DaqpQP()
-    s.setup(np.eye(2), np.zeros(2), [[1.0, 1.0]], None, [-1.0], [0, 0], None)
+    s.setup_native(np.eye(2), np.zeros(2), [[1.0, 1.0]], None, [-1.0], [0, 0], None)
     r = s.solve()
     assert r.status is SolveStatus.INFEASIBLE and r.x is None and math.isnan(r.objective)
     # Crossed bounds during a run are a status too, and a later update recovers.
@@ -200,7 +200,7 @@ def test_daqp_infeasible_unbounded_and_recovery():
     np.testing.assert_allclose(r.x, [0, 0], atol=1e-12)
     # LP min -x1 with x1 free above: unbounded.
     s = DaqpQP()
-    s.setup(np.zeros((2, 2)), [-1.0, 0.0], [[1.0, 1.0]], [1.0], None, [0, 0], [np.inf, 5])
+    s.setup_native(np.zeros((2, 2)), [-1.0, 0.0], [[1.0, 1.0]], [1.0], None, [0, 0], [np.inf, 5])
     assert s.solve().status is SolveStatus.UNBOUNDED
 
 
@@ -209,13 +209,13 @@ def test_daqp_failures_are_statuses():
     M = rng.standard_normal((30, 30))
     H, f = M @ M.T + np.eye(30), 10 * rng.standard_normal(30)
     s = DaqpQP(max_iter=2)
-    s.setup(H, f, lb=-np.ones(30), ub=np.ones(30))
+    s.setup_native(H, f, lb=-np.ones(30), ub=np.ones(30))
     assert s.solve().status is SolveStatus.MAX_ITER
     s = DaqpQP()
-    s.setup(-np.eye(2), np.zeros(2), lb=[-1, -1], ub=[1, 1])  # concave: refused
+    s.setup_native(-np.eye(2), np.zeros(2), lb=[-1, -1], ub=[1, 1])  # concave: refused
     assert s.solve().status is SolveStatus.NUMERICAL_ERROR
     s = DaqpQP()
-    s.setup(np.eye(2), np.zeros(2))
+    s.setup_native(np.eye(2), np.zeros(2))
     s.update(f=[np.nan, 0.0])
     r = s.solve()
     assert r.status is SolveStatus.NUMERICAL_ERROR and "f" in r.info["error"]
@@ -229,13 +229,13 @@ def test_daqp_soft_row_relaxed_with_quadratic_penalty():
     # gives x = 0 (the unconstrained minimiser 1/(1 + rho) > 0 is cut by the bound), s = 1,
     # f* = 1/(2 rho) = 5e5 for rho = 1e-6. Without the soft flag the problem is infeasible.
     s = DaqpQP(settings={"rho_soft": 1e-6})
-    s.setup(np.eye(1), [0.0], [[1.0]], [1.0], None, [-1.0], [0.0], soft_rows=[True])
+    s.setup_native(np.eye(1), [0.0], [[1.0]], [1.0], None, [-1.0], [0.0], soft_rows=[True])
     r = s.solve()
     assert r.status is SolveStatus.OPTIMAL and r.info["soft_relaxed"]
     np.testing.assert_allclose(r.x, [0.0], atol=1e-12)
     assert r.objective == pytest.approx(5e5, rel=1e-9)
     hard = DaqpQP()
-    hard.setup(np.eye(1), [0.0], [[1.0]], [1.0], None, [-1.0], [0.0])
+    hard.setup_native(np.eye(1), [0.0], [[1.0]], [1.0], None, [-1.0], [0.0])
     assert hard.solve().status is SolveStatus.INFEASIBLE
 
 
@@ -245,7 +245,7 @@ def test_solver_exception_becomes_numerical_error():
             raise RuntimeError("boom")
 
     s = DaqpQP()
-    s.setup(np.eye(2), np.zeros(2))
+    s.setup_native(np.eye(2), np.zeros(2))
     s._model = Exploding()
     r = s.solve()
     assert r.status is SolveStatus.NUMERICAL_ERROR and "boom" in r.info["error"]
@@ -255,7 +255,7 @@ def test_solver_exception_becomes_numerical_error():
 def test_piqp_lp_equality_and_update():
     # P2 with x1 + x2 = 1 as an equality: x* = (1, 0); costs (2, 1): x* = (0, 1); f* = 1.
     s = PiqpQP()
-    s.setup(None, [1.0, 2.0], A=[[1.0, 1.0]], b=[1.0], x_lb=[0, 0], x_ub=[5, 5])
+    s.setup_native(None, [1.0, 2.0], A=[[1.0, 1.0]], b=[1.0], x_lb=[0, 0], x_ub=[5, 5])
     r = s.solve()
     assert r.status is SolveStatus.OPTIMAL
     np.testing.assert_allclose(r.x, [1, 0], atol=1e-7)
@@ -271,7 +271,7 @@ def test_piqp_lp_equality_and_update():
 def test_piqp_qp_projection_update_and_rebuild():
     G = np.array([[1.0, 1.0]])
     s = PiqpQP()
-    s.setup(np.eye(2), -np.array([2.0, 1.0]), G=G, h_u=[1.0])
+    s.setup_native(np.eye(2), -np.array([2.0, 1.0]), G=G, h_u=[1.0])
     r = s.solve()
     x_ref, f_ref = projection_halfspace([2, 1], [1, 1], 1.0)
     np.testing.assert_allclose(r.x, x_ref, atol=1e-7)
@@ -293,15 +293,15 @@ def test_piqp_qp_projection_update_and_rebuild():
 
 def test_piqp_infeasible_unbounded_maxiter():
     s = PiqpQP()
-    s.setup(np.eye(2), np.zeros(2), A=[[1.0, 1.0]], b=[-1.0], x_lb=[0, 0])
+    s.setup_native(np.eye(2), np.zeros(2), A=[[1.0, 1.0]], b=[-1.0], x_lb=[0, 0])
     assert s.solve().status is SolveStatus.INFEASIBLE
     s = PiqpQP()
-    s.setup(None, [-1.0, 0.0], A=[[1.0, 1.0]], b=[1.0])  # x1 -> inf, x2 = 1 - x1
+    s.setup_native(None, [-1.0, 0.0], A=[[1.0, 1.0]], b=[1.0])  # x1 -> inf, x2 = 1 - x1
     assert s.solve().status is SolveStatus.UNBOUNDED
     rng = np.random.default_rng(1)
     M = rng.standard_normal((30, 30))
     s = PiqpQP(max_iter=1)
-    s.setup(M @ M.T + np.eye(30), 10 * rng.standard_normal(30), x_lb=-np.ones(30), x_ub=np.ones(30))
+    s.setup_native(M @ M.T + np.eye(30), 10 * rng.standard_normal(30), x_lb=-np.ones(30), x_ub=np.ones(30))
     assert s.solve().status is SolveStatus.MAX_ITER
 
 
@@ -312,7 +312,7 @@ def test_clarabel_socp_ball_and_updates():
     c = np.array([1.0, 2.0])
     prob = build_conic_problem(c, soc=[(np.eye(2), np.zeros(2), np.zeros(2), 2.0)])
     s = ClarabelSOCP()
-    s.setup_problem(prob)
+    s.setup(prob)
     r = s.solve()
     assert r.status is SolveStatus.OPTIMAL
     np.testing.assert_allclose(r.x, -2 * c / np.linalg.norm(c), atol=1e-6)
@@ -337,7 +337,7 @@ def test_clarabel_socp_distance_to_line():
                                soc=[(F, [-1.0, -2.0], [0, 0, 1.0], 0.0)])
     assert prob.cones == [("zero", 1), ("soc", 3)]
     s = ClarabelSOCP()
-    s.setup_problem(prob)
+    s.setup(prob)
     res = s.solve()
     np.testing.assert_allclose(res.x, [-0.5, 0.5, 3 / np.sqrt(2)], atol=1e-6)
     assert res.objective == pytest.approx(3 / np.sqrt(2), abs=1e-6)
@@ -357,7 +357,7 @@ def test_clarabel_qp_lp_and_infinite_rows():
     prob = conic_from_qp(np.eye(2), -np.array([2.0, 1.0]), A=[[1.0, 1.0]], bu=[1.0],
                          lb=[-5, -5], ub=[5, np.inf])
     s = ClarabelSOCP()
-    s.setup_problem(prob)
+    s.setup(prob)
     r = s.solve()
     np.testing.assert_allclose(r.x, [1.0, 0.0], atol=1e-7)
     assert r.objective == pytest.approx(-1.5, abs=1e-7)
@@ -375,7 +375,7 @@ def test_clarabel_qp_lp_and_infinite_rows():
     # LP P2 through the same path.
     lp = conic_from_qp(None, [1.0, 2.0], A=[[1.0, 1.0]], bl=[1.0], lb=[0, 0], ub=[5, 5])
     s = ClarabelSOCP()
-    s.setup_problem(lp)
+    s.setup(lp)
     r = s.solve()
     np.testing.assert_allclose(r.x, [1.0, 0.0], atol=1e-7)
     assert r.objective == pytest.approx(1.0, abs=1e-7)
@@ -387,8 +387,8 @@ def test_clarabel_update_fast_matches_validated_update():
     F = np.array([[1.0, 0, 0], [0, 1.0, 0]])
     prob = build_conic_problem([0, 0, 1.0], eq=([[1.0, 1.0, 0]], [0.0]), soc=[(F, [-1.0, -2.0], [0, 0, 1.0], 0.0)])
     fast, slow = ClarabelSOCP(), ClarabelSOCP()
-    fast.setup_problem(prob)
-    slow.setup_problem(prob)
+    fast.setup(prob)
+    slow.setup(prob)
     A = prob.A.copy()
     A.sort_indices()
     for a, p in (((1.0, 2.0), (1.0, 2.0)), ((3.0, -1.0), (2.0, 0.5)), ((0.5, 0.5), (-1.0, 4.0))):
@@ -411,7 +411,7 @@ def test_clarabel_update_fast_falls_back_with_removed_rows():
     solver up again when the row becomes finite (same problem as test_clarabel_qp_lp_and_infinite_rows)."""
     prob = conic_from_qp(np.eye(2), -np.array([2.0, 1.0]), A=[[1.0, 1.0]], bu=[1.0], lb=[-5, -5], ub=[5, np.inf])
     s = ClarabelSOCP()
-    s.setup_problem(prob)
+    s.setup(prob)
     b = prob.b.copy()
     b[prob.blocks["ub"]] = [5.0, -2.0]
     s.update_fast(b=b)
@@ -426,10 +426,10 @@ def test_clarabel_retry_settings_resolve_an_iteration_limited_solve():
     c = np.array([1.0, 2.0])
     prob = build_conic_problem(c, soc=[(np.eye(2), np.zeros(2), np.zeros(2), 2.0)])
     plain = ClarabelSOCP(max_iter=2)
-    plain.setup_problem(prob)
+    plain.setup(prob)
     assert plain.solve().status is SolveStatus.MAX_ITER
     s = ClarabelSOCP(max_iter=2, retry_settings={"max_iter": 200})
-    s.setup_problem(prob)
+    s.setup(prob)
     r = s.solve()
     assert r.status is SolveStatus.OPTIMAL
     np.testing.assert_allclose(r.x, -2 * c / np.linalg.norm(c), atol=1e-6)
@@ -444,17 +444,17 @@ def test_clarabel_infeasible_and_unbounded():
     prob = build_conic_problem([0.0, 0.0], ineq=([[-1.0, 0.0]], [-2.0]),
                                soc=[(np.eye(2), np.zeros(2), np.zeros(2), 1.0)])
     s = ClarabelSOCP()
-    s.setup_problem(prob)
+    s.setup(prob)
     assert s.solve().status is SolveStatus.INFEASIBLE
     s = ClarabelSOCP()
-    s.setup_problem(build_conic_problem([-1.0, 0.0], ineq=([[0.0, 1.0]], [1.0])))
+    s.setup(build_conic_problem([-1.0, 0.0], ineq=([[0.0, 1.0]], [1.0])))
     assert s.solve().status is SolveStatus.UNBOUNDED
 
 
 # --------------------------------------------------------------------------- HiGHS
 def test_highs_lp_vertex_and_hot_start():
     s = HighsLP()
-    s.setup([1.0, 2.0], A=[[1.0, 1.0]], rl=[1.0], lb=[0, 0], ub=[5, 5])
+    s.setup_native([1.0, 2.0], A=[[1.0, 1.0]], rl=[1.0], lb=[0, 0], ub=[5, 5])
     r = s.solve()
     assert r.status is SolveStatus.OPTIMAL
     np.testing.assert_allclose(r.x, [1, 0], atol=1e-9)
@@ -490,7 +490,7 @@ def test_highs_l1_fuel_lp():
     c = np.ones(2 * N)
     A = np.concatenate([np.ones(N), -np.ones(N)])[None, :]
     s = HighsLP()
-    s.setup(c, A, [d], [d], np.zeros(2 * N), umax * np.ones(2 * N))
+    s.setup_native(c, A, [d], [d], np.zeros(2 * N), umax * np.ones(2 * N))
     r = s.solve()
     assert r.objective == pytest.approx(abs(d), abs=1e-9)
     assert_feasible(A, [d], [d], r.x, np.zeros(2 * N), umax * np.ones(2 * N))
@@ -500,10 +500,10 @@ def test_highs_l1_fuel_lp():
 
 def test_highs_infeasible_and_unbounded():
     s = HighsLP()
-    s.setup([0.0, 0.0], [[1.0, 1.0]], None, [-1.0], [0, 0], None)
+    s.setup_native([0.0, 0.0], [[1.0, 1.0]], None, [-1.0], [0, 0], None)
     assert s.solve().status is SolveStatus.INFEASIBLE
     s = HighsLP()
-    s.setup([-1.0, 0.0], [[0.0, 1.0]], None, [1.0])
+    s.setup_native([-1.0, 0.0], [[0.0, 1.0]], None, [1.0])
     assert s.solve().status is SolveStatus.UNBOUNDED
 
 
@@ -567,8 +567,8 @@ def test_lp_agrees_across_all_solvers():
 def test_bad_input_raises_clear_errors():
     s = DaqpQP()
     with pytest.raises(ProxopsInputError, match=r"A\.shape"):
-        s.setup(np.eye(2), np.zeros(2), np.ones((1, 3)))
-    s.setup(np.eye(2), np.zeros(2), np.ones((1, 2)), None, [1.0])
+        s.setup_native(np.eye(2), np.zeros(2), np.ones((1, 3)))
+    s.setup_native(np.eye(2), np.zeros(2), np.ones((1, 2)), None, [1.0])
     with pytest.raises(ProxopsInputError, match=r"bu\.shape"):
         s.update(bu=[1.0, 2.0])
     with pytest.raises(ProxopsInputError, match="lb/ub"):
@@ -578,7 +578,7 @@ def test_bad_input_raises_clear_errors():
     with pytest.raises(ProxopsInputError, match="piqp settings"):
         PiqpQP(settings={"not_a_setting": 1})
     with pytest.raises(ProxopsInputError, match="cones"):
-        ClarabelSOCP().setup(None, [0.0], np.ones((2, 1)), [1.0, 1.0], [("nonneg", 1)])
+        ClarabelSOCP().setup_native(None, [0.0], np.ones((2, 1)), [1.0, 1.0], [("nonneg", 1)])
     with pytest.raises(ProxopsInputError, match="solver"):
         solve_qp(QuadraticProgram(P=None, q=[1.0]), "osqp")
     with pytest.raises(ProxopsInputError, match="LPs only"):
@@ -590,7 +590,7 @@ def test_piqp_bound_update_in_place():
     Updating only the bounds must reuse the solver (no error, no rebuild) and move the optimum."""
     c = np.array([2.0, -3.0, 0.5])
     qp = PiqpQP()
-    qp.setup(np.eye(3), -c, x_lb=-np.ones(3), x_ub=np.ones(3))
+    qp.setup_native(np.eye(3), -c, x_lb=-np.ones(3), x_ub=np.ones(3))
     first = qp.solve()
     assert first.status is SolveStatus.OPTIMAL
     np.testing.assert_allclose(first.x, np.clip(c, -1, 1), atol=1e-6)

@@ -31,7 +31,7 @@ from proxops.solvers import (
     QuadraticProgram,
     SolverResult,
     SolveStatus,
-    make_qp_solver,
+    make_solver,
     solve_qp,
     successive_convexification,
 )
@@ -43,6 +43,6 @@ __all__ = [
     "StopReason", "Supervisor", "System", "SystemBase",
     "CampaignResult", "Command", "ConicProblem", "Controller", "LinearProgram", "Plant", "ProxopsError",
     "ProxopsInputError", "QuadraticProgram", "Setup", "SimResult", "SolveStatus", "SolverResult",
-    "load_campaign", "load_scenario", "make_qp_solver", "run", "run_campaign", "simulate", "solve_qp",
+    "load_campaign", "load_scenario", "make_solver", "run", "run_campaign", "simulate", "solve_qp",
     "successive_convexification", "write_report",
 ]

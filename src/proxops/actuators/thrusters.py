@@ -11,8 +11,8 @@ mass, so they produce no torque (a torque request is met with the least error: n
 
 Algorithm 4 is a linear programme (no integer variable appears in it although the paper calls it
 a MILP): ``min sum_j e_j  s.t.  -e <= A diag(F_max) d - c <= e,  0 <= d <= 1`` with A = [t_i;
-r_i x t_i] (6 x n). Solved by HiGHS (:class:`proxops.solvers.HighsLP`): the least-L1-error duty
-cycles; exact (error 0) whenever c is achievable.
+r_i x t_i] (6 x n). Solved by HiGHS by default (any LP solver of :func:`proxops.solvers.make_solver` by name):
+the least-L1-error duty cycles; exact (error 0) whenever c is achievable.
 """
 
 from __future__ import annotations
@@ -24,7 +24,10 @@ import numpy as np
 
 from proxops.core.constants import G0
 from proxops.errors import input_error
-from proxops.solvers import HighsLP
+from proxops.solvers import LinearProgram, make_solver
+
+# HiGHS for Algorithm 4: tight feasibility tolerances (the duty cycles are exact to 1e-10 when c is achievable)
+HIGHS_SETTINGS = {"settings": {"primal_feasibility_tolerance": 1e-10, "dual_feasibility_tolerance": 1e-10}}
 
 
 @dataclass
@@ -97,29 +100,36 @@ class Allocation:
 
 class Allocator:
     """Algorithm 4 for one layout, set up once: each :meth:`solve` changes only the row bounds (the
-    command c) and hot-starts HiGHS from the previous basis (measured: a fresh set-up per command
-    costs ~30 ms, an update well under 1 ms)."""
+    command c) and re-solves in place (HiGHS hot-starts from the previous basis; measured: a fresh
+    set-up per command costs ~30 ms, an update well under 1 ms).
 
-    def __init__(self, layout: ThrusterLayout, solver=None):
+    ``solver``: any LP solver of :func:`proxops.solvers.make_solver` ("highs", default, "piqp",
+    "clarabel", "daqp"); ``settings`` go to its adapter (default for HiGHS: feasibility tolerances
+    1e-10)."""
+
+    def __init__(self, layout: ThrusterLayout, solver: str = "highs", settings: dict | None = None):
         self.layout = layout
         n = layout.n
         self.M = layout.actuation_matrix() * layout.f_max_n[None, :]  # (6, n)
         # variables [d (n), e (6)]: rows M d - e <= c and M d + e >= c
         self.A = np.block([[self.M, -np.eye(6)], [self.M, np.eye(6)]])
-        cost = np.concatenate([np.zeros(n), np.ones(6)])
-        lb = np.zeros(n + 6)
-        ub = np.concatenate([np.ones(n), np.full(6, np.inf)])
-        self.lp = solver or HighsLP(settings={"primal_feasibility_tolerance": 1e-10, "dual_feasibility_tolerance": 1e-10})
-        zero = np.zeros(6)
-        self.lp.setup(cost, self.A, np.concatenate([np.full(6, -np.inf), zero]), np.concatenate([zero, np.full(6, np.inf)]),
-                      lb, ub)
+        zero, inf6 = np.zeros(6), np.full(6, np.inf)
+        lp = LinearProgram(c=np.concatenate([np.zeros(n), np.ones(6)]), A=self.A,
+                           rl=np.concatenate([-inf6, zero]), ru=np.concatenate([zero, inf6]),
+                           lb=np.zeros(n + 6), ub=np.concatenate([np.ones(n), inf6]))
+        if settings is None:
+            settings = HIGHS_SETTINGS if solver == "highs" else {}
+        self.lp = make_solver(lp, solver, **settings)
+        self._rl, self._ru = lp.rl.copy(), lp.ru.copy()
 
     def solve(self, command) -> Allocation:
         c = np.asarray(command, float)
         if c.shape != (6,) or not np.all(np.isfinite(c)):
             raise input_error("force/torque command", np.ravel(c).tolist(), "must be 6 finite numbers [F (N), tau (N m)]")
         n = self.layout.n
-        self.lp.update(rl=np.concatenate([np.full(6, -np.inf), c]), ru=np.concatenate([c, np.full(6, np.inf)]))
+        self._rl[6:] = c
+        self._ru[:6] = c
+        self.lp.update(rl=self._rl, ru=self._ru)
         res = self.lp.solve()
         if res.x is None:
             return Allocation(np.zeros(n), np.abs(c), np.zeros(6), res.status.value)
@@ -128,11 +138,11 @@ class Allocator:
         return Allocation(d, np.abs(achieved - c), achieved, res.status.value)
 
 
-def allocate(layout: ThrusterLayout, command, solver=None) -> Allocation:
+def allocate(layout: ThrusterLayout, command, solver: str = "highs", settings: dict | None = None) -> Allocation:
     """Algorithm 4: duty cycles d in [0, 1] minimising sum_j |(A F d - c)_j| for the body
     force/torque command c = [F (N); tau (N m)] (6,). Infeasibility cannot occur (d = 0 is
     feasible with e = |c|); a solver failure is a status. One-off form of :class:`Allocator`."""
-    return Allocator(layout, solver).solve(command)
+    return Allocator(layout, solver, settings).solve(command)
 
 
 def pwm_on(t_s: float, duty: np.ndarray, t_control_s: float) -> np.ndarray:

@@ -61,7 +61,6 @@ from proxops.analysis.statistics import (
 )
 from proxops.errors import ProxopsInputError
 
-from proxops.systems.base import FAILED_STATUSES  # noqa: F401  (one home: the default SystemBase.success)
 
 MAX_RUNS = 10_000_000  # rows of one campaign; items are made lazily, the table of results is what grows
 

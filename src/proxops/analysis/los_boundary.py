@@ -193,7 +193,7 @@ def open_loop_feasible(omega_deg_s: float, a_max_mps2: float, fraction: float, s
     lb = np.concatenate([np.full(nx, -np.inf), np.full(nu, -a_max_mps2)])
     ub = np.concatenate([np.full(nx, np.inf), np.full(nu, a_max_mps2)])
     lp = HighsLP(settings={"solver": "ipm"})  # IPM: infeasible cases in ~1 s (dual simplex: 14-67 s)
-    lp.setup(np.zeros(nx + nu), A, rl, ru, lb, ub)
+    lp.setup_native(np.zeros(nx + nu), A, rl, ru, lb, ub)
     res = lp.solve()
     return bool(res.ok and res.x is not None)
 

@@ -4,6 +4,7 @@ shared by ``proxops run``, ``validate`` and the campaign workers."""
 from __future__ import annotations
 
 from proxops.sim.result import SimResult
+from proxops.status import Status
 
 
 def execute(loaded, seed: int | None = None, progress: bool = False) -> tuple[dict, dict[str, SimResult]]:
@@ -19,6 +20,9 @@ def execute(loaded, seed: int | None = None, progress: bool = False) -> tuple[di
     # the same text as `status`) and `stop_reason` (completed, stop_condition, controller)
     summary["outcome"] = summary.get("outcome", summary.get("status"))
     summary["stop_reason"] = str(main.meta.get("stop_reason", ""))
+    # the last controller status (Status.NONE marks samples without a step): SystemBase.success reads it
+    summary["final_status"] = str(next((s for s in reversed(main.status) if Status.parse(s) is not Status.NONE),
+                                       Status.NONE))
     summary["success"] = bool(system.success(sc, summary))
     return summary, results
 

@@ -41,7 +41,9 @@ their weight.
 
 The problem is built once per (N_sub, cone, plume) structure; each call writes x_k, x_T into
 ``b`` and (with plume rows) the row values into the fixed sparsity pattern of ``A``, handed to
-:meth:`proxops.solvers.ClarabelSOCP.update_fast` (no scipy.sparse construction per call).
+the solver's ``update_fast`` (:meth:`proxops.solvers.ClarabelSOCP.update_fast`: no scipy.sparse
+construction per call). The solver is made by name (:func:`proxops.solvers.make_solver`, ``solver``)
+from a :class:`proxops.solvers.ConicProblem`; Clarabel is the one SOCP solver shipped.
 """
 
 from __future__ import annotations
@@ -53,7 +55,7 @@ import scipy.sparse as sp
 
 from proxops.core.cw import cw_stm
 from proxops.errors import input_error
-from proxops.solvers import ClarabelSOCP, SolveStatus, soc_rows
+from proxops.solvers import ConicProblem, SolveStatus, make_solver, soc_rows
 
 # Clarabel settings of CP_g (measured in benchmarks/bench_cortex_tracking.py): iterative refinement of
 # the KKT solves off (about 30 % less time per solve); a solve that then ends inaccurate, failed or at
@@ -95,7 +97,8 @@ class TrackingSOCP:
     soft plume half-spaces (not in the paper, see :meth:`set_plume`)."""
 
     def __init__(self, n_rad_s: float, n_sub: int, substep_s: float, a_max_mps2: float, terminal_penalty: float,
-                 cone=None, plume: bool = False, plume_weight: float = 100.0, solver_settings: dict | None = None):
+                 cone=None, plume: bool = False, plume_weight: float = 100.0, solver_settings: dict | None = None,
+                 solver: str = "clarabel"):
         if not (math.isfinite(terminal_penalty) and terminal_penalty > 0):
             raise input_error("guidance.terminal_penalty", terminal_penalty, "must be a finite number > 0")
         if not (math.isfinite(a_max_mps2) and a_max_mps2 > 0):
@@ -212,10 +215,15 @@ class TrackingSOCP:
 
             self._plume_idx = [np.array([[position(row, col) for col in cs] for row, cs in plume_entries[blk]],
                                         dtype=np.intp).reshape(-1, 3) for blk in range(3)]
-        self.solver_settings = DEFAULT_SOLVER_SETTINGS if solver_settings is None else solver_settings
-        self.solver = ClarabelSOCP(**self.solver_settings)
-        self.solver.setup(None, self.q, A, self.b, cones)
+        self.solver_name = solver
+        self.solver_settings = ((DEFAULT_SOLVER_SETTINGS if solver == "clarabel" else {}) if solver_settings is None
+                                else solver_settings)
+        self.solver = make_solver(self.form(), solver, **self.solver_settings)
         self._A_dirty = False
+
+    def form(self) -> ConicProblem:
+        """The current problem (eq. 27 in the variables of the module doc) as a :class:`ConicProblem`."""
+        return ConicProblem(None, self.q, self.A, self.b, self.cones)
 
     def set_plume(self, g_rows) -> None:
         """Soft plume rows g_j . dv_j <= sig_j, cost ``plume_weight`` sig_j (g_j (N, 3), physical units;
@@ -255,10 +263,11 @@ class TrackingSOCP:
         (for the update-vs-rebuild measurement)."""
         self._set_rhs(x_k, x_T)
         if rebuild:
-            self.solver = ClarabelSOCP(**self.solver_settings)
-            self.solver.setup(None, self.q, self.A, self.b, self.cones)
+            self.solver = make_solver(self.form(), self.solver_name, **self.solver_settings)
+        elif self._A_dirty:
+            self.solver.update_fast(b=self.b, A_values=self.A.data)
         else:
-            self.solver.update_fast(b=self.b, A_values=self.A.data if self._A_dirty else None)
+            self.solver.update_fast(b=self.b)
         self._A_dirty = False
         res = self.solver.solve()
         if res.x is None or res.status not in (SolveStatus.OPTIMAL, SolveStatus.OPTIMAL_INACCURATE):

@@ -414,8 +414,8 @@ class LosMpc:
         f = None if self._shift else self._f
         if self._solver is None:
             self._solver = DaqpQP(max_iter=self.cfg.max_iter)
-            self._solver.setup(self._H, None if f is None else f.copy(), self._A, bu=self._b.copy(),
-                               lb=self._lb_w.copy(), ub=self._ub_w.copy())
+            self._solver.setup_native(self._H, None if f is None else f.copy(), self._A, bu=self._b.copy(),
+                                      lb=self._lb_w.copy(), ub=self._ub_w.copy())
         elif finite:  # finite data: rows stay inequalities, no bound crossed
             self._solver.update_fast(f=f, bu=self._b, lb=self._lb_w, ub=self._ub_w)
         else:  # NaN/inf state: the checked path turns it into a NUMERICAL_ERROR status

@@ -120,7 +120,7 @@ from proxops.core.cw import cw_stm
 from proxops.core.memo import memo_get
 from proxops.errors import input_error
 from proxops.sim.protocols import Command
-from proxops.solvers import QuadraticProgram, SolveStatus, make_qp_solver, solve_qp, successive_convexification
+from proxops.solvers import QuadraticProgram, SolveStatus, make_solver, solve_qp, successive_convexification
 from proxops.status import Status
 
 KM = 1000.0
@@ -864,8 +864,8 @@ class SrfMpc:
                 # ones (drop_fixed; 4x faster on average over the shrinking horizon).
                 settings = {"max_iter": 80, "certify_after": 40, "certify_margin": self.cfg.feasibility_tol,
                             "drop_fixed": True}
-                self._solver = make_qp_solver(self.cfg.solver, **(settings if self.cfg.solver == "piqp" else {}))
-                self._solver.setup(qp.as_form())
+                self._solver = make_solver(qp.as_form(), self.cfg.solver,
+                                           **(settings if self.cfg.solver == "piqp" else {}))
             else:
                 self._solver.update(A_eq=qp.A_eq, b_eq=qp.b_eq, A=qp.G, bl=qp.g_lo, bu=qp.g_hi, lb=qp.lb, ub=qp.ub)
             res = self._solver.solve()
@@ -955,8 +955,8 @@ class SrfMpc:
         if out.converged:
             _, gmin, rmin = checked["drift"]
             return _Solve(out.iterate, Status.OPTIMAL, self._clock[0], self._clock[1], relax, gmin, rmin), Status.OPTIMAL
-        if out.failure:  # the subproblem's status (solve() below returns Status members)
-            return None, Status.parse(out.failure)
+        if out.status is Status.FAILED:  # the subproblem's status (solve() above returns Status members)
+            return None, out.failure
         return None, Status.CBF_VIOLATION
 
     # ------------------------------------------------------------------ safety

@@ -2,7 +2,8 @@
 
 :class:`ConvexSection` is the projection P = {p in R^2 : exists u, A [p; u] <= b, lb <= [p; u] <= ub}
 onto its first two variables: inner (support points) and outer (supporting half-planes) polygons
-from warm-started support LPs (DAQP, HiGHS as fallback), and exact point membership (HiGHS).
+from warm-started support LPs (DAQP, HiGHS as fallback, by default; any LP solver by name), and exact
+point membership (HiGHS).
 Units are the caller's.
 """
 
@@ -15,7 +16,7 @@ import numpy as np
 from scipy.spatial import ConvexHull, QhullError
 
 from proxops.errors import ProxopsError
-from proxops.solvers import DaqpQP, HighsLP, SolveStatus
+from proxops.solvers import LinearProgram, SolveStatus, make_solver
 
 
 @dataclass
@@ -72,24 +73,38 @@ class ConvexSection:
     # (HiGHS: < 1 s), so larger LPs stay on HiGHS
     SUPPORT_DAQP_MAX_VARIABLES = 200
 
-    def __init__(self, A: np.ndarray, b: np.ndarray, lb: np.ndarray, ub: np.ndarray):
+    def __init__(self, A: np.ndarray, b: np.ndarray, lb: np.ndarray, ub: np.ndarray,
+                 support_solver: str | None = "daqp", lp_solver: str = "highs"):
+        """``support_solver``: LP solver of the support LPs up to ``SUPPORT_DAQP_MAX_VARIABLES``
+        variables (None: all on ``lp_solver``); ``lp_solver``: LP solver of the larger support LPs,
+        the retries and the point-feasibility LPs. Any LP name of :func:`proxops.solvers.make_solver`
+        ("highs", "daqp", "piqp", "clarabel")."""
         self.A = np.asarray(A, float)
         self.b = np.asarray(b, float)
         self.lb = np.asarray(lb, float)
         self.ub = np.asarray(ub, float)
         self.n_var = self.A.shape[1]
-        self.lp = HighsLP(settings=self.HOT_SETTINGS)
+        self.lp_solver = lp_solver
         self._current = (np.zeros(self.n_var), self.lb.copy(), self.ub.copy())
-        self.lp.setup(self._current[0], self.A, None, self.b, self.lb, self.ub)
+        self.lp = self._lp_solver(*self._current, hot=True)
         self.n_lp = 0
         self.n_retry = 0  # cold re-solves after numerical trouble
-        self.n_highs = 0  # support LPs DAQP left to HiGHS (counted in n_lp)
-        self.support_lp: DaqpQP | None = None
-        if self.n_var <= self.SUPPORT_DAQP_MAX_VARIABLES:
-            self.support_lp = DaqpQP(settings={"eps_prox": self.SUPPORT_EPS_PROX})
-            self.support_lp.setup_native(np.zeros((self.n_var, self.n_var)), np.zeros(self.n_var), self.A,
-                                         np.full(len(self.b), -np.inf), self.b, self.lb, self.ub)
+        self.n_highs = 0  # support LPs the support solver left to lp_solver (counted in n_lp)
+        self.support_lp = None
+        if support_solver is not None and self.n_var <= self.SUPPORT_DAQP_MAX_VARIABLES:
+            settings = {"settings": {"eps_prox": self.SUPPORT_EPS_PROX}} if support_solver == "daqp" else {}
+            self.support_lp = make_solver(self._form(*self._current), support_solver, **settings)
+            self._support_cost = self.support_lp.native_name("c")  # the lean update_fast path of that solver
         self._poly: SectionPolygon | None = None
+
+    def _form(self, c, lb, ub) -> LinearProgram:
+        return LinearProgram(c=c, A=self.A, ru=self.b, lb=lb, ub=ub)
+
+    def _lp_solver(self, c, lb, ub, hot: bool):
+        """An ``lp_solver`` adapter set up with cost c and bounds lb, ub (HiGHS: ``HOT_SETTINGS`` when
+        ``hot``, its defaults otherwise)."""
+        settings = {"settings": self.HOT_SETTINGS} if hot and self.lp_solver == "highs" else {}
+        return make_solver(self._form(c, lb, ub), self.lp_solver, **settings)
 
     def set_box(self, lo: np.ndarray, hi: np.ndarray) -> None:
         """Change the bounds of p (the first 2 variables)."""
@@ -104,7 +119,7 @@ class ConvexSection:
         c = np.zeros(self.n_var)
         c[:2] = -np.asarray(direction, float)
         if self.support_lp is not None:
-            self.support_lp.update_fast(f=c)  # a fresh array: DAQP keeps a pointer to f
+            self.support_lp.update_fast(**{self._support_cost: c})  # a fresh array: DAQP keeps a pointer to f
             res = self.support_lp.solve()
             if res.status is SolveStatus.OPTIMAL:
                 self.n_lp += 1
@@ -118,26 +133,22 @@ class ConvexSection:
 
     def _solve(self):
         """Solve the current LP; on numerical trouble (neither optimal nor infeasible) rebuild the
-        solver cold, with presolve, and solve again (HiGHS hot starts can stall on long horizons)."""
+        solver cold (HiGHS: with presolve) and solve again (HiGHS hot starts can stall on long horizons)."""
         res = self.lp.solve()
         self.n_lp += 1
         if res.status in (SolveStatus.OPTIMAL, SolveStatus.INFEASIBLE):
             return res
-        c, lb, ub = self._current
-        fresh = HighsLP()
-        fresh.setup(c, self.A, None, self.b, lb, ub)
-        res = fresh.solve()
+        res = self._lp_solver(*self._current, hot=False).solve()
         self.n_lp += 1
         self.n_retry += 1
-        self.lp = HighsLP(settings=self.HOT_SETTINGS)
-        self.lp.setup(c, self.A, None, self.b, lb, ub)
+        self.lp = self._lp_solver(*self._current, hot=True)
         return res
 
     def _set(self, c=None, lb=None, ub=None) -> None:
         """Change the LP's cost and/or variable bounds (kept for cold re-solves)."""
         c0, lb0, ub0 = self._current
         self._current = (c0 if c is None else c, lb0 if lb is None else lb, ub0 if ub is None else ub)
-        self.lp.update(c=c, lb=lb, ub=ub)
+        self.lp.update(**{k: v for k, v in (("c", c), ("lb", lb), ("ub", ub)) if v is not None})
 
     def polygon(self, n_directions: int = 48, refine_tol: float = 0.05, max_rounds: int = 6) -> SectionPolygon:
         """Support points in n_directions evenly spread directions, then bisect the angular gaps whose

@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-import math
-
 import importlib
 
 import numpy as np
@@ -179,23 +177,3 @@ class BadData:
         if not self.fields:
             return None
         return "non-finite problem data in " + ", ".join(sorted(self.fields)) + "; nothing was solved"
-
-
-def unsolvable(adapter, crossed_raw_status: str = "crossed_bounds"):
-    """The result for data a solver must not be called with (NaN or inf where not allowed,
-    crossed bounds, a failed set-up), or None when the solver may run; solving before
-    ``setup`` is a usage error. ``adapter`` has the
-    ``name``, ``_bad``, ``_crossed`` and ``_solver_error`` attributes every adapter keeps."""
-    from proxops.solvers.result import SolverResult, SolveStatus, failed_result
-
-    if adapter._data is None:
-        raise input_error(f"{type(adapter).__name__}.solve", "called before setup", "call setup() first")
-    bad = adapter._bad.message()
-    if bad is not None:
-        return failed_result(adapter.name, bad)
-    if adapter._crossed is not None:
-        return SolverResult(SolveStatus.INFEASIBLE, None, math.nan, 0, 0.0, adapter.name,
-                            {"raw_status": crossed_raw_status, "reason": adapter._crossed})
-    if adapter._solver_error is not None:
-        return failed_result(adapter.name, adapter._solver_error)
-    return None

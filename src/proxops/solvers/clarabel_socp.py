@@ -36,6 +36,7 @@ from proxops.solvers.forms import (  # noqa: F401 (build_conic_problem, conic_fr
     conic_from_program,
     conic_from_qp,
 )
+from proxops.solvers.base import SolverAdapter
 from proxops.solvers.result import SolverResult, SolveStatus, error_message, failed_result
 
 CONE_KINDS = ("zero", "nonneg", "soc")
@@ -60,7 +61,7 @@ STATUS_MAP = {
 RETRY_STATUSES = (SolveStatus.OPTIMAL_INACCURATE, SolveStatus.NUMERICAL_ERROR, SolveStatus.MAX_ITER)
 
 
-class ClarabelSOCP:
+class ClarabelSOCP(SolverAdapter):
     """Persistent Clarabel solver for ``min 1/2 x'Px + q'x s.t. A x + s = b, s in K``.
 
     Settings: ``max_iter``, ``time_limit_s``, ``tol_gap_rel``, ``tol_feas``, ``verbose``;
@@ -72,6 +73,7 @@ class ClarabelSOCP:
     """
 
     name = "clarabel"
+    forms = (ConicProblem, QuadraticProgram)
 
     def __init__(self, *, max_iter: int | None = None, time_limit_s: float | None = None,
                  tol_gap_rel: float | None = None, tol_feas: float | None = None,
@@ -88,36 +90,23 @@ class ClarabelSOCP:
             native["tol_feas"] = float(tol_feas)
         native.update(settings or {})
         allowed = {k for k in dir(self._clarabel.DefaultSettings()) if not k.startswith("_")}
-        unknown = sorted((set(native) | set(retry_settings or {})) - allowed)
-        if unknown:
-            raise input_error("clarabel settings", unknown, f"allowed keys: {sorted(allowed)}")
+        self._native_settings({**native, **(retry_settings or {})}, allowed, "clarabel")
         self._native = native
         self._retry_native = {**native, **retry_settings} if retry_settings is not None else None
         self._solver = None
         self._data: dict | None = None
+        self._qp: QuadraticProgram | None = None  # the QP form set up (update re-converts it)
 
     # ------------------------------------------------------------------ set-up
-    def setup(self, problem, *args, **kwargs) -> None:
-        """Set up a :class:`ConicProblem` (``update`` takes P, q, A, b) or a
-        :class:`QuadraticProgram` (converted by :func:`conic_from_program`; ``update`` then takes
-        the QP's names and re-converts). The native signature ``setup(P, q, A, b, cones)`` is
-        still accepted (:meth:`setup_native`)."""
-        self._qp = None
+    def _setup_form(self, problem) -> None:
+        """Set up a :class:`ConicProblem` (``update`` takes P, q, A, b) or a :class:`QuadraticProgram`
+        (converted by :func:`conic_from_program`; ``update`` then takes the QP's names and re-converts)."""
+        qp = None
         if isinstance(problem, QuadraticProgram):
-            if args or kwargs:
-                raise input_error("ClarabelSOCP.setup", "extra arguments with a problem", "pass the problem only")
-            self._qp = dataclasses.replace(problem)
+            qp = dataclasses.replace(problem)
             problem = conic_from_program(problem)
-        if isinstance(problem, ConicProblem):
-            if args or kwargs:
-                raise input_error("ClarabelSOCP.setup", "extra arguments with a problem", "pass the problem only")
-            self.setup_native(problem.P, problem.q, problem.A, problem.b, problem.cones)
-            return
-        self.setup_native(problem, *args, **kwargs)
-
-    def setup_problem(self, problem: ConicProblem) -> None:
-        """``setup`` from a :class:`ConicProblem` (kept for existing callers)."""
-        self.setup(problem)
+        self.setup_native(problem.P, problem.q, problem.A, problem.b, problem.cones)
+        self._qp = qp
 
     def warm_start(self, x=None, y=None) -> bool:
         """Clarabel (an interior-point method) has no warm start: nothing is used; returns False."""
@@ -125,7 +114,10 @@ class ClarabelSOCP:
 
     def setup_native(self, P, q, A, b, cones) -> None:
         """Set up the problem; cones is a sequence of (kind, dim), kind in zero/nonneg/soc,
-        dims summing to the rows of A. P may be None (LP/SOCP); only its upper triangle is used."""
+        dims summing to the rows of A. P may be None (LP/SOCP); only its upper triangle is used.
+        ``update`` then takes these names (P, q, A, b)."""
+        self._native_setup_done()
+        self._qp = None
         q = _util.vector("q", q, np.size(q), allow_nan=True)
         n = q.shape[0]
         if n == 0:
@@ -209,17 +201,18 @@ class ClarabelSOCP:
         return cl.DefaultSolver(self._data["P"], self._data["q"], A, b, [makers[k](d) for k, d in cones], settings)
 
     # ------------------------------------------------------------------ update
-    def update(self, **fields) -> None:
-        """Change data in place: P, q, A, b of the conic form, or the fields of the
-        :class:`QuadraticProgram` it was set up from (re-converted; set up again when the
-        equality split changes the cones)."""
+    def _native_fields(self) -> dict:
+        # a QP set-up keeps P and q as they are; its rows become cone rows (no one-to-one field)
+        return {k: k for k in (("P", "q") if self._qp is not None else ("P", "q", "A", "b"))}
+
+    def _update_form(self, **fields) -> None:
+        """:meth:`update` after ``setup(form)``: a ConicProblem's P, q, A, b in place; a
+        QuadraticProgram's fields re-converted (set up again when the equality split changes the cones)."""
         if self._qp is None:
+            if "cones" in fields or "blocks" in fields:
+                raise input_error("ClarabelSOCP.update", "cones/blocks", "the cone structure is fixed; set up again")
             self.update_native(**fields)
             return
-        names = {f.name for f in dataclasses.fields(QuadraticProgram)}
-        unknown = sorted(set(fields) - names)
-        if unknown:
-            raise input_error("ClarabelSOCP.update", unknown, f"allowed: {', '.join(sorted(names))}")
         qp = dataclasses.replace(self._qp, **fields)
         conic = conic_from_program(qp)
         if conic.cones != self.cones:
@@ -277,8 +270,8 @@ class ClarabelSOCP:
             except Exception as exc:
                 self._solver_error = error_message(exc)
 
-    def update_fast(self, *, b: np.ndarray | None = None, A_values: np.ndarray | None = None) -> None:
-        """Lean :meth:`update` of ``b`` and the values of ``A`` for trusted data (per-step use).
+    def update_fast(self, *, b: np.ndarray | None = None, A_values: np.ndarray | None = None, **others) -> None:
+        """Lean :meth:`update_native` of ``b`` and the values of ``A`` for trusted data (per-step use).
 
         ``A_values``: the nonzero values of A in the set-up sparsity pattern, in the order of the
         canonical CSC matrix (sorted row indices, no duplicates; ``A.data`` of a matrix built that
@@ -286,8 +279,11 @@ class ClarabelSOCP:
         zero/soc rows and no nonneg row switching between finite and +inf b. Nothing is checked
         or converted (saves the ~0.1-0.4 ms of :meth:`update`'s checks and matrix copies);
         after a failed set-up, with rows removed (+inf b) or with a
-        :class:`QuadraticProgram` set-up it falls back to :meth:`update`."""
+        :class:`QuadraticProgram` set-up it falls back to :meth:`update_native`, as do the other
+        native fields (``others``: P, q, A)."""
         d = self._data
+        if others:
+            self.update_native(**others)
         if (d is None or self._qp is not None or self._solver is None or self._solver_error is not None
                 or self._bad.fields or self._crossed is not None or self._keep is None or not self._keep.all()):
             A = None
@@ -313,7 +309,7 @@ class ClarabelSOCP:
     def solve(self) -> SolverResult:
         """Solve the current problem and return a :class:`SolverResult` (with ``retry_settings``, a
         second attempt after an inaccurate, failed or iteration-limited first one)."""
-        blocked = _util.unsolvable(self, "infinite_rhs")
+        blocked = self._blocked("infinite_rhs")
         if blocked is not None:
             return blocked
         if self._solver is None:
@@ -348,15 +344,5 @@ class ClarabelSOCP:
             solver_time = float(sol.solve_time)
         except Exception as exc:
             return failed_result(self.name, error_message(exc), rebuilt=rebuilt)
-        status = STATUS_MAP.get(raw, SolveStatus.NUMERICAL_ERROR)
-        has_x = status in (SolveStatus.OPTIMAL, SolveStatus.OPTIMAL_INACCURATE, SolveStatus.MAX_ITER,
-                           SolveStatus.TIME_LIMIT) and bool(np.isfinite(x).all())
-        return SolverResult(
-            status=status,
-            x=x if has_x else None,
-            objective=objective if has_x else math.nan,
-            iterations=iterations,
-            solve_time_s=wall,
-            solver=self.name,
-            info={"raw_status": raw, "rebuilt": rebuilt, "solver_time_s": solver_time, "dual": z},
-        )
+        return self._result(STATUS_MAP.get(raw, SolveStatus.NUMERICAL_ERROR), x, objective, iterations, wall,
+                            {"raw_status": raw, "rebuilt": rebuilt, "solver_time_s": solver_time, "dual": z})

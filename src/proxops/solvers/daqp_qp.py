@@ -29,6 +29,7 @@ import numpy as np
 
 from proxops.errors import input_error
 from proxops.solvers import _util
+from proxops.solvers.base import SolverAdapter
 from proxops.solvers.forms import QuadraticProgram
 from proxops.solvers.result import SolverResult, SolveStatus, error_message, failed_result
 
@@ -53,12 +54,11 @@ RAW_NAMES = {
     -8: "unsupported",
 }
 RAW_STATUS = {flag: f"{flag} ({name})" for flag, name in RAW_NAMES.items()}
-_HAS_X = frozenset((SolveStatus.OPTIMAL, SolveStatus.MAX_ITER, SolveStatus.TIME_LIMIT))
 SENSE_EQUALITY = 5  # DAQP: ACTIVE | IMMUTABLE
 SENSE_SOFT = 8
 
 
-class DaqpQP:
+class DaqpQP(SolverAdapter):
     """Persistent DAQP solver for ``min 1/2 x'Hx + f'x s.t. bl <= Ax <= bu, lb <= x <= ub``.
 
     Settings: ``max_iter`` (DAQP iter_limit), ``time_limit_s``, ``primal_tol``;
@@ -68,6 +68,8 @@ class DaqpQP:
     """
 
     name = "daqp"
+    forms = (QuadraticProgram,)
+    _finite_x = False  # DAQP returns x only with an exit flag that has one (finite)
 
     def __init__(self, *, max_iter: int | None = None, time_limit_s: float | None = None,
                  primal_tol: float | None = None, warm_start: bool = True,
@@ -80,34 +82,21 @@ class DaqpQP:
             native["time_limit"] = float(time_limit_s)
         if primal_tol is not None:
             native["primal_tol"] = float(primal_tol)
-        allowed = set(self._daqp.Model().settings)
-        unknown = sorted(set(native) - allowed)
-        if unknown:
-            raise input_error("daqp settings", unknown, f"allowed keys: {sorted(allowed)}")
-        self._native = native
+        self._native = self._native_settings(native, self._daqp.Model().settings, "daqp")
         self.warm_start_enabled = bool(warm_start)
         self._model = None
+        self._p_eq = 0
 
     # ------------------------------------------------------------------ set-up
-    def setup(self, problem, *args, soft_rows=None, **kwargs) -> None:
-        """Allocate the DAQP workspace for a :class:`QuadraticProgram` (the canonical entry,
-        shared by every QP adapter). Equality rows A_eq come first in DAQP's rows (bl = bu).
-        ``soft_rows`` masks the rows of ``problem.A`` DAQP may relax (see :meth:`setup_native`).
-        The native signature ``setup(H, f, A, bl, bu, lb, ub)`` is still accepted (forwarded
-        to :meth:`setup_native`); ``update`` then takes the native names."""
-        if not isinstance(problem, QuadraticProgram):
-            self._p_eq = None
-            self.setup_native(problem, *args, soft_rows=soft_rows, **kwargs)
-            return
-        if args or kwargs:
-            raise input_error("DaqpQP.setup", "extra arguments with a QuadraticProgram", "pass the problem only")
+    def _setup_form(self, problem: QuadraticProgram) -> None:
+        """Allocate the DAQP workspace for a :class:`QuadraticProgram`: equality rows A_eq come
+        first in DAQP's rows (bl = bu); P = None is an LP (H = 0: give ``settings={"eps_prox": e}``,
+        e > 0, for DAQP's proximal-point LP iterations)."""
         p = _util.rows_of("A_eq", problem.A_eq)
         stacked = problem.stacked()
         n = stacked.n
-        if soft_rows is not None and p:
-            soft_rows = np.concatenate([np.zeros(p, bool), np.asarray(soft_rows, bool).reshape(-1)])
         self.setup_native(np.zeros((n, n)) if stacked.P is None else stacked.P, stacked.q, stacked.A,
-                          stacked.bl, stacked.bu, stacked.lb, stacked.ub, soft_rows=soft_rows)
+                          stacked.bl, stacked.bu, stacked.lb, stacked.ub)
         self._p_eq = p
 
     def setup_native(self, H, f, A=None, bl=None, bu=None, lb=None, ub=None, *, soft_rows=None) -> None:
@@ -120,7 +109,10 @@ class DaqpQP:
         constraints, penalised by the ``rho_soft`` / ``w_soft`` settings; the result's
         ``info["soft_relaxed"]`` tells when one was relaxed).
         Shape errors raise ProxopsInputError; NaN data makes ``solve`` return NUMERICAL_ERROR.
+        ``update`` then takes these names (H, f, A, bl, bu, lb, ub).
         """
+        self._native_setup_done()
+        self._p_eq = 0
         if f is None:  # no linear term (see update_fast): DAQP keeps no v, bound updates cost O(m)
             if H is None:
                 raise input_error("H", None, "give H when f is None (the problem needs a size)")
@@ -203,18 +195,17 @@ class DaqpQP:
         return sense
 
     # ------------------------------------------------------------------ update
-    def update(self, *, P=None, q=None, A=None, bl=None, bu=None, lb=None, ub=None, A_eq=None, b_eq=None,
-               H=None, f=None) -> None:
-        """Change problem data in place (same sizes); the working set is kept (warm start).
+    def _native_fields(self) -> dict:
+        # the rows of A are DAQP's rows only without A_eq (those are stacked on top)
+        same = {"P": "H", "q": "f", "lb": "lb", "ub": "ub"}
+        return same if self._p_eq else {**same, "A": "A", "bl": "bl", "bu": "bu"}
 
-        Names are those of :class:`QuadraticProgram` (``H``/``f`` are DAQP's names for
-        ``P``/``q``). ``A``, ``bl``, ``bu`` are the rows of the problem's A (after the A_eq rows).
-        Changing which rows are equalities (bl == bu) resets the working set. After a
-        failed set-up (e.g. crossed bounds or NaN data) the model is rebuilt instead.
-        """
-        H = P if P is not None else H
-        f = q if q is not None else f
-        p = getattr(self, "_p_eq", None) or 0
+    def _update_form(self, *, P=None, q=None, A=None, bl=None, bu=None, lb=None, ub=None, A_eq=None,
+                     b_eq=None) -> None:
+        """:meth:`update` after ``setup(QuadraticProgram)``: ``A``, ``bl``, ``bu`` are the rows of the
+        problem's A (after the A_eq rows). Changing which rows are equalities (bl == bu) resets the
+        working set; after a failed set-up (e.g. crossed bounds or NaN data) the model is rebuilt."""
+        p = self._p_eq
         if p:
             if A is not None or A_eq is not None:
                 top = self._A[:p] if A_eq is None else _util.dense_matrix("A_eq", A_eq, (p, self.n), True)
@@ -228,14 +219,16 @@ class DaqpQP:
                                      _util.vector("bu", bu, self.m - p, allow_inf=True, allow_nan=True)])
         elif A_eq is not None or b_eq is not None:
             raise input_error("A_eq/b_eq", "update without equality rows at setup", "set them up in the problem")
-        self._update(H=H, f=f, A=A, bl=bl, bu=bu, lb=lb, ub=ub)
+        self.update_native(H=P, f=q, A=A, bl=bl, bu=bu, lb=lb, ub=ub)
 
     def warm_start(self, x=None, y=None) -> bool:
         """DAQP warm-starts from the previous working set by itself (unless ``warm_start=False``);
         a primal/dual guess is not used. Returns True when the next solve is warm."""
         return self.warm_start_enabled
 
-    def _update(self, *, H=None, f=None, A=None, bl=None, bu=None, lb=None, ub=None) -> None:
+    def update_native(self, *, H=None, f=None, A=None, bl=None, bu=None, lb=None, ub=None) -> None:
+        """Change data in place in DAQP's names (the rows of A include the A_eq rows of a form set-up);
+        the working set is kept (warm start)."""
         if self._model is None:
             raise input_error("DaqpQP.update", "called before setup", "call setup() first")
         kwargs = {}
@@ -285,8 +278,8 @@ class DaqpQP:
 
     def update_fast(self, *, f: np.ndarray | None = None, bu: np.ndarray | None = None,
                     bl: np.ndarray | None = None, lb: np.ndarray | None = None, ub: np.ndarray | None = None) -> None:
-        """Lean :meth:`update` of ``f``, the row bounds and the variable bounds for trusted data
-        (per-step MPC use).
+        """Lean :meth:`update_native` of ``f``, the row bounds and the variable bounds for trusted data
+        (per-step MPC use; DAQP's names, whichever way the problem was set up).
 
         The caller guarantees: 1-D C-contiguous float64 arrays of the set-up sizes
         (f, lb, ub: (n,), bu/bl: (m,)), no NaN, no entry beyond +-1e30, and no row or variable
@@ -304,8 +297,8 @@ class DaqpQP:
         (x = x_c + w: objective 1/2 w'Hw + const, bounds lb - x_c, ub - x_c, rows bl - A x_c,
         bu - A x_c). DAQP then solves the same LDP (its u = R (x - x_c) either way)."""
         if (self._model is None or self._solver_error is not None or self._solver_flag < 0 or self._bad.fields
-                or getattr(self, "_p_eq", None) or ((lb is not None or ub is not None) and not self.has_bounds)):
-            self.update(q=f, bu=bu, bl=bl, lb=lb, ub=ub)
+                or self._p_eq or ((lb is not None or ub is not None) and not self.has_bounds)):
+            self.update_native(f=f, bu=bu, bl=bl, lb=lb, ub=ub)
             return
         kwargs = {}
         if f is not None:
@@ -356,17 +349,16 @@ class DaqpQP:
         if bad is not None:
             return failed_result(self.name, bad)
         if self._crossed is not None:
-            return _crossed_result(self.name, self._crossed, self.n if self.has_bounds else 0)
+            index, n_bounds = self._crossed, self.n if self.has_bounds else 0
+            what = f"bound of x[{index}]" if index < n_bounds else f"row {index - n_bounds}"
+            return self._infeasible_data("crossed_bounds", f"lower > upper on {what}")
         if self._solver_error is not None:
             return failed_result(self.name, self._solver_error)
         if self._solver_flag < 0:
             flag = self._solver_flag
-            return SolverResult(
-                status=STATUS_MAP.get(flag, SolveStatus.NUMERICAL_ERROR), x=None, objective=math.nan,
-                iterations=0, solve_time_s=0.0, solver=self.name,
-                info={"raw_status": f"{flag} ({RAW_NAMES.get(flag, 'unknown')})",
-                      "error": "daqp rejected the problem data at setup/update"},
-            )
+            return self._result(STATUS_MAP.get(flag, SolveStatus.NUMERICAL_ERROR), None, math.nan, 0, 0.0,
+                                {"raw_status": f"{flag} ({RAW_NAMES.get(flag, 'unknown')})",
+                                 "error": "daqp rejected the problem data at setup/update"})
         if not self.warm_start_enabled:
             try:
                 self._model.update(sense=self._sense.copy())
@@ -382,32 +374,11 @@ class DaqpQP:
             wall = time.perf_counter() - t0
         except Exception as exc:
             return failed_result(self.name, error_message(exc))
-        return self._result(x, fval, flag, info, wall)
+        return self._flag_result(x, fval, flag, info, wall)
 
-    def _result(self, x, fval, flag, info, wall: float) -> SolverResult:
+    def _flag_result(self, x, fval, flag, info, wall: float) -> SolverResult:
         flag = int(flag)
-        status = STATUS_MAP.get(flag, SolveStatus.NUMERICAL_ERROR)
-        has_x = status in _HAS_X
-        return SolverResult(
-            status=status,
-            x=x if has_x else None,  # a fresh float64 array from daqp
-            objective=float(fval) if has_x else math.nan,
-            iterations=int(info["iterations"]),
-            solve_time_s=wall,
-            solver=self.name,
-            info={
-                "raw_status": RAW_STATUS.get(flag) or f"{flag} (unknown)",
-                "solver_time_s": float(info.get("solve_time", math.nan)),
-                "dual": info.get("lam"),
-                "soft_relaxed": flag == 2,
-            },
-        )
-
-
-def _crossed_result(solver: str, index: int, n_bounds: int) -> SolverResult:
-    what = f"bound of x[{index}]" if index < n_bounds else f"row {index - n_bounds}"
-    return SolverResult(
-        status=SolveStatus.INFEASIBLE, x=None, objective=math.nan, iterations=0,
-        solve_time_s=0.0, solver=solver,
-        info={"raw_status": "crossed_bounds", "reason": f"lower > upper on {what}"},
-    )
+        return self._result(STATUS_MAP.get(flag, SolveStatus.NUMERICAL_ERROR), x, fval, info["iterations"], wall,
+                            {"raw_status": RAW_STATUS.get(flag) or f"{flag} (unknown)",
+                             "solver_time_s": float(info.get("solve_time", math.nan)),
+                             "dual": info.get("lam"), "soft_relaxed": flag == 2})

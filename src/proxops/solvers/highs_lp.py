@@ -26,6 +26,7 @@ import numpy as np
 
 from proxops.errors import input_error
 from proxops.solvers import _util
+from proxops.solvers.base import SolverAdapter
 from proxops.solvers.forms import LinearProgram
 from proxops.solvers.result import SolverResult, SolveStatus, error_message, failed_result
 
@@ -79,7 +80,7 @@ def _quiet_highs(highspy):
         os.close(saved)
 
 
-class HighsLP:
+class HighsLP(SolverAdapter):
     """Persistent HiGHS LP solver for ``min c'x s.t. rl <= Ax <= ru, lb <= x <= ub``.
 
     Settings: ``time_limit_s``, ``max_iter`` (simplex iteration limit), ``verbose``;
@@ -88,6 +89,7 @@ class HighsLP:
     """
 
     name = "highs"
+    forms = (LinearProgram,)
     mip = False
 
     def __init__(self, *, time_limit_s: float | None = None, max_iter: int | None = None,
@@ -105,27 +107,19 @@ class HighsLP:
         self._integrality = None
 
     # ------------------------------------------------------------------ set-up
-    def setup(self, problem, *args, **kwargs) -> None:
-        """Pass a :class:`LinearProgram` to HiGHS (the canonical entry; ``update`` takes its
-        names c, A, rl, ru, lb, ub). The positional form ``setup(c, A, rl, ru, lb, ub)`` is the same."""
-        if isinstance(problem, LinearProgram):
-            if args or kwargs:
-                raise input_error(f"{type(self).__name__}.setup", "extra arguments with a LinearProgram",
-                                  "pass the problem only")
-            integ = None
-            if problem.integrality is not None:
-                integ = np.asarray(problem.integrality, dtype=bool).reshape(-1)
-                if integ.shape != (np.size(problem.c),):
-                    raise input_error("integrality.shape", integ.shape, f"must be ({np.size(problem.c)},) like c")
-                if not self.mip and integ.any():
-                    raise input_error("integrality", "integer variables", "HighsLP solves LPs; use HighsMILP")
-            self._integrality = integ if self.mip else None
-            self.setup_native(problem.c, problem.A, problem.rl, problem.ru, problem.lb, problem.ub)
-            return
-        if self.mip:
-            raise input_error("HighsMILP.setup", "native arguments", "pass a LinearProgram with integrality")
-        self._integrality = None
-        self.setup_native(problem, *args, **kwargs)
+    def _setup_form(self, problem: LinearProgram) -> None:
+        """Pass a :class:`LinearProgram` to HiGHS (``update`` takes its names c, A, rl, ru, lb, ub)."""
+        integ = None
+        if problem.integrality is not None:
+            integ = np.asarray(problem.integrality, dtype=bool).reshape(-1)
+            if integ.shape != (np.size(problem.c),):
+                raise input_error("integrality.shape", integ.shape, f"must be ({np.size(problem.c)},) like c")
+            if not self.mip and integ.any():
+                raise input_error("integrality", "integer variables", "HighsLP solves LPs; use HighsMILP")
+        self._setup(problem.c, problem.A, problem.rl, problem.ru, problem.lb, problem.ub, integ if self.mip else None)
+
+    def _native_fields(self) -> dict:
+        return {k: k for k in ("c", "A", "rl", "ru", "lb", "ub")}
 
     def warm_start(self, x=None, y=None) -> bool:
         """Hand HiGHS a starting point ``x`` (n,) (``setSolution``; for a MILP a first incumbent);
@@ -145,7 +139,13 @@ class HighsLP:
 
     def setup_native(self, c, A=None, rl=None, ru=None, lb=None, ub=None) -> None:
         """Pass the LP to HiGHS. A dense or sparse (m, n) or None; rl/ru default -inf/+inf,
-        lb/ub default -inf/+inf (note: HiGHS's own default lb is 0, ours is free)."""
+        lb/ub default -inf/+inf (note: HiGHS's own default lb is 0, ours is free). The names are those
+        of :class:`LinearProgram`; a MILP needs ``setup(LinearProgram(..., integrality=...))``."""
+        self._native_setup_done()
+        self._setup(c, A, rl, ru, lb, ub, None)
+
+    def _setup(self, c, A, rl, ru, lb, ub, integrality) -> None:
+        self._integrality = integrality
         c = _util.vector("c", c, np.size(c), allow_nan=True)
         n = c.shape[0]
         if n == 0:
@@ -206,17 +206,12 @@ class HighsLP:
             self._solver_error = error_message(exc)
 
     def _check_crossed(self) -> None:
-        d = self._data
-        self._crossed = None
-        for lo, hi, label in (("rl", "ru", "row"), ("lb", "ub", "bound of x")):
-            i = _util.first_crossed(d[lo], d[hi])
-            if i is not None:
-                self._crossed = f"{lo} > {hi} on {label} {i}"
-                return
+        self._check_crossed_pairs((("rl", "ru", "row"), ("lb", "ub", "bound of x")))
 
     # ------------------------------------------------------------------ update
-    def update(self, *, c=None, rl=None, ru=None, lb=None, ub=None, A=None) -> None:
-        """Change costs/bounds (kept basis: hot start) or A (model re-passed, basis restored)."""
+    def update_native(self, *, c=None, rl=None, ru=None, lb=None, ub=None, A=None) -> None:
+        """Change costs/bounds (kept basis: hot start) or A (model re-passed, basis restored); the
+        names of :class:`LinearProgram` (``update`` after ``setup``)."""
         if self._data is None:
             raise input_error("HighsLP.update", "called before setup", "call setup() first")
         d = self._data
@@ -248,7 +243,7 @@ class HighsLP:
     # ------------------------------------------------------------------ solve
     def solve(self) -> SolverResult:
         """Run HiGHS (hot-started when a basis is available) and return a :class:`SolverResult`."""
-        blocked = _util.unsolvable(self, "crossed_bounds")
+        blocked = self._blocked("crossed_bounds")
         if blocked is not None:
             return blocked
         h = self._h
@@ -281,16 +276,7 @@ class HighsLP:
         status = STATUS_MAP.get(raw, SolveStatus.NUMERICAL_ERROR)
         if status is SolveStatus.OPTIMAL and (x is None or not primal_feasible):
             status = SolveStatus.NUMERICAL_ERROR
-        has_x = status in (SolveStatus.OPTIMAL, SolveStatus.MAX_ITER, SolveStatus.TIME_LIMIT) and x is not None
-        return SolverResult(
-            status=status,
-            x=x if has_x else None,
-            objective=objective if has_x else math.nan,
-            iterations=iterations,
-            solve_time_s=wall,
-            solver=self.name,
-            info={"raw_status": raw, "dual": dual, **info_extra},
-        )
+        return self._result(status, x, objective, iterations, wall, {"raw_status": raw, "dual": dual, **info_extra})
 
 
 class HighsMILP(HighsLP):

@@ -26,6 +26,7 @@ import numpy as np
 
 from proxops.errors import input_error
 from proxops.solvers import _util
+from proxops.solvers.base import SolverAdapter
 from proxops.solvers.forms import QuadraticProgram
 from proxops.solvers.result import SolverResult, SolveStatus, error_message, failed_result
 
@@ -47,7 +48,7 @@ _FORM_NAMES = {"P": "P", "q": "c", "A_eq": "A", "b_eq": "b", "A": "G", "bl": "h_
 _VECTORS = ("c", "b", "h_l", "h_u", "x_lb", "x_ub")
 
 
-class PiqpQP:
+class PiqpQP(SolverAdapter):
     """Persistent PIQP sparse solver for ``min 1/2 x'Px + c'x s.t. Ax = b, h_l <= Gx <= h_u, x_lb <= x <= x_ub``.
 
     Settings: ``max_iter``, ``eps_abs``, ``eps_rel``, ``verbose``; ``settings`` passes
@@ -76,6 +77,7 @@ class PiqpQP:
     """
 
     name = "piqp"
+    forms = (QuadraticProgram,)
 
     def __init__(self, *, max_iter: int | None = None, eps_abs: float | None = None,
                  eps_rel: float | None = None, verbose: bool = False, settings: dict | None = None,
@@ -97,31 +99,25 @@ class PiqpQP:
         if eps_rel is not None:
             native["eps_rel"] = float(eps_rel)
         native["verbose"] = bool(verbose)
-        allowed = {k for k in dir(self._piqp.Settings) if not k.startswith("_")}
-        unknown = sorted(set(native) - allowed)
-        if unknown:
-            raise input_error("piqp settings", unknown, f"allowed keys: {sorted(allowed)}")
-        self._native = native
+        self._native = self._native_settings(native, {k for k in dir(self._piqp.Settings) if not k.startswith("_")},
+                                             "piqp")
         self._solver = None
         self._data: dict | None = None
 
     # ------------------------------------------------------------------ set-up
-    def setup(self, problem, *args, **kwargs) -> None:
-        """Set up a :class:`QuadraticProgram` (the canonical entry shared by every QP adapter):
-        A_eq/b_eq become PIQP's equality rows and the rows of A its ``h_l <= G x <= h_u`` rows,
-        as they are (rows of A with bl == bu are NOT moved: the row structure stays fixed so
-        ``update`` keeps PIQP's factorisation; :func:`solve_qp` splits them for one-off solves).
-        ``update`` then takes the form's names. The native signature
-        ``setup(P, c, A, b, G, h_l, h_u, x_lb, x_ub)`` is still accepted (:meth:`setup_native`)."""
-        if not isinstance(problem, QuadraticProgram):
-            self._form = False
-            self.setup_native(problem, *args, **kwargs)
-            return
-        if args or kwargs:
-            raise input_error("PiqpQP.setup", "extra arguments with a QuadraticProgram", "pass the problem only")
+    def _setup_form(self, problem: QuadraticProgram) -> None:
+        """Set up a :class:`QuadraticProgram`: A_eq/b_eq become PIQP's equality rows and the rows of A
+        its ``h_l <= G x <= h_u`` rows, as they are (rows of A with bl == bu are NOT moved: the row
+        structure stays fixed so ``update`` keeps PIQP's factorisation; :func:`solve_qp` splits them
+        for one-off solves)."""
         pr = problem
         self.setup_native(pr.P, pr.q, pr.A_eq, pr.b_eq, pr.A, pr.bl, pr.bu, pr.lb, pr.ub)
-        self._form = True
+
+    def _native_fields(self) -> dict:
+        return _FORM_NAMES
+
+    def _update_form(self, **fields) -> None:
+        self.update_native(**{_FORM_NAMES[k]: v for k, v in fields.items()})
 
     def warm_start(self, x=None, y=None) -> bool:
         """PIQP 0.7 has no primal/dual warm start (upstream PR #39): nothing is used; returns False."""
@@ -132,8 +128,9 @@ class PiqpQP:
 
         Matrices may be dense or scipy.sparse; vectors allow +-inf in h_l, h_u, x_lb,
         x_ub (an infinite side is no constraint). Shape errors raise ProxopsInputError;
-        NaN data makes ``solve`` return NUMERICAL_ERROR.
+        NaN data makes ``solve`` return NUMERICAL_ERROR. ``update`` then takes these names.
         """
+        self._native_setup_done()
         c = _util.vector("c", c, np.size(c), allow_nan=True)
         n = c.shape[0]
         if n == 0:
@@ -231,25 +228,9 @@ class PiqpQP:
         return out
 
     def _check_crossed(self) -> None:
-        d = self._data
-        self._crossed = None
-        for lo, hi, label in (("h_l", "h_u", "G row"), ("x_lb", "x_ub", "bound of x")):
-            i = _util.first_crossed(d[lo], d[hi])
-            if i is not None:
-                self._crossed = f"{lo} > {hi} on {label} {i}"
-                return
+        self._check_crossed_pairs((("h_l", "h_u", "G row"), ("x_lb", "x_ub", "bound of x")))
 
     # ------------------------------------------------------------------ update
-    def update(self, **fields) -> None:
-        """Change data in place (same sizes): the names of :class:`QuadraticProgram` when set up
-        from one (P, q, A_eq, b_eq, A, bl, bu, lb, ub), else PIQP's (:meth:`update_native`)."""
-        if getattr(self, "_form", False):
-            unknown = sorted(set(fields) - set(_FORM_NAMES))
-            if unknown:
-                raise input_error("PiqpQP.update", unknown, f"allowed: {', '.join(_FORM_NAMES)}")
-            fields = {_FORM_NAMES[k]: v for k, v in fields.items()}
-        self.update_native(**fields)
-
     def update_native(self, *, P=None, c=None, A=None, b=None, G=None, h_l=None, h_u=None,
                       x_lb=None, x_ub=None) -> None:
         """Change data in place (same sizes, PIQP's names). A matrix with a new sparsity pattern
@@ -339,7 +320,7 @@ class PiqpQP:
 
     def solve(self) -> SolverResult:
         """Solve the current problem and return a :class:`SolverResult`."""
-        blocked = _util.unsolvable(self, "crossed_bounds")
+        blocked = self._blocked("crossed_bounds")
         if blocked is not None:
             return blocked
         if self._solver is None:
@@ -364,21 +345,11 @@ class PiqpQP:
             dual = {"y": np.array(res.y), "z_l": np.array(res.z_l), "z_u": np.array(res.z_u)}
         except Exception as exc:
             return failed_result(self.name, error_message(exc), rebuilt=rebuilt)
+        extra = {"primal_res": float(info.primal_res), "dual_res": float(info.dual_res)}
         if margin is not None:
-            return SolverResult(SolveStatus.INFEASIBLE, None, math.nan, iterations, wall, self.name,
+            return self._result(SolveStatus.INFEASIBLE, None, math.nan, iterations, wall,
                                 {"raw_status": "farkas_certificate", "rebuilt": rebuilt, "dual": dual,
-                                 "infeasibility_margin": margin, "primal_res": float(info.primal_res),
-                                 "dual_res": float(info.dual_res)})
+                                 "infeasibility_margin": margin, **extra})
         raw_name = getattr(raw, "name", str(raw))
-        status = STATUS_MAP.get(raw_name, SolveStatus.NUMERICAL_ERROR)
-        has_x = status in (SolveStatus.OPTIMAL, SolveStatus.MAX_ITER) and bool(np.isfinite(x).all())
-        return SolverResult(
-            status=status,
-            x=x if has_x else None,
-            objective=objective if has_x else math.nan,
-            iterations=iterations,
-            solve_time_s=wall,
-            solver=self.name,
-            info={"raw_status": raw_name, "rebuilt": rebuilt, "dual": dual,
-                  "primal_res": float(info.primal_res), "dual_res": float(info.dual_res)},
-        )
+        return self._result(STATUS_MAP.get(raw_name, SolveStatus.NUMERICAL_ERROR), x, objective, iterations, wall,
+                            {"raw_status": raw_name, "rebuilt": rebuilt, "dual": dual, **extra})

@@ -7,12 +7,15 @@ update and the stop reasons::
 
     for it in 1..max_iter:
         if it > 1: relinearize(prev, trust.radius)     # new rows about the last iterate
-        iterate, failure = solve()                     # failure: a status string, iterate None
-        if failure: stop ("failed", failure)
-        if converged(iterate, prev): stop ("converged")
+        iterate, failure = solve()                     # failure: the subproblem's Status, iterate None
+        if failure: stop (FAILED, failure)
+        if converged(iterate, prev): stop (OPTIMAL)
         if merit(iterate) > merit(prev) + merit_tol: trust.shrink()   # over-reached
         prev = iterate
-    stop ("max_iter")
+    stop (MAX_ITER)
+
+The stop is a :class:`proxops.status.Status` (OPTIMAL: converged; MAX_ITER: the iteration cap
+without convergence; FAILED: a subproblem failed, its own status in ``ScpResult.failure``).
 
 ``merit`` (e.g. the largest violation of the true non-convex constraint) drives the
 trust region; without it the radius never changes. The helper does no linear algebra,
@@ -25,6 +28,8 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 from typing import Any, Callable
+
+from proxops.status import Status
 
 
 @dataclass
@@ -40,19 +45,20 @@ class TrustRegion:
 
 @dataclass
 class ScpResult:
-    """How the loop ended: status "converged", "failed" (``failure`` holds the subproblem's
-    status) or "max_iter"; ``iterate`` is the last accepted iterate (None if none),
+    """How the loop ended: ``status`` Status.OPTIMAL (converged), Status.MAX_ITER (cap reached
+    without convergence) or Status.FAILED (a subproblem failed: ``failure`` holds its Status;
+    Status.NONE otherwise); ``iterate`` is the last accepted iterate (None if none),
     ``iterations`` the number of subproblems solved."""
 
-    status: str
+    status: Status
     iterate: Any
     iterations: int
-    failure: str = ""
+    failure: Status = Status.NONE
     trust: TrustRegion | None = None
 
     @property
     def converged(self) -> bool:
-        return self.status == "converged"
+        return self.status is Status.OPTIMAL
 
 
 def successive_convexification(
@@ -67,7 +73,8 @@ def successive_convexification(
 ) -> ScpResult:
     """Run the successive-convexification loop (see the module doc).
 
-    solve(): solve the current convex subproblem -> (iterate, None) or (None, failure status).
+    solve(): solve the current convex subproblem -> (iterate, None) or (None, failure status: a
+    :class:`Status`, or text that :meth:`Status.parse` reads; none given -> Status.FAILED).
     converged(iterate, prev): the convergence test (``prev`` is None on the first iterate).
     relinearize(prev, radius): rebuild the linearised rows (and trust-region rows) about ``prev``.
     max_iter: most subproblems solved (>= 1).
@@ -81,11 +88,12 @@ def successive_convexification(
             relinearize(prev, trust.radius)
         iterate, failure = solve()
         if iterate is None:
-            return ScpResult("failed", prev, it, failure or "failed", trust)
+            reason = Status.parse(failure) if failure else Status.FAILED
+            return ScpResult(Status.FAILED, prev, it, Status.FAILED if reason is Status.NONE else reason, trust)
         if converged(iterate, prev):
-            return ScpResult("converged", iterate, it, "", trust)
+            return ScpResult(Status.OPTIMAL, iterate, it, Status.NONE, trust)
         value = merit(iterate) if merit is not None else math.nan
         if merit is not None and prev is not None and value > prev_merit + merit_tol:
             trust.shrink()
         prev, prev_merit = iterate, value
-    return ScpResult("max_iter", prev, max(1, int(max_iter)), "", trust)
+    return ScpResult(Status.MAX_ITER, prev, max(1, int(max_iter)), Status.NONE, trust)

@@ -2,15 +2,15 @@
 :class:`proxops.sim.protocols.System`.
 
 A system overrides ``build`` and ``summarize`` (and ``Scenario``); everything else has a
-default here: ``run`` is one closed loop, ``check`` builds it, ``success`` is "the run did not
-end in a failed status" and ``campaign_table`` ``""``. Figures are not a system hook: they are
+default here: ``run`` is one closed loop, ``check`` builds it, ``success`` is "the controller did
+not stop the run on a failed step" (read from StopReason and Status) and ``campaign_table`` ``""``. Figures are not a system hook: they are
 found by convention in ``proxops.plotting.<system>`` (:mod:`proxops.plotting.systems`), so
 systems never import plotting.
 """
 
 from __future__ import annotations
 
-FAILED_STATUSES = ("failed", "failure", "error")  # run summary "status" prefixes counted as failures
+from proxops.status import Status, StopReason
 
 
 class SystemBase:
@@ -41,8 +41,12 @@ class SystemBase:
             run_steps(setup)
 
     def success(self, sc, summary: dict) -> bool:
-        """A campaign run succeeds unless its summary status starts with failed/failure/error."""
-        return not str(summary.get("status", "")).lower().startswith(FAILED_STATUSES)
+        """A campaign run succeeds unless the controller stopped it (``stop_reason``
+        :attr:`StopReason.CONTROLLER`) on a failed step (``final_status``, the last controller
+        :class:`Status`, is ``failed``): runs that reach their duration or a stop condition succeed."""
+        if summary.get("stop_reason") != StopReason.CONTROLLER:
+            return True
+        return not Status.parse(summary.get("final_status", Status.NONE)).failed
 
     def campaign_table(self, sc, table) -> str:
         return ""
