@@ -121,3 +121,51 @@ def test_relative_from_truth_kernel_matches_numpy_formulas():
         rnd = (mc * xt[3:6] + md * xt[9:12]) / (mc + md)
         expect = np.concatenate([rho, rhod, om, q, qc, omc, rn, rnd, ref6])
         np.testing.assert_allclose(relative_from_truth(xt, PARAMS, ref6), expect, rtol=1e-13, atol=1e-15)
+
+
+def _eq78_relative_state():
+    from proxops.dynamics.two_rigid_bodies import HybridInitialState, truth_state_from_initial
+
+    return relative_from_truth(truth_state_from_initial(PARAMS, HybridInitialState()), PARAMS)
+
+
+@pytest.mark.parametrize("solver", ["daqp", "piqp"])
+def test_capture_qp_on_solver_by_name_matches_independent_solve(solver):
+    """The capture MPC's QP (Problem 2, eq. 79 weights, face rows, rate rows) on a solver chosen by
+    name gives the first control of an independent solve: the QP formed explicitly (scipy ZOH,
+    dense G' W G) and solved as a bounded least-squares problem by scipy's BVLS; at the eq. 78
+    state (deputy behind the docking face) the rate rows are inactive at that optimum (checked),
+    so both solve the same problem."""
+    from scipy.optimize import lsq_linear
+
+    from proxops.control.hybrid_mpc import face_pointing_linearized, reduced_capture_state
+    from proxops.solvers.front import SOLVERS_FOR
+
+    x = _eq78_relative_state()
+    cfg = CaptureMPCConfig(solver=solver)
+    mpc = CaptureMPC(PARAMS, cfg)
+    cmd = mpc.step(0.0, x)
+    assert cmd.status.ok
+    assert type(mpc._solver).__name__ == SOLVERS_FOR["QP"][solver][1]
+    # independent: eq. 79 weights written out, the QP formed densely, BVLS
+    N, dt = mpc.N, cfg.period_s
+    far = np.linalg.norm(x[0:3]) > cfg.decouple_beyond_m
+    A, B, kappa = mpc.continuous_model(x[13:17], x[17:20], x[9:13], decouple=far)
+    W = np.tile(dt * np.repeat([1e2, 1e1, 1e3, 1e3], 3), N)
+    W[-12:] = 1e2
+    r_blk = np.full(N * 6, dt * 1e4)
+    ref = np.zeros((N, 12))
+    ref[:, 0:3] = mpc.approach_target(x[0:3])
+    face = face_pointing_linearized(np.tile(x[0:3], (N, 1)), mpc.v)
+    face[N - 1] = 0.0
+    w = math.radians(cfg.rate_max_deg_s)
+    H, f, G, free, Ar, bl, bu = _dense_reference(A, B, dt, N, reduced_capture_state(x), W, r_blk, ref.ravel(), face,
+                                                 dt * cfg.face_weight, 6, w)
+    lb = np.tile(-mpc.u_max - kappa, N)
+    ub = np.tile(mpc.u_max - kappa, N)
+    L = np.linalg.cholesky(H)  # 1/2 U'HU + f'U = 1/2 |L'U + L^-1 f|^2 + const
+    sol = lsq_linear(L.T, -np.linalg.solve(L, f), bounds=(lb, ub), method="bvls", tol=1e-14)
+    U = sol.x
+    assert np.all(Ar @ U >= bl - 1e-9) and np.all(Ar @ U <= bu + 1e-9)  # rate rows inactive: same problem
+    np.testing.assert_allclose(cmd.u, kappa + U[0:6], rtol=0.0, atol=1e-6)
+    assert np.all(np.abs(cmd.u) <= mpc.u_max + 1e-9)  # the +-1 N / +-1 N m box (section VII)

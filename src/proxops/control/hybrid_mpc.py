@@ -145,7 +145,8 @@ from proxops.dynamics.hybrid_relative import (
 from proxops.dynamics.two_rigid_bodies import HybridParams
 from proxops.errors import input_error
 from proxops.sim.protocols import Command
-from proxops.solvers import ClarabelSOCP, DaqpQP, build_conic_problem
+from proxops.solvers import QuadraticProgram, build_conic_problem, make_solver
+from proxops.solvers.front import SOLVERS_FOR
 from proxops.status import Status
 
 N_DX = 12  # reduced decision state of both problems
@@ -183,7 +184,13 @@ class CaptureMPCConfig:
     waypoint_step_deg: float = 30.0  # how far round the chief each waypoint leads
     safe_margin_m: float = 0.3  # waypoint radius = chief half-diagonal + deputy port's reach + this
     retreat_fraction: float = 0.9  # closer than this fraction of the waypoint radius: back off radially first
-    max_iter: int = 2000  # DAQP active-set iteration cap
+    max_iter: int = 2000  # iteration cap of the QP / SOCP solver
+    # Solvers by name (proxops.solvers.make_solver): the QP form on "daqp" (default), "piqp" or
+    # "clarabel"; the SOCP form on "clarabel" (default) or "ipopt". Only DAQP relaxes the soft rate
+    # rows below (its soft constraints); on the other QP solvers they are hard rows, so a measured
+    # rate beyond the bound makes the QP infeasible and the step falls back to kappa^0.
+    solver: str = "daqp"
+    socp_solver: str = "clarabel"
     # Rate bound (not in the paper): |omega_i| <= rate_max_deg_s per axis of the deputy's
     # rate relative to the chief on every predicted stage, as soft rows (DAQP relaxes them at a
     # penalty when the measured rate is already beyond). 10 deg/s: 1.6 x the eq. 78 start
@@ -206,6 +213,8 @@ class CaptureMPCConfig:
             raise input_error("capture_mpc.face_weight", self.face_weight, "must be a finite number >= 0")
         if self.face_form not in ("qp", "socp"):
             raise input_error("capture_mpc.face_form", self.face_form, "allowed: qp, socp")
+        _solver_name("capture_mpc.solver", self.solver, "QP")
+        _solver_name("capture_mpc.socp_solver", self.socp_solver, "SOCP")
         if not 1 <= int(self.collision_weight_cap) <= 10:
             raise input_error("capture_mpc.collision_weight_cap", self.collision_weight_cap,
                               "must lie in [1, 10] (10^(c+5) Q_f/R beyond 10 exceeds double precision)")
@@ -234,6 +243,7 @@ class PostCaptureMPCConfig:
     thrust_at_current_attitude: bool = True  # force block of B at the measured R^T Q^T (module doc)
     kinematics_at_current_attitude: bool = True  # p_eta' = E(p) omega_c at the measured p (module doc)
     max_iter: int = 2000
+    solver: str = "daqp"  # QP solver by name (as CaptureMPCConfig.solver; soft rate rows on DAQP only)
     # Rate bound (not in the paper): |omega_c_i| <= rate_max_deg_s per axis of the
     # composite's tumble on every predicted stage (soft rows). 0.5 deg/s per axis (|omega_c| <= 0.87 deg/s,
     # 3.6 x the eq. 78 tumble
@@ -246,6 +256,12 @@ class PostCaptureMPCConfig:
                      "Q_terminal_orbit"):
             _positive(f"post_capture_mpc.{name}", getattr(self, name))
         _steps("post_capture_mpc", self.horizon_s, self.period_s)
+        _solver_name("post_capture_mpc.solver", self.solver, "QP")
+
+
+def _solver_name(field: str, name, kind: str) -> None:
+    if name not in SOLVERS_FOR[kind]:
+        raise input_error(field, name, f"allowed: {', '.join(SOLVERS_FOR[kind])}")
 
 
 def _positive(name: str, value) -> None:
@@ -262,21 +278,29 @@ def _steps(prefix: str, horizon_s: float, period_s: float) -> int:
     return n
 
 
-def _solve_box_qp(solver, H, f, lb, ub, max_iter: int, kappa, A=None, bl=None, bu=None):
-    """Solve min 1/2 U'HU + f'U, lb <= U <= ub (and, given A, the soft rows bl <= A U <= bu:
-    the rate bounds, which DAQP may relax at a penalty) with DAQP, set up on the first call and
-    updated in place after (same structure every step). Returns (solver, result, info dict)."""
+def _solve_box_qp(solver, name: str, H, f, lb, ub, max_iter: int, kappa, A=None, bl=None, bu=None):
+    """Solve min 1/2 U'HU + f'U, lb <= U <= ub (and, given A, the rows bl <= A U <= bu: the rate
+    bounds) with the QP solver ``name`` (proxops.solvers.make_solver), set up on the first call and
+    updated in place after (same structure every step). DAQP is set up natively so that the rate
+    rows are soft (DAQP may relax them at a penalty); the others take the QuadraticProgram form
+    (hard rows). Returns (solver, result, info dict)."""
     t_solver = time.perf_counter()
     if solver is None:
-        solver = DaqpQP(max_iter=max_iter)
-        if A is None:
-            solver.setup_native(H, f, None, lb=lb, ub=ub)
+        solver = make_solver("QP", name, max_iter=max_iter)
+        if name == "daqp":
+            soft = None if A is None else np.ones(A.shape[0], bool)
+            solver.setup_native(H, f, A, bl, bu, lb=lb, ub=ub, soft_rows=soft)
         else:
-            solver.setup_native(H, f, A, bl, bu, lb=lb, ub=ub, soft_rows=np.ones(A.shape[0], bool))
+            solver.setup(QuadraticProgram(P=H, q=f, A=A, bl=bl, bu=bu, lb=lb, ub=ub))
+    elif name == "daqp":  # native names after setup_native
+        if A is None:
+            solver.update(H=H, f=f, lb=lb, ub=ub)
+        else:
+            solver.update(H=H, f=f, A=A, bl=bl, bu=bu, lb=lb, ub=ub)
     elif A is None:
-        solver.update(H=H, f=f, lb=lb, ub=ub)
+        solver.update(P=H, q=f, lb=lb, ub=ub)
     else:
-        solver.update(H=H, f=f, A=A, bl=bl, bu=bu, lb=lb, ub=ub)
+        solver.update(P=H, q=f, A=A, bl=bl, bu=bu, lb=lb, ub=ub)
     res = solver.solve()
     out = {"status": res.status, "kappa": kappa, "iterations": res.iterations,
            "solver_time_s": time.perf_counter() - t_solver, "detail": str(res.info.get("raw_status", ""))}
@@ -518,6 +542,7 @@ class CaptureMPC:
         self._cond = _Condensed(self.N, N_DX, N_U)
         self.collisions = 0
         self._solver = None
+        self._solver_form = None
         self._weight_cache = {}
         self.reset(0.0, None)
 
@@ -672,10 +697,11 @@ class CaptureMPC:
         rate_w = -1.0 if cfg.rate_max_deg_s is None else math.radians(cfg.rate_max_deg_s)
         H, f, G, free, Ar, bl, bu = condensed_qp(A, B, dt, N, dx0, W, r_blk, ref.ravel(), face_a,
                                                  dt * cfg.face_weight, 6, rate_w)
-        if not isinstance(self._solver, DaqpQP):
+        if self._solver is not None and self._solver_form != "qp":
             self._solver = None
+        self._solver_form = "qp"
         rows = (Ar, bl, bu) if rate_w >= 0.0 else (None, None, None)
-        self._solver, res, out = _solve_box_qp(self._solver, H, f, lb, ub, cfg.max_iter, kappa, *rows)
+        self._solver, res, out = _solve_box_qp(self._solver, cfg.solver, H, f, lb, ub, cfg.max_iter, kappa, *rows)
         if res.x is None or not res.ok:
             self._plan_rho = None
             return out
@@ -715,11 +741,11 @@ class CaptureMPC:
         prob = build_conic_problem(q, _dense_pattern_upper(P), lb=lbz, ub=ubz,
                                    soc=[(_dense_pattern(F), g, c, d) for F, g, c, d in soc])
         t_solver = time.perf_counter()
-        if self._solver is None or not isinstance(self._solver, ClarabelSOCP):
-            self._solver = ClarabelSOCP()
-            self._solver.setup(prob)
+        if self._solver is None or self._solver_form != "socp":
+            self._solver = make_solver(prob, cfg.socp_solver)  # set up with the ConicProblem form
+            self._solver_form = "socp"
         else:
-            self._solver.update_native(P=prob.P, q=prob.q, A=prob.A, b=prob.b)
+            self._solver.update(P=prob.P, q=prob.q, A=prob.A, b=prob.b)
         res = self._solver.solve()
         out = {"status": res.status, "kappa": kappa, "iterations": res.iterations,
                "solver_time_s": time.perf_counter() - t_solver,
@@ -841,7 +867,8 @@ class PostCaptureMPC:
         lb = np.tile(-self.u_max - kappa, N)
         ub = np.tile(self.u_max - kappa, N)
         rows = (Ar, bl, bu) if rate_w >= 0.0 else (None, None, None)
-        self._solver, res, out = _solve_box_qp(self._solver, H, f, lb, ub, self.config.max_iter, kappa, *rows)
+        self._solver, res, out = _solve_box_qp(self._solver, self.config.solver, H, f, lb, ub, self.config.max_iter,
+                                               kappa, *rows)
         if res.x is None or not res.ok:
             return out
         U = np.clip(res.x, lb, ub)
