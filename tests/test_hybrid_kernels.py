@@ -169,3 +169,29 @@ def test_capture_qp_on_solver_by_name_matches_independent_solve(solver):
     assert np.all(Ar @ U >= bl - 1e-9) and np.all(Ar @ U <= bu + 1e-9)  # rate rows inactive: same problem
     np.testing.assert_allclose(cmd.u, kappa + U[0:6], rtol=0.0, atol=1e-6)
     assert np.all(np.abs(cmd.u) <= mpc.u_max + 1e-9)  # the +-1 N / +-1 N m box (section VII)
+
+
+def test_post_model_kernel_matches_numpy_model():
+    """PostCaptureMPC.continuous_model (numba) against the model written in numpy (eqs. 29, 48, 65)
+    at a docked state with a non-zero reference (x_ref off the origin, so kappa^1's force enters)."""
+    from proxops.control.hybrid_mpc import PostCaptureMPC, post_capture_steady_inputs
+    from proxops.core.quaternion import skew
+
+    mpc = PostCaptureMPC(PARAMS)
+    x = np.zeros(32)
+    x[9:13] = _unit([0.01, -0.02, 0.005, 1.0])
+    x[13:17] = _unit([-0.5, 0.5, 0.5, -0.5])  # scalar < 0: the kinematics take -p
+    x[26:32] = [3.0, -2.0, 1.0, 0.01, 0.02, -0.03]
+    A, B, kappa = mpc.continuous_model(x)
+    k1, k2 = post_capture_steady_inputs(x[26:32], PARAMS)
+    A0, B0 = mpc.A.copy(), mpc.B.copy()
+    m = PARAMS.mass_total_kg
+    if np.any(k1):
+        A0[9:12, 0:3] = -2.0 * skew(k1) / m
+    p = -x[13:17]
+    A0[0:3, 3:6] = 0.5 * (skew(p[0:3]) + p[3] * np.eye(3))
+    C_TD = quat_to_dcm(x[13:17]) @ quat_to_dcm(x[9:13])
+    B0[9:12, 0:3] = C_TD / m
+    np.testing.assert_allclose(A, A0, rtol=1e-12, atol=1e-18)
+    np.testing.assert_allclose(B, B0, rtol=1e-12, atol=1e-18)
+    np.testing.assert_allclose(kappa, np.concatenate([C_TD.T @ k1, k2]), rtol=1e-12, atol=1e-15)

@@ -20,6 +20,8 @@ import math
 import numpy as np
 from numba import njit
 
+from proxops.core.quaternion import dcm_kernel
+
 # CasADi opcodes -> ours (casadi.OP_*; checked at Tape construction)
 _OP_NAMES = ("INPUT", "OUTPUT", "CONST", "ADD", "SUB", "MUL", "DIV", "NEG", "SQ", "TWICE", "SQRT", "INV", "ASSIGN")
 
@@ -316,3 +318,45 @@ def approach_target_kernel(rho, P_c, v, radius, half_angle, retreat, step_max):
     ce = np.array([axis[1] * e[2] - axis[2] * e[1], axis[2] * e[0] - axis[0] * e[2], axis[0] * e[1] - axis[1] * e[0]])
     e_next = e * math.cos(step) + ce * math.sin(step)  # Rodrigues (axis is normal to e)
     return radius * e_next - P_c
+
+
+@njit(cache=True)
+def post_model_kernel(x, A0, B0, G1, G2, gyro, arm, m, kinematics, thrust):
+    """(A, B, kappa^1) of the post-capture MPC at the relative state x (32): PostCaptureMPC.continuous_model
+    (A0, B0 about A_1; G1, G2 of eq. 21; gyro = omega_t x J omega_t; arm = (m_c/m) d; m the pair's mass)."""
+    r, v = x[26:29], x[29:32]
+    k1 = np.empty(3)
+    for i in range(3):  # eq. 65: m (r_des'' - G1 r_des - G2 r_des') with r_des'' of the natural CW reference
+        g1r = G1[i, 0] * r[0] + G1[i, 1] * r[1] + G1[i, 2] * r[2]
+        g2v = G2[i, 0] * v[0] + G2[i, 1] * v[1] + G2[i, 2] * v[2]
+        k1[i] = m * ((g1r + g2v) - g1r - g2v)
+    kappa = np.empty(6)
+    kappa[3] = gyro[0] - (arm[1] * k1[2] - arm[2] * k1[1])
+    kappa[4] = gyro[1] - (arm[2] * k1[0] - arm[0] * k1[2])
+    kappa[5] = gyro[2] - (arm[0] * k1[1] - arm[1] * k1[0])
+    kappa[0:3] = k1
+    A = A0.copy()
+    B = B0.copy()
+    if k1[0] != 0.0 or k1[1] != 0.0 or k1[2] != 0.0:  # R^T F = F + 2 p_eta x F + ...
+        c = -2.0 / m
+        A[9, 1], A[9, 2] = -c * k1[2], c * k1[1]
+        A[10, 0], A[10, 2] = c * k1[2], -c * k1[0]
+        A[11, 0], A[11, 1] = -c * k1[1], c * k1[0]
+        A[9, 0] = A[10, 1] = A[11, 2] = 0.0
+    if kinematics:  # eq. 29 at the measured p: (p_eta^x + p_mu I) / 2
+        s = 1.0 if x[16] >= 0.0 else -1.0
+        px, py, pz, pw = s * x[13], s * x[14], s * x[15], s * x[16]
+        A[0, 3], A[0, 4], A[0, 5] = 0.5 * pw, -0.5 * pz, 0.5 * py
+        A[1, 3], A[1, 4], A[1, 5] = 0.5 * pz, 0.5 * pw, -0.5 * px
+        A[2, 3], A[2, 4], A[2, 5] = -0.5 * py, 0.5 * px, 0.5 * pw
+    if thrust:  # R^T Q^T = C_{T<-C} C_{C<-D}
+        Rp = dcm_kernel(x[13:17])
+        Rq = dcm_kernel(x[9:13])
+        C = np.empty((3, 3))
+        for i in range(3):
+            for j in range(3):
+                C[i, j] = Rp[i, 0] * Rq[0, j] + Rp[i, 1] * Rq[1, j] + Rp[i, 2] * Rq[2, j]
+                B[9 + i, j] = C[i, j] / m
+        for j in range(3):
+            kappa[j] = C[0, j] * k1[0] + C[1, j] * k1[1] + C[2, j] * k1[2]
+    return A, B, kappa

@@ -125,7 +125,7 @@ import numpy as np
 import scipy.linalg
 import scipy.sparse as sp
 
-from proxops.control.hybrid_kernels import Tape, approach_target_kernel, condensed_qp, face_rows
+from proxops.control.hybrid_kernels import Tape, approach_target_kernel, condensed_qp, face_rows, post_model_kernel
 from proxops.core.quaternion import dcm_kernel, quat_to_dcm, skew
 from proxops.dynamics.hybrid_relative import (
     S_OM,
@@ -818,26 +818,12 @@ class PostCaptureMPC:
         return Ad, Bd, kappa, A, B
 
     def continuous_model(self, x_rel):
-        """(A, B, kappa^1) of :meth:`model` before the discretisation (fresh arrays)."""
-        x = np.asarray(x_rel, float)
-        ref = x[S_REF]
-        if ref.any():
-            k1, k2 = post_capture_steady_inputs(ref, self.params, self._kappa_pieces)
-        else:  # x_ref = 0 (the built-ins): kappa^1 = (0, omega_t x J omega_t), eq. 65
-            k1, k2 = np.zeros(3), self._kappa_pieces[3].copy()
-        A, B = self.A.copy(), self.B.copy()
-        if np.any(k1):  # R^T F = F + 2 p_eta x F + ... (zero for the natural CW reference)
-            A[9:12, 0:3] = -2.0 * skew(k1) / self.params.mass_total_kg
-        kappa = np.concatenate([k1, k2])
-        if self.config.kinematics_at_current_attitude:
-            s = 1.0 if x[S_P.stop - 1] >= 0.0 else -1.0
-            px, py, pz, pw = (s * float(c) for c in x[S_P])
-            A[0:3, 3:6] = 0.5 * np.array([[pw, -pz, py], [pz, pw, -px], [-py, px, pw]])  # eq. 29 at the measured p
-        if self.config.thrust_at_current_attitude:
-            C_TD = dcm_kernel(x[S_P]) @ dcm_kernel(x[S_Q])  # R^T Q^T = C_{T<-C} C_{C<-D}
-            B[9:12, 0:3] = C_TD / self.params.mass_total_kg
-            kappa[0:3] = C_TD.T @ k1
-        return A, B, kappa
+        """(A, B, kappa^1) of :meth:`model` before the discretisation (fresh arrays; numba:
+        hybrid_kernels.post_model_kernel)."""
+        G1, G2, _, gyro, arm = self._kappa_pieces
+        return post_model_kernel(np.asarray(x_rel, float), self.A, self.B, G1, G2, gyro, arm,
+                                 float(self.params.mass_total_kg), self.config.kinematics_at_current_attitude,
+                                 self.config.thrust_at_current_attitude)
 
     def step(self, t: float, x_rel) -> Command:
         t_start = time.perf_counter()
