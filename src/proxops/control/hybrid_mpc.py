@@ -125,7 +125,8 @@ import numpy as np
 import scipy.linalg
 import scipy.sparse as sp
 
-from proxops.core.quaternion import quat_to_dcm, skew
+from proxops.control.hybrid_kernels import Tape, approach_target_kernel, condensed_qp, face_rows, post_model_kernel
+from proxops.core.quaternion import dcm_kernel, quat_to_dcm, skew
 from proxops.dynamics.hybrid_relative import (
     S_OM,
     S_OMC,
@@ -144,7 +145,8 @@ from proxops.dynamics.hybrid_relative import (
 from proxops.dynamics.two_rigid_bodies import HybridParams
 from proxops.errors import input_error
 from proxops.contracts import Command
-from proxops.solvers import ClarabelSOCP, DaqpQP, build_conic_problem
+from proxops.solvers import QuadraticProgram, build_conic_problem, make_solver
+from proxops.solvers.front import SOLVERS_FOR
 from proxops.status import Status
 
 N_DX = 12  # reduced decision state of both problems
@@ -182,7 +184,13 @@ class CaptureMPCConfig:
     waypoint_step_deg: float = 30.0  # how far round the chief each waypoint leads
     safe_margin_m: float = 0.3  # waypoint radius = chief half-diagonal + deputy port's reach + this
     retreat_fraction: float = 0.9  # closer than this fraction of the waypoint radius: back off radially first
-    max_iter: int = 2000  # DAQP active-set iteration cap
+    max_iter: int = 2000  # iteration cap of the QP / SOCP solver
+    # Solvers by name (proxops.solvers.make_solver): the QP form on "daqp" (default), "piqp" or
+    # "clarabel"; the SOCP form on "clarabel" (default) or "ipopt". Only DAQP relaxes the soft rate
+    # rows below (its soft constraints); on the other QP solvers they are hard rows, so a measured
+    # rate beyond the bound makes the QP infeasible and the step falls back to kappa^0.
+    solver: str = "daqp"
+    socp_solver: str = "clarabel"
     # Rate bound (not in the paper): |omega_i| <= rate_max_deg_s per axis of the deputy's
     # rate relative to the chief on every predicted stage, as soft rows (DAQP relaxes them at a
     # penalty when the measured rate is already beyond). 10 deg/s: 1.6 x the eq. 78 start
@@ -205,6 +213,8 @@ class CaptureMPCConfig:
             raise input_error("capture_mpc.face_weight", self.face_weight, "must be a finite number >= 0")
         if self.face_form not in ("qp", "socp"):
             raise input_error("capture_mpc.face_form", self.face_form, "allowed: qp, socp")
+        _solver_name("capture_mpc.solver", self.solver, "QP")
+        _solver_name("capture_mpc.socp_solver", self.socp_solver, "SOCP")
         if not 1 <= int(self.collision_weight_cap) <= 10:
             raise input_error("capture_mpc.collision_weight_cap", self.collision_weight_cap,
                               "must lie in [1, 10] (10^(c+5) Q_f/R beyond 10 exceeds double precision)")
@@ -233,6 +243,7 @@ class PostCaptureMPCConfig:
     thrust_at_current_attitude: bool = True  # force block of B at the measured R^T Q^T (module doc)
     kinematics_at_current_attitude: bool = True  # p_eta' = E(p) omega_c at the measured p (module doc)
     max_iter: int = 2000
+    solver: str = "daqp"  # QP solver by name (as CaptureMPCConfig.solver; soft rate rows on DAQP only)
     # Rate bound (not in the paper): |omega_c_i| <= rate_max_deg_s per axis of the
     # composite's tumble on every predicted stage (soft rows). 0.5 deg/s per axis (|omega_c| <= 0.87 deg/s,
     # 3.6 x the eq. 78 tumble
@@ -245,6 +256,12 @@ class PostCaptureMPCConfig:
                      "Q_terminal_orbit"):
             _positive(f"post_capture_mpc.{name}", getattr(self, name))
         _steps("post_capture_mpc", self.horizon_s, self.period_s)
+        _solver_name("post_capture_mpc.solver", self.solver, "QP")
+
+
+def _solver_name(field: str, name, kind: str) -> None:
+    if name not in SOLVERS_FOR[kind]:
+        raise input_error(field, name, f"allowed: {', '.join(SOLVERS_FOR[kind])}")
 
 
 def _positive(name: str, value) -> None:
@@ -261,21 +278,29 @@ def _steps(prefix: str, horizon_s: float, period_s: float) -> int:
     return n
 
 
-def _solve_box_qp(solver, H, f, lb, ub, max_iter: int, kappa, A=None, bl=None, bu=None):
-    """Solve min 1/2 U'HU + f'U, lb <= U <= ub (and, given A, the soft rows bl <= A U <= bu:
-    the rate bounds, which DAQP may relax at a penalty) with DAQP, set up on the first call and
-    updated in place after (same structure every step). Returns (solver, result, info dict)."""
+def _solve_box_qp(solver, name: str, H, f, lb, ub, max_iter: int, kappa, A=None, bl=None, bu=None):
+    """Solve min 1/2 U'HU + f'U, lb <= U <= ub (and, given A, the rows bl <= A U <= bu: the rate
+    bounds) with the QP solver ``name`` (proxops.solvers.make_solver), set up on the first call and
+    updated in place after (same structure every step). DAQP is set up natively so that the rate
+    rows are soft (DAQP may relax them at a penalty); the others take the QuadraticProgram form
+    (hard rows). Returns (solver, result, info dict)."""
     t_solver = time.perf_counter()
     if solver is None:
-        solver = DaqpQP(max_iter=max_iter)
-        if A is None:
-            solver.setup_native(H, f, None, lb=lb, ub=ub)
+        solver = make_solver("QP", name, max_iter=max_iter)
+        if name == "daqp":
+            soft = None if A is None else np.ones(A.shape[0], bool)
+            solver.setup_native(H, f, A, bl, bu, lb=lb, ub=ub, soft_rows=soft)
         else:
-            solver.setup_native(H, f, A, bl, bu, lb=lb, ub=ub, soft_rows=np.ones(A.shape[0], bool))
+            solver.setup(QuadraticProgram(P=H, q=f, A=A, bl=bl, bu=bu, lb=lb, ub=ub))
+    elif name == "daqp":  # native names after setup_native
+        if A is None:
+            solver.update(H=H, f=f, lb=lb, ub=ub)
+        else:
+            solver.update(H=H, f=f, A=A, bl=bl, bu=bu, lb=lb, ub=ub)
     elif A is None:
-        solver.update(H=H, f=f, lb=lb, ub=ub)
+        solver.update(P=H, q=f, lb=lb, ub=ub)
     else:
-        solver.update(H=H, f=f, A=A, bl=bl, bu=bu, lb=lb, ub=ub)
+        solver.update(P=H, q=f, A=A, bl=bl, bu=bu, lb=lb, ub=ub)
     res = solver.solve()
     out = {"status": res.status, "kappa": kappa, "iterations": res.iterations,
            "solver_time_s": time.perf_counter() - t_solver, "detail": str(res.info.get("raw_status", ""))}
@@ -341,10 +366,18 @@ class CaptureLinearization:
         self._fun = ca.Function("capture_linearization", [p, wc],
                                 [ca.vertcat(ca.vec(A), ca.vec(B), kappa, f0)])
         self._fz = ca.Function("capture_reduced_rhs", [z, u, p, wc], [fz])
+        self._tape = Tape(self._fun)  # the same operations replayed in numba (hybrid_kernels.Tape)
+        self._inp = np.empty(7)
 
     def __call__(self, p, omega_c):
         """(A (12, 12), B (12, 6), kappa^0 (6,), f0 (12,)) at (p, omega_c)."""
-        out = np.asarray(self._fun(np.asarray(p, float), np.asarray(omega_c, float))).ravel()
+        if self._tape.ok:
+            inp = self._inp
+            inp[0:4] = p
+            inp[4:7] = omega_c
+            out = self._tape(inp)
+        else:
+            out = np.asarray(self._fun(np.asarray(p, float), np.asarray(omega_c, float))).ravel()
         A = out[:144].reshape(12, 12, order="F")
         B = out[144:216].reshape(12, 6, order="F")
         return A, B, out[216:222].copy(), out[222:234].copy()
@@ -509,6 +542,8 @@ class CaptureMPC:
         self._cond = _Condensed(self.N, N_DX, N_U)
         self.collisions = 0
         self._solver = None
+        self._solver_form = None
+        self._weight_cache = {}
         self.reset(0.0, None)
 
     # ---------------------------------------------------------------- protocol
@@ -548,22 +583,24 @@ class CaptureMPC:
         """(Ad, Bd, kappa^0 (D components), A, B) at (p, omega_c) for the configured period;
         ``decouple``: the translational rows do not see the deputy's rate and attitude (far from
         the port, config ``decouple_beyond_m``)."""
-        A, B, kappa, _ = self.linearization(p, omega_c)
-        if decouple:
-            A = A.copy()
-            A[0:6, 6:12] = 0.0
-        if self.config.thrust_at_current_attitude and q is not None:
-            Q = quat_to_dcm(np.asarray(q, float)).T  # C_{D<-C}
-            B = B.copy()
-            B[3:6, 0:3] = Q.T / self.params.mass_deputy_kg  # eq. 22's Q^T F_d / m_d at the measured q
-            kappa = kappa.copy()
-            kappa[0:3] = Q @ kappa[0:3]
-        if self.config.kinematics_at_current_attitude and q is not None:
-            qq = np.asarray(q, float) if q[3] >= 0.0 else -np.asarray(q, float)
-            A = A.copy()
-            A[9:12, 6:9] = 0.5 * (skew(qq[0:3]) + qq[3] * np.eye(3))  # eq. 27 at the measured q
+        A, B, kappa = self.continuous_model(p, omega_c, q, decouple)
         Ad, Bd = zoh_discretize(A, B, self.dt)
         return Ad, Bd, kappa, A, B
+
+    def continuous_model(self, p, omega_c, q=None, decouple: bool = False):
+        """(A, B, kappa^0) of :meth:`model` before the discretisation (fresh arrays)."""
+        A, B, kappa, _ = self.linearization(p, omega_c)
+        if decouple:
+            A[0:6, 6:12] = 0.0
+        if self.config.thrust_at_current_attitude and q is not None:
+            Qt = dcm_kernel(np.asarray(q, float))  # C_{C<-D} = Q^T
+            B[3:6, 0:3] = Qt / self.params.mass_deputy_kg  # eq. 22's Q^T F_d / m_d at the measured q
+            kappa[0:3] = Qt.T @ kappa[0:3]
+        if self.config.kinematics_at_current_attitude and q is not None:
+            s = 1.0 if q[3] >= 0.0 else -1.0
+            x, y, z, w = (s * float(c) for c in q)
+            A[9:12, 6:9] = 0.5 * np.array([[w, -z, y], [z, w, -x], [-y, x, w]])  # eq. 27: (q_eta^x + q_mu I)/2
+        return A, B, kappa
 
     # ---------------------------------------------------------------- approach guidance
     def approach_target(self, rho) -> np.ndarray:
@@ -573,6 +610,13 @@ class CaptureMPC:
         of radius ``waypoint_radius_m`` about the chief CoM, ``waypoint_step_deg`` further round
         towards the port axis, or, closer than ``retreat_fraction`` of that radius, the point of
         the sphere straight out from the chief CoM (not in the paper; module doc)."""
+        cfg = self.config
+        return approach_target_kernel(np.asarray(rho, float), self.params.P_c, self.v, self.waypoint_radius_m,
+                                      math.radians(cfg.corridor_half_angle_deg), cfg.retreat_fraction,
+                                      math.radians(cfg.waypoint_step_deg))
+
+    def _approach_target_numpy(self, rho) -> np.ndarray:
+        """The numpy form of :meth:`approach_target` (kept for the test of the kernel)."""
         cfg = self.config
         s = np.asarray(rho, float) + self.params.P_c  # deputy port from the chief CoM (C)
         r = float(np.linalg.norm(s))
@@ -607,6 +651,8 @@ class CaptureMPC:
         x = np.asarray(x_rel, float)
         dx0 = reduced_capture_state(x)
         far = cfg.decouple_beyond_m is not None and float(np.linalg.norm(x[S_RHO])) > cfg.decouple_beyond_m
+        if cfg.face_form == "qp":
+            return self._solve_qp(x, dx0, far)
         Ad, Bd, kappa, _, _ = self.model(x[S_P], x[S_OMC], x[S_Q], decouple=far)
         Phi, G = self._cond.build(Ad, Bd)
         Qd, Rd, Qf = capture_weights(cfg, self.collisions)
@@ -621,30 +667,41 @@ class CaptureMPC:
         ub = np.tile(self.u_max - kappa, N)
         r_blk = np.tile(dt * Rd, N)
         scale = 1.0 / r_blk.max()
-        if cfg.face_form == "socp":
-            return self._solve_socp(x, dx0, kappa, Phi, G, W, r_blk, free, ref, lb, ub, scale)
-        # stage weights plus the rank-one face terms (stages k = 1..N-1)
-        WG = W[:, None] * G
-        rows_rho = (np.arange(N)[:, None] * N_DX + np.arange(3)[None, :])  # (N, 3) rho rows of X
-        if cfg.face_weight > 0.0:
-            face_a = face_pointing_linearized(self._face_directions(dx0[0:3]), self.v)
-            face_a[N - 1] = 0.0  # terminal state: Q_f only
-        H = G.T @ WG
-        f = WG.T @ (free - ref)
-        if cfg.face_weight > 0.0:
-            Grho = G[rows_rho.ravel()].reshape(N, 3, -1)
-            aG = np.einsum("ki,kij->kj", face_a, Grho)  # (N, nU): (e_k - v)' Gamma_rho_k
-            afree = np.einsum("ki,ki->k", face_a, free[rows_rho])
-            wf = dt * cfg.face_weight
-            H += wf * aG.T @ aG
-            f += wf * aG.T @ afree
-        H[np.diag_indices_from(H)] += r_blk
-        H = (2.0 * scale) * 0.5 * (H + H.T)
-        f = (2.0 * scale) * f
-        if not isinstance(self._solver, DaqpQP):
+        return self._solve_socp(x, dx0, kappa, Phi, G, W, r_blk, free, ref, lb, ub, scale)
+
+    def _weights(self):
+        """(W (N*12), r_blk (N*6)) of the current collision count (cached per count)."""
+        cfg, N, dt = self.config, self.N, self.dt
+        key = min(self.collisions, cfg.collision_weight_cap) if cfg.collision_weights else 0
+        if key not in self._weight_cache:
+            Qd, Rd, Qf = capture_weights(cfg, self.collisions)
+            W = np.tile(dt * Qd, N)
+            W[-N_DX:] = Qf
+            self._weight_cache[key] = (W, np.tile(dt * Rd, N))
+        return self._weight_cache[key]
+
+    def _solve_qp(self, x, dx0, far: bool) -> dict:
+        """The QP form (DAQP): the whole QP built by one numba call (hybrid_kernels.condensed_qp):
+        stage weights, the rank-one face terms of stages k = 1..N-1, the input box and the soft
+        rate rows."""
+        cfg, N, dt = self.config, self.N, self.dt
+        A, B, kappa = self.continuous_model(x[S_P], x[S_OMC], x[S_Q], decouple=far)
+        W, r_blk = self._weights()
+        self.target_rho = self.approach_target(x[S_RHO]) if cfg.approach_guidance else np.zeros(3)
+        ref = np.zeros((N, N_DX))
+        ref[:, 0:3] = self.target_rho
+        lb = np.tile(-self.u_max - kappa, N)
+        ub = np.tile(self.u_max - kappa, N)
+        face_a = (face_rows(self._face_directions(dx0[0:3]), self.v, N) if cfg.face_weight > 0.0
+                  else np.zeros((N, 3)))
+        rate_w = -1.0 if cfg.rate_max_deg_s is None else math.radians(cfg.rate_max_deg_s)
+        H, f, G, free, Ar, bl, bu = condensed_qp(A, B, dt, N, dx0, W, r_blk, ref.ravel(), face_a,
+                                                 dt * cfg.face_weight, 6, rate_w)
+        if self._solver is not None and self._solver_form != "qp":
             self._solver = None
-        rows = _rate_rows(G, free, N, 6, cfg.rate_max_deg_s)
-        self._solver, res, out = _solve_box_qp(self._solver, H, f, lb, ub, cfg.max_iter, kappa, *rows)
+        self._solver_form = "qp"
+        rows = (Ar, bl, bu) if rate_w >= 0.0 else (None, None, None)
+        self._solver, res, out = _solve_box_qp(self._solver, cfg.solver, H, f, lb, ub, cfg.max_iter, kappa, *rows)
         if res.x is None or not res.ok:
             self._plan_rho = None
             return out
@@ -684,11 +741,11 @@ class CaptureMPC:
         prob = build_conic_problem(q, _dense_pattern_upper(P), lb=lbz, ub=ubz,
                                    soc=[(_dense_pattern(F), g, c, d) for F, g, c, d in soc])
         t_solver = time.perf_counter()
-        if self._solver is None or not isinstance(self._solver, ClarabelSOCP):
-            self._solver = ClarabelSOCP()
-            self._solver.setup(prob)
+        if self._solver is None or self._solver_form != "socp":
+            self._solver = make_solver(prob, cfg.socp_solver)  # set up with the ConicProblem form
+            self._solver_form = "socp"
         else:
-            self._solver.update_native(P=prob.P, q=prob.q, A=prob.A, b=prob.b)
+            self._solver.update(P=prob.P, q=prob.q, A=prob.A, b=prob.b)
         res = self._solver.solve()
         out = {"status": res.status, "kappa": kappa, "iterations": res.iterations,
                "solver_time_s": time.perf_counter() - t_solver,
@@ -744,6 +801,8 @@ class PostCaptureMPC:
         self._W = W
         self._r_blk = np.full(N * N_U, self.dt * config.R_input)
         self._scale = 1.0 / self._r_blk.max()
+        self._zero_ref = np.zeros(N * N_DX)
+        self._zero_face = np.zeros((N, 3))
         self._model_key = None
         self._solver = None
         self.reset(0.0, None)
@@ -754,21 +813,17 @@ class PostCaptureMPC:
     def model(self, x_rel):
         """(Ad, Bd, kappa^1 (D components), A, B) for the current state: A about A_1 (constant
         with the CW reference), the force block of B at the measured attitude (module doc)."""
-        x = np.asarray(x_rel, float)
-        k1, k2 = post_capture_steady_inputs(x[S_REF], self.params, self._kappa_pieces)
-        A, B = self.A.copy(), self.B.copy()
-        if np.any(k1):  # R^T F = F + 2 p_eta x F + ... (zero for the natural CW reference)
-            A[9:12, 0:3] = -2.0 * skew(k1) / self.params.mass_total_kg
-        kappa = np.concatenate([k1, k2])
-        if self.config.kinematics_at_current_attitude:
-            p = x[S_P] if x[S_P.stop - 1] >= 0.0 else -x[S_P]
-            A[0:3, 3:6] = 0.5 * (skew(p[0:3]) + p[3] * np.eye(3))  # eq. 29 at the measured p
-        if self.config.thrust_at_current_attitude:
-            C_TD = quat_to_dcm(x[S_P]) @ quat_to_dcm(x[S_Q])  # R^T Q^T = C_{T<-C} C_{C<-D}
-            B[9:12, 0:3] = C_TD / self.params.mass_total_kg
-            kappa[0:3] = C_TD.T @ k1
+        A, B, kappa = self.continuous_model(x_rel)
         Ad, Bd = zoh_discretize(A, B, self.dt)
         return Ad, Bd, kappa, A, B
+
+    def continuous_model(self, x_rel):
+        """(A, B, kappa^1) of :meth:`model` before the discretisation (fresh arrays; numba:
+        hybrid_kernels.post_model_kernel)."""
+        G1, G2, _, gyro, arm = self._kappa_pieces
+        return post_model_kernel(np.asarray(x_rel, float), self.A, self.B, G1, G2, gyro, arm,
+                                 float(self.params.mass_total_kg), self.config.kinematics_at_current_attitude,
+                                 self.config.thrust_at_current_attitude)
 
     def step(self, t: float, x_rel) -> Command:
         t_start = time.perf_counter()
@@ -791,18 +846,15 @@ class PostCaptureMPC:
         N = self.N
         x = np.asarray(x_rel, float)
         dx0 = reduced_post_capture_state(x)
-        Ad, Bd, kappa, _, _ = self.model(x)
-        Phi, G = self._cond.build(Ad, Bd)
-        free = Phi @ dx0
-        WG = self._W[:, None] * G
-        H = G.T @ WG
-        H[np.diag_indices_from(H)] += self._r_blk
-        H = self._scale * (H + H.T)
-        f = (2.0 * self._scale) * (WG.T @ free)
+        A, B, kappa = self.continuous_model(x)
+        rate_w = -1.0 if self.config.rate_max_deg_s is None else math.radians(self.config.rate_max_deg_s)
+        H, f, G, free, Ar, bl, bu = condensed_qp(A, B, self.dt, N, dx0, self._W, self._r_blk, self._zero_ref,
+                                                 self._zero_face, 0.0, 3, rate_w)  # one numba call (hybrid_kernels)
         lb = np.tile(-self.u_max - kappa, N)
         ub = np.tile(self.u_max - kappa, N)
-        rows = _rate_rows(G, free, N, 3, self.config.rate_max_deg_s)
-        self._solver, res, out = _solve_box_qp(self._solver, H, f, lb, ub, self.config.max_iter, kappa, *rows)
+        rows = (Ar, bl, bu) if rate_w >= 0.0 else (None, None, None)
+        self._solver, res, out = _solve_box_qp(self._solver, self.config.solver, H, f, lb, ub, self.config.max_iter,
+                                               kappa, *rows)
         if res.x is None or not res.ok:
             return out
         U = np.clip(res.x, lb, ub)

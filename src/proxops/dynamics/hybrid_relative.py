@@ -53,8 +53,9 @@ printed form where it is a switch):
 from __future__ import annotations
 
 import numpy as np
+from numba import njit
 
-from proxops.core.quaternion import quat_conjugate, quat_kinematics, quat_multiply, quat_to_dcm
+from proxops.core.quaternion import dcm_kernel, multiply_kernel, quat_kinematics, quat_to_dcm
 from proxops.dynamics.two_rigid_bodies import (
     SL_QC,
     SL_QD,
@@ -266,28 +267,72 @@ def steady_inputs(p, omega_c, params: HybridParams, corrected: bool = True):
 # --------------------------------------------------------------------------------------
 # relative state <-> truth
 # --------------------------------------------------------------------------------------
-def relative_from_truth(xt, params: HybridParams, x_ref=None) -> np.ndarray:
-    """The paper's relative state (32) computed from the direct truth state (26):
-    q = q_c* (x) q_d, p = q_c, eqs. 6-7, 18-20, 30 (numpy)."""
-    xt = np.asarray(xt, dtype=float)
-    qc, qd = xt[SL_QC], xt[SL_QD]
-    q = quat_multiply(quat_conjugate(qc), qd)
+@njit(cache=True)
+def relative_from_truth_kernel(xt, x_ref, out, P_c, P_d, m_c, m_d, n):
+    """numba form of :func:`relative_from_truth`: writes the 32 relative entries into ``out``
+    (truth xt (26), x_ref (6); P_c, P_d (m, body axes), masses (kg), n0 (rad/s))."""
+    qc = xt[12:16]
+    qd = xt[19:23]
+    q = multiply_kernel(np.array([-qc[0], -qc[1], -qc[2], qc[3]]), qd)  # q_c* (x) q_d
     if q[3] < 0:  # the paper's q and -q are the same attitude; keep the scalar >= 0 branch
         q = -q
-    R, Q = quat_to_dcm(qc).T, quat_to_dcm(q).T
-    Wc, Wd = xt[SL_WC], xt[SL_WD]
-    omc = Wc - R @ params.omega_t
-    om = Wd - Q @ Wc
-    wd = om + Q @ omc
-    rho0 = xt[SL_RD] - xt[SL_RC]
-    rho0d = xt[SL_VD] - xt[SL_VC]
-    rho = R @ rho0 + Q.T @ params.P_d - params.P_c  # eqs. 18-19
-    rhod = R @ rho0d - np.cross(omc, rho + params.P_c) + Q.T @ np.cross(wd, params.P_d)  # eq. 20
-    m = params.mass_total_kg
-    rn = (params.mass_chief_kg * xt[SL_RC] + params.mass_deputy_kg * xt[SL_RD]) / m
-    rnd = (params.mass_chief_kg * xt[SL_VC] + params.mass_deputy_kg * xt[SL_VD]) / m
-    ref = np.zeros(6) if x_ref is None else np.asarray(x_ref, dtype=float)
-    return np.concatenate([rho, rhod, om, q, qc, omc, rn, rnd, ref])
+    Rc = dcm_kernel(qc)  # C_{T<-C} = R^T
+    Qt = dcm_kernel(q)  # C_{C<-D} = Q^T
+    Wc, Wd = xt[16:19], xt[23:26]
+    omc = np.empty(3)
+    om = np.empty(3)
+    rho = np.empty(3)
+    for i in range(3):  # omega_c = W_c - R omega_t (eq. 30), omega = W_d - Q W_c (eq. 7)
+        omc[i] = Wc[i] - Rc[2, i] * n
+        om[i] = Wd[i] - (Qt[0, i] * Wc[0] + Qt[1, i] * Wc[1] + Qt[2, i] * Wc[2])
+    wd = np.empty(3)
+    for i in range(3):  # omega_{D/C} + Q omega_c, eq. 6
+        wd[i] = om[i] + (Qt[0, i] * omc[0] + Qt[1, i] * omc[1] + Qt[2, i] * omc[2])
+    rho0 = xt[6:9] - xt[0:3]
+    rho0d = xt[9:12] - xt[3:6]
+    wxp = _cross3(wd, P_d)
+    for i in range(3):  # eqs. 18-19
+        rho[i] = (Rc[0, i] * rho0[0] + Rc[1, i] * rho0[1] + Rc[2, i] * rho0[2]
+                  + Qt[i, 0] * P_d[0] + Qt[i, 1] * P_d[1] + Qt[i, 2] * P_d[2] - P_c[i])
+    a = rho + P_c
+    oxa = _cross3(omc, a)
+    m = m_c + m_d
+    for i in range(3):
+        out[i] = rho[i]
+        out[3 + i] = (Rc[0, i] * rho0d[0] + Rc[1, i] * rho0d[1] + Rc[2, i] * rho0d[2] - oxa[i]
+                      + Qt[i, 0] * wxp[0] + Qt[i, 1] * wxp[1] + Qt[i, 2] * wxp[2])  # eq. 20
+        out[6 + i] = om[i]
+        out[17 + i] = omc[i]
+        out[20 + i] = (m_c * xt[i] + m_d * xt[6 + i]) / m  # eq. 30
+        out[23 + i] = (m_c * xt[3 + i] + m_d * xt[9 + i]) / m
+    for i in range(4):
+        out[9 + i] = q[i]
+        out[13 + i] = qc[i]
+    for i in range(6):
+        out[26 + i] = x_ref[i]
+
+
+@njit(cache=True)
+def _cross3(a, b):
+    out = np.empty(3)
+    out[0] = a[1] * b[2] - a[2] * b[1]
+    out[1] = a[2] * b[0] - a[0] * b[2]
+    out[2] = a[0] * b[1] - a[1] * b[0]
+    return out
+
+
+_ZERO_REF = np.zeros(6)
+
+
+def relative_from_truth(xt, params: HybridParams, x_ref=None) -> np.ndarray:
+    """The paper's relative state (32) computed from the direct truth state (26):
+    q = q_c* (x) q_d, p = q_c, eqs. 6-7, 18-20, 30 (numba kernel
+    :func:`relative_from_truth_kernel`)."""
+    out = np.empty(N_REL)
+    relative_from_truth_kernel(np.asarray(xt, dtype=float), _ZERO_REF if x_ref is None else np.asarray(x_ref, float),
+                               out, params.P_c, params.P_d, float(params.mass_chief_kg),
+                               float(params.mass_deputy_kg), float(params.mean_motion_rad_s))
+    return out
 
 
 def rho0_and_rate(x, params: HybridParams):

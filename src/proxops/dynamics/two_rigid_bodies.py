@@ -330,30 +330,77 @@ def _cross(a, b):
 
 
 @njit(cache=True)
-def _cw(x, dx, i, F, m, n):
-    """CW (eq. 21 with the standard G2 = -2 omega_t^x: x'' = 3n^2 x + 2n y') for the CoM
-    whose position starts at index i (velocity at i + 3)."""
-    dx[i : i + 3] = x[i + 3 : i + 6]
-    dx[i + 3] = 3.0 * n * n * x[i] + 2.0 * n * x[i + 4] + F[0] / m
-    dx[i + 4] = -2.0 * n * x[i + 3] + F[1] / m
-    dx[i + 5] = -n * n * x[i + 2] + F[2] / m
+def _mv(M, v):
+    """M @ v for a 3x3 M inside numba code (a loop: numba's ``@`` calls BLAS, ~1 us per call)."""
+    out = np.empty(3)
+    for i in range(3):
+        out[i] = M[i, 0] * v[0] + M[i, 1] * v[1] + M[i, 2] * v[2]
+    return out
+
+
+@njit(cache=True)
+def _mtv(M, v):
+    """M.T @ v for a 3x3 M inside numba code."""
+    out = np.empty(3)
+    for i in range(3):
+        out[i] = M[0, i] * v[0] + M[1, i] * v[1] + M[2, i] * v[2]
+    return out
+
+
+@njit(cache=True)
+def _mtm(A, B):
+    """A.T @ B for 3x3 matrices inside numba code."""
+    out = np.empty((3, 3))
+    for i in range(3):
+        for j in range(3):
+            out[i, j] = A[0, i] * B[0, j] + A[1, i] * B[1, j] + A[2, i] * B[2, j]
+    return out
+
+
+@njit(cache=True)
+def _attitude_rhs(x, dx, iq, iw, R, J, Ji, M0, M1, M2, n):
+    """Attitude kinematics relative to T and Euler's equation of one body (quaternion at iq, inertial
+    body rate at iw; R = C_{T<-B} as a 9-tuple; torque (M0, M1, M2) in B), written into dx."""
+    w0, w1, w2 = x[iw], x[iw + 1], x[iw + 2]
+    r0, r1, r2 = w0 - R[6] * n, w1 - R[7] * n, w2 - R[8] * n  # w - R^T omega_t
+    qx, qy, qz, qw = x[iq], x[iq + 1], x[iq + 2], x[iq + 3]
+    dx[iq] = 0.5 * (qw * r0 + qy * r2 - qz * r1)  # 0.5 q (x) [w_rel, 0]
+    dx[iq + 1] = 0.5 * (qw * r1 + qz * r0 - qx * r2)
+    dx[iq + 2] = 0.5 * (qw * r2 + qx * r1 - qy * r0)
+    dx[iq + 3] = -0.5 * (qx * r0 + qy * r1 + qz * r2)
+    h0 = J[0, 0] * w0 + J[0, 1] * w1 + J[0, 2] * w2
+    h1 = J[1, 0] * w0 + J[1, 1] * w1 + J[1, 2] * w2
+    h2 = J[2, 0] * w0 + J[2, 1] * w1 + J[2, 2] * w2
+    t0 = M0 - (w1 * h2 - w2 * h1)  # eqs. 23-24: J w' = M - w x J w
+    t1 = M1 - (w2 * h0 - w0 * h2)
+    t2 = M2 - (w0 * h1 - w1 * h0)
+    for i in range(3):
+        dx[iw + i] = Ji[i, 0] * t0 + Ji[i, 1] * t1 + Ji[i, 2] * t2
+
+
+@njit(cache=True)
+def _cw_scalar(x, dx, i, F0, F1, F2, m, n):
+    """CW (eq. 21 with the standard G2 = -2 omega_t^x) for the CoM at index i (velocity at i + 3)."""
+    dx[i] = x[i + 3]
+    dx[i + 1] = x[i + 4]
+    dx[i + 2] = x[i + 5]
+    dx[i + 3] = 3.0 * n * n * x[i] + 2.0 * n * x[i + 4] + F0 / m
+    dx[i + 4] = -2.0 * n * x[i + 3] + F1 / m
+    dx[i + 5] = -n * n * x[i + 2] + F2 / m
 
 
 @njit(cache=True)
 def truth_rhs_kernel(x, u, m_c, m_d, J_c, J_c_inv, J_d, J_d_inv, n):
-    """numba kernel of :func:`truth_rhs` (same layout; plain float64 arrays)."""
+    """numba kernel of :func:`truth_rhs` (same layout; plain float64 arrays; scalar form, one
+    heap array: dx)."""
     dx = np.empty(26)
-    wt = np.array([0.0, 0.0, n])
-    Rc = dcm_kernel(x[12:16])  # C_{T<-C}
-    Rd = dcm_kernel(x[19:23])  # C_{T<-D}
-    F_T = Rd @ u[0:3]
-    _cw(x, dx, 0, np.zeros(3), m_c, n)  # chief CoM
-    _cw(x, dx, 6, F_T, m_d, n)  # deputy CoM
-    wc, wd = x[16:19], x[23:26]
-    dx[12:16] = kinematics_kernel(x[12:16], wc - Rc.T @ wt)
-    dx[16:19] = J_c_inv @ (-_cross(wc, J_c @ wc))  # eq. 23
-    dx[19:23] = kinematics_kernel(x[19:23], wd - Rd.T @ wt)
-    dx[23:26] = J_d_inv @ (u[3:6] - _cross(wd, J_d @ wd))  # eq. 24
+    Rc = dcm9(x[12:16])  # C_{T<-C}
+    Rd = dcm9(x[19:23])  # C_{T<-D}
+    F0, F1, F2 = mv9(Rd, u[0], u[1], u[2])
+    _cw_scalar(x, dx, 0, 0.0, 0.0, 0.0, m_c, n)  # chief CoM
+    _cw_scalar(x, dx, 6, F0, F1, F2, m_d, n)  # deputy CoM
+    _attitude_rhs(x, dx, 12, 16, Rc, J_c, J_c_inv, 0.0, 0.0, 0.0, n)  # eq. 23
+    _attitude_rhs(x, dx, 19, 23, Rd, J_d, J_d_inv, u[3], u[4], u[5], n)  # eq. 24
     return dx
 
 
@@ -625,33 +672,98 @@ def port_kinematics_kernel(x, P_c, P_d, n):
     q = multiply_kernel(qc_conj, x[19:23])  # D rel. C
     if q[3] < 0:
         q = -q
-    Q = Rd.T @ Rc  # C_{D<-C}
-    R = Rc.T  # C_{C<-T}
+    Q = _mtm(Rd, Rc)  # C_{D<-C}
     wt = np.array([0.0, 0.0, n])
-    omc = x[16:19] - R @ wt
-    om = x[23:26] - Q @ x[16:19]
-    wd = om + Q @ omc
+    omc = x[16:19] - _mtv(Rc, wt)  # R = Rc^T = C_{C<-T}
+    om = x[23:26] - _mv(Q, x[16:19])
+    wd = om + _mv(Q, omc)
     rho0 = x[6:9] - x[0:3]
     rho0d = x[9:12] - x[3:6]
-    rho = R @ rho0 + Q.T @ P_d - P_c
-    rhod = R @ rho0d - _cross(omc, rho + P_c) + Q.T @ _cross(wd, P_d)
+    rho = _mtv(Rc, rho0) + _mtv(Q, P_d) - P_c
+    rhod = _mtv(Rc, rho0d) - _cross(omc, rho + P_c) + _mtv(Q, _cross(wd, P_d))
     return Rc, Rd, Q, q, om, rho, rhod
 
 
 @njit(cache=True)
+def dcm9(q):
+    """:func:`quat_to_dcm` of one unit quaternion as a 9-tuple (row major), allocation-free."""
+    x, y, z, w = q[0], q[1], q[2], q[3]
+    return (w * w + x * x - y * y - z * z, 2 * (x * y - w * z), 2 * (x * z + w * y),
+            2 * (x * y + w * z), w * w - x * x + y * y - z * z, 2 * (y * z - w * x),
+            2 * (x * z - w * y), 2 * (y * z + w * x), w * w - x * x - y * y + z * z)
+
+
+@njit(cache=True)
+def mv9(M, a, b, c):
+    """M (a, b, c) for a row-major 9-tuple M."""
+    return (M[0] * a + M[1] * b + M[2] * c, M[3] * a + M[4] * b + M[5] * c, M[6] * a + M[7] * b + M[8] * c)
+
+
+@njit(cache=True)
+def mtv9(M, a, b, c):
+    """M^T (a, b, c) for a row-major 9-tuple M."""
+    return (M[0] * a + M[3] * b + M[6] * c, M[1] * a + M[4] * b + M[7] * c, M[2] * a + M[5] * b + M[8] * c)
+
+
+@njit(cache=True)
+def cross9(a0, a1, a2, b0, b1, b2):
+    """(a0, a1, a2) x (b0, b1, b2) as a tuple."""
+    return (a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0)
+
+
+@njit(cache=True)
 def _latch_kernel(x, P_c, P_d, KT, DT, KR, DR, n):
-    Rc, Rd, Q, q, om, rho, rhod = port_kinematics_kernel(x, P_c, P_d, n)
-    F = -(Rc @ (KT * rho + DT * rhod))
-    s = math.sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2])
-    if s > 1e-15:
-        theta_e = 2.0 * math.atan2(s, q[3]) * q[0:3] / s
-    else:
-        theta_e = 2.0 * q[0:3]
-    tau = -KR * theta_e - DR * om  # on D, D components
-    arm_d = Rd @ P_d
-    arm_c = Rc @ (P_c + rho)
-    tau_d = tau + Rd.T @ _cross(arm_d, F)
-    tau_c = -(Q.T @ tau) + Rc.T @ _cross(arm_c, -F)
+    """Latch pair of :func:`latch_wrench` in scalar form (the port kinematics of
+    :func:`port_kinematics_kernel` inline, no heap arrays but the three returned)."""
+    Rc = dcm9(x[12:16])  # C_{T<-C}
+    Rd = dcm9(x[19:23])  # C_{T<-D}
+    # q = q_c* (x) q_d (scalar >= 0 branch)
+    p0, p1, p2, p3 = -x[12], -x[13], -x[14], x[15]
+    d0, d1, d2, d3 = x[19], x[20], x[21], x[22]
+    q0 = p3 * d0 + d3 * p0 + p1 * d2 - p2 * d1
+    q1 = p3 * d1 + d3 * p1 + p2 * d0 - p0 * d2
+    q2 = p3 * d2 + d3 * p2 + p0 * d1 - p1 * d0
+    q3 = p3 * d3 - p0 * d0 - p1 * d1 - p2 * d2
+    if q3 < 0:
+        q0, q1, q2, q3 = -q0, -q1, -q2, -q3
+    # Q = C_{D<-C} = Rd^T Rc; Q^T = Rc^T Rd
+    omc0, omc1, omc2 = x[16] - Rc[6] * n, x[17] - Rc[7] * n, x[18] - Rc[8] * n  # omega_c = W_c - R omega_t
+    a0, a1, a2 = mv9(Rc, x[16], x[17], x[18])
+    Qw0, Qw1, Qw2 = mtv9(Rd, a0, a1, a2)
+    om0, om1, om2 = x[23] - Qw0, x[24] - Qw1, x[25] - Qw2
+    a0, a1, a2 = mv9(Rc, omc0, omc1, omc2)
+    b0, b1, b2 = mtv9(Rd, a0, a1, a2)
+    wd0, wd1, wd2 = om0 + b0, om1 + b1, om2 + b2
+    r0, r1, r2 = x[6] - x[0], x[7] - x[1], x[8] - x[2]
+    v0, v1, v2 = x[9] - x[3], x[10] - x[4], x[11] - x[5]
+    a0, a1, a2 = mtv9(Rc, r0, r1, r2)
+    e0, e1, e2 = mv9(Rd, P_d[0], P_d[1], P_d[2])  # arm_d = Rd P_d
+    b0, b1, b2 = mtv9(Rc, e0, e1, e2)  # Q^T P_d
+    rho0, rho1, rho2 = a0 + b0 - P_c[0], a1 + b1 - P_c[1], a2 + b2 - P_c[2]
+    a0, a1, a2 = mtv9(Rc, v0, v1, v2)
+    c0, c1, c2 = cross9(omc0, omc1, omc2, rho0 + P_c[0], rho1 + P_c[1], rho2 + P_c[2])
+    f0, f1, f2 = cross9(wd0, wd1, wd2, P_d[0], P_d[1], P_d[2])
+    g0, g1, g2 = mv9(Rd, f0, f1, f2)
+    b0, b1, b2 = mtv9(Rc, g0, g1, g2)  # Q^T (wd x P_d)
+    rd0, rd1, rd2 = a0 - c0 + b0, a1 - c1 + b1, a2 - c2 + b2
+    F0, F1, F2 = mv9(Rc, KT * rho0 + DT * rd0, KT * rho1 + DT * rd1, KT * rho2 + DT * rd2)
+    F0, F1, F2 = -F0, -F1, -F2
+    s = math.sqrt(q0 * q0 + q1 * q1 + q2 * q2)
+    k = 2.0 * math.atan2(s, q3) / s if s > 1e-15 else 2.0
+    t0, t1, t2 = -KR * k * q0 - DR * om0, -KR * k * q1 - DR * om1, -KR * k * q2 - DR * om2  # on D, D components
+    ac0, ac1, ac2 = mv9(Rc, P_c[0] + rho0, P_c[1] + rho1, P_c[2] + rho2)
+    c0, c1, c2 = cross9(e0, e1, e2, F0, F1, F2)
+    b0, b1, b2 = mtv9(Rd, c0, c1, c2)
+    tau_d = np.empty(3)
+    tau_d[0], tau_d[1], tau_d[2] = t0 + b0, t1 + b1, t2 + b2
+    g0, g1, g2 = mv9(Rd, t0, t1, t2)
+    a0, a1, a2 = mtv9(Rc, g0, g1, g2)  # Q^T tau
+    c0, c1, c2 = cross9(ac0, ac1, ac2, -F0, -F1, -F2)
+    b0, b1, b2 = mtv9(Rc, c0, c1, c2)
+    tau_c = np.empty(3)
+    tau_c[0], tau_c[1], tau_c[2] = -a0 + b0, -a1 + b1, -a2 + b2
+    F = np.empty(3)
+    F[0], F[1], F[2] = F0, F1, F2
     return F, tau_d, tau_c
 
 

@@ -33,8 +33,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from proxops.core.quaternion import quat_multiply, quat_rotate_inverse
-from proxops.core.quaternion import quat_to_dcm as _dcm
+from proxops.core.quaternion import dcm_kernel as _dcm
+from proxops.core.quaternion import multiply_kernel, quat_multiply, quat_rotate_inverse
 from proxops.navigation import NavigationBase, small_rotation
 from proxops.navigation.mekf import AttitudeMEKF, attitude_error
 
@@ -75,7 +75,9 @@ class HybridNavigation(NavigationBase):
         w = f.omega
         if x[33] > 0.5 and dt > 0.0:  # latched: the pair turns under the commanded wrench
             Q_T = _dcm(x[9:13])  # C_{C<-D} (measured q)
-            M = Q_T @ self._u[3:6] + np.cross(self.arm_C, Q_T @ self._u[0:3])
+            F, a = Q_T @ self._u[0:3], self.arm_C
+            M = Q_T @ self._u[3:6] + np.array([a[1] * F[2] - a[2] * F[1], a[2] * F[0] - a[0] * F[2],
+                                                a[0] * F[1] - a[1] * F[0]])
             w = w + np.linalg.solve(self.inertia_pair_C, M) * dt
         if x[32] > self._contacts:  # a contact impulse: the rate is uncertain by a few deg/s
             self._contacts = float(x[32])
@@ -105,18 +107,18 @@ class HybridNavigation(NavigationBase):
         self._t_last = t
         f = self.filter
         p = x[13:17]
-        z = quat_multiply(p, small_rotation(math.radians(self.chief_attitude_sigma_deg) * rng.standard_normal(3)))
+        z = multiply_kernel(p, small_rotation(math.radians(self.chief_attitude_sigma_deg) * rng.standard_normal(3)))
         f.update_attitude(z, math.radians(self.chief_attitude_sigma_deg))
         p_hat = f.q
         if p_hat[3] < 0.0:
             p_hat = -p_hat
         out[13:17] = p_hat
-        out[17:20] = f.omega - quat_rotate_inverse(p_hat, np.array([0.0, 0.0, self.mean_motion_rad_s]))
+        out[17:20] = f.omega - self.mean_motion_rad_s * _dcm(p_hat)[2]  # omega_hat - C_{C<-T}(p_hat) omega_t
         self.attitude_errors_deg.append(math.degrees(float(np.linalg.norm(attitude_error(p_hat, p)))))
         out[0:3] += self.position_sigma_m * rng.standard_normal(3)
         out[3:6] += self.velocity_sigma_mps * rng.standard_normal(3)
         out[6:9] += math.radians(self.rate_sigma_deg_s) * rng.standard_normal(3)
-        q = quat_multiply(x[9:13], small_rotation(math.radians(self.attitude_sigma_deg) * rng.standard_normal(3)))
+        q = multiply_kernel(x[9:13], small_rotation(math.radians(self.attitude_sigma_deg) * rng.standard_normal(3)))
         out[9:13] = q if q[3] >= 0.0 else -q
         out[20:23] += self.com_position_sigma_m * rng.standard_normal(3)
         out[23:26] += self.com_velocity_sigma_mps * rng.standard_normal(3)

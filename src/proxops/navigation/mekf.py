@@ -53,7 +53,7 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
-from proxops.core.quaternion import multiply_kernel, quat_conjugate, quat_multiply, quat_normalize
+from proxops.core.quaternion import multiply_kernel, quat_conjugate, quat_normalize
 from proxops.errors import input_error
 from proxops.navigation import small_rotation
 
@@ -304,7 +304,7 @@ class AttitudeMEKF:
             self._P = 0.5 * (P + P.T)
             q = y[:4]
             if self.frame_rate is not None:  # q_AB(t+h) = exp(-w_A h / 2) (x) q_AB (x) (body step)
-                q = quat_multiply(small_rotation(-self.frame_rate * h), q)
+                q = multiply_kernel(small_rotation(-self.frame_rate * h), q)
             self._q = q / math.sqrt(float(q @ q))
             self._w = y[4:]
 

@@ -77,6 +77,12 @@ from proxops.dynamics.two_rigid_bodies import (
     N_TRUTH,
     HybridParams,
     _latch_kernel,
+    _mtv,
+    _mv,
+    cross9,
+    dcm9,
+    mtv9,
+    mv9,
     contact_jump,
     contact_normal_velocity,
     latch_snap_jump,
@@ -199,33 +205,46 @@ def latch_stop_kernel(x, corners_d, v_c, plane_c, k, c, omega_t):
     unilateral spring-damper (k depth + c depth', never pulling) acting at that corner on the
     deputy and its opposite on the chief (momentum conserving). Returns (F_T on the deputy's
     CoM sum (N, T), tau_d (N m, D), tau_c (N m, C), deepest penetration m)."""
-    Rc = dcm_kernel(x[12:16])
-    Rd = dcm_kernel(x[19:23])
-    rho0 = x[6:9] - x[0:3]
-    vrel = x[9:12] - x[3:6] + _cross3(omega_t, rho0)
-    Wc = Rc @ x[16:19]
-    Wd = Rd @ x[23:26]
-    nT = Rc @ v_c
-    F_sum = np.zeros(3)
-    tau_d = np.zeros(3)
-    tau_c = np.zeros(3)
+    Rc = dcm9(x[12:16])
+    Rd = dcm9(x[19:23])
+    r0, r1, r2 = x[6] - x[0], x[7] - x[1], x[8] - x[2]
+    c0, c1, c2 = cross9(omega_t[0], omega_t[1], omega_t[2], r0, r1, r2)
+    vr0, vr1, vr2 = x[9] - x[3] + c0, x[10] - x[4] + c1, x[11] - x[5] + c2
+    Wc0, Wc1, Wc2 = mv9(Rc, x[16], x[17], x[18])
+    Wd0, Wd1, Wd2 = mv9(Rd, x[23], x[24], x[25])
+    n0, n1, n2 = mv9(Rc, v_c[0], v_c[1], v_c[2])
+    Fs0 = Fs1 = Fs2 = 0.0
+    td0 = td1 = td2 = 0.0
+    tc0 = tc1 = tc2 = 0.0
     deepest = 0.0
     for i in range(corners_d.shape[0]):
-        arm = Rd @ corners_d[i]
-        pT = rho0 + arm
-        depth = plane_c - nT @ pT
+        a0, a1, a2 = mv9(Rd, corners_d[i, 0], corners_d[i, 1], corners_d[i, 2])
+        p0, p1, p2 = r0 + a0, r1 + a1, r2 + a2
+        depth = plane_c - (n0 * p0 + n1 * p1 + n2 * p2)
         if depth <= 0.0:
             continue
         deepest = max(deepest, depth)
-        rate = -(nT @ (vrel + _cross3(Wd, arm) - _cross3(Wc, pT)))
+        b0, b1, b2 = cross9(Wd0, Wd1, Wd2, a0, a1, a2)
+        c0, c1, c2 = cross9(Wc0, Wc1, Wc2, p0, p1, p2)
+        rate = -(n0 * (vr0 + b0 - c0) + n1 * (vr1 + b1 - c1) + n2 * (vr2 + b2 - c2))
         f = k * depth + c * rate
         if f <= 0.0:
             continue
-        F = f * nT
-        F_sum += F
-        tau_d += Rd.T @ _cross3(arm, F)
-        tau_c += Rc.T @ _cross3(pT, -F)
-    return F_sum, tau_d, tau_c, deepest
+        F0, F1, F2 = f * n0, f * n1, f * n2
+        Fs0 += F0
+        Fs1 += F1
+        Fs2 += F2
+        b0, b1, b2 = cross9(a0, a1, a2, F0, F1, F2)
+        b0, b1, b2 = mtv9(Rd, b0, b1, b2)
+        td0 += b0
+        td1 += b1
+        td2 += b2
+        c0, c1, c2 = cross9(p0, p1, p2, -F0, -F1, -F2)
+        c0, c1, c2 = mtv9(Rc, c0, c1, c2)
+        tc0 += c0
+        tc1 += c1
+        tc2 += c2
+    return np.array([Fs0, Fs1, Fs2]), np.array([td0, td1, td2]), np.array([tc0, tc1, tc2]), deepest
 
 
 @njit(cache=True)
@@ -245,15 +264,15 @@ def _rhs(y, u, latched, t, grav, stop, corners_d, m_c, m_d, J_c, J_c_inv, J_d, J
         F, tau_d, tau_c = _latch_kernel(x, P_c, P_d, KT, DT, KR, DR, n)
         dy[9:12] += F / m_d
         dy[3:6] -= F / m_c
-        dy[23:26] += J_d_inv @ tau_d
-        dy[16:19] += J_c_inv @ tau_c
+        dy[23:26] += _mv(J_d_inv, tau_d)
+        dy[16:19] += _mv(J_c_inv, tau_c)
         if stop[0] > 0.0:
             F, tau_d, tau_c, _ = latch_stop_kernel(x, corners_d, stop[1:4], stop[4], stop[5], stop[6],
                                                    np.array([0.0, 0.0, n]))
             dy[9:12] += F / m_d
             dy[3:6] -= F / m_c
-            dy[23:26] += J_d_inv @ tau_d
-            dy[16:19] += J_c_inv @ tau_c
+            dy[23:26] += _mv(J_d_inv, tau_d)
+            dy[16:19] += _mv(J_c_inv, tau_c)
     # x_ref: natural motion of a point mass (CW: corrected G2 of eq. 21, hybrid_relative.reference_rhs)
     dy[26:29] = y[29:32]
     dy[29] = 3.0 * n * n * y[26] + 2.0 * n * y[30]
@@ -316,7 +335,10 @@ def sat_gap_kernel(x, hc, hd):
         if not valid[k]:
             continue
         a = axes[k]
-        gap = abs(d @ a) - np.sum(np.abs(Rc.T @ a) * hc) - np.sum(np.abs(Rd.T @ a) * hd)
+        gap = abs(d[0] * a[0] + d[1] * a[1] + d[2] * a[2])
+        for m in range(3):
+            gap -= (abs(Rc[0, m] * a[0] + Rc[1, m] * a[1] + Rc[2, m] * a[2]) * hc[m]
+                    + abs(Rd[0, m] * a[0] + Rd[1, m] * a[1] + Rd[2, m] * a[2]) * hd[m])
         if gap > best:
             best = gap
     return best
@@ -328,7 +350,46 @@ def envelope_kernel(x, P_c, P_d, n):
     _, _, _, q, om, rho, rhod = port_kinematics_kernel(x, P_c, P_d, n)
     s = math.sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2])
     angle = 2.0 * math.atan2(s, abs(q[3]))
-    return (math.sqrt(rho @ rho), math.sqrt(rhod @ rhod), math.sqrt(om @ om), angle)
+    return (math.sqrt(rho[0] * rho[0] + rho[1] * rho[1] + rho[2] * rho[2]),
+            math.sqrt(rhod[0] * rhod[0] + rhod[1] * rhod[1] + rhod[2] * rhod[2]),
+            math.sqrt(om[0] * om[0] + om[1] * om[1] + om[2] * om[2]), angle)
+
+
+@njit(cache=True)
+def advance_kernel(y, u, t, done, dt, h, n_max, latched, armed_from, env, grav, stop, corners_d, hc, hd,
+                   m_c, m_d, J_c, J_c_inv, J_d, J_d_inv, n, P_c, P_d, KT, DT, KR, DR):
+    """Up to ``n_max`` plain substeps of :meth:`HybridCapturePlant.propagate_events` in one call
+    (the same arithmetic as its Python loop: step = min(h, dt - done), one RK4 step each, the
+    plant clock y[I_TIME] advanced by step). Free flight stops *before* a substep whose start
+    touches (guard <= 0) or whose end crosses the guard (the Python path locates the contact),
+    and *after* a substep that ends inside the capture envelope once armed (code 2: latch).
+    ``y`` (38) is updated in place; returns (done, code): 0 = n_max substeps or dt reached,
+    1 = stopped before a contact substep, 2 = latched."""
+    y32 = y[0:32].copy()
+    ytime = y[37]
+    for _ in range(n_max):
+        if not done < dt - 1e-12:
+            break
+        step = min(h, dt - done)
+        if not latched:
+            if sat_gap_kernel(y32[0:26], hc, hd) <= 0.0:
+                break
+        nxt = _rk4(y32, u, latched, ytime, grav, stop, corners_d, step, 1, m_c, m_d, J_c, J_c_inv, J_d, J_d_inv,
+                   n, P_c, P_d, KT, DT, KR, DR)
+        if not latched and sat_gap_kernel(nxt[0:26], hc, hd) <= 0.0:
+            break
+        y32 = nxt
+        ytime = ytime + step
+        done += step
+        if not latched and t + done >= armed_from:
+            rho, rhod, om, angle = envelope_kernel(y32[0:26], P_c, P_d, n)
+            if rho <= env[0] and rhod <= env[1] and om <= env[2] and angle <= env[3]:
+                y[0:32] = y32
+                y[37] = ytime
+                return done, 2
+    y[0:32] = y32
+    y[37] = ytime
+    return done, 0 if not done < dt - 1e-12 else 1
 
 
 class HybridCapturePlant(PlantBase):
@@ -379,6 +440,8 @@ class HybridCapturePlant(PlantBase):
         self._corners = np.array([[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)], float) * self._hd
         self._stop = np.array([1.0 if self.latch_stop else 0.0, *v, float(v @ params.P_c), STOP_K_N_PER_M,
                                STOP_C_NS_PER_M])
+        env = self.envelope
+        self._env = np.array([env.position_m, env.velocity_mps, env.rate_rad_s, env.angle_rad])
         self._args = (p.mass_chief_kg, p.mass_deputy_kg, p.J_c, p.J_c_inv, p.J_d, p.J_d_inv, p.mean_motion_rad_s,
                       p.P_c, p.P_d, float(p.latch_KT), float(p.latch_DT), float(p.latch_KR), float(p.latch_DR))
 
@@ -448,6 +511,23 @@ class HybridCapturePlant(PlantBase):
                 else:
                     events.append((t_snap, "snap", "skipped: not latched"))
                 continue
+            n_fast = n_sub + 1
+            if self.snap_enabled and y[I_SNAPPED] < 0.5 and t_snap > t_now - 1e-12:  # stop before the snap substep
+                n_fast = int((t_snap - t_now) / h) - 1  # (the Python path checks the last ones)
+            if n_fast > 0:  # plain substeps in one numba call (advance_kernel); only events come back here
+                done, code = advance_kernel(y, u, t, done, dt, h, n_fast, y[I_LATCHED] > 0.5, y[I_ARMED_FROM],
+                                            self._env, self._grav, self._stop, self._corners, self._hc, self._hd,
+                                            *self._args)
+                if code == 2:
+                    y[I_LATCHED] = 1.0
+                    events.append((t + done, "latch", "free -> latched"))
+                    continue
+                if not done < dt - 1e-12:
+                    break
+                step = min(h, dt - done)
+                t_now = t + done
+                if self.snap_enabled and y[I_SNAPPED] < 0.5 and t_now - 1e-12 < t_snap <= t_now + step + 1e-12:
+                    continue  # the snap branch above
             latched = y[I_LATCHED] > 0.5
             if latched:  # the latch and its face stop (latch_stop_kernel) are in the flow
                 y = self.flow(y, u, step)

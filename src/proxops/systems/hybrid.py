@@ -40,7 +40,7 @@ the first dock), ``tracking_error_last_100s_max_m``, chief rate at start and end
 from __future__ import annotations
 
 import math
-from typing import Annotated
+from typing import Annotated, Literal
 
 import numpy as np
 from pydantic import Field, model_validator
@@ -142,6 +142,9 @@ class CaptureMPCSection(Section):
     R_torque: Positive = Field(1e4, description="input weight on M_d while no collision (eq. 79: 1e4, per (N m)^2)")
     approach_guidance: bool = Field(True, description="waypoints round the chief to the port axis (not in the "
                                     "paper: the eq. 78 deputy starts behind the docking face)")
+    solver: Literal["daqp", "piqp", "clarabel"] = Field(
+        "daqp", description="QP solver of both MPCs by name (proxops.solvers.make_solver); only DAQP keeps the rate "
+        "bounds soft (on the others a measured rate beyond them makes the step fall back to the steady input)")
 
 
 class ReferenceSection(Section):
@@ -324,8 +327,8 @@ def build_setup(sc: HybridScenario):
     cm = sc.capture_mpc
     capture = CaptureMPC(params, _mpc_config(CaptureMPCConfig, horizon_s=sc.control.horizon_capture_s,
                                              period_s=cm.period_s, R_force=cm.R_force, R_torque=cm.R_torque,
-                                             approach_guidance=cm.approach_guidance))
-    post = PostCaptureMPC(params, _mpc_config(PostCaptureMPCConfig, period_s=cm.period_s))
+                                             approach_guidance=cm.approach_guidance, solver=cm.solver))
+    post = PostCaptureMPC(params, _mpc_config(PostCaptureMPCConfig, period_s=cm.period_s, solver=cm.solver))
     rule = HybridModeRule(envelope, sc.docking.release_distance_m, sc.docking.min_dwell_s)
     supervisor = HybridSupervisor(capture, post, rule)
     if sc.estimation.model == "mekf":

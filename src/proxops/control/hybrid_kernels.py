@@ -1,0 +1,362 @@
+"""numba kernels of the hybrid capture / post-capture MPCs (:mod:`proxops.control.hybrid_mpc`):
+one call per step builds the condensed box QP with its soft rate rows from the continuous
+model, so the step costs the solver plus a few microseconds (issue: hybrid at the solver's speed).
+
+* :class:`Tape` / :func:`tape_eval`: a CasADi SX function (the capture linearisation, eqs. 62-72)
+  replayed as its own instruction list (+, -, *, /, neg, sq, twice, sqrt, constants) in numba:
+  the same floating-point operations in the same order as CasADi's virtual machine, without its
+  ~0.1-0.2 ms call overhead.
+* :func:`expm_pade13`: exp(M) by scaling and squaring with the degree-13 Pade approximant
+  (Higham 2005, the top branch of scipy.linalg.expm; relative error ~1e-16 on the ZOH blocks).
+* :func:`condensed_qp`: ZOH discretisation, condensing X = Phi x0 + G U, the weighted cost
+  with the rank-one face terms of eq. 66 (QP form), the bounds and the rate rows.
+* :func:`approach_target_kernel`: the approach-guidance waypoint (hybrid_mpc module doc).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+from proxops.core.quaternion import dcm_kernel
+
+# CasADi opcodes -> ours (casadi.OP_*; checked at Tape construction)
+_OP_NAMES = ("INPUT", "OUTPUT", "CONST", "ADD", "SUB", "MUL", "DIV", "NEG", "SQ", "TWICE", "SQRT", "INV", "ASSIGN")
+
+
+class Tape:
+    """The instruction list of a CasADi SX Function with dense vector inputs and one output,
+    evaluated by :func:`tape_eval`. ``ok`` is False if the function uses an operation the
+    kernel does not know (the caller then keeps calling CasADi)."""
+
+    def __init__(self, fun):
+        import casadi as ca
+
+        codes = {getattr(ca, "OP_" + name): k for k, name in enumerate(_OP_NAMES)}
+        n = fun.n_instructions()
+        offsets = np.cumsum([0] + [fun.nnz_in(i) for i in range(fun.n_in())])
+        rows = np.asarray(fun.sparsity_out(0).row(), dtype=np.int64)
+        self.n_in = int(offsets[-1])
+        self.n_out = int(fun.sparsity_out(0).size1())
+        self.code = np.zeros(n, np.int64)
+        self.a = np.zeros(n, np.int64)
+        self.b = np.zeros(n, np.int64)
+        self.o = np.zeros(n, np.int64)
+        self.c = np.zeros(n)
+        self.ok = fun.n_out() == 1 and fun.sparsity_out(0).size2() == 1
+        for k in range(n):
+            op = fun.instruction_id(k)
+            if op not in codes:
+                self.ok = False
+                return
+            code = codes[op]
+            ins, outs = fun.instruction_input(k), fun.instruction_output(k)
+            self.code[k] = code
+            if code == 0:  # INPUT: (input index, nz) -> w
+                self.a[k] = offsets[ins[0]] + ins[1]
+                self.o[k] = outs[0]
+            elif code == 1:  # OUTPUT: w -> (output 0, nz)
+                self.a[k] = ins[0]
+                self.o[k] = rows[outs[1]]
+            elif code == 2:
+                self.c[k] = fun.instruction_constant(k)
+                self.o[k] = outs[0]
+            else:
+                self.a[k] = ins[0]
+                self.b[k] = ins[1] if len(ins) > 1 else 0
+                self.o[k] = outs[0]
+        self.n_work = int(fun.sz_w())
+
+    def __call__(self, inp: np.ndarray) -> np.ndarray:
+        out = np.zeros(self.n_out)
+        tape_eval(self.code, self.a, self.b, self.o, self.c, inp, np.empty(self.n_work), out)
+        return out
+
+
+@njit(cache=True)
+def tape_eval(code, a, b, o, c, inp, w, out):
+    """Replay a :class:`Tape` (inputs concatenated in ``inp``, work vector ``w``, dense ``out``)."""
+    for k in range(code.shape[0]):
+        op = code[k]
+        if op == 5:
+            w[o[k]] = w[a[k]] * w[b[k]]
+        elif op == 3:
+            w[o[k]] = w[a[k]] + w[b[k]]
+        elif op == 4:
+            w[o[k]] = w[a[k]] - w[b[k]]
+        elif op == 2:
+            w[o[k]] = c[k]
+        elif op == 0:
+            w[o[k]] = inp[a[k]]
+        elif op == 1:
+            out[o[k]] = w[a[k]]
+        elif op == 8:
+            w[o[k]] = w[a[k]] * w[a[k]]
+        elif op == 9:
+            w[o[k]] = 2.0 * w[a[k]]
+        elif op == 7:
+            w[o[k]] = -w[a[k]]
+        elif op == 6:
+            w[o[k]] = w[a[k]] / w[b[k]]
+        elif op == 10:
+            w[o[k]] = math.sqrt(w[a[k]])
+        elif op == 11:
+            w[o[k]] = 1.0 / w[a[k]]
+        else:  # ASSIGN
+            w[o[k]] = w[a[k]]
+
+
+_B13 = np.array([64764752532480000.0, 32382376266240000.0, 7771770303897600.0, 1187353796428800.0,
+                 129060195264000.0, 10559470521600.0, 670442572800.0, 33522128640.0, 1323241920.0,
+                 40840800.0, 960960.0, 16380.0, 182.0, 1.0])
+_THETA13 = 5.371920351148152
+
+
+@njit(cache=True)
+def expm_pade13(M):
+    """exp(M) (square M): scaling and squaring with the [13/13] Pade approximant (Higham 2005)."""
+    n = M.shape[0]
+    M = np.ascontiguousarray(M)
+    norm = 0.0
+    for j in range(n):
+        s = 0.0
+        for i in range(n):
+            s += abs(M[i, j])
+        norm = max(norm, s)
+    sq = 0
+    if norm > _THETA13:
+        sq = int(math.ceil(math.log2(norm / _THETA13)))
+    A = M / (2.0 ** sq)
+    b = _B13
+    ident = np.eye(n)
+    A2 = _mm(A, A)
+    A4 = _mm(A2, A2)
+    A6 = _mm(A4, A2)
+    U = _mm(A, _mm(A6, b[13] * A6 + b[11] * A4 + b[9] * A2) + b[7] * A6 + b[5] * A4 + b[3] * A2 + b[1] * ident)
+    V = _mm(A6, b[12] * A6 + b[10] * A4 + b[8] * A2) + b[6] * A6 + b[4] * A4 + b[2] * A2 + b[0] * ident
+    R = np.ascontiguousarray(np.linalg.solve(V - U, V + U))
+    for _ in range(sq):
+        R = _mm(R, R)
+    return R
+
+
+@njit(cache=True)
+def _mm(A, B):
+    """A @ B by loops (the blocks here are at most 12 x 12: numba's @ calls BLAS, ~1 us per call)."""
+    n, k = A.shape
+    m = B.shape[1]
+    out = np.zeros((n, m))
+    for i in range(n):
+        for l in range(k):
+            a = A[i, l]
+            if a != 0.0:
+                for j in range(m):
+                    out[i, j] += a * B[l, j]
+    return out
+
+
+@njit(cache=True)
+def _mtm(A, B):
+    """A.T @ B by loops."""
+    k, n = A.shape
+    m = B.shape[1]
+    out = np.zeros((n, m))
+    for l in range(k):
+        for i in range(n):
+            a = A[l, i]
+            if a != 0.0:
+                for j in range(m):
+                    out[i, j] += a * B[l, j]
+    return out
+
+
+@njit(cache=True)
+def _mv(A, x):
+    """A @ x by loops."""
+    n, k = A.shape
+    out = np.zeros(n)
+    for i in range(n):
+        s = 0.0
+        for l in range(k):
+            s += A[i, l] * x[l]
+        out[i] = s
+    return out
+
+
+@njit(cache=True)
+def condensed_qp(A, B, dt, N, dx0, W, r_blk, ref, face_a, wf, rate_first, rate_w):
+    """Condensed box QP of a linear MPC over N stages with ZOH period dt (s).
+
+    Model x' = A x + B u (n x n, n x m), discretised exactly (expm of [[A, B], [0, 0]] dt);
+    X = [x_1..x_N] = Phi x0 + G U. Cost sum_k (x_k - ref_k)' diag(W_k) (x_k - ref_k) + U' diag(r_blk) U
+    + wf sum_k (a_k' rho_k)^2 (face rows a_k = face_a[k] on x_k[0:3], on rho itself, not rho - ref;
+    wf = 0: none), scaled by
+    s = 1 / max(r_blk): returns (H = s (H + H'), f = 2 s f, G, free = Phi x0, A_rate, bl, bu) with the
+    rate rows -rate_w <= x_k[rate_first:rate_first+3] <= rate_w (rate_w < 0: no rows, empty arrays)."""
+    n, m = B.shape
+    A = np.ascontiguousarray(A)
+    B = np.ascontiguousarray(B)
+    M = np.zeros((n + m, n + m))
+    M[:n, :n] = A * dt
+    M[:n, n:] = B * dt
+    E = expm_pade13(M)
+    Ad = np.ascontiguousarray(E[:n, :n])
+    Bd = np.ascontiguousarray(E[:n, n:])
+    nX, nU = N * n, N * m
+    # powers Ad^i Bd (the blocks of G) and the free response
+    PB = np.empty((N, n, m))
+    PB[0] = Bd
+    for i in range(1, N):
+        PB[i] = _mm(Ad, PB[i - 1])
+    free = np.empty(nX)
+    x = dx0.copy()
+    for k in range(N):
+        x = _mv(Ad, x)
+        free[k * n:(k + 1) * n] = x
+    G = np.zeros((nX, nU))
+    for k in range(N):
+        for j in range(k + 1):
+            G[k * n:(k + 1) * n, j * m:(j + 1) * m] = PB[k - j]
+    # H = G' Wt G and f = G' Wt (free - ref) without forming G' Wt G: with the stage weight
+    # Wt_k = diag(W_k) + wf a_k a_k' (face rows on x_k[0:3]), P_j = Wt_j + Ad' P_{j+1} Ad and
+    # g_j = Wt_j e_j + Ad' g_{j+1} (e = free - ref), block (i, j >= i) of H is (Ad^(j-i) Bd)' P_j Bd
+    # and block i of f is Bd' g_i (the backward recursion of the condensed cost).
+    H = np.zeros((nU, nU))
+    f = np.empty(nU)
+    P = np.zeros((n, n))
+    g = np.zeros(n)
+    AdT = np.ascontiguousarray(Ad.T)
+    BdT = np.ascontiguousarray(Bd.T)
+    for j in range(N - 1, -1, -1):
+        Wt = np.zeros((n, n))
+        for i in range(n):
+            Wt[i, i] = W[j * n + i]
+        if wf > 0.0:
+            for i in range(3):
+                for l in range(3):
+                    Wt[i, l] += wf * face_a[j, i] * face_a[j, l]
+        # linear term: diag(W_j) (free_j - ref_j) + wf a_j (a_j' free_j[0:3]) (the face rows see rho itself)
+        gj = np.empty(n)
+        for i in range(n):
+            gj[i] = W[j * n + i] * (free[j * n + i] - ref[j * n + i])
+        if wf > 0.0:
+            af = face_a[j, 0] * free[j * n] + face_a[j, 1] * free[j * n + 1] + face_a[j, 2] * free[j * n + 2]
+            for i in range(3):
+                gj[i] += wf * face_a[j, i] * af
+        if j == N - 1:
+            P = Wt
+            g = gj
+        else:
+            P = Wt + _mtm(Ad, _mm(P, Ad))
+            g = gj + _mv(AdT, g)
+        PBj = _mm(P, Bd)
+        f[j * m:(j + 1) * m] = _mv(BdT, g)
+        for i in range(j + 1):
+            H[i * m:(i + 1) * m, j * m:(j + 1) * m] = _mtm(PB[j - i], PBj)
+    for i in range(nU):  # the lower triangle (H symmetric up to round-off: mirrored)
+        for l in range(i):
+            H[i, l] = H[l, i]
+    scale = 1.0 / r_blk.max()
+    for i in range(nU):
+        H[i, i] += r_blk[i]
+    H = scale * (H + H.T)
+    f = (2.0 * scale) * f
+    if rate_w < 0.0:
+        return H, f, G, free, np.empty((0, nU)), np.empty(0), np.empty(0)
+    A_rate = np.empty((3 * N, nU))
+    bl = np.empty(3 * N)
+    bu = np.empty(3 * N)
+    for k in range(N):
+        for i in range(3):
+            r = k * n + rate_first + i
+            A_rate[3 * k + i] = G[r]
+            bl[3 * k + i] = -rate_w - free[r]
+            bu[3 * k + i] = rate_w - free[r]
+    return H, f, G, free, A_rate, bl, bu
+
+
+@njit(cache=True)
+def face_rows(rho_bar, v, N):
+    """Face-term rows a_k = rho_bar_k / |rho_bar_k| - v (0 for |rho_bar_k| <= 1e-9; the terminal
+    stage k = N-1 none): the QP form of eq. 66 (hybrid_mpc.face_pointing_linearized)."""
+    a = np.zeros((N, 3))
+    for k in range(N - 1):
+        r = math.sqrt(rho_bar[k, 0] ** 2 + rho_bar[k, 1] ** 2 + rho_bar[k, 2] ** 2)
+        if r > 1e-9:
+            for i in range(3):
+                a[k, i] = rho_bar[k, i] / r - v[i]
+    return a
+
+
+@njit(cache=True)
+def approach_target_kernel(rho, P_c, v, radius, half_angle, retreat, step_max):
+    """Approach-guidance target of the deputy port (C, m): hybrid_mpc.CaptureMPC.approach_target."""
+    s = rho + P_c
+    r = math.sqrt(s[0] * s[0] + s[1] * s[1] + s[2] * s[2])
+    out = np.zeros(3)
+    if r < 1e-9:
+        return out
+    cos_t = min(max((s[0] * v[0] + s[1] * v[1] + s[2] * v[2]) / r, -1.0), 1.0)
+    theta = math.acos(cos_t)
+    if theta <= half_angle:
+        return out
+    if r < retreat * radius:  # too close to go round: back off radially first
+        return radius * s / r - P_c
+    axis = np.array([s[1] * v[2] - s[2] * v[1], s[2] * v[0] - s[0] * v[2], s[0] * v[1] - s[1] * v[0]])
+    na = math.sqrt(axis[0] ** 2 + axis[1] ** 2 + axis[2] ** 2)
+    if na < 1e-6 * r:  # exactly behind the port: go round any side
+        if abs(v[0]) < 0.9:
+            axis = np.array([0.0, v[2], -v[1]])  # v x e_x
+        else:
+            axis = np.array([v[1], -v[0], 0.0])  # v x e_z
+        na = math.sqrt(axis[0] ** 2 + axis[1] ** 2 + axis[2] ** 2)
+    axis = axis / na
+    step = min(theta, step_max)
+    e = s / r
+    ce = np.array([axis[1] * e[2] - axis[2] * e[1], axis[2] * e[0] - axis[0] * e[2], axis[0] * e[1] - axis[1] * e[0]])
+    e_next = e * math.cos(step) + ce * math.sin(step)  # Rodrigues (axis is normal to e)
+    return radius * e_next - P_c
+
+
+@njit(cache=True)
+def post_model_kernel(x, A0, B0, G1, G2, gyro, arm, m, kinematics, thrust):
+    """(A, B, kappa^1) of the post-capture MPC at the relative state x (32): PostCaptureMPC.continuous_model
+    (A0, B0 about A_1; G1, G2 of eq. 21; gyro = omega_t x J omega_t; arm = (m_c/m) d; m the pair's mass)."""
+    r, v = x[26:29], x[29:32]
+    k1 = np.empty(3)
+    for i in range(3):  # eq. 65: m (r_des'' - G1 r_des - G2 r_des') with r_des'' of the natural CW reference
+        g1r = G1[i, 0] * r[0] + G1[i, 1] * r[1] + G1[i, 2] * r[2]
+        g2v = G2[i, 0] * v[0] + G2[i, 1] * v[1] + G2[i, 2] * v[2]
+        k1[i] = m * ((g1r + g2v) - g1r - g2v)
+    kappa = np.empty(6)
+    kappa[3] = gyro[0] - (arm[1] * k1[2] - arm[2] * k1[1])
+    kappa[4] = gyro[1] - (arm[2] * k1[0] - arm[0] * k1[2])
+    kappa[5] = gyro[2] - (arm[0] * k1[1] - arm[1] * k1[0])
+    kappa[0:3] = k1
+    A = A0.copy()
+    B = B0.copy()
+    if k1[0] != 0.0 or k1[1] != 0.0 or k1[2] != 0.0:  # R^T F = F + 2 p_eta x F + ...
+        c = -2.0 / m
+        A[9, 1], A[9, 2] = -c * k1[2], c * k1[1]
+        A[10, 0], A[10, 2] = c * k1[2], -c * k1[0]
+        A[11, 0], A[11, 1] = -c * k1[1], c * k1[0]
+        A[9, 0] = A[10, 1] = A[11, 2] = 0.0
+    if kinematics:  # eq. 29 at the measured p: (p_eta^x + p_mu I) / 2
+        s = 1.0 if x[16] >= 0.0 else -1.0
+        px, py, pz, pw = s * x[13], s * x[14], s * x[15], s * x[16]
+        A[0, 3], A[0, 4], A[0, 5] = 0.5 * pw, -0.5 * pz, 0.5 * py
+        A[1, 3], A[1, 4], A[1, 5] = 0.5 * pz, 0.5 * pw, -0.5 * px
+        A[2, 3], A[2, 4], A[2, 5] = -0.5 * py, 0.5 * px, 0.5 * pw
+    if thrust:  # R^T Q^T = C_{T<-C} C_{C<-D}
+        Rp = dcm_kernel(x[13:17])
+        Rq = dcm_kernel(x[9:13])
+        C = np.empty((3, 3))
+        for i in range(3):
+            for j in range(3):
+                C[i, j] = Rp[i, 0] * Rq[0, j] + Rp[i, 1] * Rq[1, j] + Rp[i, 2] * Rq[2, j]
+                B[9 + i, j] = C[i, j] / m
+        for j in range(3):
+            kappa[j] = C[0, j] * k1[0] + C[1, j] * k1[1] + C[2, j] * k1[2]
+    return A, B, kappa
