@@ -227,8 +227,3 @@ def _mount_optional() -> None:
 
 
 _mount_optional()
-
-if __name__ == "__main__":
-    from proxops.entry import main as _main
-
-    _main()

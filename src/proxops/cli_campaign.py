@@ -50,8 +50,8 @@ def mc(
 
     out = out if out is not None else Path("out") / f"mc-{Path(scenario).stem}"
     check_out_dir(out, campaign=True)
-    if scheduler is None:  # local workers start now (if proxops.entry has not): their imports overlap ours
-        from proxops.cli_prestart import prestart
+    if scheduler is None:  # local workers start now (if proxops.exec.entry has not): their imports overlap ours
+        from proxops.exec.prestart import prestart
 
         prestart(scenario, runs, workers, set_)
     from proxops.analysis.campaign import CampaignInterrupted, run_campaign, write_report

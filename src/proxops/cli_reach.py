@@ -201,11 +201,11 @@ PAPER_A_MAX_MPS2 = (0.20, 0.10, 0.05, 0.02)
 
 
 def _prestart_workers(workers: Optional[int], n_runs: int, duration_s: float) -> None:
-    """Start the local pool now, as ``proxops mc`` does (:func:`proxops.cli_prestart.prestart`): the
+    """Start the local pool now, as ``proxops mc`` does (:func:`proxops.exec.prestart.prestart`): the
     workers' start-up overlaps this process's imports, and the fork server builds a §9 closed loop
     once (los-tumble in its Monte Carlo configuration; best effort), so each forked worker starts
     with the los modules imported and its kernels loaded."""
-    from proxops.cli_prestart import prestart
+    from proxops.exec.prestart import prestart
 
     prestart("los-tumble", n_runs, workers,
              [f"sim.duration_s={float(duration_s)!r}", "mpc.config=monte-carlo", "mpc.constraint_mode=hard"])

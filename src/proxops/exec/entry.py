@@ -17,12 +17,12 @@ def main() -> None:
     code = 130
     try:
         if "mc" in sys.argv[1:3]:  # a campaign's workers start before the CLI is imported (0.13-0.25 s)
-            from proxops.cli_prestart import prestart_from_argv
+            from proxops.exec.prestart import prestart_from_argv
 
             prestart_from_argv(sys.argv[1:])
         from proxops.cli import app
         from proxops.cli_common import guarded
-        from proxops._startup import defer_unused_numpy_submodules
+        from proxops.exec.startup import defer_unused_numpy_submodules
 
         defer_unused_numpy_submodules()  # numpy is imported by now, scipy not yet
 
