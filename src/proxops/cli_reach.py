@@ -17,20 +17,17 @@ from typing import Annotated, Optional
 import numpy as np
 import typer
 
-from proxops.cli_common import ProxopsGroup
+from proxops.cli_common import check_out_dir, make_app
 from proxops.cli_common import emit as _emit
 from proxops.cli_common import friendly_errors as _friendly
 from proxops.cli_common import json_default as _default
 from proxops.errors import ProxopsInputError
+from proxops.exec.backends import MAX_WORKERS
+from proxops.exec.prestart import prestart
 
-reach_app = typer.Typer(
-    name="reach",
-    cls=ProxopsGroup,
-    help="Safe-start regions for the approach to a tumbling target: Table 2, hierarchy, backward LP, Monte Carlo maps.",
-    no_args_is_help=True,
-    add_completion=False,
-    pretty_exceptions_enable=False,
-    rich_markup_mode=None,
+reach_app = make_app(
+    "reach",
+    "Safe-start regions for the approach to a tumbling target: Table 2, hierarchy, backward LP, Monte Carlo maps.",
 )
 
 
@@ -71,7 +68,6 @@ def table(
     """Table 2 (nominal), stochastic/robust regions, pointwise hierarchy, backward kernel, Table 4 timings."""
     from proxops.analysis import reach as R
 
-    from proxops.cli_common import check_out_dir
 
     _check_grid(grid, y_max_m)
     if backward_start not in ("inertial", "body"):
@@ -142,7 +138,6 @@ def map_(
     from proxops.analysis import reach as R
     from proxops.plotting import reach as P
 
-    from proxops.cli_common import check_out_dir
 
     _check_grid(grid, y_max_m)
     _check_rates([omega_deg], [amax])
@@ -187,8 +182,6 @@ def _prestart_workers(workers: Optional[int], n_runs: int, duration_s: float) ->
     workers' start-up overlaps this process's imports, and the fork server builds a §9 closed loop
     once (los-tumble in its Monte Carlo configuration; best effort), so each forked worker starts
     with the los modules imported and its kernels loaded."""
-    from proxops.exec.prestart import prestart
-
     prestart("los-tumble", n_runs, workers,
              [f"sim.duration_s={float(duration_s)!r}", "mpc.config=monte-carlo", "mpc.constraint_mode=hard"])
 
@@ -211,8 +204,6 @@ def mc(
     as_json: Annotated[bool, typer.Option("--json", help="Print one JSON object.")] = False,
 ):
     """§9 Monte Carlo feasibility sweep (20 x 195 closed-loop runs, J2 truth), maps and certification check."""
-    from proxops.exec.backends import MAX_WORKERS
-
     if workers is not None and not 1 <= workers <= MAX_WORKERS:
         raise ProxopsInputError(f"--workers = {workers}: give a whole number from 1 to {MAX_WORKERS}")
     if not (np.isfinite(duration_s) and duration_s > 0):
@@ -222,7 +213,6 @@ def mc(
         if not 1 <= n <= MAX_IC_AXIS:
             raise ProxopsInputError(f"{name} = {n}: give a whole number of initial conditions from 1 to {MAX_IC_AXIS}")
     _check_rates(omega_deg or (), amax or ())
-    from proxops.cli_common import check_out_dir
 
     check_out_dir(out, campaign=True)
     if scheduler is None and not resume:  # before this process's own imports (numba, pandas, scipy)

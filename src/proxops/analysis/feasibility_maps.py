@@ -33,6 +33,10 @@ from proxops.analysis.reach import (PAPER_A_MAX_MPS2, PAPER_OMEGAS_DEG_S, BodyGr
 from proxops.constraints.los_corridor import LosCorridor
 from proxops.core.memo import memo_get
 from proxops.errors import input_error
+from proxops.systems.los import default_scenario
+from proxops.analysis.campaign import run_campaign
+from proxops.systems.los import is_feasible_run
+from proxops.analysis.campaign import load_campaign
 
 MC_Y_RANGE_M = (20.0, 300.0)
 MC_N_Y = 15
@@ -79,7 +83,6 @@ def mc_scenario(
 ) -> dict:
     """Scenario data of the §9 campaign: the ``los`` system in its Monte Carlo configuration
     with the grid (w_t x a_max x IC) declared as dispersion grid axes (last axis fastest)."""
-    from proxops.systems.los import default_scenario
 
     positions = mc_initial_positions() if positions is None else np.asarray(positions, float)
     sc = default_scenario(
@@ -112,7 +115,6 @@ def run_mc(
     truth: str = "j2",
 ) -> "McRun":
     """Run (or with ``resume`` complete) the §9 campaign. See :func:`outcome_table` for the table."""
-    from proxops.analysis.campaign import run_campaign
 
     data = mc_scenario(omegas_deg_s, a_max_mps2, positions, duration_s, truth)
     res = run_campaign(data, workers=workers, scheduler=scheduler, out=out, resume=resume, progress=progress)
@@ -130,7 +132,6 @@ class McRun(NamedTuple):
 def classify_rows(table: pd.DataFrame) -> np.ndarray:
     """§9.3 rule on campaign rows: :func:`proxops.systems.los.is_feasible_run` (the rule of
     ``LosSystem.success``) on the ``metric.*`` columns; a run that raised is infeasible."""
-    from proxops.systems.los import is_feasible_run
 
     def col(name, default):
         return table[name] if name in table else pd.Series(default, index=table.index)
@@ -513,7 +514,6 @@ def aggregate_sweep(outcomes: pd.DataFrame, grid: BodyGrid, omegas, amaxs, viabi
 
 def read_outcomes(out: str | Path) -> pd.DataFrame:
     """Outcome table of a finished (or partial) campaign folder."""
-    from proxops.analysis.campaign import load_campaign
 
     return outcome_table(load_campaign(out).table)
 

@@ -20,11 +20,11 @@ def main() -> None:
             from proxops.exec.prestart import prestart_from_argv
 
             prestart_from_argv(sys.argv[1:])
+        from proxops.exec.startup import defer_when_numpy_is_imported
+
+        defer_when_numpy_is_imported()  # before scipy (through numba) reads all of numpy
         from proxops.cli import app
         from proxops.cli_common import guarded
-        from proxops.exec.startup import defer_unused_numpy_submodules
-
-        defer_unused_numpy_submodules()  # numpy is imported by now, scipy not yet
 
         code = guarded(lambda: app(standalone_mode=False))
     except KeyboardInterrupt:  # while importing the CLI

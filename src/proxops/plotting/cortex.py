@@ -9,6 +9,11 @@ from pathlib import Path
 import numpy as np
 
 from proxops.plotting.common import plt, save
+from proxops.systems.cortex import scenario_axis
+from proxops.systems.cortex import PAPER_5_1_1
+from proxops.analysis.campaign import _campaign_system, load_campaign  # noqa: PLC2701
+from proxops.plotting.cortex_loop import run_figure
+from proxops.plotting.cortex_loop import table_figures
 
 
 def _sphere(ax, radius: float, **kw) -> None:
@@ -50,8 +55,6 @@ def plan_figure(sc, plan, path: Path) -> Path:
 
 
 def plan_figure_from_result(sc, result, path: Path) -> Path:
-    from proxops.systems.cortex import scenario_axis
-
     return _plan_figure(sc, result.x_true, result.mode, scenario_axis(sc), path, sc.name)
 
 
@@ -93,7 +96,6 @@ def fig11_trajectories(sc, results, path: Path) -> Path:
 
 def fig12_histograms(table, path: Path) -> Path:
     """Fig. 12: histograms of compute time, TOF (tau_1 + tau_2) and delta-v of the successful plans."""
-    from proxops.systems.cortex import PAPER_5_1_1
 
     ok = table[table["success"].astype(bool)] if "success" in table else table
     fig, axes = plt.subplots(1, 3, figsize=(13, 3.8))
@@ -117,7 +119,6 @@ def fig12_histograms(table, path: Path) -> Path:
 
 def campaign_figures(out: Path) -> list[Path]:
     """Figs. 11-12 of a ``proxops cortex references`` campaign folder."""
-    from proxops.analysis.campaign import _campaign_system, load_campaign  # noqa: PLC2701
 
     camp = load_campaign(out)
     table = camp.table
@@ -137,8 +138,6 @@ def campaign_figures(out: Path) -> list[Path]:
 def run_figures(sc, results, out_dir: Path) -> list[Path]:
     """``proxops run --out`` figure: the planned reference in 3-D (closed loop: trajectory and tracking error)."""
     if sc.guidance.closed_loop:
-        from proxops.plotting.cortex_loop import run_figure
-
         return [run_figure(sc, next(iter(results.values())), Path(out_dir) / "tracking.png")]
     result = next(iter(results.values())) if isinstance(results, dict) else results
     return [plan_figure_from_result(sc, result, Path(out_dir) / "reference_3d.png")]
@@ -156,7 +155,5 @@ def mc_figures(sc, results, out_dir: Path) -> list[Path]:
 def mc_table_figures(sc, table, out_dir: Path) -> list[Path]:
     """Closed loop: Figs. 13/14 and 15 from the campaign table (no saved series needed)."""
     if sc.guidance.closed_loop:
-        from proxops.plotting.cortex_loop import table_figures
-
         return table_figures(sc, table, out_dir)
     return []

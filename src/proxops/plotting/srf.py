@@ -17,17 +17,19 @@ from pathlib import Path
 import numpy as np
 
 from proxops.plotting.common import plt, save
+from proxops.frames.lvlh import hill_to_lvlh
+from proxops.core.cw import cw_stm
+from proxops.frames.lvlh import hill_vector_to_lvlh
+from proxops.guidance.hop_times import try_solve_hop
+from proxops.guidance.hop_times import cw_blocks, try_solve_hop
+from proxops.systems.srf import keep_out_hill
 
 
 def _lvlh(states_hill: np.ndarray) -> np.ndarray:
-    from proxops.frames.lvlh import hill_to_lvlh
-
     return hill_to_lvlh(np.asarray(states_hill, dtype=float))
 
 
 def _free_drift(x_post_hill: np.ndarray, n: float, span_s: float, samples: int = 241) -> np.ndarray:
-    from proxops.core.cw import cw_stm
-
     taus = np.linspace(0.0, span_s, samples)
     return np.array([cw_stm(n, t) @ x_post_hill for t in taus])
 
@@ -97,7 +99,6 @@ def plot_dv(result, path: Path, title: str = "", ax=None) -> Path | None:
     own = ax is None
     if own:
         fig, ax = plt.subplots(figsize=(8, 4))
-    from proxops.frames.lvlh import hill_vector_to_lvlh
 
     dv = hill_vector_to_lvlh(result.u_applied)
     t = result.t / float(result.meta["period_s"])
@@ -137,7 +138,6 @@ def plot_mc_overlay(results: list, path: Path, *, theta_deg: float, koz_radius_m
 
 def plot_fig8a(path: Path, rho: float = 0.7, step_deg: float = 1.0) -> Path:
     """Fig. 8a: orbital-period fraction of the hop against the approach angle (eq. 25 solved for phi)."""
-    from proxops.guidance.hop_times import try_solve_hop
 
     angles = np.arange(0.0, 360.0 + 1e-9, step_deg)
     frac = np.array([np.nan if (s := try_solve_hop(math.radians(a), rho)) is None else s.period_fraction
@@ -164,7 +164,6 @@ def plot_fig8a(path: Path, rho: float = 0.7, step_deg: float = 1.0) -> Path:
 def plot_fig8b(path: Path, rho: float = 0.7, angles_deg=(0, 20, 40, 60, 90, 100, 110, 200, 250), d0: float = 1.0) -> Path:
     """Fig. 8b: single-hop CW trajectories (velocity of eq. 24) per angle over one orbit; crosses at
     the axis crossing."""
-    from proxops.guidance.hop_times import cw_blocks, try_solve_hop
 
     fig, ax = plt.subplots(figsize=(7, 7))
     for a in angles_deg:
@@ -208,8 +207,6 @@ def plot_cbf_comparison(no_cbf, with_cbf, path: Path, *, theta_deg: float, koz_r
 
 def scenario_figures(sc, results: dict, out_dir: Path) -> list[Path]:
     """The figures of one ``proxops run`` of an srf scenario."""
-    from proxops.frames.lvlh import hill_vector_to_lvlh
-    from proxops.systems.srf import keep_out_hill
 
     out_dir = Path(out_dir)
     theta = sc.approach.angle_deg

@@ -15,6 +15,12 @@ from pydantic import BaseModel, ConfigDict, Field, create_model, field_validator
 
 from proxops.actuators import THRUSTER_PARAMETERS
 from proxops.core.constants import R_EARTH
+from proxops.errors import ProxopsInputError
+from proxops.orbitdata.tle import read_tle_file, tle_orbit
+from proxops.frames.elements import eci_to_elements
+from proxops.environment.epochs import parse_epoch
+from proxops.environment.harmonics import SHIPPED_DEGREE
+from proxops.scenarios.dispersions import parse_dispersions
 
 
 class Section(BaseModel):
@@ -93,8 +99,6 @@ class OrbitSection(Section):
     @classmethod
     def _valid_tle(cls, v):
         if v is not None:
-            from proxops.orbitdata.tle import tle_orbit
-
             tle_orbit(v)  # TleError is a ValueError: reported as orbit.tle = [...]: line k ...
         return v
 
@@ -132,9 +136,6 @@ class OrbitSection(Section):
     @field_validator("epoch_utc")
     @classmethod
     def _valid_epoch(cls, v):
-        from proxops.environment.epochs import parse_epoch
-        from proxops.errors import ProxopsInputError
-
         try:
             parse_epoch(v)
         except ProxopsInputError as exc:
@@ -163,8 +164,6 @@ class OrbitSection(Section):
 
 def _source_state(key: str, value):
     """(epoch ISO UTC, ECI state (6,) m, m/s) of an orbit source; ValueError naming the problem."""
-    from proxops.errors import ProxopsInputError
-    from proxops.orbitdata.tle import read_tle_file, tle_orbit
 
     try:
         if key == "tle":
@@ -182,7 +181,6 @@ def _source_state(key: str, value):
 
 def _source_elements(key: str, value) -> dict:
     """[orbit] keys (sma_km, ecc, angles in deg, epoch_utc) set by an orbit source."""
-    from proxops.frames.elements import eci_to_elements
 
     epoch, state = _source_state(key, value)
     el = eci_to_elements(state)
@@ -346,8 +344,6 @@ class TruthSection(Section):
     @field_validator("gravity_degree")
     @classmethod
     def _degree(cls, v):
-        from proxops.environment.harmonics import SHIPPED_DEGREE
-
         if not 2 <= v <= SHIPPED_DEGREE:
             raise ValueError(f"must be in [2, {SHIPPED_DEGREE}] (the shipped EGM96 truncation)")
         return v
@@ -402,7 +398,5 @@ class ScenarioBase(Section):
     def _dispersions_address_existing_keys(self):
         """Each [dispersions] entry must name a key of this scenario (proxops.scenarios.dispersions)."""
         if self.dispersions:
-            from proxops.scenarios.dispersions import parse_dispersions
-
             parse_dispersions(self)
         return self
