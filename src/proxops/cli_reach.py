@@ -17,10 +17,8 @@ from typing import Annotated, Optional
 import numpy as np
 import typer
 
-from proxops.cli_common import check_out_dir, make_app
-from proxops.cli_common import emit as _emit
-from proxops.cli_common import friendly_errors as _friendly
-from proxops.cli_common import json_default as _default
+from proxops.cli_common import (check_out_dir, make_app, emit as _emit, friendly_errors as _friendly,
+                                json_default as _default)
 from proxops.errors import ProxopsInputError
 from proxops.exec.backends import MAX_WORKERS
 from proxops.exec.prestart import prestart

@@ -8,9 +8,8 @@ from typing import Annotated, Optional
 
 import typer
 
-from proxops.cli_common import emit
+from proxops.cli_common import emit, check_out_dir
 from proxops.report.reproduction import markdown, reproduce as run, write_markdown
-from proxops.cli_common import check_out_dir
 
 
 def reproduce(

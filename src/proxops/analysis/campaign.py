@@ -96,11 +96,8 @@ from proxops.analysis.campaign_worker import (  # noqa: E402,F401
     classify,
     flatten_summary,
 )
-from proxops.scenarios.loader import LoadedScenario, read_toml, resolve, validate_scenario
-from proxops.analysis.runs import check_scenario
 from proxops.exec.backends import _PoolBackend
 from proxops import __version__
-from proxops.sim.result import SimResult
 
 
 def run_seeds(campaign_seed: int, run_id: int) -> tuple[int, np.random.Generator]:
@@ -132,6 +129,8 @@ class _Prepared:
 
 
 def _prepare(scenario, overrides: Sequence[str]) -> _Prepared:
+    from proxops.scenarios.loader import LoadedScenario, read_toml, resolve, validate_scenario
+
     overrides = list(overrides)
     if isinstance(scenario, LoadedScenario):
         if overrides:
@@ -224,6 +223,7 @@ class CampaignResult:
 
     def series(self, run_id: int):
         """The saved time series of a run (``keep_series=True`` campaigns)."""
+        from proxops.sim.result import SimResult
 
         if self.out is None:
             raise ProxopsInputError("this campaign was not written to disk; rerun(run_id) gives its time series")
@@ -402,6 +402,7 @@ def _check_campaign(backend, prep: _Prepared) -> None:
     (:func:`check_nominal`, one task per worker: it is their warm-up -- imports, numba kernels,
     per-process caches -- which the first run would do anyway), so this process never builds the
     system; its error is raised here as it would be by the check in this process."""
+    from proxops.analysis.runs import check_scenario
 
     if isinstance(backend, _PoolBackend):
         try:
@@ -469,6 +470,7 @@ def write_report(campaign, report_dir=None, figures: bool = True, max_overlay: i
 
 def _campaign_system(manifest: dict):
     """The campaign's nominal scenario, validated, with its system (for the report hooks)."""
+    from proxops.scenarios.loader import validate_scenario
 
     data = {k: v for k, v in manifest["scenario_data"].items() if k != "dispersions"}
     return validate_scenario(data, source=str(manifest.get("scenario")))

@@ -18,8 +18,6 @@ from typing import Any
 import numpy as np
 
 from proxops.scenarios.dispersions import apply_values
-from proxops.scenarios.loader import validate_scenario
-from proxops.analysis.runs import execute
 
 METRIC_PREFIX = "metric."
 DISP_PREFIX = "disp."
@@ -54,6 +52,8 @@ def _prepared(spec: CampaignSpec):
     if got is None:
         import importlib
 
+        from proxops.scenarios.loader import validate_scenario
+
         if spec.system_module:
             importlib.import_module(spec.system_module)
         loaded = validate_scenario(copy.deepcopy(spec.data), (), source=spec.source)
@@ -74,6 +74,8 @@ def check_nominal(spec: CampaignSpec, _item=None) -> None:
 def campaign_run(spec: CampaignSpec, item: RunItem):
     """Run one dispersed closed loop; returns ``(row, SimResult or None)``. Never raises:
     an exception becomes ``outcome = "error"`` with its message."""
+    from proxops.analysis.runs import execute
+    from proxops.scenarios.loader import validate_scenario
 
     t0, cpu0 = time.perf_counter(), time.process_time()
     row: dict[str, Any] = {"run_id": int(item.run_id), "seed": int(item.seed), "grid_index": int(item.grid_index)}

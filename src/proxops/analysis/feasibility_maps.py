@@ -33,10 +33,8 @@ from proxops.analysis.reach import (PAPER_A_MAX_MPS2, PAPER_OMEGAS_DEG_S, BodyGr
 from proxops.constraints.los_corridor import LosCorridor
 from proxops.core.memo import memo_get
 from proxops.errors import input_error
-from proxops.systems.los import default_scenario
-from proxops.analysis.campaign import run_campaign
-from proxops.systems.los import is_feasible_run
-from proxops.analysis.campaign import load_campaign
+from proxops.systems.los import default_scenario, is_feasible_run
+from proxops.analysis.campaign import run_campaign, load_campaign
 
 MC_Y_RANGE_M = (20.0, 300.0)
 MC_N_Y = 15

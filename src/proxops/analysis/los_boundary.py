@@ -33,9 +33,8 @@ from proxops.sim.engine import simulate
 from proxops.constraints.los_corridor import LosCorridor
 from proxops.core.constants import MU_EARTH, R_EARTH
 from proxops.core.cw import mean_motion
-from proxops.dynamics.tumbling_target import BodyFrameModel
+from proxops.dynamics.tumbling_target import BodyFrameModel, body_from_hill_matrix
 from proxops.solvers.highs_lp import HighsLP
-from proxops.dynamics.tumbling_target import body_from_hill_matrix
 
 
 @dataclass

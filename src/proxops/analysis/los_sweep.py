@@ -9,19 +9,11 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from proxops.systems.los import (
-    SWEEP_METRICS,
-    SWEEP_A_MAX_MPS2,
-    SWEEP_RATES_DEG_S,
-    build_setup,
-    summarize_result,
-    sweep_frame,
-)
-from proxops.systems.los import sweep_table as _format_table
+from proxops.systems.los import (SWEEP_METRICS, SWEEP_A_MAX_MPS2, SWEEP_RATES_DEG_S, build_setup, summarize_result,
+                                 sweep_frame, sweep_table as _format_table)
 from proxops.scenarios.loader import load_scenario
 from proxops.sim.engine import simulate
-from proxops.analysis.campaign import run_campaign
-from proxops.analysis.campaign import load_campaign
+from proxops.analysis.campaign import run_campaign, load_campaign
 
 
 def run_sweep(scenario: str = "los-sweep", workers: int | None = 1, out=None, use_campaign: bool = True,

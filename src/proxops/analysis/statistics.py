@@ -16,7 +16,6 @@ import pandas as pd
 from proxops.analysis.formatting import format_number, unit_of_metric
 
 from proxops.analysis.campaign_worker import DISP_PREFIX, METRIC_PREFIX  # noqa: E402,F401 (one home)
-from proxops.navigation.consistency import chi2_band, mean_band
 STAT_COLUMNS = ("n", "mean", "std", "q1", "median", "q3", "p99", "min", "max")
 
 
@@ -179,6 +178,7 @@ def navigation_consistency(table: pd.DataFrame, probability: float = 0.95, max_o
     bounds that of N time means -- derivation in that module), ``epochs_in_band`` = the fraction of all
     epochs of all runs inside their per-epoch chi^2(d) band, and the verdict ``consistent`` = mean inside
     its band and at most ``max_outside`` of the epochs outside theirs."""
+    from proxops.navigation.consistency import chi2_band, mean_band
 
     if METRIC_PREFIX + "nav_nees_mean" not in table:
         return None

@@ -21,6 +21,8 @@ import os
 from pathlib import Path
 from typing import Sequence
 
+from proxops.exec.worker_warmup import ENV  # json, os only; its warm-up runs only in the fork server
+
 # What every campaign worker imports (the system module comes with the first check)
 WORKER_MODULES = ("proxops.analysis.campaign_worker", "proxops.analysis.runs", "proxops.scenarios.loader",
                   "proxops.systems.base")
@@ -45,8 +47,6 @@ def prestart(scenario: str, runs: int | None, workers: int | None, overrides: Se
     if START_METHOD != "forkserver":
         prestart_pool(n_workers, modules)
         return
-    from proxops.exec.worker_warmup import ENV
-
     os.environ[ENV] = json.dumps({"scenario": scenario, "overrides": list(overrides)})
     try:  # the fork server also builds the scenario once, for every worker it forks
         prestart_pool(n_workers, modules + (WARMUP_MODULE,))

@@ -69,11 +69,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from proxops.core.cw import cw_input_matrix_zoh, cw_stm
+from proxops.core.cw import cw_input_matrix_zoh, cw_stm, cw_matrices
 from proxops.core.layout import StateLayout
 from proxops.errors import input_error
 from proxops.navigation.consistency import WhitenessMonitor
-from proxops.core.cw import cw_matrices
 
 SENSORS = ("range-bearing", "pose")
 POLE_SIN = 0.02  # range-bearing: sqrt(rho_x^2 + rho_y^2) / |rho| below this -> unit line-of-sight update

@@ -33,8 +33,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from proxops.core.quaternion import quat_multiply, quat_rotate_inverse
-from proxops.core.quaternion import quat_to_dcm as _dcm
+from proxops.core.quaternion import quat_multiply, quat_rotate_inverse, quat_to_dcm as _dcm
 from proxops.navigation import NavigationBase, small_rotation
 from proxops.navigation.mekf import AttitudeMEKF, attitude_error
 

@@ -9,11 +9,9 @@ from pathlib import Path
 import numpy as np
 
 from proxops.plotting.common import plt, save
-from proxops.systems.cortex import scenario_axis
-from proxops.systems.cortex import PAPER_5_1_1
+from proxops.systems.cortex import scenario_axis, PAPER_5_1_1
 from proxops.analysis.campaign import _campaign_system, load_campaign  # noqa: PLC2701
-from proxops.plotting.cortex_loop import run_figure
-from proxops.plotting.cortex_loop import table_figures
+from proxops.plotting.cortex_loop import run_figure, table_figures
 
 
 def _sphere(ax, radius: float, **kw) -> None:

@@ -17,11 +17,9 @@ from pathlib import Path
 import numpy as np
 
 from proxops.plotting.common import plt, save
-from proxops.frames.lvlh import hill_to_lvlh
+from proxops.frames.lvlh import hill_to_lvlh, hill_vector_to_lvlh
 from proxops.core.cw import cw_stm
-from proxops.frames.lvlh import hill_vector_to_lvlh
-from proxops.guidance.hop_times import try_solve_hop
-from proxops.guidance.hop_times import cw_blocks, try_solve_hop
+from proxops.guidance.hop_times import try_solve_hop, cw_blocks
 from proxops.systems.srf import keep_out_hill
 
 

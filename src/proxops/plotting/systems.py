@@ -15,7 +15,6 @@ from __future__ import annotations
 
 import importlib
 from pathlib import Path
-from proxops.plotting.common import plot_run
 
 
 def _module(system_name: str):
@@ -41,6 +40,7 @@ def run_figures(system_name: str, system, sc, results: dict, out_dir: Path) -> l
     paths = _draw(system_name, system, "figures", "run_figures", sc, results, out_dir)
     if paths is not None:
         return paths
+    from proxops.plotting.common import plot_run
 
     return [plot_run(next(iter(results.values())), Path(out_dir) / "trajectory.png", title=sc.name)]
 

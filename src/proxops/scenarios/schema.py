@@ -16,10 +16,8 @@ from pydantic import BaseModel, ConfigDict, Field, create_model, field_validator
 from proxops.actuators import THRUSTER_PARAMETERS
 from proxops.core.constants import R_EARTH
 from proxops.errors import ProxopsInputError
-from proxops.orbitdata.tle import read_tle_file, tle_orbit
 from proxops.frames.elements import eci_to_elements
 from proxops.environment.epochs import parse_epoch
-from proxops.environment.harmonics import SHIPPED_DEGREE
 from proxops.scenarios.dispersions import parse_dispersions
 
 
@@ -99,6 +97,8 @@ class OrbitSection(Section):
     @classmethod
     def _valid_tle(cls, v):
         if v is not None:
+            from proxops.orbitdata.tle import tle_orbit
+
             tle_orbit(v)  # TleError is a ValueError: reported as orbit.tle = [...]: line k ...
         return v
 
@@ -164,6 +164,7 @@ class OrbitSection(Section):
 
 def _source_state(key: str, value):
     """(epoch ISO UTC, ECI state (6,) m, m/s) of an orbit source; ValueError naming the problem."""
+    from proxops.orbitdata.tle import read_tle_file, tle_orbit
 
     try:
         if key == "tle":
@@ -344,6 +345,8 @@ class TruthSection(Section):
     @field_validator("gravity_degree")
     @classmethod
     def _degree(cls, v):
+        from proxops.environment.harmonics import SHIPPED_DEGREE
+
         if not 2 <= v <= SHIPPED_DEGREE:
             raise ValueError(f"must be in [2, {SHIPPED_DEGREE}] (the shipped EGM96 truncation)")
         return v

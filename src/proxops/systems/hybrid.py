@@ -49,23 +49,7 @@ from proxops.scenarios.registry import register_system
 from proxops.scenarios.schema import ActuatorSection, ScenarioBase, Section
 from proxops.systems.base import SystemBase
 from proxops.core.constants import MU_EARTH, R_EARTH
-from proxops.dynamics.two_rigid_bodies import HybridInitialState, HybridParams, truth_state_from_initial
-from proxops.errors import ProxopsInputError
-from proxops.propagation.hybrid_plant import CaptureEnvelope
-from proxops.propagation.hybrid_plant import N_MEASURED
-from proxops.control.hybrid_mpc import CaptureMPC, CaptureMPCConfig, PostCaptureMPC, PostCaptureMPCConfig
-from proxops.control.hybrid_supervisor import HybridModeRule, HybridSupervisor
-from proxops.propagation.hybrid_plant import HybridCapturePlant
-from proxops.sim.engine import Setup
-from proxops.systems.common import navigation_model
-from proxops.errors import input_error
-from proxops.navigation.hybrid import HybridNavigation
-from proxops.dynamics.hybrid_relative import composite_inertia
-from proxops.propagation.hybrid_plant import contact_impulses
-from proxops.solvers.stats import solve_time_stats
-from proxops.navigation.mekf import attitude_error
-from proxops.propagation.hybrid_plant import M_LATCHED, overlap_from_relative
-from proxops.propagation.hybrid_plant import GRAVITY_MODELS
+from proxops.errors import ProxopsInputError, input_error
 
 Vector3 = Annotated[list[float], Field(min_length=3, max_length=3)]
 Quaternion = Annotated[list[float], Field(min_length=4, max_length=4)]
@@ -179,6 +163,8 @@ class TruthSection(Section):
 
     @model_validator(mode="after")
     def _known(self):
+        from proxops.propagation.hybrid_plant import GRAVITY_MODELS
+
         if self.gravity not in GRAVITY_MODELS:
             raise ValueError(f"truth.gravity = {self.gravity!r}: allowed {', '.join(GRAVITY_MODELS)}")
         return self
@@ -266,6 +252,8 @@ def _renamed(exc: Exception) -> ValueError:
 def model_objects(sc: HybridScenario):
     """(HybridParams, HybridInitialState, truth x0 (26), CaptureEnvelope) of a scenario; the
     physics checks raise ValueError naming the scenario key."""
+    from proxops.dynamics.two_rigid_bodies import HybridInitialState, HybridParams, truth_state_from_initial
+    from proxops.propagation.hybrid_plant import CaptureEnvelope
 
     c, d, lt, ct = sc.chief, sc.deputy, sc.latch, sc.control
     try:
@@ -309,6 +297,7 @@ def _mpc_config(cls, **wanted):
 
 def measured_sigma(position_sigma_m: float, velocity_sigma_mps: float) -> np.ndarray:
     """Navigation 1-sigma per measured-state entry: rho and rho_dot only (the rest exact)."""
+    from proxops.propagation.hybrid_plant import N_MEASURED
 
     sigma = np.zeros(N_MEASURED)
     sigma[0:3], sigma[3:6] = position_sigma_m, velocity_sigma_mps
@@ -316,6 +305,12 @@ def measured_sigma(position_sigma_m: float, velocity_sigma_mps: float) -> np.nda
 
 
 def build_setup(sc: HybridScenario):
+    from proxops.control.hybrid_mpc import CaptureMPC, CaptureMPCConfig, PostCaptureMPC, PostCaptureMPCConfig
+    from proxops.control.hybrid_supervisor import HybridModeRule, HybridSupervisor
+    from proxops.propagation.hybrid_plant import HybridCapturePlant
+    from proxops.sim.engine import Setup
+    from proxops.systems.common import navigation_model
+
     params, _, x0, envelope = model_objects(sc)
     if sc.estimation.model == "mekf" and sc.navigation.model != "noise":
         raise input_error("navigation.model", sc.navigation.model, "hybrid runs on [estimation] (model = mekf); "
@@ -332,7 +327,10 @@ def build_setup(sc: HybridScenario):
     rule = HybridModeRule(envelope, sc.docking.release_distance_m, sc.docking.min_dwell_s)
     supervisor = HybridSupervisor(capture, post, rule)
     if sc.estimation.model == "mekf":
+        from proxops.navigation.hybrid import HybridNavigation
+
         e = sc.estimation
+        from proxops.dynamics.hybrid_relative import composite_inertia
 
         x_dock = np.zeros(32)
         x_dock[12] = x_dock[16] = 1.0
@@ -379,6 +377,8 @@ class Divergence:
 
 def summarize_result(sc: HybridScenario, result) -> dict:
     """The hybrid keys of one run (module doc)."""
+    from proxops.propagation.hybrid_plant import contact_impulses
+    from proxops.solvers.stats import solve_time_stats
 
     t = result.t
     modes = list(result.mode)
@@ -435,6 +435,8 @@ def summarize_result(sc: HybridScenario, result) -> dict:
         summary["unlatched_after_snap_s"] = float(free.sum() * (t[1] - t[0])) if len(t) > 1 else 0.0
     xe = getattr(result, "x_est", None)
     if xe is not None and len(xe) == len(t):
+        from proxops.navigation.mekf import attitude_error
+
         att = np.array([np.degrees(np.linalg.norm(attitude_error(a, b))) for a, b in zip(xe[:, 13:17], x[:, 13:17])])
         summary["chief_attitude_est_error_deg"] = {"final": float(att[-1]), "max_after_60s": float(
             att[t >= 60.0].max()) if (t >= 60.0).any() else float(att.max())}
@@ -449,6 +451,7 @@ def final_verdict(sc: HybridScenario, result, x, err, wc, docked: bool, decouple
     """Status of a run judged on its END state (module doc): success = latched, |rho| and
     |rho_dot| inside the capture envelope, chief tumble and tracking error below the [success]
     thresholds; otherwise ``failed: <reason>`` (a divergence stop names its bound)."""
+    from proxops.propagation.hybrid_plant import M_LATCHED, overlap_from_relative
 
     params, _, _, env = model_objects(sc)
     xf = x[-1]

@@ -40,19 +40,7 @@ from proxops.systems.base import SystemBase
 from proxops.scenarios.schema import OrbitSection, ScenarioBase, Section, TruthSection, Vector3
 from proxops.sim.engine import Setup
 from proxops.status import Status
-from proxops.constraints.los_corridor import LosCorridor
-from proxops.control.los_mpc import LosMpcConfig
-from proxops.dynamics.tumbling_target import BodyFrameModel, TumblingTarget, TumblingTargetTruth
-from proxops.frames.elements import OrbitalElements, elements_to_eci
-from proxops.guidance.los_regimes import LosGuidanceConfig, LosGuidanceController
 from proxops.errors import input_error
-from proxops.propagation.truth import RelativeTruth
-from proxops.systems.common import actuator_model, navigation_model
-from proxops.core.memo import memo_get
-from proxops.navigation.mekf import PoseAttitudeSensor
-from proxops.navigation.target_attitude import TargetAttitudeNavigation
-from proxops.navigation.mekf import attitude_summary
-from proxops.sim.engine import simulate
 
 VIOLATION_TOLERANCE_M = 1e-3  # §9 step 3
 COMPLETED_OUTCOMES = ("completed", "hold_reached")  # ran to T_sim (or stopped at hold on request)
@@ -157,6 +145,14 @@ _TARGET_CACHE: dict = {}  # orbit, tumble rate, initial angle, dt -> (elements, 
 
 def build_setup(sc: LosScenario) -> Setup:
     """Plant (J2 truth + tumbling target), controller, corridor check for one scenario."""
+    from proxops.constraints.los_corridor import LosCorridor
+    from proxops.control.los_mpc import LosMpcConfig
+    from proxops.dynamics.tumbling_target import BodyFrameModel, TumblingTarget, TumblingTargetTruth
+    from proxops.frames.elements import OrbitalElements, elements_to_eci
+    from proxops.guidance.los_regimes import LosGuidanceConfig, LosGuidanceController
+    from proxops.propagation.truth import RelativeTruth
+    from proxops.systems.common import actuator_model, navigation_model
+    from proxops.core.memo import memo_get
 
     o = sc.orbit
     dt = sc.sim.dt_s or 1.0
@@ -218,6 +214,9 @@ def attitude_navigation(sc: LosScenario, target, dt: float):
     the truth from ``target`` (the plant's closed-form attitude)."""
     import math
 
+    from proxops.navigation.mekf import PoseAttitudeSensor
+    from proxops.navigation.target_attitude import TargetAttitudeNavigation
+
     nav = sc.navigation
     period = nav.update_period_s
     if period is not None:
@@ -249,6 +248,7 @@ class target_truth_attitude:  # noqa: N801 (a picklable callable)
 
 def summarize_result(sc: LosScenario, result) -> dict:
     """Extra JSON keys: los_violations, max_violation_m, r_sync_m, hold_reached, ..."""
+    from proxops.constraints.los_corridor import LosCorridor
 
     corridor = LosCorridor(np.radians(sc.target.corridor_half_angle_deg), sc.target.corridor_floor_m,
                            sc.target.corridor_faces, VIOLATION_TOLERANCE_M)
@@ -263,6 +263,8 @@ def summarize_result(sc: LosScenario, result) -> dict:
     max_viol = float(viol.max()) if viol.size else 0.0
     extra = {}
     if "attitude_filter" in result.meta:
+        from proxops.navigation.mekf import attitude_summary
+
         extra = attitude_summary(result.meta["attitude_filter"])
     if qp_infeasible and sc.mpc.constraint_mode == "hard":
         where = "beyond" if r0 > r_sync else "inside"
@@ -294,6 +296,7 @@ def run_case(tumble_rate_deg_s: float, a_max_mps2: float, initial_body_position_
 
     Defaults follow the paper's Monte Carlo (§9): MC MPC configuration, 400 s, zero
     body-frame initial velocity, hard constraints (infeasible QP = failed run)."""
+    from proxops.sim.engine import simulate
 
     if duration_s is None:
         duration_s = 600.0 if mpc_config == "single" else 400.0

@@ -51,21 +51,7 @@ from proxops.scenarios.registry import register_system
 from proxops.systems.base import SystemBase
 from proxops.scenarios.schema import InitialSection, OrbitSection, ScenarioBase, Section, TruthSection, Vector3
 from proxops.solvers.stats import solve_time_stats
-from proxops.frames.lvlh import lvlh_vector_to_hill
-from proxops.systems.common import initial_hill_state
-from proxops.constraints.keep_out import KeepOutSphere
-from proxops.guidance.hop_times import plan_hops
-from proxops.control.srf_mpc import EnergyDrift
 from proxops.core.constants import J2_EARTH, MU_EARTH, R_EARTH
-from proxops.propagation.truth import RelativeTruth
-from proxops.systems.common import target_elements
-from proxops.control.srf_mpc import SrfMpc, SrfMpcConfig, build_schedule
-from proxops.systems.common import actuator_model, navigation_model, translational_plant
-from proxops.constraints.passive_safety import certify_free_drift, drift_safety, first_entry_time
-from proxops.propagation.truth import CWPlant, RelativeTruth
-from proxops.constraints.passive_safety import hermite_min_range
-from proxops.frames.lvlh import hill_vector_to_lvlh
-from proxops.sim.engine import simulate
 
 # The engine and the numba kernels (passive safety) are imported where a run needs them: a campaign's
 # parent process validates the scenario with this module and never runs it (numba: 0.2 s of its start-up).
@@ -203,6 +189,7 @@ def _is_vbar(theta: float) -> bool:
 
 def approach_axes_hill(theta: float) -> tuple[np.ndarray, np.ndarray]:
     """Approach direction e_A and perpendicular e_perp2 of eq. (20), as Hill unit vectors."""
+    from proxops.frames.lvlh import lvlh_vector_to_hill
 
     a = lvlh_vector_to_hill(np.array([math.cos(theta), 0.0, math.sin(theta)]))
     b = lvlh_vector_to_hill(np.array([-math.sin(theta), 0.0, math.cos(theta)]))
@@ -210,6 +197,8 @@ def approach_axes_hill(theta: float) -> tuple[np.ndarray, np.ndarray]:
 
 
 def initial_state_hill(sc: SrfScenario) -> np.ndarray:
+    from proxops.systems.common import initial_hill_state
+
     if sc.initial is not None:
         return initial_hill_state(sc.initial)
     a, _ = approach_axes_hill(math.radians(sc.approach.angle_deg))
@@ -222,6 +211,9 @@ def engine_dt(sc: SrfScenario) -> float:
 
 
 def keep_out_hill(sc: SrfScenario):
+    from proxops.constraints.keep_out import KeepOutSphere
+    from proxops.frames.lvlh import lvlh_vector_to_hill
+
     return KeepOutSphere(sc.keep_out.radius_m, lvlh_vector_to_hill(np.array(sc.keep_out.center_m)), name="keep_out")
 
 
@@ -237,6 +229,8 @@ def plan_of(sc: SrfScenario):
     of the plan cached per (approach, orbit) in this process."""
     import copy
 
+    from proxops.guidance.hop_times import plan_hops
+
     ap = sc.approach
     args = (math.radians(ap.angle_deg), ap.hops, ap.gamma, ap.start_m, ap.end_m, mean_motion(sc.orbit.sma_m))
     key = (*args, ap.vbar_period_fraction)
@@ -248,6 +242,7 @@ def onboard_drift_model(sc: SrfScenario, dt: float, span_s: float):
     """The MPC's J2-aware drift invariant: the target's ECI states every engine step over the mission
     (the onboard ephemeris of the known target orbit, same force model as the truth: two-body or J2).
     The ephemeris (read-only) is cached per (orbit, truth model, dt, span) in this process."""
+    from proxops.control.srf_mpc import EnergyDrift
 
     j2 = sc.truth.model == "j2"
     key = (sc.orbit.model_dump_json(), j2, sc.truth.integrator, float(dt), float(span_s))
@@ -256,6 +251,9 @@ def onboard_drift_model(sc: SrfScenario, dt: float, span_s: float):
 
 
 def _target_ephemeris(sc: SrfScenario, j2: bool, dt: float, span_s: float) -> np.ndarray:
+    from proxops.propagation.truth import RelativeTruth
+    from proxops.systems.common import target_elements
+
     plant = RelativeTruth(target_elements(sc.orbit), np.zeros(6), j2=j2, integrator=sc.truth.integrator)
     n = int(math.ceil(span_s / dt)) + 3
     # n - 1 propagate() calls of dt in one (jitted) coast: the same numbers
@@ -267,6 +265,7 @@ def _target_ephemeris(sc: SrfScenario, j2: bool, dt: float, span_s: float) -> np
 
 def build_controller(sc: SrfScenario, cbf: bool | None = None):
     """(controller, plan, schedule) of a scenario; ``cbf`` overrides keep_out.cbf."""
+    from proxops.control.srf_mpc import SrfMpc, SrfMpcConfig, build_schedule
 
     ap, m, ko = sc.approach, sc.mpc, sc.keep_out
     theta = math.radians(ap.angle_deg)
@@ -327,6 +326,7 @@ def build_controller(sc: SrfScenario, cbf: bool | None = None):
         min_impulse_mps=float(sc.actuator.min_impulse or 0.0),
         cbf=use_cbf, cbf_alpha_per_s=ko.alpha_per_s, free_drift_s=ko.free_drift_orbits * plan.period_s,
         free_drift_nodes=max(4, int(round(ko.free_drift_nodes_per_orbit * ko.free_drift_orbits))), solver=m.solver)
+    from proxops.constraints.keep_out import KeepOutSphere
 
     if koz.contains(target) or (ko.margin_m > 0 and np.linalg.norm(target - koz.center_m) <= koz.radius_m + ko.margin_m):
         raise input_error("keep_out.margin_m", ko.margin_m,
@@ -339,6 +339,7 @@ def build_controller(sc: SrfScenario, cbf: bool | None = None):
 
 def build_setup(sc: SrfScenario, cbf: bool | None = None) -> Setup:
     from proxops.sim.engine import Setup
+    from proxops.systems.common import actuator_model, navigation_model, translational_plant
 
     ctrl, plan, sched = build_controller(sc, cbf)
     plant = translational_plant(sc.orbit, sc.truth, initial_state_hill(sc))
@@ -392,6 +393,9 @@ def passive_abort(sc: SrfScenario, result) -> list[dict]:
     of those divided by its number of orbits); ``hop_t_s``; with a trim also ``trim_dv_mps`` and the
     drift from the hop impulse alone (an abort between hop impulse and trim): ``untrimmed_safe_window_orbits``,
     ``untrimmed_min_koz_distance_m``, ``untrimmed_return_miss_per_orbit_m``."""
+    from proxops.constraints.passive_safety import certify_free_drift, drift_safety, first_entry_time
+    from proxops.propagation.truth import CWPlant, RelativeTruth
+    from proxops.systems.common import translational_plant
 
     period = float(result.meta.get("period_s") or 2 * math.pi / mean_motion(sc.orbit.sma_m))
     hop_starts = [0.0] + list(result.meta.get("hop_node_times_s", []))[:-1]
@@ -471,6 +475,8 @@ def _check_vbar_hop_lengths(ap, m) -> None:
 
 def summarize_result(sc: SrfScenario, result) -> dict:
     """Extra JSON keys of an srf run: arrival, hops, dv per LVLH axis, KOZ and passive-abort safety."""
+    from proxops.constraints.passive_safety import hermite_min_range
+    from proxops.frames.lvlh import hill_vector_to_lvlh
 
     theta = math.radians(sc.approach.angle_deg)
     a, _ = approach_axes_hill(theta)
@@ -564,6 +570,7 @@ class SrfSystem(SystemBase):
 
     def run(self, sc: SrfScenario, seed: int = 0, progress: bool = False):
         """One run, or two (with / without the CBF) when keep_out.compare_without_cbf (§5.4)."""
+        from proxops.sim.engine import simulate
 
         if not sc.keep_out.compare_without_cbf:
             result = simulate(build_setup(sc), seed=seed, progress=progress)

@@ -17,7 +17,6 @@ from proxops.systems.base import SystemBase
 from proxops.scenarios.schema import InitialSection, OrbitSection, ScenarioBase, Section, TruthSection, Vector3
 from proxops.sim.engine import Setup
 from proxops.systems.common import actuator_model, initial_hill_state, navigation_model, translational_plant
-from proxops.control.station_keeping import LqrStationKeeping, PdStationKeeping
 
 
 class StationKeepingController(Section):
@@ -45,6 +44,8 @@ class StationKeepingSystem(SystemBase):
     Scenario = StationKeepingScenario
 
     def build(self, sc: StationKeepingScenario) -> Setup:
+        from proxops.control.station_keeping import LqrStationKeeping, PdStationKeeping
+
         n = mean_motion(sc.orbit.sma_m)
         c = sc.controller
         if c.type == "lqr":

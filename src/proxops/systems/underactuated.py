@@ -33,15 +33,7 @@ from proxops.systems.base import SystemBase
 from proxops.scenarios.schema import ActuatorSection, ScenarioBase, Section
 from proxops.sim.engine import Setup
 from proxops.solvers.stats import solve_time_stats
-from proxops.dynamics.planar_cubesat import DockingSet, Interval, PlanarCubeSatParams, PlanarLimits
-from proxops.control.nmpc_underactuated import NMPCConfig, UnderactuatedNMPC
-from proxops.dynamics.planar_cubesat import PlanarCubeSatPlant
-from proxops.systems.common import navigation_model
 from proxops.errors import input_error
-from proxops.navigation.planar_ekf import PlanarPoseEKF
-from proxops.navigation.mekf import attitude_summary, consistency_keys
-from proxops.scenarios.loader import unit_of
-from proxops.sim.engine import simulate
 
 DEG = math.pi / 180.0
 
@@ -186,6 +178,8 @@ class UnderactuatedScenario(ScenarioBase):
             ("omega_deg_s", s0.omega_deg_s, lim.rate_deg_s),
         ):
             if not bounds[0] <= value <= bounds[1]:
+                from proxops.scenarios.loader import unit_of
+
                 unit = unit_of(key)
                 raise ValueError(f"initial_state.{key} = {value} {unit} is outside the limits {bounds} {unit} "
                                  "([limits] section)")
@@ -222,6 +216,7 @@ def run_configs(sc: UnderactuatedScenario) -> list[dict]:
 
 def model_objects(sc: UnderactuatedScenario, damping_Nms: float | None = None):
     """(params, limits, docking set) in SI units from the scenario."""
+    from proxops.dynamics.planar_cubesat import DockingSet, Interval, PlanarCubeSatParams, PlanarLimits
 
     d, lim, dock = sc.deputy, sc.limits, sc.docking
     params = PlanarCubeSatParams(
@@ -250,6 +245,9 @@ def model_objects(sc: UnderactuatedScenario, damping_Nms: float | None = None):
 
 def build_setup(sc: UnderactuatedScenario, run: dict | None = None) -> Setup:
     """Plant, NMPC and stop condition for one closed loop (``run`` from :func:`run_configs`)."""
+    from proxops.control.nmpc_underactuated import NMPCConfig, UnderactuatedNMPC
+    from proxops.dynamics.planar_cubesat import PlanarCubeSatPlant
+    from proxops.systems.common import navigation_model
 
     run = run or run_configs(sc)[0]
     params, limits, docking = model_objects(sc, run["damping_Nms"])
@@ -296,6 +294,7 @@ def planar_navigation(sc: UnderactuatedScenario, params, control_dt_s: float):
     pose [x, y, theta] with ``range_sigma_m`` per position axis and ``attitude_sigma_deg``; process noise
     ``process_noise_m2_s3`` (translation) and ``attitude_process_noise_rad2_s3`` (rotation); initial sigmas
     initial_position_sigma_m, initial_velocity_sigma_mps, initial_attitude_sigma_deg, initial_rate_sigma_deg_s."""
+    from proxops.navigation.planar_ekf import PlanarPoseEKF
 
     nav = sc.navigation
     period = nav.update_period_s
@@ -343,6 +342,8 @@ def summarize_result(sc: UnderactuatedScenario, result) -> dict:
         "controller_wall_time_s": float(np.sum(solved)),
     }
     if "attitude_filter" in result.meta:
+        from proxops.navigation.mekf import attitude_summary, consistency_keys
+
         rec = result.meta["attitude_filter"]
         out.update(attitude_summary(rec))
         out.update(consistency_keys(rec.get("pose_nees", []), rec.get("pose_nees_dof", 6), "pose_nees"))
@@ -361,6 +362,7 @@ class UnderactuatedSystem(SystemBase):
 
     def run(self, sc: UnderactuatedScenario, seed: int = 0, progress: bool = False):
         """Every closed loop of the scenario; the summary keys of the first at top level."""
+        from proxops.sim.engine import simulate
 
         results, summaries = {}, {}
         for run in run_configs(sc):

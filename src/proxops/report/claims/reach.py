@@ -10,8 +10,7 @@ import numpy as np
 
 from proxops.report.claims.common import (CALIBRATED, EXPLAINED, NOT_ATTEMPTED, REPRODUCED, UNEXPLAINED, Claim,
                                           Context, sig_round)
-from proxops.analysis import reach as R
-from proxops.analysis import feasibility_maps as F
+from proxops.analysis import reach as R, feasibility_maps as F
 from proxops.systems.los import run_case
 from proxops import __version__
 from proxops.analysis.campaign import MANIFEST

@@ -10,10 +10,7 @@ from proxops.report.claims.common import (EXPLAINED, INCONSISTENT, NOT_ATTEMPTED
                                           Context, abort_items, campaign, f, run, sig_round)
 from proxops.core.cw import cw_stm, mean_motion
 from proxops.frames.lvlh import lvlh_vector_to_hill
-from proxops.guidance.hop_times import plan_hops
-from proxops.guidance.hop_times import rbar_phi
-from proxops.guidance.hop_times import feasible_angle_limit, try_solve_hop
-from proxops.guidance.hop_times import solve_hop
+from proxops.guidance.hop_times import plan_hops, rbar_phi, feasible_angle_limit, try_solve_hop, solve_hop
 
 
 def designed_dv(theta_deg: float, hops: int, gamma: float, start_m: float, end_m: float, sma_m: float) -> dict:
