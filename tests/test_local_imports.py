@@ -214,6 +214,23 @@ def test_validate_and_run_import_no_dataframes_plots_or_solvers():
         assert not unexpected, (argv, sorted(unexpected))
 
 
+def test_a_campaigns_parent_validates_without_numba_scipy_or_plots():
+    """A campaign's parent process loads the campaign, statistics and report layers and validates the
+    scenario (it never runs one: the workers do): for srf, whose system module
+    imports the engine where a run needs it, no numba, scipy, matplotlib or solver (as on main)."""
+    code = ("import json, sys\n"
+            "import proxops.analysis.campaign, proxops.analysis.statistics, proxops.report.campaign\n"
+            "from proxops.scenarios.loader import load_scenario\n"
+            "for name in ('srf-vbar-mc', 'srf-rbar-mc'):\n    load_scenario(name)\n"
+            "print(json.dumps(sorted({m.split('.')[0] for m in sys.modules})))\n")
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120,
+                          env={**__import__("os").environ, "PYTHONPATH": str(PACKAGE.parent)})
+    assert proc.returncode == 0, proc.stderr
+    top = set(json.loads(proc.stdout.strip().splitlines()[-1]))
+    assert "pandas" in top  # the campaign layer was loaded
+    assert not top & (set(HEAVY) - {"pandas", "pyarrow"}), sorted(top & set(HEAVY))
+
+
 def test_lazy_command_table_short_help_is_the_commands_own():
     """`proxops --help` lists each command from the table without importing it: its text must be the
     first paragraph of the command's own help."""
