@@ -49,7 +49,7 @@ imports and numba caches are loaded; best of ``--repeats``):
   whole command ``proxops reach mc --workers 2 --json`` from a fresh process (the issue's < 30 s
   goal is about this): wall time to exit, its campaign's share and the rest (start-up, maps,
   certification check, figures);
-* CLI: ``python -m proxops.entry --version``, ``... run station-keeping --json`` and ``... run srf-vbar
+* CLI: ``python -m proxops.exec.entry --version``, ``... run station-keeping --json`` and ``... run srf-vbar
   --json`` wall time (process start to exit), best of ``--repeats`` after one cached use; with the
   campaigns, ``proxops mc NAME --runs 50 --workers 2`` of each srf campaign from a fresh process
   (what the < 5 s goal is about), one repeat each.
@@ -313,7 +313,7 @@ def cli_times(src: Path, repeats: int) -> dict:
     env = dict(ENV, PYTHONPATH=str(src))
     out = {}
     for label, args in CLI_RUNS:
-        cmd = [sys.executable, "-m", "proxops.entry", *args]
+        cmd = [sys.executable, "-m", "proxops.exec.entry", *args]
         subprocess.run(cmd, env=env, capture_output=True, check=True)  # the first (cached) use
         best = float("inf")
         for _ in range(repeats):
@@ -338,7 +338,7 @@ def cli_campaign_times(src: Path) -> dict:
             runs = ["2"] if i == 0 else []
             for n in runs + ["50"]:
                 folder = Path(tmp) / f"{name}-{n}"
-                cmd = [sys.executable, "-m", "proxops.entry", "mc", name, "--runs", n, "--workers", "2",
+                cmd = [sys.executable, "-m", "proxops.exec.entry", "mc", name, "--runs", n, "--workers", "2",
                        "--seed", "1", "--out", str(folder), "--progress", "--json"]
                 phases, stdout = mc_phases(cmd, env)
                 shutil.rmtree(folder, ignore_errors=True)
@@ -388,7 +388,7 @@ def cli_reach_mc_time(src: Path) -> dict | None:
     import tempfile
 
     env = dict(ENV, PYTHONPATH=str(src))
-    base = [sys.executable, "-m", "proxops.entry", "reach", "mc", "--workers", "2", "--no-progress", "--json"]
+    base = [sys.executable, "-m", "proxops.exec.entry", "reach", "mc", "--workers", "2", "--no-progress", "--json"]
     with tempfile.TemporaryDirectory() as tmp:
         warm = base + ["--out", str(Path(tmp) / "warm"), "--n-x", "2", "--n-y", "2", "--omega-deg", "1", "--amax", "0.2"]
         if subprocess.run(warm, env=env, capture_output=True).returncode != 0:

@@ -313,7 +313,7 @@ def test_malformed_scheduler_prints_one_line_in_a_real_process(tmp_path):
     import subprocess
     import sys
 
-    proc = subprocess.run([sys.executable, "-m", "proxops.entry", "mc", "station-keeping-mc", "--runs", "2",
+    proc = subprocess.run([sys.executable, "-m", "proxops.exec.entry", "mc", "station-keeping-mc", "--runs", "2",
                            "--scheduler", "tcp://", "--out", str(tmp_path / "x")],
                           capture_output=True, text=True, timeout=120)
     lines = [ln for ln in proc.stderr.splitlines() if ln.strip()]

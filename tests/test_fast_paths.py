@@ -129,7 +129,7 @@ def test_srf_campaign_rows_with_warm_caches_equal_cold_ones():
 # --------------------------------------------------------------------------- CLI
 def test_mc_check_failing_in_the_pool_workers_is_one_line_and_writes_nothing(tmp_path):
     out = tmp_path / "mc"
-    proc = _run(["-m", "proxops.entry", "mc", "srf-rbar-mc", "--runs", "4", "--workers", "2", "--out", str(out),
+    proc = _run(["-m", "proxops.exec.entry", "mc", "srf-rbar-mc", "--runs", "4", "--workers", "2", "--out", str(out),
                  "--no-progress", "--set", "keep_out.radius_m=5000"])
     assert proc.returncode == 2, proc.stderr
     lines = proc.stderr.strip().splitlines()
@@ -138,19 +138,19 @@ def test_mc_check_failing_in_the_pool_workers_is_one_line_and_writes_nothing(tmp
 
 
 def test_cli_exit_without_teardown_keeps_output_and_exit_code(tmp_path):
-    ok = _run(["-m", "proxops.entry", "run", "station-keeping", "--json", "--set", "truth.model=cw",
+    ok = _run(["-m", "proxops.exec.entry", "run", "station-keeping", "--json", "--set", "truth.model=cw",
                "--set", "sim.duration_s=300"])
     assert ok.returncode == 0, ok.stderr
     summary = json.loads(ok.stdout)  # exactly one JSON object, complete
     assert summary["scenario"] == "station-keeping" and summary["steps"] == 30
-    bad = _run(["-m", "proxops.entry", "run", "station-keeping", "--set", "sim.duration_s=-5"])
+    bad = _run(["-m", "proxops.exec.entry", "run", "station-keeping", "--set", "sim.duration_s=-5"])
     assert bad.returncode == 2 and bad.stderr.count("error:") == 1
 
 
 def test_deferred_numpy_submodules_are_not_executed_by_scipy_and_still_work():
     code = (
         "import sys\n"
-        "from proxops._startup import defer_unused_numpy_submodules\n"
+        "from proxops.exec.startup import defer_unused_numpy_submodules\n"
         "defer_unused_numpy_submodules()\n"
         "import scipy.linalg, numpy\n"
         "assert 'numpy.f2py.f2py2e' not in sys.modules and 'numpy.testing._private.utils' not in sys.modules\n"
@@ -183,14 +183,14 @@ def test_prestarted_pool_is_the_one_the_campaign_uses(workers):
 
 
 def test_fork_server_warm_up_builds_the_scenario_once_and_ignores_bad_input():
-    """Importing proxops.analysis.worker_warmup with PROXOPS_WARM_SCENARIO set (what the fork server
+    """Importing proxops.exec.worker_warmup with PROXOPS_WARM_SCENARIO set (what the fork server
     of ``proxops mc`` does) builds that scenario: the srf per-process caches hold one plan and one
     ephemeris afterwards, and the variable is gone (forked workers do not repeat it); a scenario that
     does not load or build is skipped without an exception (the workers' check reports it)."""
     code = (
         "import json, os\n"
         "os.environ['PROXOPS_WARM_SCENARIO'] = json.dumps({'scenario': 'srf-vbar-mc', 'overrides': ['sim.seed=3']})\n"
-        "import proxops.analysis.worker_warmup as w\n"
+        "import proxops.exec.worker_warmup as w\n"
         "import proxops.systems.srf as srf\n"
         "assert 'PROXOPS_WARM_SCENARIO' not in os.environ\n"
         "assert len(srf._PLAN_CACHE) == 1 and len(srf._EPHEMERIS_CACHE) == 1\n"
@@ -249,16 +249,16 @@ def test_fork_server_registers_its_quick_exit_and_workers_inherit_only_the_pid()
     (["run", "mc"], None),                        # another command
 ])
 def test_early_prestart_reads_only_unambiguous_mc_command_lines(argv, expected):
-    from proxops.cli_prestart import _read_mc_argv
+    from proxops.exec.prestart import _read_mc_argv
 
     assert _read_mc_argv(argv) == expected
 
 
 def test_mc_bad_scenario_after_early_prestart_is_one_error_line_exit_2(tmp_path):
-    """proxops.entry starts the pool (and the fork server's warm-up of the scenario) before parsing;
+    """proxops.exec.entry starts the pool (and the fork server's warm-up of the scenario) before parsing;
     a scenario that does not exist still ends with one ``error:`` line naming it, exit code 2, and
     no folder written."""
-    proc = _run(["-m", "proxops.entry", "mc", "no-such-scenario", "--runs", "4", "--workers", "2",
+    proc = _run(["-m", "proxops.exec.entry", "mc", "no-such-scenario", "--runs", "4", "--workers", "2",
                  "--out", str(tmp_path / "o"), "--no-progress"])
     lines = [line for line in proc.stderr.splitlines() if line.strip()]
     assert proc.returncode == 2, proc.stderr

@@ -33,7 +33,7 @@ def _proxops(*args: str, **kwargs) -> subprocess.Popen:
     restored to Python's default handler, as a terminal's foreground process has it (a shell that
     starts jobs in the background leaves it ignored)."""
     code = ("import signal, sys; signal.signal(signal.SIGINT, signal.default_int_handler); "
-            "sys.argv = ['proxops', *sys.argv[1:]]; from proxops.entry import main; main()")
+            "sys.argv = ['proxops', *sys.argv[1:]]; from proxops.exec.entry import main; main()")
     return subprocess.Popen([sys.executable, "-c", code, *args], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
                             start_new_session=True, env=_env(), **kwargs)
 

@@ -34,7 +34,7 @@ signal.signal(signal.SIGINT, signal.default_int_handler)
 sys.path[:0] = [{tests!r}, {src!r}]
 import test_campaign_toy  # registers the toy system (its workers import it by name)
 if __name__ == "__main__":  # spawned workers import this file as __mp_main__
-    from proxops.entry import main
+    from proxops.exec.entry import main
     sys.argv = ["proxops", "mc", {scenario!r}, "--runs", "{n}", "--workers", "{workers}", "--seed", "8",
                 "--out", {out!r}, "--no-progress"]
     main()
@@ -169,7 +169,7 @@ _CHILD_BUILTIN = """
 import sys
 sys.path[:0] = [{src!r}]
 if __name__ == "__main__":
-    from proxops.entry import main
+    from proxops.exec.entry import main
     sys.argv = ["proxops", "mc", "station-keeping-mc", "--runs", "40", "--workers", "2", "--out", {out!r},
                 "--no-progress", "--set", "truth.model=cw", "--set", "sim.duration_s=600"]
     main()

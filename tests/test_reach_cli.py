@@ -80,6 +80,12 @@ def test_mc_command_small(tmp_path):
         expected = {"omega_deg_s": row["omega_deg_s"], "a_max_mps2": row["a_max_mps2"],
                     "nominal_pct": combo.pct["nominal"], **F.certification_check(fmap, g, combo.nominal, sites_nom)}
         assert row == expected
+    # the sweep's totals (analysis.feasibility_maps.aggregate_sweep) are the sums over the rows
+    for key in ("nominal_grid_points", "nominal_grid_points_in_ic_hull", "nominal_ics"):
+        total = sum(r[key] for r in out["combinations"])
+        bad = sum(r[f"{key}_mc_infeasible"] for r in out["combinations"])
+        assert out[key.replace("nominal_", "nominal_certified_")] == total
+        assert out[key.replace("nominal_", "nominal_certified_") + "_mc_infeasible"] == bad
 
 
 def test_mc_paper_axes_known_before_the_analysis_import():

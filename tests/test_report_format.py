@@ -15,7 +15,8 @@ from typer.testing import CliRunner
 from proxops.analysis.formatting import format_number, format_percent, format_quantity
 from proxops.scenarios.loader import unit_of_metric
 from proxops.analysis.statistics import describe, format_table4, format_text_table
-from proxops.cli import app, format_summary
+from proxops.cli import app
+from proxops.cli_run import format_summary
 from proxops.runner import summary_markdown
 
 

@@ -1,6 +1,6 @@
 """``proxops mc`` and ``proxops report``: Monte Carlo campaigns from the command line.
 
-Mounted by :func:`proxops.cli._mount_optional` (input errors -> one line, exit code 2).
+Listed in the lazy command table of :mod:`proxops.cli` (input errors -> one line, exit code 2).
 """
 
 from __future__ import annotations
@@ -14,7 +14,10 @@ from typing import Annotated, Optional
 
 import typer
 
+from proxops.cli_common import Interrupted, check_out_dir
 from proxops.errors import ProxopsError, ProxopsInputError
+from proxops.exec.backends import MAX_WORKERS
+from proxops.exec.prestart import prestart
 
 
 def mc(
@@ -33,12 +36,8 @@ def mc(
     as_json: Annotated[bool, typer.Option("--json", help="One JSON object on stdout: runs, succeeded, failed, wall_time_s, statistics.")] = False,
 ):
     """Run a Monte Carlo campaign of a scenario (local processes or Dask) and print its statistics."""
-    from proxops.errors import ProxopsInputError
-
     if runs is not None and runs < 1:
         raise ProxopsInputError(f"--runs {runs}: give a whole number of runs >= 1")
-    from proxops.exec.backends import MAX_WORKERS
-
     if workers is not None and not 1 <= workers <= MAX_WORKERS:
         raise ProxopsInputError(f"--workers {workers}: give a whole number from 1 to {MAX_WORKERS} (1 runs in this "
                                 "process)")
@@ -46,13 +45,9 @@ def mc(
         raise ProxopsInputError(f"--connect-timeout-s {connect_timeout_s}: give a positive, finite number of seconds")
     if seed is not None and not 0 <= seed < 2**63:
         raise ProxopsInputError(f"--seed {seed}: give a whole number from 0 to 2^63 - 1")
-    from proxops.cli_common import check_out_dir
-
     out = out if out is not None else Path("out") / f"mc-{Path(scenario).stem}"
     check_out_dir(out, campaign=True)
-    if scheduler is None:  # local workers start now (if proxops.entry has not): their imports overlap ours
-        from proxops.cli_prestart import prestart
-
+    if scheduler is None:  # local workers start now (if proxops.exec.entry has not): their imports overlap ours
         prestart(scenario, runs, workers, set_)
     from proxops.analysis.campaign import CampaignInterrupted, run_campaign
     from proxops.report.campaign import write_report

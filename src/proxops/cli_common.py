@@ -21,6 +21,7 @@ import sys
 from pathlib import Path
 
 from typer import _click as click  # typer vendors its own click: its exceptions are these
+from typer._click.utils import make_default_short_help
 import typer
 from typer.core import TyperGroup
 
@@ -75,6 +76,73 @@ class ProxopsGroup(TyperGroup):
             return super().invoke(ctx)
         except KeyboardInterrupt as exc:
             raise _CarriedInterrupt(exc) from None
+
+
+def make_app(name: str, help: str, cls=ProxopsGroup, **extra) -> typer.Typer:
+    """A typer app (or command group) with the proxops settings: the error policy of :class:`ProxopsGroup`,
+    plain-text help ([dispersions] is a word, not a style tag), no completion, no pretty tracebacks."""
+    return typer.Typer(name=name, cls=cls, help=help, no_args_is_help=True, add_completion=False,
+                       pretty_exceptions_enable=False, rich_markup_mode=None, **extra)
+
+
+class LazyCommand:
+    """A command whose module is imported only when the command is run or shows its own ``--help``:
+    ``attribute`` of ``module`` is a command function (``kind="command"``) or a typer app
+    (``kind="group"``); ``short_help`` is what ``proxops --help`` lists without importing it (a test
+    checks it against the command's own help)."""
+
+    def __init__(self, module: str, attribute: str, kind: str, short_help: str):
+        self.module, self.attribute, self.kind, self.short_help = module, attribute, kind, short_help
+
+    def load(self, name: str):
+        """The click command, or None when the module is not installed (an optional command)."""
+        import importlib
+
+        try:
+            obj = getattr(importlib.import_module(self.module), self.attribute)
+        except ModuleNotFoundError as exc:
+            if exc.name == self.module:
+                return None
+            raise
+        if self.kind == "group":
+            cmd = typer.main.get_command(obj)
+        else:
+            single = typer.Typer(add_completion=False, pretty_exceptions_enable=False, rich_markup_mode=None)
+            single.command(name=name)(obj)
+            cmd = typer.main.get_command(single)
+        cmd.name = name
+        name_metavars(cmd)
+        return cmd
+
+
+class LazyCommandGroup(ProxopsGroup):
+    """The root group: the commands in ``lazy`` (name -> :class:`LazyCommand`) are listed by
+    ``--help`` from their short help and imported only when used, so ``proxops --help`` imports no
+    command module and ``proxops keys`` only ``cli_keys``."""
+
+    lazy: dict[str, LazyCommand] = {}
+
+    def list_commands(self, ctx) -> list[str]:
+        return [*super().list_commands(ctx), *(n for n in self.lazy if n not in self.commands)]
+
+    def get_command(self, ctx, cmd_name: str):
+        cmd = super().get_command(ctx, cmd_name)
+        if cmd is None and cmd_name in self.lazy:
+            cmd = self.lazy[cmd_name].load(cmd_name)
+            if cmd is not None:
+                self.add_command(cmd, cmd_name)
+        return cmd
+
+    def format_commands(self, ctx, formatter) -> None:
+        """As click's, with a command not yet imported listed from its table entry (the same shortening)."""
+        names = [n for n in self.list_commands(ctx) if not getattr(self.commands.get(n), "hidden", False)]
+        if not names:
+            return
+        limit = formatter.width - 6 - max(len(n) for n in names)
+        rows = [(n, self.commands[n].get_short_help_str(limit) if n in self.commands
+                 else make_default_short_help(self.lazy[n].short_help, limit)) for n in names]
+        with formatter.section("Commands"):
+            formatter.write_dl(rows)
 
 
 # option value placeholders in --help, by meaning (typer would print the Python type: <float>)
@@ -242,6 +310,19 @@ def check_out_dir(path, option: str = "--out", campaign: bool = False) -> Path:
                 except OSError:
                     pass
     return path
+
+
+def check_out_file(path: Path | None, option: str) -> None:
+    """An output file: not a folder, its parent not a file (one-line error)."""
+    if path is None:
+        return
+    if path.is_dir():
+        raise ProxopsInputError(f"{option} {path}: is a folder; give a file name")
+    for parent in path.parents:
+        if parent.exists():
+            if not parent.is_dir():
+                raise ProxopsInputError(f"{option} {path}: {parent} is a file, not a folder")
+            break
 
 
 def emit(obj: dict, as_json: bool, text: str) -> None:

@@ -1,6 +1,6 @@
 """``proxops export``: CCSDS OEM and MATLAB files of a saved run or one run of a campaign.
 
-Mounted by :func:`proxops.cli._mount_optional`; ``proxops run --oem/--mat`` writes the same
+Listed in the lazy command table of :mod:`proxops.cli`; ``proxops run --oem/--mat`` writes the same
 files for the run it makes (:mod:`proxops.analysis.export`).
 """
 
@@ -13,20 +13,10 @@ from typing import Annotated, Optional
 
 import typer
 
+from proxops.cli_common import check_out_file
 from proxops.errors import ProxopsInputError
-
-
-def check_out_file(path: Path | None, option: str) -> None:
-    """An output file: not a folder, its parent not a file (one-line error)."""
-    if path is None:
-        return
-    if path.is_dir():
-        raise ProxopsInputError(f"{option} {path}: is a folder; give a file name")
-    for parent in path.parents:
-        if parent.exists():
-            if not parent.is_dir():
-                raise ProxopsInputError(f"{option} {path}: {parent} is a file, not a folder")
-            break
+from proxops.analysis.export import export_run, load_saved_run
+from proxops.environment.spaceweather import build_tables, shipped_data
 
 
 def export(
@@ -38,7 +28,6 @@ def export(
     as_json: Annotated[bool, typer.Option("--json", help="One JSON object on stdout.")] = False,
 ):
     """Export a saved run as CCSDS OEM ephemerides (EME2000, UTC) and/or a MATLAB .mat file."""
-    from proxops.analysis.export import export_run, load_saved_run
 
     if oem is None and mat is None:
         raise ProxopsInputError("export: give --oem FILE and/or --mat FILE")
@@ -57,7 +46,6 @@ def data(
     as_json: Annotated[bool, typer.Option("--json", help="One JSON object on stdout.")] = False,
 ):
     """What environment data is shipped (space weather, Earth orientation): source, date, range."""
-    from proxops.environment.spaceweather import build_tables, shipped_data
 
     if rebuild_from is not None:
         build_tables(rebuild_from)

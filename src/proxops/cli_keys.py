@@ -1,7 +1,7 @@
 """``proxops keys``: the scenario key reference (every section and key with unit, default,
 allowed range and meaning), generated from the schema by :mod:`proxops.scenarios.reference`.
 
-Mounted by :func:`proxops.cli._mount_optional` (input errors -> one line, exit code 2)::
+Listed in the lazy command table of :mod:`proxops.cli` (input errors -> one line, exit code 2)::
 
     proxops keys                      # the systems and their built-in scenarios
     proxops keys srf                  # every key of an srf scenario
@@ -16,6 +16,8 @@ from typing import Annotated, Optional
 import typer
 
 from proxops.cli_common import emit
+from proxops.errors import ProxopsInputError
+from proxops.scenarios import reference as ref
 
 
 def keys(
@@ -25,8 +27,6 @@ def keys(
     as_json: Annotated[bool, typer.Option("--json", help="One JSON object on stdout.")] = False,
 ):
     """Every scenario key of a system: unit, default, allowed range and meaning."""
-    from proxops.errors import ProxopsInputError
-    from proxops.scenarios import reference as ref
 
     if system is not None and all_:
         raise ProxopsInputError(f"keys: give a system ({system!r}) or --all, not both")

@@ -21,6 +21,11 @@ import typer
 
 from proxops.cli_common import emit
 from proxops.errors import input_error
+from proxops.core.cw import cw_stm
+from proxops.propagation.composed import ForceModels, final_hill, force_contributions
+from proxops.scenarios.loader import load_scenario
+from proxops.systems.common import force_models, initial_hill_state, target_elements
+from proxops.propagation.truth import RelativeTruth
 
 MODELS = ("cw", "two-body", "j2", "full")
 
@@ -33,10 +38,6 @@ def propagate(
     as_json: Annotated[bool, typer.Option("--json", help="Print one JSON object.")] = False,
 ):
     """Propagate the uncontrolled chaser relative to the target and show what each force model changes."""
-    from proxops.core.cw import cw_stm
-    from proxops.propagation.composed import ForceModels, final_hill, force_contributions
-    from proxops.scenarios.loader import load_scenario
-    from proxops.systems.common import force_models, initial_hill_state, target_elements
 
     if not (math.isfinite(duration_s) and duration_s > 0):
         raise input_error("--duration-s", duration_s, "must be finite and > 0", "s")
@@ -67,7 +68,6 @@ def propagate(
         final, rows = force_contributions(elements, x0, models, duration_s, truth.integrator)
         label = models.label()
         if truth.model != "full":  # RelativeTruth is the run-time path of these models
-            from proxops.propagation.truth import RelativeTruth
 
             plant = RelativeTruth(elements, x0, j2=truth.model == "j2", integrator=truth.integrator)
             final = plant.relative_state(plant.propagate(0.0, plant.initial_state(), None, duration_s))

@@ -17,20 +17,15 @@ from typing import Annotated, Optional
 import numpy as np
 import typer
 
-from proxops.cli_common import ProxopsGroup
-from proxops.cli_common import emit as _emit
-from proxops.cli_common import friendly_errors as _friendly
-from proxops.cli_common import json_default as _default
+from proxops.cli_common import (check_out_dir, make_app, emit as _emit, friendly_errors as _friendly,
+                                json_default as _default)
 from proxops.errors import ProxopsInputError
+from proxops.exec.backends import MAX_WORKERS
+from proxops.exec.prestart import prestart
 
-reach_app = typer.Typer(
-    name="reach",
-    cls=ProxopsGroup,
-    help="Safe-start regions for the approach to a tumbling target: Table 2, hierarchy, backward LP, Monte Carlo maps.",
-    no_args_is_help=True,
-    add_completion=False,
-    pretty_exceptions_enable=False,
-    rich_markup_mode=None,
+reach_app = make_app(
+    "reach",
+    "Safe-start regions for the approach to a tumbling target: Table 2, hierarchy, backward LP, Monte Carlo maps.",
 )
 
 
@@ -71,7 +66,6 @@ def table(
     """Table 2 (nominal), stochastic/robust regions, pointwise hierarchy, backward kernel, Table 4 timings."""
     from proxops.analysis import reach as R
 
-    from proxops.cli_common import check_out_dir
 
     _check_grid(grid, y_max_m)
     if backward_start not in ("inertial", "body"):
@@ -142,7 +136,6 @@ def map_(
     from proxops.analysis import reach as R
     from proxops.plotting import reach as P
 
-    from proxops.cli_common import check_out_dir
 
     _check_grid(grid, y_max_m)
     _check_rates([omega_deg], [amax])
@@ -155,7 +148,7 @@ def map_(
         from proxops.analysis import feasibility_maps as F
 
         fmap = F.feasibility_map(F.read_outcomes(mc), g, omega_deg, amax)
-        payload["monte_carlo"] = _cert(R, F, fmap, g, res)
+        payload["monte_carlo"] = F.certify_combination(fmap, g, res)
     out.mkdir(parents=True, exist_ok=True)
     stem = f"reach_w{omega_deg:g}_a{amax:g}"
     fig = P.combo_map_figure(res, g, out / f"{stem}.png", fmap)
@@ -177,36 +170,16 @@ def map_(
     _emit(payload, as_json, text)
 
 
-def _viability(R, fmap, w, a, duration_s) -> dict:
-    """Split certified-but-failed ICs into 'no controller could' and 'the MPC failed' (N = duration LP)."""
-    sites = np.column_stack([fmap.sites, np.zeros(len(fmap.sites))])
-    cert = R.certified_mask(R.LosCorridor(), sites, np.radians(w), a)
-    viable = R.viable_points(sites, np.radians(w), a, n_back=int(round(duration_s)))
-    bad = cert & ~fmap.feasible
-    return {"certified_failed_ics_not_viable": int(np.count_nonzero(bad & ~viable)),
-            "certified_failed_ics_viable": int(np.count_nonzero(bad & viable)),
-            "mc_feasible_ics_not_viable": int(np.count_nonzero(fmap.feasible & ~viable)),
-            "viable_ics": int(viable.sum())}
-
-
-def _cert(R, F, fmap, g, res) -> dict:
-    sites = np.column_stack([fmap.sites, np.zeros(len(fmap.sites))])
-    sites_nom = R.certified_mask(R.LosCorridor(), sites, np.radians(res.omega_deg_s), res.a_max_mps2)
-    return F.certification_check(fmap, g, res.nominal, sites_nom)
-
-
 # --------------------------------------------------------------------------- mc
 PAPER_OMEGAS_DEG_S = (1.0, 2.0, 3.0, 4.0, 5.0)  # = analysis.reach's, known here before importing it
 PAPER_A_MAX_MPS2 = (0.20, 0.10, 0.05, 0.02)
 
 
 def _prestart_workers(workers: Optional[int], n_runs: int, duration_s: float) -> None:
-    """Start the local pool now, as ``proxops mc`` does (:func:`proxops.cli_prestart.prestart`): the
+    """Start the local pool now, as ``proxops mc`` does (:func:`proxops.exec.prestart.prestart`): the
     workers' start-up overlaps this process's imports, and the fork server builds a §9 closed loop
     once (los-tumble in its Monte Carlo configuration; best effort), so each forked worker starts
     with the los modules imported and its kernels loaded."""
-    from proxops.cli_prestart import prestart
-
     prestart("los-tumble", n_runs, workers,
              [f"sim.duration_s={float(duration_s)!r}", "mpc.config=monte-carlo", "mpc.constraint_mode=hard"])
 
@@ -229,8 +202,6 @@ def mc(
     as_json: Annotated[bool, typer.Option("--json", help="Print one JSON object.")] = False,
 ):
     """§9 Monte Carlo feasibility sweep (20 x 195 closed-loop runs, J2 truth), maps and certification check."""
-    from proxops.exec.backends import MAX_WORKERS
-
     if workers is not None and not 1 <= workers <= MAX_WORKERS:
         raise ProxopsInputError(f"--workers = {workers}: give a whole number from 1 to {MAX_WORKERS}")
     if not (np.isfinite(duration_s) and duration_s > 0):
@@ -240,7 +211,6 @@ def mc(
         if not 1 <= n <= MAX_IC_AXIS:
             raise ProxopsInputError(f"{name} = {n}: give a whole number of initial conditions from 1 to {MAX_IC_AXIS}")
     _check_rates(omega_deg or (), amax or ())
-    from proxops.cli_common import check_out_dir
 
     check_out_dir(out, campaign=True)
     if scheduler is None and not resume:  # before this process's own imports (numba, pandas, scipy)
@@ -259,23 +229,8 @@ def mc(
     # After the campaign, not overlapped with it: computed in a thread of this process while the pool
     # ran, this work (1.2 s of CPU) slowed the campaign about as much as it saved (measured).
     g = R.body_grid(n_points=grid)
-    fields: dict = {}  # the grid's ratio fields and per-rate tightenings, shared by the combinations
-    rows, maps, results = [], {}, {}
-    for w in omegas:
-        for a in amaxs:
-            res = R.analyse_combo(g, w, a, backward=False, cache=fields)
-            fmap = F.feasibility_map(outcomes, g, w, a)
-            maps[(w, a)], results[(w, a)] = fmap, res
-            row = {"omega_deg_s": w, "a_max_mps2": a, "nominal_pct": res.pct["nominal"], **_cert(R, F, fmap, g, res)}
-            if viability_check:
-                row.update(_viability(R, fmap, w, a, duration_s))
-            rows.append(row)
-    hull_cert = sum(r["nominal_grid_points_in_ic_hull"] for r in rows)
-    hull_bad = sum(r["nominal_grid_points_in_ic_hull_mc_infeasible"] for r in rows)
-    total_cert = sum(r["nominal_grid_points"] for r in rows)
-    total_bad = sum(r["nominal_grid_points_mc_infeasible"] for r in rows)
-    ics_cert = sum(r["nominal_ics"] for r in rows)
-    ics_bad = sum(r["nominal_ics_mc_infeasible"] for r in rows)
+    sweep = F.aggregate_sweep(outcomes, g, omegas, amaxs, viability=viability_check, duration_s=duration_s)
+    rows, maps, results, totals = sweep.rows, sweep.maps, sweep.results, sweep.totals
     files = [P.mc_sweep_figure(outcomes, out / "fig2_mc_sweep.png")]
     key = (2.0, 0.10) if (2.0, 0.10) in maps else next(iter(maps))
     files.append(P.overlay_figure(results[key], maps[key], g, out / "fig3_overlay.png"))
@@ -289,15 +244,9 @@ def mc(
         "elapsed_s": time.perf_counter() - t0,
         "runs_per_min": 60.0 * new_runs / wall if new_runs and wall > 0 else None,
         "combinations": rows,
-        "nominal_certified_grid_points_mc_infeasible": total_bad,
-        "nominal_certified_grid_points": total_cert,
-        "frac_nominal_grid_mc_infeasible": total_bad / total_cert if total_cert else 0.0,
-        "nominal_certified_grid_points_in_ic_hull": hull_cert,
-        "nominal_certified_grid_points_in_ic_hull_mc_infeasible": hull_bad,
-        "frac_nominal_grid_in_ic_hull_mc_infeasible": hull_bad / hull_cert if hull_cert else 0.0,
-        "nominal_certified_ics_mc_infeasible": ics_bad,
-        "nominal_certified_ics": ics_cert,
-        "frac_nominal_ics_mc_infeasible": ics_bad / ics_cert if ics_cert else 0.0,
+        # the sweep's totals, named as before: nominal_certified_* (the rows say nominal_*)
+        **{k.replace("nominal_", "nominal_certified_", 1) if not k.startswith("frac_") else k: v
+           for k, v in totals.items() if k.startswith(("nominal_", "frac_"))},
         "paper_wall_time_s": [7200.0, 14400.0],
         "files": [str(f) for f in files],
     }
@@ -310,15 +259,16 @@ def mc(
         lines.append(f"{r['omega_deg_s']:>7g} {r['a_max_mps2']:>7.2f} {r['mc_pct_ics']:>8.1f} {r['mc_pct_grid']:>9.1f} "
                      f"{r['nominal_pct']:>9.1f} {r['nominal_grid_points_mc_infeasible']:>12d}/{r['nominal_grid_points']:<6d}"
                      f" {r['nominal_ics_mc_infeasible']:>6d}/{r['nominal_ics']:<4d}")
-    lines.append(f"nominal-certified grid points that MC finds infeasible: {total_bad}/{total_cert} "
-                 f"({100 * payload['frac_nominal_grid_mc_infeasible']:.2f}%); ICs: {ics_bad}/{ics_cert} "
-                 f"({100 * payload['frac_nominal_ics_mc_infeasible']:.2f}%)")
-    lines.append(f"  inside the hull of the ICs (interpolated, not extrapolated): {hull_bad}/{hull_cert} "
-                 f"({100 * payload['frac_nominal_grid_in_ic_hull_mc_infeasible']:.2f}%)")
+    t = totals
+    lines.append(f"nominal-certified grid points that MC finds infeasible: {t['nominal_grid_points_mc_infeasible']}/"
+                 f"{t['nominal_grid_points']} ({100 * t['frac_nominal_grid_mc_infeasible']:.2f}%); ICs: "
+                 f"{t['nominal_ics_mc_infeasible']}/{t['nominal_ics']} ({100 * t['frac_nominal_ics_mc_infeasible']:.2f}%)")
+    lines.append(f"  inside the hull of the ICs (interpolated, not extrapolated): "
+                 f"{t['nominal_grid_points_in_ic_hull_mc_infeasible']}/{t['nominal_grid_points_in_ic_hull']} "
+                 f"({100 * t['frac_nominal_grid_in_ic_hull_mc_infeasible']:.2f}%)")
     if viability_check:
-        not_viable = sum(r["certified_failed_ics_not_viable"] for r in rows)
-        viable = sum(r["certified_failed_ics_viable"] for r in rows)
-        mc_not_viable = sum(r["mc_feasible_ics_not_viable"] for r in rows)
+        not_viable, viable = t["certified_failed_ics_not_viable"], t["certified_failed_ics_viable"]
+        mc_not_viable = t["mc_feasible_ics_not_viable"]
         payload.update(certified_failed_ics_not_viable=not_viable, certified_failed_ics_viable=viable,
                        mc_feasible_ics_not_viable=mc_not_viable)
         lines.append(f"  of the certified ICs that failed: {not_viable} cannot be kept in the corridor by any "

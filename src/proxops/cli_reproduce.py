@@ -8,7 +8,8 @@ from typing import Annotated, Optional
 
 import typer
 
-from proxops.cli_common import emit
+from proxops.cli_common import emit, check_out_dir
+from proxops.report.reproduction import markdown, reproduce as run, write_markdown
 
 
 def reproduce(
@@ -22,9 +23,6 @@ def reproduce(
     """Run the commands behind every paper claim and print claim | paper | ours | verdict, our own goals
     (wall times, Monte Carlo success rates) in a separate table, and the *-ekf navigation table (with all).
     Campaigns are cached under OUT/cache and reused by the next run."""
-    from proxops.report.reproduction import markdown, reproduce as run, write_markdown
-
-    from proxops.cli_common import check_out_dir
 
     if out is None and not quick:
         out = Path("out")

@@ -17,6 +17,9 @@ from typing import Annotated, Optional
 import typer
 
 from proxops.errors import input_error
+from proxops.core.constants import R_EARTH
+from proxops.core.cw import mean_motion
+from proxops.guidance.hop_times import plan_hops
 
 DEFAULT_SMA_KM = 8100.0  # Silva et al. 2026 Table 2
 MAX_HOPS = 50  # as the scenario key approach.hops
@@ -34,9 +37,6 @@ def hop_times(
     as_json: Annotated[bool, typer.Option("--json", help="Machine-readable output.")] = False,
 ):
     """Hop distances and times of the SRF guidance expert (Algorithm 1, eqs. 8, 14, 17-25)."""
-    from proxops.core.constants import R_EARTH
-    from proxops.core.cw import mean_motion
-    from proxops.guidance.hop_times import plan_hops
 
     if altitude_km is not None and sma_km is not None:
         raise input_error("--altitude-km/--sma-km", f"{altitude_km}/{sma_km}", "give at most one of them", "km")

@@ -16,6 +16,7 @@ from pathlib import Path
 from proxops.scenarios.loader import LoadedScenario, load_scenario
 from proxops.analysis.runs import check_scenario, execute  # noqa: F401 (re-exported)
 from proxops.sim.result import SimResult
+from proxops.analysis.formatting import format_quantity
 
 log = logging.getLogger("proxops.runner")
 
@@ -28,7 +29,7 @@ def run_scenario(name_or_path, overrides=(), seed: int | None = None, out: Path 
     files (:mod:`proxops.analysis.export`; summary key ``export``)."""
     loaded = name_or_path if isinstance(name_or_path, LoadedScenario) else load_scenario(name_or_path, list(overrides))
     if oem is not None:
-        from proxops.analysis.export import check_exportable
+        from proxops.analysis.export import check_exportable  # optional outputs (pandas, matplotlib): imported when asked
 
         check_exportable(loaded.scenario)  # before the run, not after it
     log.debug("%s: %s scenario loaded from %s", loaded.scenario.name, loaded.scenario.system, loaded.source)
@@ -94,8 +95,6 @@ def _stage(line: str) -> None:
 def summary_markdown(summary: dict) -> list[str]:
     """``| metric | value |`` rows of a run summary, each value rounded to the resolution of its unit
     and shown with it (summary.json and --json keep full precision)."""
-    from proxops.analysis.formatting import format_quantity
-
     lines = ["| metric | value |", "| --- | --- |"]
     for key, val in summary.items():
         if not isinstance(val, (dict, list)):

@@ -95,6 +95,8 @@ from proxops.analysis.campaign_worker import (  # noqa: E402,F401
     classify,
     flatten_summary,
 )
+from proxops.exec.backends import _PoolBackend
+from proxops import __version__
 
 
 def run_seeds(campaign_seed: int, run_id: int) -> tuple[int, np.random.Generator]:
@@ -400,7 +402,6 @@ def _check_campaign(backend, prep: _Prepared) -> None:
     per-process caches -- which the first run would do anyway), so this process never builds the
     system; its error is raised here as it would be by the check in this process."""
     from proxops.analysis.runs import check_scenario
-    from proxops.exec.backends import _PoolBackend
 
     if isinstance(backend, _PoolBackend):
         try:
@@ -468,8 +469,6 @@ def _campaign_system(manifest: dict):
 
 
 def _version() -> str:
-    from proxops import __version__
-
     return __version__
 
 

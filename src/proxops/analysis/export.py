@@ -26,6 +26,14 @@ import numpy as np
 from proxops.core.layout import HILL_LAYOUT
 from proxops.errors import ProxopsInputError
 from proxops.orbitdata.ccsds import TRUTH_FRAME, OemSegment, utc_epochs, write_oem
+from proxops.propagation.truth import RelativeTruth
+from proxops.systems.common import target_elements, translational_plant
+from proxops.analysis.storage import read_manifest, read_rows, series_dir
+from proxops.scenarios.loader import validate_scenario
+from proxops.sim.result import SimResult
+from proxops.analysis.campaign import rerun
+from proxops.analysis.campaign_worker import DISP_PREFIX
+from proxops.scenarios.dispersions import apply_values
 
 
 @dataclass
@@ -56,9 +64,6 @@ def _require_orbit_run(sc, result) -> None:
 
 
 def _target_plant(sc, x0_hill: np.ndarray):
-    from proxops.propagation.truth import RelativeTruth
-    from proxops.systems.common import target_elements, translational_plant
-
     if sc.truth.model == "cw":
         return RelativeTruth(target_elements(sc.orbit), x0_hill, j2=False, integrator="fast")
     return translational_plant(sc.orbit, sc.truth, x0_hill)
@@ -210,10 +215,6 @@ def load_saved_run(folder: str | Path, run_id: int | None = None):
     series, or the run repeated bit for bit from the manifest when the series were not kept)."""
     import json
 
-    from proxops.analysis.storage import read_manifest, read_rows, series_dir
-    from proxops.scenarios.loader import validate_scenario
-    from proxops.sim.result import SimResult
-
     d = Path(folder)
     if not d.is_dir():
         raise ProxopsInputError(f"{d}: no such folder (give a folder written by proxops run --out or proxops mc --out)")
@@ -222,9 +223,6 @@ def load_saved_run(folder: str | Path, run_id: int | None = None):
         if run_id is None:
             raise ProxopsInputError(f"{d} is a campaign of {manifest['n_runs']} runs: choose one with --run N "
                                     f"(0 to {int(manifest['n_runs']) - 1})")
-        from proxops.analysis.campaign import rerun
-        from proxops.analysis.campaign_worker import DISP_PREFIX
-        from proxops.scenarios.dispersions import apply_values
 
         rows = read_rows(d, strict=True)
         match = rows[rows["run_id"] == run_id]

@@ -28,9 +28,13 @@ import numpy as np
 import pandas as pd
 from scipy.spatial import Delaunay, cKDTree
 
-from proxops.analysis.reach import PAPER_A_MAX_MPS2, PAPER_OMEGAS_DEG_S, BodyGrid
+from proxops.analysis.reach import (PAPER_A_MAX_MPS2, PAPER_OMEGAS_DEG_S, BodyGrid, analyse_combo, certified_mask,
+                                   viable_points)
+from proxops.constraints.los_corridor import LosCorridor
 from proxops.core.memo import memo_get
 from proxops.errors import input_error
+from proxops.systems.los import default_scenario, is_feasible_run
+from proxops.analysis.campaign import run_campaign, load_campaign
 
 MC_Y_RANGE_M = (20.0, 300.0)
 MC_N_Y = 15
@@ -77,7 +81,6 @@ def mc_scenario(
 ) -> dict:
     """Scenario data of the §9 campaign: the ``los`` system in its Monte Carlo configuration
     with the grid (w_t x a_max x IC) declared as dispersion grid axes (last axis fastest)."""
-    from proxops.systems.los import default_scenario
 
     positions = mc_initial_positions() if positions is None else np.asarray(positions, float)
     sc = default_scenario(
@@ -110,7 +113,6 @@ def run_mc(
     truth: str = "j2",
 ) -> "McRun":
     """Run (or with ``resume`` complete) the §9 campaign. See :func:`outcome_table` for the table."""
-    from proxops.analysis.campaign import run_campaign
 
     data = mc_scenario(omegas_deg_s, a_max_mps2, positions, duration_s, truth)
     res = run_campaign(data, workers=workers, scheduler=scheduler, out=out, resume=resume, progress=progress)
@@ -128,7 +130,6 @@ class McRun(NamedTuple):
 def classify_rows(table: pd.DataFrame) -> np.ndarray:
     """§9.3 rule on campaign rows: :func:`proxops.systems.los.is_feasible_run` (the rule of
     ``LosSystem.success``) on the ``metric.*`` columns; a run that raised is infeasible."""
-    from proxops.systems.los import is_feasible_run
 
     def col(name, default):
         return table[name] if name in table else pd.Series(default, index=table.index)
@@ -429,23 +430,88 @@ def certification_check(fmap: FeasibilityMap, grid: BodyGrid, nominal: np.ndarra
     n_sites_cert = int(np.count_nonzero(sites_nominal))
     bad_sites = int(np.count_nonzero(sites_nominal & ~fmap.feasible))
     return {
-        "nominal_grid_points": n_cert,
-        "nominal_grid_points_mc_infeasible": bad_grid,
-        "frac_nominal_grid_mc_infeasible": bad_grid / n_cert if n_cert else 0.0,
-        "nominal_grid_points_in_ic_hull": n_cert_hull,
-        "nominal_grid_points_in_ic_hull_mc_infeasible": bad_hull,
-        "frac_nominal_grid_in_ic_hull_mc_infeasible": bad_hull / n_cert_hull if n_cert_hull else 0.0,
-        "nominal_ics": n_sites_cert,
-        "nominal_ics_mc_infeasible": bad_sites,
-        "frac_nominal_ics_mc_infeasible": bad_sites / n_sites_cert if n_sites_cert else 0.0,
+        **_contradictions("nominal_grid_points", n_cert, bad_grid, "frac_nominal_grid_mc_infeasible"),
+        **_contradictions("nominal_grid_points_in_ic_hull", n_cert_hull, bad_hull,
+                          "frac_nominal_grid_in_ic_hull_mc_infeasible"),
+        **_contradictions("nominal_ics", n_sites_cert, bad_sites, "frac_nominal_ics_mc_infeasible"),
         "mc_pct_grid": grid.percent(fmap.mask),
         "mc_pct_ics": fmap.pct_ics_feasible,
     }
 
 
+def _contradictions(key: str, certified: int, infeasible: int, frac_key: str) -> dict:
+    """``{key: certified, key_mc_infeasible: infeasible, frac_key: infeasible / certified (0 if none)}``."""
+    return {key: certified, f"{key}_mc_infeasible": infeasible,
+            frac_key: infeasible / certified if certified else 0.0}
+
+
+def certify_combination(fmap: FeasibilityMap, grid: BodyGrid, res) -> dict:
+    """:func:`certification_check` of one combination's map against its nominal certificate ``res``
+    (:class:`proxops.analysis.reach.ComboResult`), the certificate evaluated at the ICs too."""
+    sites = np.column_stack([fmap.sites, np.zeros(len(fmap.sites))])
+    sites_nom = certified_mask(LosCorridor(), sites, np.radians(res.omega_deg_s), res.a_max_mps2)
+    return certification_check(fmap, grid, res.nominal, sites_nom)
+
+
+def viability_split(fmap: FeasibilityMap, omega_deg_s: float, a_max_mps2: float, duration_s: float) -> dict:
+    """Split certified-but-failed ICs into 'no controller could' and 'the MPC failed' (the N = duration
+    LP of :func:`proxops.analysis.reach.viable_points`, one step per second)."""
+    sites = np.column_stack([fmap.sites, np.zeros(len(fmap.sites))])
+    cert = certified_mask(LosCorridor(), sites, np.radians(omega_deg_s), a_max_mps2)
+    viable = viable_points(sites, np.radians(omega_deg_s), a_max_mps2, n_back=int(round(duration_s)))
+    bad = cert & ~fmap.feasible
+    return {"certified_failed_ics_not_viable": int(np.count_nonzero(bad & ~viable)),
+            "certified_failed_ics_viable": int(np.count_nonzero(bad & viable)),
+            "mc_feasible_ics_not_viable": int(np.count_nonzero(fmap.feasible & ~viable)),
+            "viable_ics": int(viable.sum())}
+
+
+@dataclass
+class SweepSummary:
+    """The §9 sweep aggregated: one row per (w_t, a_max) (:func:`certify_combination`, plus
+    :func:`viability_split` when asked), the maps and nominal results by combination, and the
+    totals over the combinations (counts and fractions, keys as in the rows)."""
+
+    rows: list[dict]
+    maps: dict
+    results: dict
+    totals: dict
+
+
+def aggregate_sweep(outcomes: pd.DataFrame, grid: BodyGrid, omegas, amaxs, viability: bool = False,
+                    duration_s: float = 400.0) -> SweepSummary:
+    """Map every combination's Monte Carlo outcomes on ``grid``, compare them with its nominal
+    certificate and sum the contradictions over the sweep (``viability``: also split the certified
+    ICs that failed by the ``duration_s`` viability LP)."""
+    fields: dict = {}  # the grid's ratio fields and per-rate tightenings, shared by the combinations
+    rows, maps, results = [], {}, {}
+    for w in omegas:
+        for a in amaxs:
+            res = analyse_combo(grid, w, a, backward=False, cache=fields)
+            fmap = feasibility_map(outcomes, grid, w, a)
+            maps[(w, a)], results[(w, a)] = fmap, res
+            row = {"omega_deg_s": w, "a_max_mps2": a, "nominal_pct": res.pct["nominal"],
+                   **certify_combination(fmap, grid, res)}
+            if viability:
+                row.update(viability_split(fmap, w, a, duration_s))
+            rows.append(row)
+
+    def total(key: str) -> int:
+        return sum(r[key] for r in rows)
+
+    totals = {}
+    for key, frac_key in (("nominal_grid_points", "frac_nominal_grid_mc_infeasible"),
+                          ("nominal_grid_points_in_ic_hull", "frac_nominal_grid_in_ic_hull_mc_infeasible"),
+                          ("nominal_ics", "frac_nominal_ics_mc_infeasible")):
+        totals.update(_contradictions(key, total(key), total(f"{key}_mc_infeasible"), frac_key))
+    if viability:
+        for key in ("certified_failed_ics_not_viable", "certified_failed_ics_viable", "mc_feasible_ics_not_viable"):
+            totals[key] = total(key)
+    return SweepSummary(rows, maps, results, totals)
+
+
 def read_outcomes(out: str | Path) -> pd.DataFrame:
     """Outcome table of a finished (or partial) campaign folder."""
-    from proxops.analysis.campaign import load_campaign
 
     return outcome_table(load_campaign(out).table)
 

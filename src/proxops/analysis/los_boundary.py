@@ -27,6 +27,14 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+from proxops.control.los_regimes import sync_range
+from proxops.systems.los import build_setup, default_scenario, summarize_result
+from proxops.sim.engine import simulate
+from proxops.constraints.los_corridor import LosCorridor
+from proxops.core.constants import MU_EARTH, R_EARTH
+from proxops.core.cw import mean_motion
+from proxops.dynamics.tumbling_target import BodyFrameModel, body_from_hill_matrix
+from proxops.solvers.highs_lp import HighsLP
 
 
 @dataclass
@@ -52,9 +60,6 @@ def holds(omega_deg_s: float, a_max_mps2: float, fraction: float, start: str = "
           horizon: int | None = None, duration_s: float = 600.0) -> tuple[bool, dict]:
     """One closed loop from ``fraction * r_sync`` on the docking axis (hard constraints, J2 truth,
     the single-run MPC configuration, ``horizon`` overriding N_p): (zero violations and feasible, summary)."""
-    from proxops.control.los_regimes import sync_range
-    from proxops.systems.los import build_setup, default_scenario, summarize_result
-    from proxops.sim.engine import simulate
 
     r_sync = sync_range(a_max_mps2, math.radians(omega_deg_s))
     mpc = {"config": "single", "constraint_mode": "hard"}
@@ -76,7 +81,6 @@ def boundary_fraction(omega_deg_s: float, a_max_mps2: float, start: str = "body"
     """Bisection for the largest zero-violation start fraction of r_sync in [lo, hi] (to ``tol``).
     Assumes one boundary (holds below, fails above); checks both ends first: ``fraction = 0`` when
     even ``lo`` fails, ``fraction = hi`` when ``hi`` holds."""
-    from proxops.control.los_regimes import sync_range
 
     r_sync = sync_range(a_max_mps2, math.radians(omega_deg_s))
     runs = 0
@@ -132,13 +136,6 @@ def open_loop_feasible(omega_deg_s: float, a_max_mps2: float, fraction: float, s
     to J2 and the step size; ``terminal_hold=False`` only asks to stay inside for ``horizon_s``."""
     import scipy.sparse as sp
 
-    from proxops.constraints.los_corridor import LosCorridor
-    from proxops.core.constants import MU_EARTH, R_EARTH
-    from proxops.core.cw import mean_motion
-    from proxops.dynamics.tumbling_target import BodyFrameModel
-    from proxops.control.los_regimes import sync_range
-    from proxops.solvers.highs_lp import HighsLP
-
     w = math.radians(omega_deg_s)
     r0 = fraction * sync_range(a_max_mps2, w)
     model = BodyFrameModel(mean_motion(R_EARTH + altitude_km * 1e3, MU_EARTH), w, dt)
@@ -177,7 +174,6 @@ def open_loop_feasible(omega_deg_s: float, a_max_mps2: float, fraction: float, s
         lo.append(np.full(F, -np.inf)); hi.append(cor.h)
         row += F
     if terminal_hold:  # body-frame velocity 0 and body range <= a_max / w^2 at the end
-        from proxops.dynamics.tumbling_target import body_from_hill_matrix
 
         T = body_from_hill_matrix(float(model.theta(K * dt)), model.w_rel)
         put(in_r, in_c, in_v, row, 6 * K, T[3:6])

@@ -9,15 +9,11 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from proxops.systems.los import (
-    SWEEP_METRICS,
-    SWEEP_A_MAX_MPS2,
-    SWEEP_RATES_DEG_S,
-    build_setup,
-    summarize_result,
-    sweep_frame,
-)
-from proxops.systems.los import sweep_table as _format_table
+from proxops.systems.los import (SWEEP_METRICS, SWEEP_A_MAX_MPS2, SWEEP_RATES_DEG_S, build_setup, summarize_result,
+                                 sweep_frame, sweep_table as _format_table)
+from proxops.scenarios.loader import load_scenario
+from proxops.sim.engine import simulate
+from proxops.analysis.campaign import run_campaign, load_campaign
 
 
 def run_sweep(scenario: str = "los-sweep", workers: int | None = 1, out=None, use_campaign: bool = True,
@@ -31,12 +27,8 @@ def run_sweep(scenario: str = "los-sweep", workers: int | None = 1, out=None, us
     import pandas as pd
 
     if use_campaign:
-        from proxops.analysis.campaign import run_campaign
-
         res = run_campaign(scenario, workers=workers, out=out, overrides=list(overrides), progress=progress)
         return sweep_frame(res.table)
-    from proxops.scenarios.loader import load_scenario
-    from proxops.sim.engine import simulate
 
     base = load_scenario(scenario, list(overrides)).scenario
     rows = []
@@ -61,7 +53,6 @@ def sweep_table(source) -> str:
     import pandas as pd
 
     if not isinstance(source, pd.DataFrame):  # a campaign folder
-        from proxops.analysis.campaign import load_campaign
 
         source = sweep_frame(load_campaign(Path(source)).table)
     return _format_table(source)

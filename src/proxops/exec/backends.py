@@ -78,7 +78,7 @@ def _init_worker() -> None:
     if forkserver_exit.SERVER_PID is not None:  # forked by the fork server: end when it ends
         forkserver_exit.die_with_parent(forkserver_exit.SERVER_PID)
     atexit.register(_worker_exit)
-    from proxops._startup import defer_unused_numpy_submodules
+    from proxops.exec.startup import defer_unused_numpy_submodules
 
     defer_unused_numpy_submodules()  # runs after the handlers registered later (numba's): last
 

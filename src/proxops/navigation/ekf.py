@@ -69,7 +69,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from proxops.core.cw import cw_input_matrix_zoh, cw_stm
+from proxops.core.cw import cw_input_matrix_zoh, cw_stm, cw_matrices
 from proxops.core.layout import StateLayout
 from proxops.errors import input_error
 from proxops.navigation.consistency import WhitenessMonitor
@@ -83,8 +83,6 @@ def cw_process_noise(n: float, dt: float, q: float) -> np.ndarray:
     """Exact discrete process noise of white acceleration (PSD ``q`` m^2/s^3 per axis) over ``dt``
     under CW dynamics: Van Loan, expm([[-A, q B B^T], [0, A^T]] dt) -> Q_d = F22^T F12."""
     from scipy.linalg import expm
-
-    from proxops.core.cw import cw_matrices
 
     a, b = cw_matrices(n)
     m = np.zeros((12, 12))

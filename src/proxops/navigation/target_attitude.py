@@ -37,10 +37,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from proxops.core.quaternion import quat_to_dcm
+from proxops.core.quaternion import quat_to_dcm, multiply_kernel
 from proxops.navigation.mekf import AttitudeMEKF, PoseAttitudeSensor, attitude_error
 from proxops.navigation import small_rotation
-from proxops.core.quaternion import multiply_kernel
 
 
 def _cross(a, b):

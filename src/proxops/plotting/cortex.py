@@ -9,6 +9,7 @@ from pathlib import Path
 import numpy as np
 
 from proxops.plotting.common import plt, save
+from proxops.plotting.cortex_loop import run_figure, table_figures
 
 
 def _sphere(ax, radius: float, **kw) -> None:
@@ -133,8 +134,6 @@ def campaign_figures(camp, sc, paper: dict, out: Path) -> list[Path]:
 def run_figures(sc, results, out_dir: Path) -> list[Path]:
     """``proxops run --out`` figure: the planned reference in 3-D (closed loop: trajectory and tracking error)."""
     if sc.guidance.closed_loop:
-        from proxops.plotting.cortex_loop import run_figure
-
         return [run_figure(sc, next(iter(results.values())), Path(out_dir) / "tracking.png")]
     result = next(iter(results.values())) if isinstance(results, dict) else results
     return [plan_figure_from_result(sc, result, Path(out_dir) / "reference_3d.png")]
@@ -152,7 +151,5 @@ def mc_figures(sc, results, out_dir: Path) -> list[Path]:
 def mc_table_figures(sc, table, out_dir: Path) -> list[Path]:
     """Closed loop: Figs. 13/14 and 15 from the campaign table (no saved series needed)."""
     if sc.guidance.closed_loop:
-        from proxops.plotting.cortex_loop import table_figures
-
         return table_figures(sc, table, out_dir)
     return []

@@ -24,6 +24,7 @@ from pathlib import Path
 import numpy as np
 
 from proxops.plotting.common import plt, save
+from proxops.systems.hybrid import envelope_cells
 
 POST = "post-capture"
 
@@ -249,7 +250,6 @@ def mc_table_figures(sc, table, out_dir: Path) -> list[Path]:
     """``hybrid_envelope.png`` of the capture-envelope grid (hybrid-envelope): one panel per
     capture thrust bound, port offset x tumble, success (o) / failure (x, reason initial), and
     the curve m_d omega^2 r = F above which no controller can stay on the turning docking axis."""
-    from proxops.systems.hybrid import envelope_cells
 
     cells = envelope_cells(sc, table)
     if not cells:

@@ -7,13 +7,13 @@ from pathlib import Path
 import numpy as np
 
 from proxops.plotting.common import plt, save
+from proxops.constraints.los_corridor import LosCorridor
+from proxops.dynamics.tumbling_target import BodyFrameModel
+from proxops.core.cw import mean_motion
 
 
 def los_figures(sc, result, out_dir: Path) -> list[Path]:
     """Write los_body.png, los_lvlh.png and los_time.png into ``out_dir``; return their paths."""
-    from proxops.constraints.los_corridor import LosCorridor
-    from proxops.dynamics.tumbling_target import BodyFrameModel
-    from proxops.core.cw import mean_motion
 
     out_dir = Path(out_dir)
     t = result.t

@@ -17,17 +17,15 @@ from pathlib import Path
 import numpy as np
 
 from proxops.plotting.common import plt, save
+from proxops.frames.lvlh import hill_to_lvlh, hill_vector_to_lvlh
+from proxops.core.cw import cw_stm
 
 
 def _lvlh(states_hill: np.ndarray) -> np.ndarray:
-    from proxops.frames.lvlh import hill_to_lvlh
-
     return hill_to_lvlh(np.asarray(states_hill, dtype=float))
 
 
 def _free_drift(x_post_hill: np.ndarray, n: float, span_s: float, samples: int = 241) -> np.ndarray:
-    from proxops.core.cw import cw_stm
-
     taus = np.linspace(0.0, span_s, samples)
     return np.array([cw_stm(n, t) @ x_post_hill for t in taus])
 
@@ -97,7 +95,6 @@ def plot_dv(result, path: Path, title: str = "", ax=None) -> Path | None:
     own = ax is None
     if own:
         fig, ax = plt.subplots(figsize=(8, 4))
-    from proxops.frames.lvlh import hill_vector_to_lvlh
 
     dv = hill_vector_to_lvlh(result.u_applied)
     t = result.t / float(result.meta["period_s"])

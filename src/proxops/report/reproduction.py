@@ -28,6 +28,7 @@ from proxops.report.claims.navigation import TERMINAL_KEYS, navigation_pairs, na
 from proxops.report.claims.reach import reach_claims  # noqa: F401
 from proxops.report.claims.srf import designed_dv, srf_claims  # noqa: F401
 from proxops.report.claims.underactuated import underactuated_claims  # noqa: F401
+from proxops.errors import input_error
 
 SYSTEMS = SYSTEM_NAMES
 WALL_GOAL_S = {False: 20 * 60.0, True: 120.0}  # full < 20 min, --quick < 2 min on 2 cores
@@ -38,7 +39,6 @@ def reproduce(target: str = "all", quick: bool = False, out: str | Path | None =
     """Run the claims of ``target`` (a system name or "all"); returns {rows, goals, navigation,
     verdict_rules, timings_s, wall_time_s, campaigns, quick, machine, figures}. ``navigation``
     (default: with "all") adds the *-ekf table."""
-    from proxops.errors import input_error
 
     names = list(SYSTEM_NAMES) if target == "all" else [target]
     if any(n not in SYSTEM_NAMES for n in names):

@@ -8,11 +8,11 @@ from pathlib import Path
 
 from proxops.analysis.formatting import format_quantity
 from proxops.report.html import write_html
+from proxops.runner import summary_markdown
 
 
 def write_run_report(out: Path, summary: dict) -> Path:
     """Write ``out/report.html`` from the run's summary and the figures saved in ``out``."""
-    from proxops.runner import summary_markdown
 
     out = Path(out)
     ok = summary.get("success")

@@ -20,6 +20,8 @@ import importlib
 import importlib.util
 import pkgutil
 
+from proxops.errors import input_error
+
 SYSTEMS_PACKAGE = "proxops.systems"
 ENTRY_POINT_GROUP = "proxops.systems"
 _HELPERS = {"common", "base", "cortex_loop", "cortex_setup"}  # modules of proxops.systems that are not systems (helpers, SystemBase, the cortex closed loop and set-up)
@@ -62,8 +64,6 @@ def register_system(name: str):
 
 
 def get_system(name: str):
-    from proxops.errors import input_error
-
     if name not in _SYSTEMS:
         module = SYSTEM_MODULES.get(name) or plugin_modules().get(name)
         if module is None:

@@ -15,6 +15,10 @@ from pydantic import BaseModel, ConfigDict, Field, create_model, field_validator
 
 from proxops.actuators import THRUSTER_PARAMETERS
 from proxops.core.constants import R_EARTH
+from proxops.errors import ProxopsInputError
+from proxops.frames.elements import eci_to_elements
+from proxops.environment.epochs import parse_epoch
+from proxops.scenarios.dispersions import parse_dispersions
 
 
 class Section(BaseModel):
@@ -132,9 +136,6 @@ class OrbitSection(Section):
     @field_validator("epoch_utc")
     @classmethod
     def _valid_epoch(cls, v):
-        from proxops.environment.epochs import parse_epoch
-        from proxops.errors import ProxopsInputError
-
         try:
             parse_epoch(v)
         except ProxopsInputError as exc:
@@ -163,7 +164,6 @@ class OrbitSection(Section):
 
 def _source_state(key: str, value):
     """(epoch ISO UTC, ECI state (6,) m, m/s) of an orbit source; ValueError naming the problem."""
-    from proxops.errors import ProxopsInputError
     from proxops.orbitdata.tle import read_tle_file, tle_orbit
 
     try:
@@ -182,7 +182,6 @@ def _source_state(key: str, value):
 
 def _source_elements(key: str, value) -> dict:
     """[orbit] keys (sma_km, ecc, angles in deg, epoch_utc) set by an orbit source."""
-    from proxops.frames.elements import eci_to_elements
 
     epoch, state = _source_state(key, value)
     el = eci_to_elements(state)
@@ -402,7 +401,5 @@ class ScenarioBase(Section):
     def _dispersions_address_existing_keys(self):
         """Each [dispersions] entry must name a key of this scenario (proxops.scenarios.dispersions)."""
         if self.dispersions:
-            from proxops.scenarios.dispersions import parse_dispersions
-
             parse_dispersions(self)
         return self

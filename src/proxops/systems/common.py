@@ -9,21 +9,24 @@ from proxops.actuators import IdealActuator, thruster_from_values
 from proxops.core.layout import HILL_LAYOUT
 from proxops.navigation import GaussianNavigation, PerfectNavigation
 from proxops.scenarios.schema import ActuatorSection, InitialSection, NavigationSection, OrbitSection, TruthSection
+from proxops.frames.lvlh import lvlh_to_hill
+from proxops.frames.elements import OrbitalElements
+from proxops.environment.spaceweather import space_weather_at, eop_at
+from proxops.core.cw import mean_motion
+from proxops.errors import input_error
+from proxops.environment.epochs import parse_epoch
 
 
 def initial_hill_state(initial: InitialSection) -> np.ndarray:
     """Initial relative state in Hill/RTN from the scenario's [initial] section."""
     x0 = np.array(list(initial.position_m) + list(initial.velocity_mps), dtype=float)
     if initial.frame == "lvlh-srf":
-        from proxops.frames.lvlh import lvlh_to_hill
-
         x0 = lvlh_to_hill(x0)
     return x0
 
 
 def target_elements(orbit: OrbitSection):
     """Osculating target elements from the scenario's [orbit] section."""
-    from proxops.frames.elements import OrbitalElements
 
     return OrbitalElements.from_deg(orbit.sma_m, orbit.ecc, orbit.inc_deg, orbit.raan_deg, orbit.argp_deg, orbit.nu_deg)
 
@@ -116,8 +119,6 @@ def ekf_navigation(nav: NavigationSection, orbit: OrbitSection | None, control_d
     :class:`proxops.propagation.relative_predictor.HillPredictor` on the target orbit."""
     import math
 
-    from proxops.core.cw import mean_motion
-    from proxops.errors import input_error
     from proxops.navigation.ekf import RelativeEKF, SensorModel
 
     if orbit is None or control_dt_s is None:
@@ -176,7 +177,6 @@ class target_illumination:  # noqa: N801 (a picklable callable)
         if lit is None:
             from proxops.environment.eclipse import illumination, kepler_positions
             from proxops.environment.ephemeris import sun_position_eci
-            from proxops.environment.epochs import parse_epoch
 
             ts = np.array([t])
             r = kepler_positions(target_elements(self.orbit), ts)

@@ -48,6 +48,8 @@ from pydantic import Field, model_validator
 from proxops.scenarios.registry import register_system
 from proxops.scenarios.schema import ActuatorSection, ScenarioBase, Section
 from proxops.systems.base import SystemBase
+from proxops.core.constants import MU_EARTH, R_EARTH
+from proxops.errors import ProxopsInputError, input_error
 
 Vector3 = Annotated[list[float], Field(min_length=3, max_length=3)]
 Quaternion = Annotated[list[float], Field(min_length=4, max_length=4)]
@@ -253,9 +255,7 @@ def _renamed(exc: Exception) -> ValueError:
 def model_objects(sc: HybridScenario):
     """(HybridParams, HybridInitialState, truth x0 (26), CaptureEnvelope) of a scenario; the
     physics checks raise ValueError naming the scenario key."""
-    from proxops.core.constants import MU_EARTH, R_EARTH
     from proxops.dynamics.two_rigid_bodies import HybridInitialState, HybridParams, truth_state_from_initial
-    from proxops.errors import ProxopsInputError
     from proxops.propagation.hybrid_plant import CaptureEnvelope
 
     c, d, lt, ct = sc.chief, sc.deputy, sc.latch, sc.control
@@ -316,8 +316,6 @@ def build_setup(sc: HybridScenario):
 
     params, _, x0, envelope = model_objects(sc)
     if sc.estimation.model == "mekf" and sc.navigation.model != "noise":
-        from proxops.errors import input_error
-
         raise input_error("navigation.model", sc.navigation.model, "hybrid runs on [estimation] (model = mekf); "
                           "set estimation.model = \"exact\" to use [navigation]")
     plant = HybridCapturePlant(params, x0, envelope, x_ref0=list(sc.reference.position_m) + list(sc.reference.velocity_mps),

@@ -40,6 +40,7 @@ from proxops.systems.base import SystemBase
 from proxops.scenarios.schema import OrbitSection, ScenarioBase, Section, TruthSection, Vector3
 from proxops.sim.engine import Setup
 from proxops.status import Status
+from proxops.errors import input_error
 
 VIOLATION_TOLERANCE_M = 1e-3  # §9 step 3
 COMPLETED_OUTCOMES = ("completed", "hold_reached")  # ran to T_sim (or stopped at hold on request)
@@ -214,7 +215,6 @@ def attitude_navigation(sc: LosScenario, target, dt: float):
     the truth from ``target`` (the plant's closed-form attitude)."""
     import math
 
-    from proxops.errors import input_error
     from proxops.navigation.mekf import PoseAttitudeSensor
     from proxops.navigation.target_attitude import TargetAttitudeNavigation
 

@@ -51,6 +51,7 @@ from proxops.scenarios.registry import register_system
 from proxops.systems.base import SystemBase
 from proxops.scenarios.schema import InitialSection, OrbitSection, ScenarioBase, Section, TruthSection, Vector3
 from proxops.solvers.stats import solve_time_stats
+from proxops.core.constants import J2_EARTH, MU_EARTH, R_EARTH
 
 # The engine and the numba kernels (passive safety) are imported where a run needs them: a campaign's
 # parent process validates the scenario with this module and never runs it (numba: 0.2 s of its start-up).
@@ -242,7 +243,6 @@ def onboard_drift_model(sc: SrfScenario, dt: float, span_s: float):
     (the onboard ephemeris of the known target orbit, same force model as the truth: two-body or J2).
     The ephemeris (read-only) is cached per (orbit, truth model, dt, span) in this process."""
     from proxops.control.srf_mpc import EnergyDrift
-    from proxops.core.constants import J2_EARTH, MU_EARTH, R_EARTH
 
     j2 = sc.truth.model == "j2"
     key = (sc.orbit.model_dump_json(), j2, sc.truth.integrator, float(dt), float(span_s))

@@ -33,6 +33,7 @@ from proxops.systems.base import SystemBase
 from proxops.scenarios.schema import ActuatorSection, ScenarioBase, Section
 from proxops.sim.engine import Setup
 from proxops.solvers.stats import solve_time_stats
+from proxops.errors import input_error
 
 DEG = math.pi / 180.0
 
@@ -293,7 +294,6 @@ def planar_navigation(sc: UnderactuatedScenario, params, control_dt_s: float):
     pose [x, y, theta] with ``range_sigma_m`` per position axis and ``attitude_sigma_deg``; process noise
     ``process_noise_m2_s3`` (translation) and ``attitude_process_noise_rad2_s3`` (rotation); initial sigmas
     initial_position_sigma_m, initial_velocity_sigma_mps, initial_attitude_sigma_deg, initial_rate_sigma_deg_s."""
-    from proxops.errors import input_error
     from proxops.navigation.planar_ekf import PlanarPoseEKF
 
     nav = sc.navigation

@@ -3,11 +3,10 @@ types and verdict rules (:mod:`proxops.report.claims.common`). :data:`SYSTEMS` l
 order ``proxops reproduce all`` runs them."""
 
 from __future__ import annotations
+from proxops.report.claims import cortex, hybrid, los, reach, srf, underactuated
 
 
 def systems() -> dict:
-    from proxops.report.claims import cortex, hybrid, los, reach, srf, underactuated
-
     return {"srf": srf.srf_claims, "los": los.los_claims, "reach": reach.reach_claims,
             "underactuated": underactuated.underactuated_claims, "cortex": cortex.cortex_claims,
             "hybrid": hybrid.hybrid_claims}

@@ -17,6 +17,10 @@ import json
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
+from proxops.runner import run_scenario
+from proxops import __version__
+from proxops.analysis.campaign import MANIFEST, run_campaign
+from proxops.report.campaign import write_report
 
 REPRODUCED = "reproduced"
 EXPLAINED = "differs, explained"
@@ -108,7 +112,6 @@ def run(name: str, overrides=(), out: Path | None = None, cache: bool = True) ->
     for this process and, when reproduce() has an OUT folder, in ``OUT/cache/run-<key>.json`` (a later
     reproduction reuses it; figures are written on the first run only). ``cache=False`` for rows that
     measure wall time."""
-    from proxops.runner import run_scenario
 
     key = cache_key(name, 1, None, overrides).replace("-runs1-seeddefault", "")
     memo, folder = RUN_CACHE["memo"], RUN_CACHE["dir"]
@@ -129,7 +132,6 @@ def run(name: str, overrides=(), out: Path | None = None, cache: bool = True) ->
 
 def cache_key(name: str, runs: int, seed: int | None, overrides=()) -> str:
     """``<scenario>-runs<N>-seed<S>-<sha of the overrides>-v<proxops version>`` (folder name under out/cache)."""
-    from proxops import __version__
 
     ov = hashlib.sha1(json.dumps(sorted(overrides)).encode()).hexdigest()[:8] if overrides else "default"
     return f"{name}-runs{runs}-seed{'default' if seed is None else seed}-{ov}-v{__version__}"
@@ -140,8 +142,6 @@ def campaign(name: str, ctx: Context, runs: int | None, overrides=(), seed: int 
     there is reused (its rows read back), an interrupted one completed (``seed=None``: the scenario's
     ``sim.seed``; ``scenario``: a scenario dict to run instead of the built-in ``name``, which then only
     names the cache; ``runs=None``: its grid size). Without ``out`` (--quick) the rows stay in memory."""
-    from proxops.analysis.campaign import MANIFEST, run_campaign
-    from proxops.report.campaign import write_report
 
     key = cache_key(name, runs, seed, overrides)
     out = ctx.sub(f"cache/{key}")

@@ -8,6 +8,10 @@ import numpy as np
 
 from proxops.report.claims.common import (CALIBRATED, EXPLAINED, INCONSISTENT, NOT_ATTEMPTED, REPRODUCED,
                                           UNEXPLAINED, Claim, Context, campaign, run)
+from proxops.scenarios.loader import load_scenario
+from proxops.systems.cortex import (plan_scenario, eclipse_profile, PAPER_5_1_1, PAPER_5_1_2, campaign_statistics,
+                                    references_scenario, config_from_scenario)
+from proxops.systems.cortex_loop import PAPER_CPG_SOLVE_MS, PAPER_TABLE4
 
 
 def _table4_row(t, col: str, scale: float = 1.0) -> dict:
@@ -44,11 +48,8 @@ def eclipse_hold_row(holds=()) -> Claim:
     """Contribution 1 (§3.1, Fig. 3): cortex-reference started so late before the first eclipse entry
     that less sunlight remains than the shortest transfer: the planner must hold. ``holds``: the
     Fibonacci plans' total holds (s), reported beside it."""
-    from proxops.scenarios.loader import load_scenario
-    from proxops.systems.cortex import plan_scenario
 
     sc = load_scenario("cortex-reference").scenario
-    from proxops.systems.cortex_setup import eclipse_profile
 
     tt, eta = eclipse_profile(sc)
     eta = np.asarray(eta).astype(int)
@@ -73,8 +74,6 @@ def eclipse_hold_row(holds=()) -> Claim:
 def reference_rows(ctx: Context) -> list[Claim]:
     """§5.1.1 (Fibonacci axes, `proxops cortex references` machinery), §5.1.2's fixed-axis reference,
     the eclipse hold, and the terminal impulse the planner adds."""
-    from proxops.scenarios.loader import load_scenario
-    from proxops.systems.cortex import PAPER_5_1_1, PAPER_5_1_2, campaign_statistics, plan_scenario, references_scenario
 
     rows = []
     n = 10 if ctx.quick else 100
@@ -120,7 +119,6 @@ def reference_rows(ctx: Context) -> list[Claim]:
         "§5.1.2 gives TOF 19.66 min with fly-around 14.66 min and final approach 4.5 min: 14.66 + 4.5 = 19.16, not "
         "19.66 (Table 4's 1179.82 s = 19.66 min); and 4.5 min is below Table 2's own search range tau in [5, 60] min",
         data={"sum_min": q["tau1_min"] + q["tau2_min"], "table2_tau_lb_min": 5.0}))
-    from proxops.systems.cortex import config_from_scenario
 
     a_bar = config_from_scenario(sc).a_bar
     t = res.table
@@ -159,7 +157,6 @@ def reference_rows(ctx: Context) -> list[Claim]:
 def cortex_claims(ctx: Context) -> list[Claim]:
     """CORTEX (Wijayatunga et al. §5): references (§5.1.1-5.1.2), nominal closed loop, the low- and
     high-error Monte Carlo campaigns of Table 3 on untuned seeds, passive safety after aborts, CP_g solve time."""
-    from proxops.systems.cortex_loop import PAPER_CPG_SOLVE_MS, PAPER_TABLE4
 
     rows = reference_rows(ctx)
     fig = ctx.sub("cortex")

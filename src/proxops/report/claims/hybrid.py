@@ -8,13 +8,17 @@ import numpy as np
 
 from proxops.report.claims.common import (EXPLAINED, NOT_ATTEMPTED, REPRODUCED, UNEXPLAINED, Claim, Context, Goal,
                                           campaign, run)
+from proxops.runner import execute, save_run
+from proxops.scenarios.loader import load_scenario
+from proxops.analysis.hybrid_model_check import AGREEMENT_BLOCKS, block_maxima, relative_model_agreement
+from proxops.systems.hybrid import is_true_column, outcome_table
+from proxops.plotting.hybrid import plot_model_agreement
+from proxops.propagation.hybrid_plant import HYBRID_LAYOUT
 
 
 def hybrid_claims(ctx: Context) -> list[Claim]:
     """Basu et al. §VII: the capture / post-capture sequence of hybrid-capture and the
     50-run Monte Carlo (ours: the paper runs one case)."""
-    from proxops.runner import execute, save_run
-    from proxops.scenarios.loader import load_scenario
 
     out = ctx.sub("hybrid")
     loaded = load_scenario("hybrid-capture")
@@ -79,13 +83,10 @@ def hybrid_claims(ctx: Context) -> list[Claim]:
         f"{s['wall_time_s']:.1f} s for {s['sim_time_s']:.0f} s simulated; MPC step median "
         f"{s['solve_time_ms']['median']:.2f} ms, p95 {s['solve_time_ms']['p95']:.2f} ms", s["wall_time_s"] < 20.0,
         "wall time on the shared 2-core machine (load under the table)", data={"wall_s": s["wall_time_s"]}))
-    from proxops.analysis.hybrid_model_check import AGREEMENT_BLOCKS, block_maxima, relative_model_agreement
 
     ts, _, errors = relative_model_agreement()
     fixed, printed = block_maxima(errors[True]), block_maxima(errors[False])
     if out is not None:
-        from proxops.plotting.hybrid import plot_model_agreement
-
         plot_model_agreement(ts, errors, AGREEMENT_BLOCKS, out / "relative_model_agreement.png")
     rows.append(Claim(
         "hybrid", "The relative model f_0 (eqs. 18-32) predicts the two-body motion",
@@ -101,7 +102,6 @@ def hybrid_claims(ctx: Context) -> list[Claim]:
     runs = 4 if ctx.quick else 50
     mc = campaign("hybrid-capture-mc", ctx, runs)
     t = mc.table
-    from proxops.systems.hybrid import is_true_column, outcome_table
 
     docked = int(is_true_column(t["metric.docked"]).sum()) if "metric.docked" in t else 0
     redocked = int(is_true_column(t["metric.redocked"]).sum()) if "metric.redocked" in t else 0
@@ -148,7 +148,6 @@ def rotation_row(loaded, s: dict, res) -> Claim:
     """§VII: 'the optimizer prioritizes correcting the rotational misalignment within approximately one
     horizon length' (T^0 = 10 s): first time the relative attitude error and rate enter the scenario's
     capture envelope (docking.angle_deg, docking.rate_deg_s), from the truth."""
-    from proxops.propagation.hybrid_plant import HYBRID_LAYOUT
 
     sc = loaded.scenario
     T = float(sc.control.horizon_capture_s)

@@ -7,13 +7,12 @@ import math
 import numpy as np
 
 from proxops.report.claims.common import EXPLAINED, REPRODUCED, UNEXPLAINED, Claim, Context
+from proxops.analysis.los_boundary import boundary_fraction, open_loop_boundary
+from proxops.control.los_regimes import sync_range
+from proxops.systems.los import PAPER_TABLE3, SWEEP_A_MAX_MPS2, SWEEP_RATES_DEG_S, run_case
 
 
 def los_claims(ctx: Context) -> list[Claim]:
-    from proxops.analysis.los_boundary import boundary_fraction, open_loop_boundary
-    from proxops.control.los_regimes import sync_range
-    from proxops.systems.los import PAPER_TABLE3, SWEEP_A_MAX_MPS2, SWEEP_RATES_DEG_S, run_case
-
     rows: list[Claim] = []
     combos = [(w, a) for w in SWEEP_RATES_DEG_S for a in SWEEP_A_MAX_MPS2]
     sel = [(2.0, 0.10), (5.0, 0.02), (1.0, 0.05)] if ctx.quick else combos

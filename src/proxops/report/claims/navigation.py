@@ -7,6 +7,7 @@ the summary has them, ``nav_nees_mean`` / ``att_nees_mean`` and the mean navigat
 from __future__ import annotations
 
 from proxops.report.claims.common import Context, run
+from proxops.scenarios.loader import builtin_names, load_scenario
 
 
 TERMINAL_KEYS = ("terminal_position_error_m", "final_position_error_m", "arrival_error_m", "final_tracking_error_m",
@@ -16,7 +17,6 @@ EXTRA_KEYS = ("nav_nees_mean", "att_nees_mean", "nav_position_error_m", "nav_vel
 
 def navigation_pairs() -> list[tuple[str, str]]:
     """``[(ekf scenario, base scenario)]`` of the built-ins, sorted."""
-    from proxops.scenarios.loader import builtin_names
 
     names = set(builtin_names())
     return [(n, n[: -len("-ekf")]) for n in sorted(names) if n.endswith("-ekf") and n[: -len("-ekf")] in names]
@@ -32,8 +32,6 @@ def _scalar(v):
 
 
 def _cells(name: str, s: dict) -> dict:
-    from proxops.scenarios.loader import load_scenario
-
     loaded = load_scenario(name)
     key = next((k for k in TERMINAL_KEYS if _scalar(s.get(k)) is not None), None)
     status = str(s.get("status", ""))

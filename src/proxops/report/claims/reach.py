@@ -10,12 +10,15 @@ import numpy as np
 
 from proxops.report.claims.common import (CALIBRATED, EXPLAINED, NOT_ATTEMPTED, REPRODUCED, UNEXPLAINED, Claim,
                                           Context, sig_round)
+from proxops.analysis import reach as R, feasibility_maps as F
+from proxops.systems.los import run_case
+from proxops import __version__
+from proxops.analysis.campaign import MANIFEST
 
 
 def analytic_rows() -> tuple[list[Claim], dict, object, float]:
     """Table 2, the robust set and the hierarchy (the analytical sets of the 20 combinations): rows,
     the results by (omega, a_max), the grid and the wall time (s)."""
-    from proxops.analysis import reach as R
 
     rows: list[Claim] = []
     t0 = time.perf_counter()
@@ -53,17 +56,10 @@ def analytic_rows() -> tuple[list[Claim], dict, object, float]:
 
 
 def reach_claims(ctx: Context) -> list[Claim]:
-    from proxops.analysis import reach as R
-
     rows, by, grid, wall = analytic_rows()
     rows.append(double_integrator_row(51 if ctx.quick else 101))
     rows += backward_rows(grid, by)
     # §9 Monte Carlo: all 20 combinations (3 900 runs), one in --quick
-    from proxops.analysis import feasibility_maps as F
-    from proxops.systems.los import run_case
-
-    from proxops import __version__
-    from proxops.analysis.campaign import MANIFEST
 
     out = ctx.sub(f"cache/reach-mc-{'1of20' if ctx.quick else '20'}-combinations-v{__version__}")
     omegas, amaxs = ((2.0,), (0.10,)) if ctx.quick else (R.PAPER_OMEGAS_DEG_S, R.PAPER_A_MAX_MPS2)
@@ -147,7 +143,6 @@ def _mc_wall(out, wall: float, new_runs: int, n: int) -> float | None:
 def backward_rows(grid, by) -> list[Claim]:
     """§10.2 backward (LP) safe sets: ours with thrust (inertially at rest / co-rotating start) and the
     thrust-free co-rotating reading (a_max -> 0), which lands on the paper's numbers."""
-    from proxops.analysis import reach as R
 
     rows = []
     for key, pb in R.PAPER_BACKWARD_PCT.items():

@@ -10,15 +10,15 @@ from proxops.guidance.hop_times import fig8a_curve, fig8b_hops
 from proxops.plotting.srf import plot_fig8a, plot_fig8b
 from proxops.report.claims.common import (EXPLAINED, INCONSISTENT, NOT_ATTEMPTED, REPRODUCED, UNEXPLAINED, Claim,
                                           Context, abort_items, campaign, f, run, sig_round)
+from proxops.core.cw import cw_stm, mean_motion
+from proxops.frames.lvlh import lvlh_vector_to_hill
+from proxops.guidance.hop_times import plan_hops, rbar_phi, feasible_angle_limit, try_solve_hop, solve_hop
 
 
 def designed_dv(theta_deg: float, hops: int, gamma: float, start_m: float, end_m: float, sma_m: float) -> dict:
     """Sums of Algorithm 1's open-loop impulses on CW (from rest: each hop's start impulse, the junction
     impulse = next start velocity - arrival velocity, the final brake): ``{"l1": sum l1 dv, "l2": sum l2 dv}``
     (m/s). l1 is the fuel of axis-aligned thrusters, l2 of one steerable thruster."""
-    from proxops.core.cw import cw_stm, mean_motion
-    from proxops.frames.lvlh import lvlh_vector_to_hill
-    from proxops.guidance.hop_times import plan_hops
 
     n = mean_motion(sma_m)
     plan = plan_hops(math.radians(theta_deg), hops, gamma, start_m, end_m, n)
@@ -67,8 +67,6 @@ def eq16_row() -> Claim:
     eq. 14's numerator, 3 phi = 4 sin phi (closed form here, brentq on eq. 14 in the guidance)."""
     from scipy.optimize import brentq
 
-    from proxops.guidance.hop_times import rbar_phi
-
     phi = rbar_phi(0.0)
     phi_ind = brentq(lambda p: 3 * p - 4 * math.sin(p), 1.0, 1.5, xtol=1e-15)
     frac = phi / (2 * math.pi)
@@ -85,7 +83,6 @@ def eq16_row() -> Claim:
 
 def fig8a_row(rho: float = 0.7, step_deg: float = 5.0) -> Claim:
     """Fig. 8a (rho = 0.7): hop period fraction vs approach angle from eqs. 17-25 (no MPC)."""
-    from proxops.guidance.hop_times import feasible_angle_limit, try_solve_hop
 
     angles = np.arange(0.0, 180.0 + 1e-9, step_deg)
     frac = []
@@ -120,9 +117,6 @@ def fig9_drift(thetas=(0.0, 20.0, 40.0, 60.0, 80.0, 90.0), rho: float = 0.7, d0:
                sma_m: float = 8100e3) -> dict:
     """Fig. 9 / 8b: the free drift after a hop's start impulse (eq. 24 velocity, CW, no MPC): the point
     on the approach axis where it returns after one orbit, as a multiple of the start distance d0."""
-    from proxops.core.cw import cw_stm, mean_motion
-    from proxops.frames.lvlh import lvlh_vector_to_hill
-    from proxops.guidance.hop_times import solve_hop
 
     n = mean_motion(sma_m)
     period = 2 * math.pi / n

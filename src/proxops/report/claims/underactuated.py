@@ -7,6 +7,8 @@ from pathlib import Path
 import numpy as np
 
 from proxops.report.claims.common import INCONSISTENT, NOT_ATTEMPTED, REPRODUCED, UNEXPLAINED, Claim, Context
+from proxops.runner import execute, save_run
+from proxops.scenarios.loader import load_scenario
 
 
 def _sign_changes(x: np.ndarray, dead: float) -> int:
@@ -17,8 +19,6 @@ def _sign_changes(x: np.ndarray, dead: float) -> int:
 
 def case1_row(out: Path | None = None) -> Claim:
     """Case 1 (Figs. 2-3): underactuated-case1, Table 2 limits, s0 of §5."""
-    from proxops.runner import execute, save_run
-    from proxops.scenarios.loader import load_scenario
 
     loaded = load_scenario("underactuated-case1")
     summary, results = execute(loaded)
@@ -51,8 +51,6 @@ def case1_row(out: Path | None = None) -> Claim:
 
 def case2_row(out: Path | None = None) -> Claim:
     """Case 2 (Figs. 6-9): Table 3 limits, undamped (eq. 4) and damped c = 1e-3 (eq. 5)."""
-    from proxops.runner import execute, save_run
-    from proxops.scenarios.loader import load_scenario
 
     loaded = load_scenario("underactuated-case2")
     summary, results = execute(loaded)
@@ -87,9 +85,6 @@ def case2_row(out: Path | None = None) -> Claim:
 
 
 def underactuated_claims(ctx: Context) -> list[Claim]:
-    from proxops.runner import execute, save_run
-    from proxops.scenarios.loader import load_scenario
-
     rows: list[Claim] = []
     repeats = 2 if ctx.quick else 5
     ratios, med = [], {"general": [], "averaged": []}

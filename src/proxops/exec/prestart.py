@@ -1,9 +1,9 @@
 """Start the local worker pool of ``proxops mc`` before the command line is even parsed.
 
 The workers of a campaign cannot run before the pool's fork server has imported the worker modules
-and built the scenario once (:mod:`proxops.analysis.worker_warmup`): about 1.2 s of CPU for an srf
+and built the scenario once (:mod:`proxops.exec.worker_warmup`): about 1.2 s of CPU for an srf
 campaign (numba's import and kernel cache load are most of it), the critical path of the start.
-:func:`proxops.entry.main` calls :func:`prestart_from_argv` first thing, so the server starts
+:func:`proxops.exec.entry.main` calls :func:`prestart_from_argv` first thing, so the server starts
 before this process imports the CLI (typer, click: 0.13-0.25 s, measured); ``mc`` then calls
 :func:`prestart` again with its parsed options, which does nothing when the same pool exists.
 
@@ -21,10 +21,12 @@ import os
 from pathlib import Path
 from typing import Sequence
 
+from proxops.exec.worker_warmup import ENV  # json, os only; its warm-up runs only in the fork server
+
 # What every campaign worker imports (the system module comes with the first check)
 WORKER_MODULES = ("proxops.analysis.campaign_worker", "proxops.analysis.runs", "proxops.scenarios.loader",
                   "proxops.systems.base")
-WARMUP_MODULE = "proxops.analysis.worker_warmup"  # imported last by the fork server: builds the scenario
+WARMUP_MODULE = "proxops.exec.worker_warmup"  # imported last by the fork server: builds the scenario
 
 _VALUE_OPTIONS = {"--runs": "runs", "-n": "runs", "--workers": "workers", "-w": "workers",
                   "--scheduler": "scheduler", "--seed": "seed", "--out": None, "--set": "set",
@@ -45,8 +47,6 @@ def prestart(scenario: str, runs: int | None, workers: int | None, overrides: Se
     if START_METHOD != "forkserver":
         prestart_pool(n_workers, modules)
         return
-    from proxops.analysis.worker_warmup import ENV
-
     os.environ[ENV] = json.dumps({"scenario": scenario, "overrides": list(overrides)})
     try:  # the fork server also builds the scenario once, for every worker it forks
         prestart_pool(n_workers, modules + (WARMUP_MODULE,))

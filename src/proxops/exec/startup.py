@@ -34,3 +34,32 @@ def defer_unused_numpy_submodules() -> None:
         sys.modules[name] = module
         loader.exec_module(module)
         setattr(numpy, name.rsplit(".", 1)[1], module)  # numpy's __getattr__ would import it eagerly
+
+
+def defer_when_numpy_is_imported() -> None:
+    """:func:`defer_unused_numpy_submodules` now if numpy is imported, else right after numpy's own
+    import (a one-shot import hook): ``proxops --help`` and the other commands that do not compute
+    never import numpy, those that do get the deferral before numba's first kernel load."""
+    if "numpy" in sys.modules:
+        defer_unused_numpy_submodules()
+    elif not any(isinstance(f, _AfterNumpy) for f in sys.meta_path):
+        sys.meta_path.insert(0, _AfterNumpy())
+
+
+class _AfterNumpy:
+    """Meta path finder that only wraps numpy's loader (then removes itself)."""
+
+    def find_spec(self, name, path=None, target=None):
+        if name != "numpy":
+            return None
+        sys.meta_path.remove(self)
+        spec = importlib.util.find_spec(name)
+        if spec is not None and spec.loader is not None and hasattr(spec.loader, "exec_module"):
+            run = spec.loader.exec_module
+
+            def exec_module(module, run=run):
+                run(module)
+                defer_unused_numpy_submodules()
+
+            spec.loader.exec_module = exec_module
+        return spec

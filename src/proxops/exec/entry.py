@@ -7,26 +7,23 @@ processes shut down) ends with one ``interrupted`` line and exit code 130, never
 import signal
 import sys
 
+from proxops import __version__
+from proxops.exec.prestart import prestart_from_argv  # json, math, os, pathlib only
+from proxops.exec.startup import defer_when_numpy_is_imported  # importlib only
+
 
 def main() -> None:
     if sys.argv[1:] == ["--version"]:  # answered without importing the CLI (typer, numpy: 0.3 s)
-        from proxops import __version__
-
         sys.stdout.write(f"proxops {__version__}\n")
         sys.exit(0)
     code = 130
     try:
         if "mc" in sys.argv[1:3]:  # a campaign's workers start before the CLI is imported (0.13-0.25 s)
-            from proxops.cli_prestart import prestart_from_argv
-
             prestart_from_argv(sys.argv[1:])
-        from proxops.cli import app
-        from proxops.cli_common import guarded
-        from proxops._startup import defer_unused_numpy_submodules
+        defer_when_numpy_is_imported()  # before scipy (through numba) reads all of numpy
+        from proxops.cli import run_app
 
-        defer_unused_numpy_submodules()  # numpy is imported by now, scipy not yet
-
-        code = guarded(lambda: app(standalone_mode=False))
+        code = run_app()
     except KeyboardInterrupt:  # while importing the CLI
         sys.stderr.write("interrupted\n")
     try:

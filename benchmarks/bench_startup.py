@@ -1,0 +1,106 @@
+"""Start-up of the command line (issue 32 item 5): whole-command wall and CPU time of the commands
+that do not simulate (goal < 0.15 s) and of ``proxops run station-keeping`` (goal < 0.6 s on 2 idle
+cores, numba cache warm), the heavy libraries each imports, and the import profile of the run (top
+modules by cumulative import time from ``python -X importtime``).
+
+Timings on a loaded machine are not claims: the load average is printed with them; the import
+profile's shares inside one process are the reliable figures. ``python benchmarks/bench_startup.py
+--repeat 7``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import platform
+import resource
+import statistics
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+SRC = Path(__file__).resolve().parents[1] / "src"
+HEAVY = ("numpy", "pydantic", "numba", "scipy", "pandas", "pyarrow", "matplotlib", "casadi", "daqp", "piqp",
+         "clarabel", "highspy")
+COMMANDS = {  # name: (argv, goal in s, whole command on 2 idle cores)
+    "--version": (["--version"], 0.15),
+    "--help": (["--help"], 0.15),
+    "keys": (["keys"], 0.15),
+    "scenarios": (["scenarios"], 0.15),
+    "validate station-keeping": (["validate", "station-keeping"], 0.15),
+    "run station-keeping": (["run", "station-keeping"], 0.6),
+}
+_WRAPPER = ("import atexit, json, sys\n"
+            "atexit.register(lambda: sys.stderr.write('MODULES ' + json.dumps(sorted(sys.modules)) + '\\n'))\n"
+            "sys.argv = ['proxops', *json.loads(sys.argv[1])]\n"
+            "from proxops.exec.entry import main\nmain()\n")
+
+
+def _env() -> dict:
+    return {**os.environ, "PYTHONPATH": str(SRC), "OPENBLAS_NUM_THREADS": "1", "OMP_NUM_THREADS": "1"}
+
+
+def _run(argv: list[str], *flags: str) -> tuple[float, float, subprocess.CompletedProcess]:
+    """(wall s, CPU s of the child, the finished process) of ``python [flags] -c WRAPPER argv``."""
+    before = resource.getrusage(resource.RUSAGE_CHILDREN)
+    t0 = time.perf_counter()
+    proc = subprocess.run([sys.executable, *flags, "-c", _WRAPPER, json.dumps(argv)], capture_output=True,
+                          text=True, env=_env(), timeout=600)
+    wall = time.perf_counter() - t0
+    after = resource.getrusage(resource.RUSAGE_CHILDREN)
+    cpu = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
+    return wall, cpu, proc
+
+
+def _modules(proc: subprocess.CompletedProcess) -> list[str]:
+    line = next((l for l in proc.stderr.splitlines() if l.startswith("MODULES ")), None)
+    return json.loads(line[len("MODULES "):]) if line else []
+
+
+def import_profile(argv: list[str], top: int = 15) -> list[tuple[str, float, float]]:
+    """(module, self ms, cumulative ms) of the ``top`` modules by cumulative import time."""
+    _, _, proc = _run(argv, "-X", "importtime")
+    rows = []
+    for line in proc.stderr.splitlines():
+        if not line.startswith("import time:") or "self [us]" in line:
+            continue
+        _, self_us, cum_us, name = [p.strip() for p in line.replace("import time:", "|").split("|")]
+        rows.append((name, int(self_us) / 1e3, int(cum_us) / 1e3))
+    rows.sort(key=lambda r: -r[2])
+    return rows[:top]
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--repeat", type=int, default=5, help="runs of each command (alternated; median shown)")
+    args = parser.parse_args()
+    print(f"machine: {platform.machine()}, {os.cpu_count()} CPUs, Python {platform.python_version()}; "
+          f"load average before: {open('/proc/loadavg').read().split()[:3]}")
+    _run(COMMANDS["run station-keeping"][0])  # numba's cache warm (a changed source recompiles once)
+    times: dict[str, list[tuple[float, float]]] = {name: [] for name in COMMANDS}
+    modules: dict[str, list[str]] = {}
+    for _ in range(args.repeat):  # alternate the commands: a load change hits them all alike
+        for name, (argv, _goal) in COMMANDS.items():
+            wall, cpu, proc = _run(argv)
+            if proc.returncode != 0:
+                raise RuntimeError(f"proxops {' '.join(argv)} exited {proc.returncode}: {proc.stderr[-300:]}")
+            times[name].append((wall, cpu))
+            modules[name] = _modules(proc)
+    print(f"load average after: {open('/proc/loadavg').read().split()[:3]} (under load the times are not a claim)")
+    print(f"{'command':<26} {'wall s':>7} {'CPU s':>6} {'goal s':>6}  modules  heavy libraries imported")
+    for name, (argv, goal) in COMMANDS.items():
+        wall = statistics.median(w for w, _ in times[name])
+        cpu = statistics.median(c for _, c in times[name])
+        tops = sorted({m.split(".")[0] for m in modules[name]} & set(HEAVY), key=HEAVY.index)
+        print(f"{name:<26} {wall:>7.3f} {cpu:>6.3f} {goal:>6.2f}  {len(modules[name]):>7}  {', '.join(tops) or '-'}")
+    for name in ("--help", "run station-keeping"):
+        print(f"\nimport profile of `proxops {name}` (top by cumulative import time, ms; one run):")
+        print(f"{'module':<44} {'self':>8} {'cumulative':>11}")
+        for module, self_ms, cum_ms in import_profile(COMMANDS[name][0]):
+            print(f"{module:<44} {self_ms:>8.1f} {cum_ms:>11.1f}")
+
+
+if __name__ == "__main__":
+    main()
