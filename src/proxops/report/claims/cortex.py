@@ -9,8 +9,8 @@ import numpy as np
 from proxops.report.claims.common import (CALIBRATED, EXPLAINED, INCONSISTENT, NOT_ATTEMPTED, REPRODUCED,
                                           UNEXPLAINED, Claim, Context, campaign, run)
 from proxops.scenarios.loader import load_scenario
-from proxops.systems.cortex import (plan_scenario, eclipse_profile, PAPER_5_1_1, PAPER_5_1_2, campaign_statistics,
-                                    references_scenario, config_from_scenario)
+from proxops.systems.cortex import PAPER_5_1_1, PAPER_5_1_2, campaign_statistics, references_scenario
+from proxops.systems.cortex_setup import config_from_scenario, eclipse_profile, plan_scenario
 from proxops.systems.cortex_loop import PAPER_CPG_SOLVE_MS, PAPER_TABLE4
 
 
