@@ -688,6 +688,18 @@ class SrfMpc:
         self._cbf_rows = np.repeat(np.arange(2 * F), 3) + self._n_g_static
         self._cbf_cols = np.tile(np.arange(self._iw, self._iw + 3), 2 * F)
         self._csc_patterns: dict[str, tuple] = {}  # fixed CSC patterns of A_eq and G (see _csc)
+        # index maps of the rows whose bounds depend on the node (see _row_bounds): row numbers and
+        # node (or hop) of every kind, so one build sets them with array operations
+        by_tag: dict[str, tuple[list, list]] = {}
+        for row, kd in enumerate(kinds):
+            if isinstance(kd, tuple):
+                by_tag.setdefault(kd[0], ([], []))
+                by_tag[kd[0]][0].append(row)
+                by_tag[kd[0]][1].append(kd[1])
+        self._row_sets = {tag: (np.array(r_, dtype=np.intp), np.array(j_, dtype=np.intp)) for tag, (r_, j_) in by_tag.items()}
+        self._budget_row = kinds.index("budget") if "budget" in kinds else None
+        self._n_rows_static = len(kinds)
+        self._boundaries = np.array(self._hop_boundaries, dtype=np.intp)
 
     def _csc(self, key: str, entries, shape: tuple[int, int], values: np.ndarray) -> sp.csc_matrix:
         """CSC matrix of ``values`` on the fixed pattern ``entries`` = (rows, cols) (or a callable
@@ -717,6 +729,76 @@ class SrfMpc:
             return float(self.a @ (self._phi[j, i] @ x)[:3])
         return self.rx_hist.get(j, float(self.a @ x[:3]))
 
+    def _rx_nodes(self, i: int, x: np.ndarray) -> np.ndarray:
+        """:meth:`_rx_const` at node 0 and every hop end (m), one stacked prediction."""
+        nodes = self._boundaries
+        out = np.empty(len(nodes))
+        ahead = nodes > i
+        if ahead.any():
+            out[ahead] = (self._phi[nodes[ahead], i] @ x)[:, :3] @ self.a
+        for m in np.flatnonzero(~ahead):
+            out[m] = self._rx_const(i, x, int(nodes[m]))
+        return out
+
+    def _row_bounds(self, i: int, x: np.ndarray, relax: int, fN: np.ndarray, rxv) -> tuple[np.ndarray, np.ndarray]:
+        """Bounds (g_lo, g_hi) of the rows with constant coefficients at node ``i`` (scaled units), set
+        per kind of row from the index maps of :meth:`_layout` (rows of past nodes or relaxed rows are
+        switched off to +-OFF): the brake box (29d), hop rows (29l)-(29m), drift and hold rows, hop
+        distances, (29n)-(29o) and the budget (29g)."""
+        c, N = self.cfg, self.sched.n
+        lo = np.full(self._n_rows_static, -OFF)
+        hi = np.full(self._n_rows_static, OFF)
+        lo[:3] = -c.terminal_vel_tol_mps - fN[3:]
+        hi[:3] = c.terminal_vel_tol_mps - fN[3:]
+        sets = self._row_sets
+        if relax < 3 and "hop_r" in sets:
+            rows_r, js = sets["hop_r"]
+            rows_w = sets["hop_w"][0]
+            on = js > i
+            if on.any():
+                xj = self._phi[js[on], i] @ x
+                v = xj[:, :3] @ self.b
+                lo[rows_r[on]] = (-c.r_tol_m - v) / KM
+                hi[rows_r[on]] = (c.r_tol_m - v) / KM
+                v = xj[:, 3:] @ self.a
+                lo[rows_w[on]] = -c.w_tol_mps - v
+                hi[rows_w[on]] = c.w_tol_mps - v
+        if relax < 3 and "drift" in sets:
+            rows, js = sets["drift"]
+            on = rows[js >= i]
+            if on.size:  # the same estimate for every drift row of this node
+                v = self.drift_estimate(float(self.sched.times[i]), x)[0]
+                c_lo, c_hi = self.drift_band()
+                lo[on], hi[on] = c_lo - v, c_hi - v
+        if relax < 1 and "hold" in sets:  # a design row: relaxed first
+            rows, js = sets["hold"]
+            on = rows[js >= i]
+            lo[on], hi[on] = -c.drift_free_tol_mps, c.drift_free_tol_mps
+        nodes = self._boundaries
+        if relax < 1 and "dist" in sets:
+            rows, ms = sets["dist"]
+            on = (nodes[ms] > i) & (nodes[ms] != N)
+            m = ms[on]
+            d, tol = self.hop_targets_m[m], np.asarray(c.hop_distance_tol_m, dtype=float)[m - 1]
+            lo[rows[on]] = (d - tol - rxv[m]) / KM
+            hi[rows[on]] = (d + tol - rxv[m]) / KM
+        if relax < 3 and "len" in sets:
+            rows, ms = sets["len"]
+            on = nodes[ms] > i
+            v = rxv[ms[on] - 1] - rxv[ms[on]]
+            lo[rows[on]] = (c.h_min_m - v) / KM
+            hi[rows[on]] = (c.h_max_m - v) / KM
+        if relax < 1 and "dec" in sets:
+            rows, ms = sets["dec"]
+            on = nodes[ms + 1] > i
+            m = ms[on]
+            v = (rxv[m] - rxv[m + 1]) - (rxv[m - 1] - rxv[m])
+            lo[rows[on]] = -np.inf
+            hi[rows[on]] = (-c.epsilon_m - v) / KM
+        if self._budget_row is not None:
+            hi[self._budget_row] = max(c.u_budget_mps - self.used_l1, 0.0)
+        return lo, hi
+
     def _build(self, i: int, x: np.ndarray, u_ref: np.ndarray | None, relax: int, with_cbf: bool = True) -> _Qp:
         c, N, nu, nz = self.cfg, self.sched.n, self._nu, self._nz
         um = c.u_max_mps
@@ -730,84 +812,10 @@ class SrfMpc:
         er, ec, ev = self._eq_coo
         A_eq = self._csc("A_eq", lambda: (np.concatenate([er, wr]), np.concatenate([ec, wc])), (self._n_eq, nz),
                          np.concatenate([ev, wv]))
-        r_rhs = [self._rx_const(i, x, int(j)) / KM for j in self.sched.hop_nodes] if self._n_r else []
+        rxv = self._rx_nodes(i, x) if (self._n_r or {"dist", "len", "dec"} & self._row_sets.keys()) else None
+        r_rhs = rxv[1:] / KM if self._n_r else []
         b_eq = np.concatenate([(self.p_d - fN[:3]) / KM, r_rhs, np.zeros(3)])
-        # inequalities with constant coefficients: bounds from the current node
-        lo, hi = [], []
-        inf = np.inf
-        tol_r, tol_w = c.r_tol_m, c.w_tol_mps
-        drift_c = None
-        nodes = self._hop_boundaries
-        rx_memo: dict[int, float] = {}
-
-        def rx(j: int) -> float:  # _rx_const(i, x, j), once per node j in this build
-            got = rx_memo.get(j)
-            if got is None:
-                got = rx_memo[j] = self._rx_const(i, x, j)
-            return got
-
-        for kind in self._g_kinds:
-            if kind == "brake":
-                continue
-            if kind == "budget":
-                lo.append(-OFF); hi.append(max(c.u_budget_mps - self.used_l1, 0.0))
-                continue
-            tag, j = kind
-            if tag in ("hop_r", "hop_w"):
-                if j <= i or relax >= 3:
-                    lo.append(-OFF); hi.append(OFF)
-                    continue
-                xj = self._phi[j, i] @ x
-                if tag == "hop_r":
-                    v = float(self.b @ xj[:3])
-                    lo.append((-tol_r - v) / KM); hi.append((tol_r - v) / KM)
-                else:
-                    v = float(self.a @ xj[3:])
-                    lo.append(-tol_w - v); hi.append(tol_w - v)
-                continue
-            if tag == "drift":
-                if j < i or relax >= 3:
-                    lo.append(-OFF); hi.append(OFF)
-                    continue
-                if drift_c is None:  # the same estimate for every drift row of this node
-                    drift_c = self.drift_estimate(float(self.sched.times[i]), x)[0]
-                v = drift_c
-                c_lo, c_hi = self.drift_band()
-                lo.append(c_lo - v); hi.append(c_hi - v)
-                continue
-            if tag == "hold":
-                if j < i or relax >= 1:  # a design row: relaxed first
-                    lo.append(-OFF); hi.append(OFF)
-                    continue
-                lo.append(-c.drift_free_tol_mps); hi.append(c.drift_free_tol_mps)
-                continue
-            if tag == "dist":
-                m = j
-                if nodes[m] <= i or relax >= 1 or nodes[m] == N:
-                    lo.append(-OFF); hi.append(OFF)
-                    continue
-                v = rx(nodes[m])
-                d, tol = self.hop_targets_m[m], c.hop_distance_tol_m[m - 1]
-                lo.append((d - tol - v) / KM); hi.append((d + tol - v) / KM)
-            elif tag == "len":
-                m = j
-                if nodes[m] <= i or relax >= 3:
-                    lo.append(-OFF); hi.append(OFF)
-                    continue
-                v = rx(nodes[m - 1]) - rx(nodes[m])
-                lo.append((c.h_min_m - v) / KM); hi.append((c.h_max_m - v) / KM)
-            elif tag == "dec":
-                m = j
-                if nodes[m + 1] <= i or relax >= 1:
-                    lo.append(-OFF); hi.append(OFF)
-                    continue
-                r = [rx(nodes[q]) for q in (m - 1, m, m + 1)]
-                v = (r[1] - r[2]) - (r[0] - r[1])
-                lo.append(-inf); hi.append((-c.epsilon_m - v) / KM)
-        brake_lo = -c.terminal_vel_tol_mps - fN[3:]
-        brake_hi = c.terminal_vel_tol_mps - fN[3:]
-        g_lo = np.concatenate([brake_lo, np.array(lo, float)])
-        g_hi = np.concatenate([brake_hi, np.array(hi, float)])
+        g_lo, g_hi = self._row_bounds(i, x, relax, fN, rxv)
         gr, gc, gv = self._g_coo
         if len(self._drift_coo[0]):
             sel, node, comp, sign = self._drift_coo
@@ -846,7 +854,6 @@ class SrfMpc:
         else:
             G = self._csc("G", lambda: (gr, gc), (self._n_g_static, nz), gv)
         return _Qp(self._P, self._c, A_eq, b_eq, G, g_lo, g_hi, lb, ub, N - i + 1)
-
     def _run_solver(self, qp: _Qp, i: int, persistent: bool = True):
         """Solve with the persistent adapter of ``cfg.solver`` (``setup(problem)`` once, ``update``
         in place: the same calls for PIQP, Clarabel or DAQP; a one-shot solve for other sparsity
