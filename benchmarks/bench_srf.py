@@ -39,10 +39,65 @@ def run_one(name: str, overrides=()):
     return summary, res, wall, st
 
 
+def assembly_share(n_runs: int = 10) -> None:
+    """QP assembly vs the solver, ``n_runs`` runs of srf-vbar-mc in this process (thread CPU time, so the
+    ratio holds on a loaded machine): PIQP's own calls (SparseSolver setup/update/solve) against the
+    assembly around them (SrfMpc._build and the PiqpQP adapter's Python: drop_fixed, checks, result).
+    Goal (issue 32 item 3): assembly <= 30 % of the solve."""
+    import piqp
+
+    from proxops.analysis.campaign import run_campaign
+    from proxops.control import srf_mpc
+    from proxops.solvers import piqp_qp
+
+    acc = {"piqp": 0.0, "build": 0.0, "adapter": 0.0, "node": 0.0, "solves": 0}
+    clock = time.thread_time
+
+    def timed(fn, key, count=False):
+        def wrapper(*a, **k):
+            t0 = clock()
+            try:
+                return fn(*a, **k)
+            finally:
+                acc[key] += clock() - t0
+                if count:
+                    acc["solves"] += 1
+        return wrapper
+
+    class TimedPiqp(piqp.SparseSolver):
+        setup = timed(piqp.SparseSolver.setup, "piqp")
+        update = timed(piqp.SparseSolver.update, "piqp")
+        solve = timed(piqp.SparseSolver.solve, "piqp", count=True)
+
+    saved = (piqp.SparseSolver, srf_mpc.SrfMpc._build, srf_mpc.SrfMpc._solve_node,
+             piqp_qp.PiqpQP.setup, piqp_qp.PiqpQP.update, piqp_qp.PiqpQP.solve)
+    run_campaign("srf-vbar-mc", n_runs=2, workers=1, progress=False)  # warm-up (imports, numba)
+    try:
+        piqp.SparseSolver = TimedPiqp
+        srf_mpc.SrfMpc._build = timed(saved[1], "build")
+        srf_mpc.SrfMpc._solve_node = timed(saved[2], "node")
+        for name, fn in zip(("setup", "update", "solve"), saved[3:]):
+            setattr(piqp_qp.PiqpQP, name, timed(fn, "adapter"))
+        c0 = time.process_time()
+        run_campaign("srf-vbar-mc", n_runs=n_runs, workers=1, progress=False)
+        cpu = time.process_time() - c0
+    finally:
+        piqp.SparseSolver, srf_mpc.SrfMpc._build, srf_mpc.SrfMpc._solve_node = saved[:3]
+        piqp_qp.PiqpQP.setup, piqp_qp.PiqpQP.update, piqp_qp.PiqpQP.solve = saved[3:]
+    solver = acc["piqp"]
+    assembly = acc["build"] + acc["adapter"] - solver
+    print(f"srf-vbar-mc, {n_runs} runs in one process: {cpu / n_runs * 1e3:.0f} ms CPU per run; {acc['solves']} PIQP solves "
+          f"{solver * 1e3:.0f} ms ({solver / acc['solves'] * 1e3:.2f} ms each); QP assembly {assembly * 1e3:.0f} ms "
+          f"(SrfMpc._build {acc['build'] * 1e3:.0f} ms + adapter {(acc['adapter'] - solver) * 1e3:.0f} ms) = "
+          f"{assembly / solver:.0%} of the solver (goal <= 30 %); solver share of the MPC node solves "
+          f"{solver / acc['node']:.0%} (load average {os.getloadavg()[0]:.2f})")
+
+
 def main(quick: bool = False) -> None:
     from proxops.guidance.hop_times import rbar_phi
 
     print(f"load average {os.getloadavg()[0]:.2f} on {len(os.sched_getaffinity(0))} usable cpus")
+    assembly_share()
     phi0 = rbar_phi(0.0)
     print(f"R-bar phi(rho = 0) = {phi0:.6f} rad = {phi0 / (2 * math.pi):.4f} t_orb (paper: ~1.27 rad, 0.21 t_orb)")
     run_one("srf-rbar")  # warm-up (imports, numba)

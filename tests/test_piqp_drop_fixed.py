@@ -98,3 +98,22 @@ def test_keep_columns_and_rows_equal_dense_indexing(seed):
     assert np.array_equal(keep_columns(M, cols).toarray(), M.toarray()[:, cols])
     sub = keep_columns(M, cols, rows=rows)
     assert np.array_equal(sub.toarray(), M.toarray()[np.ix_(rows, cols)]) and sub.has_canonical_format
+
+
+def test_cached_column_maps_equal_dense_indexing_across_refills_and_sizes():
+    """piqp_qp._kept (index maps cached per role, pattern and free set, its matrix refilled in place) gives
+    the dense submatrix for every refill of a fixed pattern, for P (rows too) and for two roles with the
+    same pattern (their matrices must not be shared), and for another free set of the same pattern."""
+    from proxops.solvers.piqp_qp import _kept
+
+    rng = np.random.default_rng(7)
+    M = sp.random(9, 12, density=0.4, random_state=7, format="csc")
+    Q = sp.random(12, 12, density=0.3, random_state=8, format="csc")
+    for free in (np.flatnonzero(rng.random(12) < 0.5), np.arange(3, 12), np.arange(12)):
+        for _ in range(3):
+            M.data[:] = rng.normal(size=M.nnz)
+            Q.data[:] = rng.normal(size=Q.nnz)
+            A, G = _kept("A", M, free), _kept("G", M, free)
+            assert A is not G and np.array_equal(A.toarray(), M.toarray()[:, free])
+            assert np.array_equal(G.toarray(), M.toarray()[:, free])
+            assert np.array_equal(_kept("P", Q, free).toarray(), Q.toarray()[np.ix_(free, free)])

@@ -114,6 +114,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 import scipy.sparse as sp
+from numba import njit
 
 from proxops.constraints.keep_out import KeepOutSphere
 from proxops.control.relaxation import climb
@@ -259,6 +260,87 @@ def _drift_stms(n_orb: float, tau: np.ndarray) -> np.ndarray:
     """Phi(tau_f) (F, 6, 6) of the free-drift grid, cached per (n, grid), read-only."""
     return _cached_blocks(("drift", float(n_orb), tau.tobytes()),
                           lambda: (np.array([cw_stm(n_orb, t) for t in tau]),))[0]
+
+
+_NO_ROWS = np.empty(0, dtype=np.intp)
+
+
+@njit(cache=True)
+def _row_bounds_kernel(phi, i, x, relax, a, b, fN, rx_past, nodes, hop_r, hop_w, hop_j, drift_r, drift_j, hold_r, hold_j,
+                       dist_r, dist_m, len_r, len_m, dec_r, dec_m, targets, dist_tol, tol, n_rows, big):  # fmt: skip
+    """Bounds (lo, hi) of the rows with constant coefficients at node i (SrfMpc._row_bounds) and the constant
+    part of a . p at node 0 and every hop end (rxv, m): rx_past where a node is not ahead of i, else the
+    prediction a . (Phi(t_j - t_i) x)[:3]. tol = [r_tol, w_tol, drift c_lo - c, c_hi - c, hold tol, h_min,
+    h_max, eps, budget upper bound, terminal velocity tol] (drift entries used only when computed)."""
+    n_nodes = nodes.shape[0]
+    rxv = np.empty(n_nodes)
+    for m in range(n_nodes):
+        j = nodes[m]
+        if j > i:
+            acc = 0.0
+            for r in range(3):
+                row = 0.0
+                for k in range(6):
+                    row += phi[j, i, r, k] * x[k]
+                acc += a[r] * row
+            rxv[m] = acc
+        else:
+            rxv[m] = rx_past[m]
+    lo = np.full(n_rows, -big)
+    hi = np.full(n_rows, big)
+    for r in range(3):
+        lo[r] = -tol[9] - fN[3 + r]
+        hi[r] = tol[9] - fN[3 + r]
+    if relax < 3:
+        for q in range(hop_j.shape[0]):
+            j = hop_j[q]
+            if j <= i:
+                continue
+            vb = 0.0
+            va = 0.0
+            for r in range(3):
+                pr = 0.0
+                vr = 0.0
+                for k in range(6):
+                    pr += phi[j, i, r, k] * x[k]
+                    vr += phi[j, i, 3 + r, k] * x[k]
+                vb += b[r] * pr
+                va += a[r] * vr
+            lo[hop_r[q]] = (-tol[0] - vb) / 1000.0
+            hi[hop_r[q]] = (tol[0] - vb) / 1000.0
+            lo[hop_w[q]] = -tol[1] - va
+            hi[hop_w[q]] = tol[1] - va
+        for q in range(drift_j.shape[0]):
+            if drift_j[q] >= i:
+                lo[drift_r[q]] = tol[2]
+                hi[drift_r[q]] = tol[3]
+        for q in range(len_m.shape[0]):
+            m = len_m[q]
+            if nodes[m] > i:
+                v = rxv[m - 1] - rxv[m]
+                lo[len_r[q]] = (tol[5] - v) / 1000.0
+                hi[len_r[q]] = (tol[6] - v) / 1000.0
+    if relax < 1:
+        for q in range(hold_j.shape[0]):
+            if hold_j[q] >= i:
+                lo[hold_r[q]] = -tol[4]
+                hi[hold_r[q]] = tol[4]
+        N = nodes[n_nodes - 1]
+        for q in range(dist_m.shape[0]):
+            m = dist_m[q]
+            if nodes[m] > i and nodes[m] != N:
+                lo[dist_r[q]] = (targets[m] - dist_tol[m - 1] - rxv[m]) / 1000.0
+                hi[dist_r[q]] = (targets[m] + dist_tol[m - 1] - rxv[m]) / 1000.0
+        for q in range(dec_m.shape[0]):
+            m = dec_m[q]
+            if nodes[m + 1] > i:
+                v = (rxv[m] - rxv[m + 1]) - (rxv[m - 1] - rxv[m])
+                lo[dec_r[q]] = -np.inf
+                hi[dec_r[q]] = (-tol[7] - v) / 1000.0
+    if tol[8] == tol[8]:  # budget row (last), when there is one
+        hi[n_rows - 1] = tol[8]
+    return lo, hi, rxv
+
 
 
 @dataclass
@@ -689,6 +771,29 @@ class SrfMpc:
         self._cbf_rows = np.repeat(np.arange(2 * F), 3) + self._n_g_static
         self._cbf_cols = np.tile(np.arange(self._iw, self._iw + 3), 2 * F)
         self._csc_patterns: dict[str, tuple] = {}  # fixed CSC patterns of A_eq and G (see _csc)
+        self._per_node: dict = {}  # A_eq values and variable bounds, which depend on the node only (see _build)
+        # index maps of the rows whose bounds depend on the node (see _row_bounds): row numbers and
+        # node (or hop) of every kind, so one build sets them with array operations
+        by_tag: dict[str, tuple[list, list]] = {}
+        for row, kd in enumerate(kinds):
+            if isinstance(kd, tuple):
+                by_tag.setdefault(kd[0], ([], []))
+                by_tag[kd[0]][0].append(row)
+                by_tag[kd[0]][1].append(kd[1])
+        self._row_sets = {tag: (np.array(r_, dtype=np.intp), np.array(j_, dtype=np.intp)) for tag, (r_, j_) in by_tag.items()}
+        self._budget_row = kinds.index("budget") if "budget" in kinds else None
+        if self._budget_row not in (None, len(kinds) - 1):
+            raise AssertionError("the budget row is the last row with constant coefficients")
+
+        def rows_of(tag):
+            return self._row_sets.get(tag, (_NO_ROWS, _NO_ROWS))
+
+        targets = self.hop_targets_m if self.hop_targets_m is not None else np.zeros(0)
+        dist_tol = np.asarray(c.hop_distance_tol_m if c.hop_distance_tol_m is not None else [], dtype=float)
+        self._row_args = (rows_of("hop_r")[0], rows_of("hop_w")[0], rows_of("hop_r")[1], *rows_of("drift"),
+                          *rows_of("hold"), *rows_of("dist"), *rows_of("len"), *rows_of("dec"), targets, dist_tol)
+        self._n_rows_static = len(kinds)
+        self._boundaries = np.array(self._hop_boundaries, dtype=np.intp)
 
     def _csc(self, key: str, entries, shape: tuple[int, int], values: np.ndarray) -> sp.csc_matrix:
         """CSC matrix of ``values`` on the fixed pattern ``entries`` = (rows, cols) (or a callable
@@ -718,97 +823,47 @@ class SrfMpc:
             return float(self.a @ (self._phi[j, i] @ x)[:3])
         return self.rx_hist.get(j, float(self.a @ x[:3]))
 
+    def _row_bounds(self, i: int, x: np.ndarray, relax: int, fN: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Bounds (g_lo, g_hi) of the rows with constant coefficients at node ``i`` (scaled units) and the
+        constant part of a . p at node 0 and every hop end (m, :meth:`_rx_const`), one jitted call on the
+        index maps of :meth:`_layout` (:func:`_row_bounds_kernel`): the brake box (29d), hop rows
+        (29l)-(29m), drift and hold rows, hop distances, (29n)-(29o) and the budget (29g); rows of past
+        nodes or relaxed rows are switched off to +-OFF."""
+        c = self.cfg
+        nodes = self._boundaries
+        rx_past = np.array([self._rx_const(i, x, int(j)) if j <= i else 0.0 for j in nodes])
+        drift = (math.nan, math.nan)
+        d_rows, d_js = self._row_sets.get("drift", (_NO_ROWS, _NO_ROWS))
+        if relax < 3 and d_js.size and d_js.max() >= i:  # the same estimate for every drift row of this node
+            v = self.drift_estimate(float(self.sched.times[i]), x)[0]
+            c_lo, c_hi = self.drift_band()
+            drift = (c_lo - v, c_hi - v)
+        budget = max(c.u_budget_mps - self.used_l1, 0.0) if self._budget_row is not None else math.nan
+        tol = np.array([c.r_tol_m, c.w_tol_mps, *drift,
+                        c.drift_free_tol_mps if c.drift_free_tol_mps is not None else math.nan,
+                        c.h_min_m, c.h_max_m, c.epsilon_m, budget, c.terminal_vel_tol_mps])
+        return _row_bounds_kernel(self._phi, i, np.ascontiguousarray(x, dtype=float), relax, self.a, self.b, fN,
+                                  rx_past, nodes, *self._row_args, tol, self._n_rows_static, OFF)
+
     def _build(self, i: int, x: np.ndarray, u_ref: np.ndarray | None, relax: int, with_cbf: bool = True) -> _Qp:
         c, N, nu, nz = self.cfg, self.sched.n, self._nu, self._nz
         um = c.u_max_mps
         fN = self._phi[N, i] @ x
-        # equalities: terminal error rows (static) and w = z+_i - z-_i (values depend on i)
+        # equalities: terminal error rows (static) and w = z+_i - z-_i (values depend on i only)
         wr, wc = self._wsel_coo
-        axis = wr - (self._n_eq - 3)
-        wv = np.where(wc >= self._iw, 1.0, 0.0)
-        wv[wc == 3 * i + axis] = -1.0
-        wv[wc == nu + 3 * i + axis] = 1.0
         er, ec, ev = self._eq_coo
+        eq_values = self._per_node.get(("eq", i))
+        if eq_values is None:
+            axis = wr - (self._n_eq - 3)
+            wv = np.where(wc >= self._iw, 1.0, 0.0)
+            wv[wc == 3 * i + axis] = -1.0
+            wv[wc == nu + 3 * i + axis] = 1.0
+            eq_values = self._per_node[("eq", i)] = np.concatenate([ev, wv])
         A_eq = self._csc("A_eq", lambda: (np.concatenate([er, wr]), np.concatenate([ec, wc])), (self._n_eq, nz),
-                         np.concatenate([ev, wv]))
-        r_rhs = [self._rx_const(i, x, int(j)) / KM for j in self.sched.hop_nodes] if self._n_r else []
+                         eq_values)
+        g_lo, g_hi, rxv = self._row_bounds(i, x, relax, fN)
+        r_rhs = rxv[1:] / KM if self._n_r else []
         b_eq = np.concatenate([(self.p_d - fN[:3]) / KM, r_rhs, np.zeros(3)])
-        # inequalities with constant coefficients: bounds from the current node
-        lo, hi = [], []
-        inf = np.inf
-        tol_r, tol_w = c.r_tol_m, c.w_tol_mps
-        drift_c = None
-        nodes = self._hop_boundaries
-        rx_memo: dict[int, float] = {}
-
-        def rx(j: int) -> float:  # _rx_const(i, x, j), once per node j in this build
-            got = rx_memo.get(j)
-            if got is None:
-                got = rx_memo[j] = self._rx_const(i, x, j)
-            return got
-
-        for kind in self._g_kinds:
-            if kind == "brake":
-                continue
-            if kind == "budget":
-                lo.append(-OFF); hi.append(max(c.u_budget_mps - self.used_l1, 0.0))
-                continue
-            tag, j = kind
-            if tag in ("hop_r", "hop_w"):
-                if j <= i or relax >= 3:
-                    lo.append(-OFF); hi.append(OFF)
-                    continue
-                xj = self._phi[j, i] @ x
-                if tag == "hop_r":
-                    v = float(self.b @ xj[:3])
-                    lo.append((-tol_r - v) / KM); hi.append((tol_r - v) / KM)
-                else:
-                    v = float(self.a @ xj[3:])
-                    lo.append(-tol_w - v); hi.append(tol_w - v)
-                continue
-            if tag == "drift":
-                if j < i or relax >= 3:
-                    lo.append(-OFF); hi.append(OFF)
-                    continue
-                if drift_c is None:  # the same estimate for every drift row of this node
-                    drift_c = self.drift_estimate(float(self.sched.times[i]), x)[0]
-                v = drift_c
-                c_lo, c_hi = self.drift_band()
-                lo.append(c_lo - v); hi.append(c_hi - v)
-                continue
-            if tag == "hold":
-                if j < i or relax >= 1:  # a design row: relaxed first
-                    lo.append(-OFF); hi.append(OFF)
-                    continue
-                lo.append(-c.drift_free_tol_mps); hi.append(c.drift_free_tol_mps)
-                continue
-            if tag == "dist":
-                m = j
-                if nodes[m] <= i or relax >= 1 or nodes[m] == N:
-                    lo.append(-OFF); hi.append(OFF)
-                    continue
-                v = rx(nodes[m])
-                d, tol = self.hop_targets_m[m], c.hop_distance_tol_m[m - 1]
-                lo.append((d - tol - v) / KM); hi.append((d + tol - v) / KM)
-            elif tag == "len":
-                m = j
-                if nodes[m] <= i or relax >= 3:
-                    lo.append(-OFF); hi.append(OFF)
-                    continue
-                v = rx(nodes[m - 1]) - rx(nodes[m])
-                lo.append((c.h_min_m - v) / KM); hi.append((c.h_max_m - v) / KM)
-            elif tag == "dec":
-                m = j
-                if nodes[m + 1] <= i or relax >= 1:
-                    lo.append(-OFF); hi.append(OFF)
-                    continue
-                r = [rx(nodes[q]) for q in (m - 1, m, m + 1)]
-                v = (r[1] - r[2]) - (r[0] - r[1])
-                lo.append(-inf); hi.append((-c.epsilon_m - v) / KM)
-        brake_lo = -c.terminal_vel_tol_mps - fN[3:]
-        brake_hi = c.terminal_vel_tol_mps - fN[3:]
-        g_lo = np.concatenate([brake_lo, np.array(lo, float)])
-        g_hi = np.concatenate([brake_hi, np.array(hi, float)])
         gr, gc, gv = self._g_coo
         if len(self._drift_coo[0]):
             sel, node, comp, sign = self._drift_coo
@@ -832,22 +887,27 @@ class SrfMpc:
             gv = np.concatenate([gv, half.ravel(), lin.ravel()])
             g_lo = np.concatenate([g_lo, half_lo, lin_lo])
             g_hi = np.concatenate([g_hi, np.full(2 * self._n_cbf, np.inf)])
-        lb = np.zeros(nz)
-        ub = np.ones(nz)
-        ub[:3 * i] = 0.0
-        ub[nu:nu + 3 * i] = 0.0
-        lb[self._iw:self._iw + 3], ub[self._iw:self._iw + 3] = -1.0, 1.0
-        lb[self._ie:], ub[self._ie:] = -np.inf, np.inf
-        if relax < 2 and i < N:
-            tol = c.terminal_pos_tol_m / KM
-            lb[self._ie:self._ie + 3], ub[self._ie:self._ie + 3] = -tol, tol
+        boxed = relax < 2 and i < N
+        bounds = self._per_node.get(("bounds", i, boxed))
+        if bounds is None:  # depend on (i, boxed) only: made once, read-only
+            lb = np.zeros(nz)
+            ub = np.ones(nz)
+            ub[:3 * i] = 0.0
+            ub[nu:nu + 3 * i] = 0.0
+            lb[self._iw:self._iw + 3], ub[self._iw:self._iw + 3] = -1.0, 1.0
+            lb[self._ie:], ub[self._ie:] = -np.inf, np.inf
+            if boxed:
+                tol = c.terminal_pos_tol_m / KM
+                lb[self._ie:self._ie + 3], ub[self._ie:self._ie + 3] = -tol, tol
+            lb.flags.writeable = ub.flags.writeable = False
+            bounds = self._per_node[("bounds", i, boxed)] = (lb, ub)
+        lb, ub = bounds
         if n_cbf:
             G = self._csc("G_cbf", lambda: (np.concatenate([gr, self._cbf_rows]), np.concatenate([gc, self._cbf_cols])),
                           (self._n_g_static + 2 * n_cbf, nz), gv)
         else:
             G = self._csc("G", lambda: (gr, gc), (self._n_g_static, nz), gv)
         return _Qp(self._P, self._c, A_eq, b_eq, G, g_lo, g_hi, lb, ub, N - i + 1)
-
     def _run_solver(self, qp: _Qp, i: int, persistent: bool = True):
         """Solve with the persistent adapter of ``cfg.solver`` (``setup(problem)`` once, ``update``
         in place: the same calls for PIQP, Clarabel or DAQP; a one-shot solve for other sparsity

@@ -134,13 +134,18 @@ class Atmosphere:
 
     def density(self, t_s: np.ndarray, r_eci: np.ndarray) -> np.ndarray:
         """Density (n,) at ECI positions (n, 3) m and times ``t_s`` (n,) s after the epoch."""
-        import pymsis
-
         r = np.atleast_2d(np.asarray(r_eci, dtype=float))
         t = np.broadcast_to(np.asarray(t_s, dtype=float), (r.shape[0],))
-        geo = geodetic_many(self.rotation.to_ecef(t, r))
+        return self.density_geodetic(t, geodetic_many(self.rotation.to_ecef(t, r)))
+
+    def density_geodetic(self, t_s: np.ndarray, geo: np.ndarray) -> np.ndarray:
+        """Density (n,) at WGS-84 geodetic points ``geo`` (n, 3) [lat rad, lon rad, h m] and times ``t_s`` (n,)
+        s after the epoch (one pymsis call)."""
+        import pymsis
+
+        t = np.asarray(t_s, dtype=float)
         dates = self._t0 + (t * 1e9).astype("timedelta64[ns]")
-        n = r.shape[0]
+        n = geo.shape[0]
         out = pymsis.calculate(dates, np.degrees(geo[:, 1]), np.degrees(geo[:, 0]), geo[:, 2] / 1e3,
                                *self.weather.drivers(dates), version=0)  # fmt: skip
         return np.asarray(out[..., 0], dtype=float).reshape(n)

@@ -67,7 +67,8 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from proxops.core.constants import J2_EARTH, MU_EARTH, R_EARTH
-from proxops.environment.earth import earth_rotation, geodetic_many, geodetic_to_ecef
+from proxops.core.memo import memo_get
+from proxops.environment.earth import earth_rotation
 from proxops.environment.ephemeris import AU, GM_MOON, GM_SUN, N_FIT, R_SUN, third_body_fit
 from proxops.environment.epochs import Epoch, check_time_range, parse_epoch
 from proxops.environment.forces import Atmosphere, Spacecraft, SpaceWeather
@@ -80,6 +81,10 @@ from proxops.propagation.truth import RelativeTruth
 from proxops.dynamics.plant import PlantBase
 
 DENSITY_STEP_S = 30.0
+DENSITY_MARGIN_S = 600.0  # the table reaches this far past the horizon (extended on demand beyond)
+PATH_DEGREE = 30  # the target path that places the density table is predicted to this degree/order at most,
+PATH_STEP_S = 45.0  # with the multistep path at this step (s) and order: 5 m from the 100x100 18 s path over 2 orbits
+PATH_ORDER = km.DEFAULT_ORDER
 DENSITY_DH_M = 5000.0  # height step of the density table's derivatives (m)
 DENSITY_DC_M = 20000.0  # cross-track step of its horizontal derivative (m)
 # Default relative tolerance of the composed truth: 3e-11, a third of a decade below
@@ -88,6 +93,7 @@ DENSITY_DC_M = 20000.0  # cross-track step of its horizontal derivative (m)
 # 0.8 (0.09 mm at 1e-11 and 0.8 mm at 1e-10 with the former 0.9).
 FULL_RTOL = 3e-11
 GRAVITY = ("point", "j2", "harmonics")
+_FIELD_CACHE: dict = {}  # (degree, order) -> SphericalHarmonics (its C, S, K are only read)
 INTEGRATORS = ("fast", "dop853", "multistep", "reference")
 SHADOW = ("conical", "cylindrical")
 
@@ -217,7 +223,8 @@ class ComposedTruth(PlantBase):
         p[kf.I_J2] = J2_EARTH
         p[kf.I_RE] = R_EARTH
         if m.gravity == "harmonics":
-            field_ = SphericalHarmonics(m.degree, m.order)
+            # one field per (degree, order) and process: every run of a campaign reads the same C, S, K
+            field_ = memo_get(_FIELD_CACHE, (m.degree, m.order), lambda: SphericalHarmonics(m.degree, m.order))
             self._C, self._S, self._K = field_.C, field_.S, field_.K
             p[kf.I_GM_H], p[kf.I_RE_H] = field_.gm, field_.re
             p[kf.I_NMAX], p[kf.I_MMAX] = m.degree, m.order
@@ -253,25 +260,39 @@ class ComposedTruth(PlantBase):
         return self.npm, self._C, self._S, self._K, self._V, self._W
 
     def _ensure_table(self, t_end: float) -> None:
-        """Density table along the target's predicted path (drag off) over [0, t_end + margin]."""
+        """Density table along the target's predicted path (drag off) over [0, t_end + margin].
+
+        Columns (every DENSITY_STEP_S): ln rho, geodetic height, d ln rho/dh, d2 ln rho/dh2 and the
+        cross-track d ln rho/dc, from one pymsis call at geodetic points (jitted conversions). The path
+        only places the table (the relative motion is propagated with the full field): it is predicted
+        with the field to degree/order PATH_DEGREE at most, by the multistep path at PATH_STEP_S.
+        Construction vs a 2-orbit propagation, and the table's error against direct NRLMSISE-00
+        calls along the propagated pair: benchmarks/bench_truth.py (module doc). Derivative columns
+        sampled every 4th row and resampled by Catmull-Rom were tried: 35 % instead of 55 % of the
+        propagation, but their 30 s wiggles raised the multistep-vs-DOP853 difference at 100 m from
+        0.0006 to 0.010 mm (tests/test_propagation_multistep.py's bound: 0.01 mm), so every row is sampled."""
         if t_end <= self._dens_end:
             return
-        span = max(t_end * 1.5, t_end + 600.0)
+        span = t_end + DENSITY_MARGIN_S
         check_time_range(self.epoch, span, "duration")
         n = int(math.ceil(span / DENSITY_STEP_S)) + 4
         times = np.arange(n) * DENSITY_STEP_S
         p = self.p.copy()
         p[kf.I_DRAG] = 0.0
+        p[kf.I_NMAX] = min(p[kf.I_NMAX], PATH_DEGREE)
+        p[kf.I_MMAX] = min(p[kf.I_MMAX], PATH_DEGREE)
         y0 = np.append(self._target0, np.zeros(6))
-        status, out = self._integrate_numba(y0, times, self._zero_u_(), p)
+        out = np.empty((n, 12))
+        adams = km.adams_coefficients(PATH_ORDER) + km.lookahead_coefficients(PATH_ORDER, *km.DEFAULT_LOOKAHEAD)
+        status, *_ = km.integrate_multistep(y0, times, self._zero_u_(), p, *self._arrays(), self._dens, PATH_STEP_S,
+                                            *adams, p[kf.I_GRAV] == 2.0, self.rtol, self.atol, out)  # fmt: skip
         if status != kernels.STATUS_OK:
             raise ProxopsError("target path prediction for the density table failed")
         r = out[:, :3]
+        geo = kf.geodetic_rows(self.rotation.to_ecef(times, r))
         # +-5 km: the second difference of ln rho resolves the curvature (~4e-11 /m^2 at 500 km)
         # above pymsis' float32 noise (1e-5 / dh^2 = 4e-13 /m^2)
         dh = DENSITY_DH_M
-        ecef = self.rotation.to_ecef(times, r)
-        geo = geodetic_many(ecef)
         up = np.stack([np.cos(geo[:, 0]) * np.cos(geo[:, 1]), np.cos(geo[:, 0]) * np.sin(geo[:, 1]), np.sin(geo[:, 0])], -1)
         up_eci = self._ecef_to_eci(times, up)
         # cross-track gradient at constant geodetic height (the chaser's along-track offset
@@ -280,13 +301,11 @@ class ComposedTruth(PlantBase):
         normal = np.cross(r, out[:, 3:6])
         normal /= np.linalg.norm(normal, axis=1)[:, None]
         dc = DENSITY_DC_M
-        side = []
-        for sign in (1.0, -1.0):
-            g = geodetic_many(self.rotation.to_ecef(times, r + sign * dc * normal))
-            e = np.array([geodetic_to_ecef(la, lo, h) for la, lo, h in zip(g[:, 0], g[:, 1], geo[:, 2])])
-            side.append(self._ecef_to_eci(times, e))
-        rho = self.atmosphere.density(np.concatenate([times] * 5),
-                                      np.vstack([r, r + dh * up_eci, r - dh * up_eci, *side]))  # fmt: skip
+        t2 = np.concatenate([times, times])
+        shifted = kf.geodetic_rows(self.rotation.to_ecef(t2, np.vstack([r + dh * up_eci, r - dh * up_eci])))
+        side = kf.geodetic_rows(self.rotation.to_ecef(t2, np.vstack([r + dc * normal, r - dc * normal])))
+        side[:, 2] = np.concatenate([geo[:, 2], geo[:, 2]])  # moved to the target's geodetic height
+        rho = self.atmosphere.density_geodetic(np.concatenate([times, t2, t2]), np.vstack([geo, shifted, side]))
         l0, lu, ld, lp, lm = np.split(np.log(rho), 5)
         table = np.stack([l0, geo[:, 2], (lu - ld) / (2 * dh), (lu - 2.0 * l0 + ld) / dh**2, (lp - lm) / (2 * dc)],
                          axis=-1)  # fmt: skip

@@ -53,7 +53,7 @@ import numpy as np
 from numba import njit
 
 from proxops.core.twobody import accel_differential, accel_j2, accel_twobody
-from proxops.environment.earth import geodetic_height
+from proxops.environment.earth import geodetic, geodetic_height
 from proxops.environment.eclipse import shadow_boundaries, shadow_factor
 from proxops.environment.ephemeris import fitted_position
 from proxops.environment.forces import accel_drag, accel_srp, accel_third_body
@@ -149,6 +149,16 @@ def _interp_row(dens: np.ndarray, p: np.ndarray, t: float):
     f3 = f2 * f
     return (_catmull_rom(dens, i, 0, f, f2, f3), _catmull_rom(dens, i, 1, f, f2, f3), _catmull_rom(dens, i, 2, f, f2, f3),
             _catmull_rom(dens, i, 3, f, f2, f3), _catmull_rom(dens, i, 4, f, f2, f3))  # fmt: skip
+
+
+@njit(cache=True)
+def geodetic_rows(ecef: np.ndarray) -> np.ndarray:
+    """(n, 3) WGS-84 [lat rad, lon rad, h m] of Earth-fixed positions (n, 3) m
+    (:func:`proxops.environment.earth.geodetic` on every row, one jitted loop)."""
+    out = np.empty((ecef.shape[0], 3))
+    for k in range(ecef.shape[0]):
+        out[k, 0], out[k, 1], out[k, 2] = geodetic(ecef[k, 0], ecef[k, 1], ecef[k, 2])
+    return out
 
 
 @njit(cache=True)

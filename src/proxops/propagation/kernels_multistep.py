@@ -173,6 +173,7 @@ def adams_coefficients(order: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, 
     return beta_ab, beta_am, Q, Q0, G0
 
 
+@lru_cache(maxsize=None)
 def lookahead_coefficients(order: int, before: int, after: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, int]:
     """Look-ahead quadrature of the harmonic forcing (module doc): (Q_ab (k, k), c (m,),
     Q_g (m, m), before) with m = before + after + 1 nodes s = -before .. after (units of h from

@@ -48,6 +48,30 @@ _FORM_NAMES = {"P": "P", "q": "c", "A_eq": "A", "b_eq": "b", "A": "G", "bl": "h_
 _VECTORS = ("c", "b", "h_l", "h_u", "x_lb", "x_ub")
 
 
+_KEPT: dict = {}  # (role, pattern, free set) -> (slots, matrix) of _kept, shared by every PiqpQP of the process
+
+
+def _kept(role: str, M, free: np.ndarray):
+    """``_util.keep_columns(M, free)`` (and rows ``free`` for P): the same entries in the same order, from
+    index maps cached per (role, sparsity pattern, free set) across solvers (a shrinking-horizon MPC sets
+    up one problem per node, the same ones in every run of a campaign). The matrix returned is refilled by
+    the next call with the same key: PIQP copies it in ``setup`` / ``update``."""
+    digest = getattr(M, "_kept_digest", None)
+    if digest is None:  # the stored matrices keep their pattern (refilled in place) or are replaced
+        digest = M._kept_digest = hash((M.shape, M.indptr.tobytes(), M.indices.tobytes()))
+    key = (role, digest, free.tobytes())
+    hit = _KEPT.get(key)
+    if hit is None:
+        probe = type(M)((np.arange(M.nnz, dtype=float), M.indices, M.indptr), shape=M.shape)
+        R = _util.keep_columns(probe, free, rows=free if role == "P" else None)
+        if len(_KEPT) >= 512:
+            _KEPT.clear()
+        hit = _KEPT[key] = (R.data.astype(np.intp), R)
+    slots, R = hit
+    np.take(M.data, slots, out=R.data)
+    return R
+
+
 class PiqpQP(SolverAdapter):
     """Persistent PIQP sparse solver for ``min 1/2 x'Px + c'x s.t. Ax = b, h_l <= Gx <= h_u, x_lb <= x <= x_ub``.
 
@@ -211,10 +235,8 @@ class PiqpQP(SolverAdapter):
         out = {}
         for k in keys:
             v = d[k]
-            if k == "P":
-                out[k] = _util.keep_columns(v, free, rows=free)
-            elif k in ("A", "G"):
-                out[k] = _util.keep_columns(v, free)
+            if k in ("P", "A", "G"):
+                out[k] = _kept(k, v, free)
             elif k == "c":
                 out[k] = (v + _util.symmetric_upper_product(d["P"], x_fixed))[free] if shifted else v[free]
             elif k == "b":
