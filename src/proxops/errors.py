@@ -10,6 +10,15 @@ class ProxopsError(Exception):
     """Base class of every proxops error."""
 
 
+class PlantEnded(ProxopsError):
+    """The plant cannot go on for a physical reason (e.g. the target re-entered): the engine ends
+    the run there with ``outcome`` and ``StopReason.PLANT``; not an internal error."""
+
+    def __init__(self, outcome: str):
+        super().__init__(outcome)
+        self.outcome = outcome
+
+
 class ProxopsInputError(ProxopsError, ValueError):
     """Bad user input: scenario key, CLI option or function argument."""
 

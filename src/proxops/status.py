@@ -76,6 +76,7 @@ class StopReason(str, enum.Enum):
     COMPLETED = "completed"  # reached the scenario duration
     STOP_CONDITION = "stop_condition"  # the setup's stop_condition(t, x) returned a reason
     CONTROLLER = "controller"  # the controller set Command.stop (mission end or failure)
+    PLANT = "plant"  # the plant could not go on (proxops.errors.PlantEnded, e.g. re-entry)
 
     def __str__(self) -> str:
         return self.value

@@ -66,14 +66,14 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from proxops.core.constants import J2_EARTH, MU_EARTH, R_EARTH
+from proxops.core.constants import J2_EARTH, KARMAN_LINE_KM, MU_EARTH, R_EARTH
 from proxops.core.memo import memo_get
-from proxops.environment.earth import earth_rotation
+from proxops.environment.earth import earth_rotation, geodetic_height
 from proxops.environment.ephemeris import AU, GM_MOON, GM_SUN, N_FIT, R_SUN, third_body_fit
 from proxops.environment.epochs import Epoch, check_time_range, parse_epoch
 from proxops.environment.forces import Atmosphere, Spacecraft, SpaceWeather
 from proxops.environment.harmonics import SphericalHarmonics, check_degree_order
-from proxops.errors import ProxopsError, input_error
+from proxops.errors import PlantEnded, ProxopsError, input_error
 from proxops.frames.elements import OrbitalElements, check_perigee_above_surface, eci_to_elements, elements_to_eci
 from proxops.propagation import kernels, kernels_full as kf, kernels_multistep as km
 from proxops.propagation.reference import REFERENCE_ATOL
@@ -81,6 +81,7 @@ from proxops.propagation.truth import RelativeTruth
 from proxops.dynamics.plant import PlantBase
 
 DENSITY_STEP_S = 30.0
+DECAYING_ALTITUDE_KM = 150.0  # km: an integrator failure below this height is the end of a decay (a run ends there)
 DENSITY_MARGIN_S = 600.0  # the table reaches this far past the horizon (extended on demand beyond)
 PATH_DEGREE = 30  # the target path that places the density table is predicted to this degree/order at most,
 PATH_STEP_S = 45.0  # with the multistep path at this step (s) and order: 5 m from the 100x100 18 s path over 2 orbits
@@ -364,9 +365,22 @@ class ComposedTruth(PlantBase):
         if self.integrator != "reference":
             status, out = self._integrate_numba(y0, grid, u, self.p)
             if status != kernels.STATUS_OK:
+                self._end_if_reentering(float(grid[0]), y0, DECAYING_ALTITUDE_KM)
                 raise ProxopsError(f"truth propagation failed (status {status})")
-            return out
-        return self._integrate_reference(y0, grid, u)
+        else:
+            out = self._integrate_reference(y0, grid, u)
+        self._end_if_reentering(float(grid[-1]), out[-1], KARMAN_LINE_KM)
+        return out
+
+    def _end_if_reentering(self, t: float, y: np.ndarray, floor_km: float) -> None:
+        """Raise :class:`PlantEnded` when the target or the chaser is below ``floor_km`` of geodetic
+        height at ``t`` (s): below the Karman line after a step, or below DECAYING_ALTITUDE_KM where the
+        integrator gave up (drag at the end of a decay, not a numerical fault)."""
+        for name, r in (("target", y[:3]), ("chaser", y[:3] + y[6:9])):
+            h_km = geodetic_height(float(r[0]), float(r[1]), float(r[2])) / 1e3
+            if h_km < floor_km:
+                what = "re-entered" if floor_km == KARMAN_LINE_KM else "decayed (the truth integrator stopped)"
+                raise PlantEnded(f"{name} {what}: geodetic altitude {h_km:.1f} km < {floor_km:g} km at t = {t:.0f} s")
 
     def uses_multistep(self, span_s: float) -> bool:
         """Whether a propagation over ``span_s`` s takes the multistep path (module doc)."""

@@ -14,7 +14,7 @@ from typing import Annotated, Any, ClassVar, Literal
 from pydantic import BaseModel, ConfigDict, Field, create_model, field_validator, model_validator
 
 from proxops.actuators import THRUSTER_PARAMETERS
-from proxops.core.constants import R_EARTH
+from proxops.core.constants import R_EARTH, KARMAN_LINE_KM
 from proxops.errors import ProxopsInputError
 from proxops.frames.elements import eci_to_elements
 from proxops.environment.epochs import parse_epoch
@@ -52,7 +52,7 @@ class SimSection(Section):
         return self
 
 
-MIN_PERIGEE_ALTITUDE_KM = 100.0  # the Karman line: lower, drag ends an orbit within a revolution
+MIN_PERIGEE_ALTITUDE_KM = KARMAN_LINE_KM  # lower, drag ends an orbit within a revolution
 
 
 class OrbitSection(Section):

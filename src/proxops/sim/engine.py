@@ -72,7 +72,7 @@ import numpy as np
 
 from proxops.actuators import IdealActuator
 from proxops.dynamics.plant import PlantBase, translational_delta_v  # noqa: F401  (re-exported)
-from proxops.errors import input_error
+from proxops.errors import PlantEnded, input_error
 from proxops.navigation import PerfectNavigation
 from proxops.contracts import (
     Actuator,
@@ -423,14 +423,21 @@ class _Loop:
             for comp, k_comp in periodic:
                 if k % k_comp == 0:
                     events.extend((t, kind, msg) for kind, msg in comp.update(t, xe))
-            state, cmd, u, coast_to = tick(k, t, state, xr, xe, cmd, u)
+            try:
+                state, cmd, u, coast_to = tick(k, t, state, xr, xe, cmd, u)
+            except PlantEnded as end:  # sample k (and its command) is the last one
+                self.stop(end.outcome, StopReason.PLANT, t)
+                break
             if cmd is None:  # the controller stopped the run
                 break
             if bar is not None:
                 bar.update(1)
             k += 1
             if coast_to > k:
-                state, stop_i = self.coast(k, coast_to, state, cmd.idle, bar)
+                try:
+                    state, stop_i = self.coast(k, coast_to, state, cmd.idle, bar)
+                except PlantEnded:  # nothing of the coast is recorded: the ticks locate the end one by one
+                    continue
                 if stop_i is not None:
                     k += stop_i
                     break

@@ -43,7 +43,10 @@ class SystemBase:
     def success(self, sc, summary: dict) -> bool:
         """A campaign run succeeds unless the controller stopped it (``stop_reason``
         :attr:`StopReason.CONTROLLER`) on a failed step (``final_status``, the last controller
-        :class:`Status`, is ``failed``): runs that reach their duration or a stop condition succeed."""
+        :class:`Status`, is ``failed``) or the plant ended it (:attr:`StopReason.PLANT`, e.g. re-entry):
+        runs that reach their duration or a stop condition succeed."""
+        if summary.get("stop_reason") == StopReason.PLANT:
+            return False
         if summary.get("stop_reason") != StopReason.CONTROLLER:
             return True
         return not Status.parse(summary.get("final_status", Status.NONE)).failed
