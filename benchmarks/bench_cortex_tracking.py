@@ -191,7 +191,7 @@ def thruster_chain():
 def campaign(runs: int):
     with tempfile.TemporaryDirectory() as d:
         t0 = time.perf_counter()
-        proc = subprocess.run([sys.executable, "-m", "proxops.cli", "mc", "cortex-high-mc", "--runs", str(runs),
+        proc = subprocess.run([sys.executable, "-m", "proxops.exec.entry", "mc", "cortex-high-mc", "--runs", str(runs),
                                "--workers", "2", "--out", f"{d}/mc", "--json"], capture_output=True, text=True)
         wall = time.perf_counter() - t0
     print(f"{runs}-run high-error campaign on 2 workers: {wall:.1f} s wall (goal < {GOAL_CAMPAIGN_S:.0f} s: "

@@ -304,7 +304,7 @@ def test_cli_bad_input_is_one_line_exit_2(setting, field):
     import subprocess
     import sys
 
-    proc = subprocess.run([sys.executable, "-m", "proxops.cli", "run", "cortex-nominal", "--json", "--set", setting],
+    proc = subprocess.run([sys.executable, "-m", "proxops.exec.entry", "run", "cortex-nominal", "--json", "--set", setting],
                           capture_output=True, text=True, timeout=120)
     assert proc.returncode == 2
     lines = [ln for ln in proc.stderr.strip().splitlines() if ln.strip()]
