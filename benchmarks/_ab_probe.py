@@ -5,8 +5,9 @@ sources under test (this checkout or the previous release), so both use the same
     python _ab_probe.py cli ARG ...                          -> runs the proxops CLI (exit code kept)
 
 ``loop``: runs the scenario once to warm up (numba cache, solver set-up), then REPS times,
-timing the whole ``api.run`` (set-up + closed loop) and, inside it, every solver adapter's
-``solve()`` (wrapped on the class, so it works on any version that has the adapters).
+timing the whole ``api.run`` (set-up + closed loop) and, inside it, every solver adapter's set-up,
+update, warm-start and solve calls (wrapped on the classes, so it works on any version that has the
+adapters).
 """
 
 from __future__ import annotations
@@ -26,25 +27,30 @@ ADAPTERS = {  # module -> adapter classes (present in every release since the so
 _clock = {"solver_s": 0.0, "calls": 0, "depth": 0}
 
 
-def _wrap(cls) -> None:
-    solve = cls.__dict__.get("solve")
-    if solve is None or getattr(solve, "_ab_wrapped", False):
+SOLVER_METHODS = ("setup", "setup_native", "update", "update_native", "update_fast", "warm_start", "solve")
+
+
+def _wrap(cls, method: str) -> None:
+    """Time ``cls.method`` into the solver clock: the solver's own work (data loading, factorisation,
+    iterations) and its adapter; a call made inside another solver call counts once."""
+    fn = cls.__dict__.get(method)
+    if fn is None or getattr(fn, "_ab_wrapped", False):
         return
 
     def timed(self, *args, **kwargs):
-        outer = _clock["depth"] == 0  # an adapter that calls another (a fallback) counts once
+        outer = _clock["depth"] == 0
         _clock["depth"] += 1
         t0 = time.perf_counter()
         try:
-            return solve(self, *args, **kwargs)
+            return fn(self, *args, **kwargs)
         finally:
             _clock["depth"] -= 1
             if outer:
                 _clock["solver_s"] += time.perf_counter() - t0
-                _clock["calls"] += 1
+                _clock["calls"] += method == "solve"
 
     timed._ab_wrapped = True
-    cls.solve = timed
+    setattr(cls, method, timed)
 
 
 def _instrument() -> None:
@@ -56,8 +62,9 @@ def _instrument() -> None:
         for name in names:
             cls = getattr(mod, name, None)
             if cls is not None:
-                for klass in [cls, *cls.__subclasses__()]:
-                    _wrap(klass)
+                for klass in {cls, *cls.__mro__[:-1], *cls.__subclasses__()}:
+                    for method in SOLVER_METHODS:
+                        _wrap(klass, method)
 
 
 def _timed(fn) -> tuple[float, float, int, object]:

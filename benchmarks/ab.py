@@ -7,7 +7,7 @@ repetition (A B, B A, ...), so load drifts hit both sides alike. A regression sh
 
 Closed loops: ``simulate`` of a built-in's set-up (the loop alone) and ``api.run`` (set-up, loop,
 summary), after one warm-up run in the same process; the solver share is the time inside every
-solver adapter's ``solve()`` over the wall time (see ``_ab_probe.py``). Commands: the whole process, as a user sees it.
+solver adapter's set-up, update and solve calls over the wall time (see ``_ab_probe.py``). Commands: the whole process, as a user sees it.
 
     python benchmarks/ab.py [--reps 3] [--only srf,help] [--json out.json]
 """
