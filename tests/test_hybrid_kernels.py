@@ -7,7 +7,8 @@ import numpy as np
 import pytest
 import scipy.linalg
 
-from proxops.control.hybrid_kernels import approach_target_kernel, condensed_qp, expm_pade13, face_rows
+from proxops.control.hybrid_kernels import approach_target_kernel, condensed_qp, face_rows
+from proxops.core.small_linalg import expm_pade13
 from proxops.control.hybrid_mpc import CaptureMPC, CaptureMPCConfig
 from proxops.core.quaternion import quat_conjugate, quat_multiply, quat_to_dcm
 from proxops.dynamics.hybrid_relative import relative_from_truth

@@ -6,8 +6,7 @@ model, so the step costs the solver plus a few microseconds (issue: hybrid at th
   replayed as its own instruction list (+, -, *, /, neg, sq, twice, sqrt, constants) in numba:
   the same floating-point operations in the same order as CasADi's virtual machine, without its
   ~0.1-0.2 ms call overhead.
-* :func:`expm_pade13`: exp(M) by scaling and squaring with the degree-13 Pade approximant
-  (Higham 2005, the top branch of scipy.linalg.expm; relative error ~1e-16 on the ZOH blocks).
+* the ZOH exponential is :func:`proxops.core.small_linalg.expm_pade13` (shared with the MEKF).
 * :func:`condensed_qp`: ZOH discretisation, condensing X = Phi x0 + G U, the weighted cost
   with the rank-one face terms of eq. 66 (QP form), the bounds and the rate rows.
 * :func:`approach_target_kernel`: the approach-guidance waypoint (hybrid_mpc module doc).
@@ -21,6 +20,7 @@ import numpy as np
 from numba import njit
 
 from proxops.core.quaternion import dcm_kernel
+from proxops.core.small_linalg import expm_pade13, matmul, matmul_tn, matvec
 
 # CasADi opcodes -> ours (casadi.OP_*; checked at Tape construction)
 _OP_NAMES = ("INPUT", "OUTPUT", "CONST", "ADD", "SUB", "MUL", "DIV", "NEG", "SQ", "TWICE", "SQRT", "INV", "ASSIGN")
@@ -108,83 +108,6 @@ def tape_eval(code, a, b, o, c, inp, w, out):
             w[o[k]] = w[a[k]]
 
 
-_B13 = np.array([64764752532480000.0, 32382376266240000.0, 7771770303897600.0, 1187353796428800.0,
-                 129060195264000.0, 10559470521600.0, 670442572800.0, 33522128640.0, 1323241920.0,
-                 40840800.0, 960960.0, 16380.0, 182.0, 1.0])
-_THETA13 = 5.371920351148152
-
-
-@njit(cache=True)
-def expm_pade13(M):
-    """exp(M) (square M): scaling and squaring with the [13/13] Pade approximant (Higham 2005)."""
-    n = M.shape[0]
-    M = np.ascontiguousarray(M)
-    norm = 0.0
-    for j in range(n):
-        s = 0.0
-        for i in range(n):
-            s += abs(M[i, j])
-        norm = max(norm, s)
-    sq = 0
-    if norm > _THETA13:
-        sq = int(math.ceil(math.log2(norm / _THETA13)))
-    A = M / (2.0 ** sq)
-    b = _B13
-    ident = np.eye(n)
-    A2 = _mm(A, A)
-    A4 = _mm(A2, A2)
-    A6 = _mm(A4, A2)
-    U = _mm(A, _mm(A6, b[13] * A6 + b[11] * A4 + b[9] * A2) + b[7] * A6 + b[5] * A4 + b[3] * A2 + b[1] * ident)
-    V = _mm(A6, b[12] * A6 + b[10] * A4 + b[8] * A2) + b[6] * A6 + b[4] * A4 + b[2] * A2 + b[0] * ident
-    R = np.ascontiguousarray(np.linalg.solve(V - U, V + U))
-    for _ in range(sq):
-        R = _mm(R, R)
-    return R
-
-
-@njit(cache=True)
-def _mm(A, B):
-    """A @ B by loops (the blocks here are at most 12 x 12: numba's @ calls BLAS, ~1 us per call)."""
-    n, k = A.shape
-    m = B.shape[1]
-    out = np.zeros((n, m))
-    for i in range(n):
-        for l in range(k):
-            a = A[i, l]
-            if a != 0.0:
-                for j in range(m):
-                    out[i, j] += a * B[l, j]
-    return out
-
-
-@njit(cache=True)
-def _mtm(A, B):
-    """A.T @ B by loops."""
-    k, n = A.shape
-    m = B.shape[1]
-    out = np.zeros((n, m))
-    for l in range(k):
-        for i in range(n):
-            a = A[l, i]
-            if a != 0.0:
-                for j in range(m):
-                    out[i, j] += a * B[l, j]
-    return out
-
-
-@njit(cache=True)
-def _mv(A, x):
-    """A @ x by loops."""
-    n, k = A.shape
-    out = np.zeros(n)
-    for i in range(n):
-        s = 0.0
-        for l in range(k):
-            s += A[i, l] * x[l]
-        out[i] = s
-    return out
-
-
 @njit(cache=True)
 def condensed_qp(A, B, dt, N, dx0, W, r_blk, ref, face_a, wf, rate_first, rate_w):
     """Condensed box QP of a linear MPC over N stages with ZOH period dt (s).
@@ -209,11 +132,11 @@ def condensed_qp(A, B, dt, N, dx0, W, r_blk, ref, face_a, wf, rate_first, rate_w
     PB = np.empty((N, n, m))
     PB[0] = Bd
     for i in range(1, N):
-        PB[i] = _mm(Ad, PB[i - 1])
+        PB[i] = matmul(Ad, PB[i - 1])
     free = np.empty(nX)
     x = dx0.copy()
     for k in range(N):
-        x = _mv(Ad, x)
+        x = matvec(Ad, x)
         free[k * n:(k + 1) * n] = x
     G = np.zeros((nX, nU))
     for k in range(N):
@@ -249,12 +172,12 @@ def condensed_qp(A, B, dt, N, dx0, W, r_blk, ref, face_a, wf, rate_first, rate_w
             P = Wt
             g = gj
         else:
-            P = Wt + _mtm(Ad, _mm(P, Ad))
-            g = gj + _mv(AdT, g)
-        PBj = _mm(P, Bd)
-        f[j * m:(j + 1) * m] = _mv(BdT, g)
+            P = Wt + matmul_tn(Ad, matmul(P, Ad))
+            g = gj + matvec(AdT, g)
+        PBj = matmul(P, Bd)
+        f[j * m:(j + 1) * m] = matvec(BdT, g)
         for i in range(j + 1):
-            H[i * m:(i + 1) * m, j * m:(j + 1) * m] = _mtm(PB[j - i], PBj)
+            H[i * m:(i + 1) * m, j * m:(j + 1) * m] = matmul_tn(PB[j - i], PBj)
     for i in range(nU):  # the lower triangle (H symmetric up to round-off: mirrored)
         for l in range(i):
             H[i, l] = H[l, i]

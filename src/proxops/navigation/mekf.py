@@ -54,6 +54,7 @@ import numpy as np
 from numba import njit
 
 from proxops.core.quaternion import multiply_kernel, quat_conjugate, quat_normalize
+from proxops.core.small_linalg import expm_pade13
 from proxops.errors import input_error
 from proxops.navigation import small_rotation
 
@@ -100,57 +101,17 @@ def error_dynamics(omega: np.ndarray, inertia: np.ndarray, inertia_inv: np.ndarr
 def van_loan(F: np.ndarray, Qc: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray]:
     """(Phi, Q_d) of x_dot = F x + w, E[w w^T] = Qc delta, over ``dt`` s, F constant: Van Loan,
     expm([[-F, Qc], [0, F^T]] dt) = [[., E12], [0, E22]] -> Phi = E22^T, Q_d = Phi E12.
-    The exponential is :func:`_expm_kernel` (jitted: no BLAS threads on 12x12 matrices)."""
+    The exponential is :func:`proxops.core.small_linalg.expm_pade13` (jitted: no BLAS threads on 12x12 matrices)."""
     F = np.ascontiguousarray(F, dtype=float)
     n = F.shape[0]
     m = np.zeros((2 * n, 2 * n))
     m[:n, :n] = -F
     m[:n, n:] = Qc
     m[n:, n:] = F.T
-    e = _expm_kernel(m * dt)
+    e = expm_pade13(m * dt)
     phi = e[n:, n:].T
     qd = phi @ e[:n, n:]
     return phi, 0.5 * (qd + qd.T)
-
-
-@njit(cache=True)
-def _matmul(a, b):  # pragma: no cover - compiled
-    n, k, m = a.shape[0], a.shape[1], b.shape[1]
-    out = np.zeros((n, m))
-    for i in range(n):
-        for p in range(k):
-            aip = a[i, p]
-            if aip != 0.0:
-                for j in range(m):
-                    out[i, j] += aip * b[p, j]
-    return out
-
-
-@njit(cache=True)
-def _expm_kernel(a):  # pragma: no cover - compiled
-    """Matrix exponential by scaling and squaring with a degree-12 Taylor polynomial: the
-    1-norm is scaled to <= 0.25, where the truncation error is below 0.25^13 / 13! < 3e-18
-    (relative); tests check it against scipy.linalg.expm."""
-    n = a.shape[0]
-    norm = 0.0
-    for j in range(n):
-        c = 0.0
-        for i in range(n):
-            c += abs(a[i, j])
-        norm = max(norm, c)
-    s = 0
-    while norm > 0.25:
-        norm *= 0.5
-        s += 1
-    x = a / (2.0 ** s)
-    out = np.eye(n)
-    term = np.eye(n)
-    for k in range(1, 13):
-        term = _matmul(term, x) / k
-        out += term
-    for _ in range(s):
-        out = _matmul(out, out)
-    return out
 
 
 @njit(cache=True)
