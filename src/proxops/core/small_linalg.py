@@ -6,7 +6,8 @@ MEKF's Van Loan discretisation (:mod:`proxops.navigation.mekf`):
 
 * :func:`expm_pade13`: exp(M) by scaling and squaring with the [13/13] Pade approximant (Higham
   2005, the top branch of ``scipy.linalg.expm``; relative error ~1e-16 on these blocks);
-* :func:`matmul` (A B), :func:`matmul_tn` (A^T B), :func:`matvec` (A x).
+* :func:`matmul` (A B), :func:`matmul_tn` (A^T B), :func:`matvec` (A x), :func:`cross3` (a x b of
+  3-vectors; the rigid-body right-hand sides and the hybrid plant).
 """
 
 from __future__ import annotations
@@ -90,4 +91,14 @@ def matvec(A, x):
         for l in range(k):
             s += A[i, l] * x[l]
         out[i] = s
+    return out
+
+
+@njit(cache=True)
+def cross3(a, b):
+    """a x b of two 3-vectors inside numba code."""
+    out = np.empty(3)
+    out[0] = a[1] * b[2] - a[2] * b[1]
+    out[1] = a[2] * b[0] - a[0] * b[2]
+    out[2] = a[0] * b[1] - a[1] * b[0]
     return out

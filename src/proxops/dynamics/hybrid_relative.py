@@ -55,6 +55,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from proxops.core.small_linalg import cross3
 from proxops.core.quaternion import dcm_kernel, multiply_kernel, quat_kinematics, quat_to_dcm
 from proxops.dynamics.two_rigid_bodies import (
     SL_QC,
@@ -290,12 +291,12 @@ def relative_from_truth_kernel(xt, x_ref, out, P_c, P_d, m_c, m_d, n):
         wd[i] = om[i] + (Qt[0, i] * omc[0] + Qt[1, i] * omc[1] + Qt[2, i] * omc[2])
     rho0 = xt[6:9] - xt[0:3]
     rho0d = xt[9:12] - xt[3:6]
-    wxp = _cross3(wd, P_d)
+    wxp = cross3(wd, P_d)
     for i in range(3):  # eqs. 18-19
         rho[i] = (Rc[0, i] * rho0[0] + Rc[1, i] * rho0[1] + Rc[2, i] * rho0[2]
                   + Qt[i, 0] * P_d[0] + Qt[i, 1] * P_d[1] + Qt[i, 2] * P_d[2] - P_c[i])
     a = rho + P_c
-    oxa = _cross3(omc, a)
+    oxa = cross3(omc, a)
     m = m_c + m_d
     for i in range(3):
         out[i] = rho[i]
@@ -310,15 +311,6 @@ def relative_from_truth_kernel(xt, x_ref, out, P_c, P_d, m_c, m_d, n):
         out[13 + i] = qc[i]
     for i in range(6):
         out[26 + i] = x_ref[i]
-
-
-@njit(cache=True)
-def _cross3(a, b):
-    out = np.empty(3)
-    out[0] = a[1] * b[2] - a[2] * b[1]
-    out[1] = a[2] * b[0] - a[0] * b[2]
-    out[2] = a[0] * b[1] - a[1] * b[0]
-    return out
 
 
 _ZERO_REF = np.zeros(6)

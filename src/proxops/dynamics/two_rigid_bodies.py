@@ -48,6 +48,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from proxops.core.small_linalg import cross3
 from proxops.core.constants import MU_EARTH
 from numba import njit
 
@@ -320,15 +321,6 @@ def check_not_interpenetrating(params: HybridParams, x, name: str = "initial_sta
 # --------------------------------------------------------------------------------------
 # flow
 # --------------------------------------------------------------------------------------
-@njit(cache=True)
-def _cross(a, b):
-    out = np.empty(3)
-    out[0] = a[1] * b[2] - a[2] * b[1]
-    out[1] = a[2] * b[0] - a[0] * b[2]
-    out[2] = a[0] * b[1] - a[1] * b[0]
-    return out
-
-
 @njit(cache=True)
 def _mv(M, v):
     """M @ v for a 3x3 M inside numba code (a loop: numba's ``@`` calls BLAS, ~1 us per call)."""
@@ -680,7 +672,7 @@ def port_kinematics_kernel(x, P_c, P_d, n):
     rho0 = x[6:9] - x[0:3]
     rho0d = x[9:12] - x[3:6]
     rho = _mtv(Rc, rho0) + _mtv(Q, P_d) - P_c
-    rhod = _mtv(Rc, rho0d) - _cross(omc, rho + P_c) + _mtv(Q, _cross(wd, P_d))
+    rhod = _mtv(Rc, rho0d) - cross3(omc, rho + P_c) + _mtv(Q, cross3(wd, P_d))
     return Rc, Rd, Q, q, om, rho, rhod
 
 

@@ -37,13 +37,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from proxops.dynamics.tumbling_target import cross3
 from proxops.core.quaternion import quat_to_dcm, multiply_kernel
 from proxops.navigation.mekf import AttitudeMEKF, PoseAttitudeSensor, attitude_error
 from proxops.navigation import small_rotation
-
-
-def _cross(a, b):
-    return np.array([a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]])
 
 
 @dataclass
@@ -111,7 +108,7 @@ class TargetAttitudeNavigation:
             f.events.clear()
         R = quat_to_dcm(q)
         dr = R @ x[:3]
-        dv = R @ (x[3:6] + _cross(w, x[:3]))
+        dv = R @ (x[3:6] + cross3(w, x[:3]))
         if self.position_sigma_m > 0.0:
             dr = dr + self.position_sigma_m * rng.standard_normal(3)
         if self.velocity_sigma_mps > 0.0:
@@ -119,7 +116,7 @@ class TargetAttitudeNavigation:
         q_hat, w_hat = f.q, f.omega
         R_hat = quat_to_dcm(q_hat)
         r_hat = R_hat.T @ dr
-        v_hat = R_hat.T @ dv - _cross(w_hat, r_hat)
+        v_hat = R_hat.T @ dv - cross3(w_hat, r_hat)
         D = R.T @ R_hat  # estimated body axes in true body components
         self._psi = math.atan2(D[1, 0], D[0, 0])
         err = attitude_error(q_hat, q)

@@ -248,11 +248,6 @@ def latch_stop_kernel(x, corners_d, v_c, plane_c, k, c, omega_t):
 
 
 @njit(cache=True)
-def _cross3(a, b):
-    return np.array([a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]])
-
-
-@njit(cache=True)
 def _rhs(y, u, latched, t, grav, stop, corners_d, m_c, m_d, J_c, J_c_inv, J_d, J_d_inv, n, P_c, P_d, KT, DT, KR, DR):
     """d/dt of truth (26) + x_ref (6) at time t (s); the latch pair of
     two_rigid_bodies.latch_wrench when latched; the CW translation of truth_rhs_kernel
