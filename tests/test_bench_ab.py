@@ -23,4 +23,4 @@ def test_probe_counts_every_solver_call_once_and_share_is_a_fraction():
     summary, _ = api.run(api.load_scenario("srf-rbar", []))
     assert probe["solver_calls"] == summary["solves"] > 0
     assert 0.0 < probe["solver_share"] < 1.0 and 0.0 < probe["run_solver_share"] < 1.0
-    assert probe["solver_s"] < probe["wall_s"] <= probe["run_wall_s"]
+    assert probe["solver_s"] < probe["wall_s"]  # the solver clock runs inside the loop's clock of the same call
