@@ -149,10 +149,11 @@ def test_no_package_circles():
     assert not unexpected, f"circles between the first-level packages of proxops: {unexpected}"
 
 
-# Issue goal: <= 2 ignores. Today 3: thrusters -> solvers (Algorithm 4's LP), plotting.hybrid ->
-# systems.hybrid (envelope cells) and exec.entry -> cli (the console script in the start-up wing
-# starts the CLI, which sits above exec). A ratchet: the count may only fall.
-MAX_IGNORES = 3
+# Issue 31 goal: <= 2 ignores. Today 2: plotting.hybrid -> systems.hybrid (envelope cells) and
+# exec.entry -> cli (the console script in the start-up wing starts the CLI, which sits above exec).
+# thrusters -> solvers went when the solvers (they import only errors/status) moved below the
+# actuators' row. A ratchet: the count may only fall.
+MAX_IGNORES = 2
 
 
 def test_importlinter_ignores_do_not_grow():
