@@ -15,7 +15,8 @@ from typer.testing import CliRunner
 
 from proxops.cli import app
 from proxops.core.quaternion import quat_from_axis_angle, quat_multiply, quat_to_axis_angle
-from proxops.navigation.mekf import PoseAttitudeSensor, attitude_error, attitude_nees_band
+from proxops.navigation.consistency import mean_band
+from proxops.navigation.mekf import PoseAttitudeSensor, attitude_error
 
 
 def test_pose_sensor_noise_has_the_stated_sigma():
@@ -125,9 +126,9 @@ def test_planar_pose_ekf_consistent_against_independent_truth():
             nees[r, k] = f.record["pose_nees"][-1]
             nees_att[r, k] = f.record["nees"][-1]
         nis.extend(f.record["nis"])
-    lo, hi = attitude_nees_band(runs, 6)
+    lo, hi = mean_band(runs, 6)
     assert lo <= nees.mean(axis=0).mean() <= hi, nees.mean()
-    lo2, hi2 = attitude_nees_band(runs, 2)
+    lo2, hi2 = mean_band(runs, 2)
     assert lo2 <= nees_att.mean(axis=0).mean() <= hi2, nees_att.mean()
     nis = np.asarray(nis)
     lo_n, hi_n = chi2.ppf([0.0005, 0.9995], nis.size * 3) / nis.size

@@ -15,7 +15,8 @@ from scipy.linalg import expm
 from scipy.stats import chi2
 
 from proxops.errors import ProxopsInputError
-from proxops.navigation.mekf import AttitudeMEKF, attitude_error, attitude_nees_band, error_dynamics, van_loan
+from proxops.navigation.consistency import mean_band
+from proxops.navigation.mekf import AttitudeMEKF, attitude_error, error_dynamics, van_loan
 
 J_TEST = np.diag([80.0, 120.0, 150.0])  # kg m^2, three distinct moments: the rate nutates
 W0 = np.radians([1.5, -2.0, 3.0])  # rad/s
@@ -141,7 +142,7 @@ def test_nees_consistent_with_dropout_window():
     quaternion stays unit to 1e-12."""
     runs, window = 30, range(60, 90)
     nees, nis, tr, norm_err = _monte_carlo(runs=runs, dropout=window)
-    lo, hi = attitude_nees_band(runs, 6)
+    lo, hi = mean_band(runs, 6)
     assert (lo, hi) == pytest.approx(tuple(chi2.ppf([0.025, 0.975], 180) / 30))
     mean_k = nees.mean(axis=0)
     assert lo <= mean_k.mean() <= hi, (mean_k.mean(), lo, hi)
@@ -160,7 +161,7 @@ def test_mistuned_filter_fails_the_same_test():
     """The test can fail: with 100x less process noise than the truth, mean NEES leaves the band."""
     runs = 30
     nees, _, _, _ = _monte_carlo(runs=runs, steps=80, q_filter=1e-9, seed=5)
-    lo, hi = attitude_nees_band(runs, 6)
+    lo, hi = mean_band(runs, 6)
     assert nees[:, 20:].mean() > hi
 
 

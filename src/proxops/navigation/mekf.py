@@ -57,6 +57,7 @@ from proxops.core.quaternion import multiply_kernel, quat_conjugate, quat_normal
 from proxops.core.small_linalg import expm_pade13
 from proxops.errors import input_error
 from proxops.navigation import small_rotation
+from proxops.navigation.consistency import chi2_band
 
 
 def rotation_vector(q: np.ndarray) -> np.ndarray:
@@ -340,16 +341,6 @@ class AttitudeMEKF:
         return float(e @ np.linalg.solve(P, e))
 
 
-def attitude_nees_band(n_runs: int, dof: int = 6, confidence: float = 0.95) -> tuple[float, float]:
-    """Two-sided chi-square band of the mean of ``n_runs`` independent NEES of ``dof`` dof."""
-    from scipy.stats import chi2
-
-    a = 0.5 * (1.0 - confidence)
-    lo, hi = chi2.ppf([a, 1.0 - a], n_runs * dof) / n_runs
-    return float(lo), float(hi)
-
-
-
 @dataclass
 class PoseAttitudeSensor:
     """Simulated attitude part of a camera/LIDAR pose measurement (and an optional rate).
@@ -430,10 +421,8 @@ def attitude_summary(stats: dict, prefix: str = "att") -> dict:
 def consistency_keys(values, dof: int, prefix: str) -> dict:
     """``<prefix>_mean``, ``_band`` (two-sided 95 % chi-square band of one value of ``dof`` dof),
     ``_inside_fraction`` (of the values inside it; 0.95 expected of a consistent filter) and ``_dof``."""
-    from scipy.stats import chi2
-
     vals = np.asarray(values, dtype=float)
-    lo, hi = (float(v) for v in chi2.ppf([0.025, 0.975], dof))
+    lo, hi = chi2_band(dof)
     return {f"{prefix}_mean": float(vals.mean()) if vals.size else None, f"{prefix}_band": [lo, hi],
             f"{prefix}_inside_fraction": float(np.mean((vals >= lo) & (vals <= hi))) if vals.size else None,
             f"{prefix}_dof": int(dof)}
