@@ -38,8 +38,8 @@ def disk(tmp_path, monkeypatch):
 
 def test_density_table_within_pymsis_noise_along_the_propagated_pair_over_two_orbits():
     """Tabulated density at the propagated target (and the chaser 2 km ahead) every 10 s over two
-    orbits, to the table's last row, against pymsis called there. Measured 2026-11-28 (100x100 +
-    Sun/Moon, bench_truth.construction_share): max rel. error 7.8e-6 target, 9.5e-6 chaser; pymsis
+    orbits (20x20 + drag + Sun/Moon here), against pymsis called there. Measured 2026-11-28 with
+    100x100 (bench_truth.construction_share): max rel. error 7.8e-6 target, 9.5e-6 chaser; pymsis
     computes in float32 (~1e-6..1e-5), so this is its noise, not the interpolation."""
     horizon = 2.0 * PERIOD
     truth = ComposedTruth(ORBIT, np.array([0.0, 2000.0, 0.0, 0.0, 0.0, 0.0]), MODELS, horizon_s=horizon)
