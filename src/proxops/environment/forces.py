@@ -143,12 +143,15 @@ class Atmosphere:
         s after the epoch (one pymsis call)."""
         import pymsis
 
-        t = np.asarray(t_s, dtype=float)
-        dates = self._t0 + (t * 1e9).astype("timedelta64[ns]")
+        dates = self.dates(t_s)
         n = geo.shape[0]
         out = pymsis.calculate(dates, np.degrees(geo[:, 1]), np.degrees(geo[:, 0]), geo[:, 2] / 1e3,
                                *self.weather.drivers(dates), version=0)  # fmt: skip
         return np.asarray(out[..., 0], dtype=float).reshape(n)
+
+    def dates(self, t_s) -> np.ndarray:
+        """UTC dates (datetime64[ns]) of the times ``t_s`` (s after the epoch)."""
+        return self._t0 + (np.asarray(t_s, dtype=float) * 1e9).astype("timedelta64[ns]")
 
     @property
     def omega_eci(self) -> np.ndarray:

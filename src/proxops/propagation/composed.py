@@ -69,25 +69,19 @@ import numpy as np
 from proxops.core.constants import J2_EARTH, KARMAN_LINE_KM, MU_EARTH, R_EARTH
 from proxops.core.memo import memo_get
 from proxops.environment.earth import earth_rotation, geodetic_height
-from proxops.environment.ephemeris import AU, GM_MOON, GM_SUN, N_FIT, R_SUN, third_body_fit
+from proxops.environment.ephemeris import AU, GM_MOON, GM_SUN, N_FIT, R_SUN, cached_third_body_fit
 from proxops.environment.epochs import Epoch, check_time_range, parse_epoch
 from proxops.environment.forces import Atmosphere, Spacecraft, SpaceWeather
 from proxops.environment.harmonics import SphericalHarmonics, check_degree_order
 from proxops.errors import PlantEnded, ProxopsError, input_error
 from proxops.frames.elements import OrbitalElements, check_perigee_above_surface, eci_to_elements, elements_to_eci
 from proxops.propagation import kernels, kernels_full as kf, kernels_multistep as km
+from proxops.propagation.full_setup import DENSITY_MARGIN_S, DENSITY_STEP_S, density_table
 from proxops.propagation.reference import REFERENCE_ATOL
 from proxops.propagation.truth import RelativeTruth
 from proxops.dynamics.plant import PlantBase
 
-DENSITY_STEP_S = 30.0
 DECAYING_ALTITUDE_KM = 150.0  # km: an integrator failure below this height is the end of a decay (a run ends there)
-DENSITY_MARGIN_S = 600.0  # the table reaches this far past the horizon (extended on demand beyond)
-PATH_DEGREE = 30  # the target path that places the density table is predicted to this degree/order at most,
-PATH_STEP_S = 45.0  # with the multistep path at this step (s) and order: 5 m from the 100x100 18 s path over 2 orbits
-PATH_ORDER = km.DEFAULT_ORDER
-DENSITY_DH_M = 5000.0  # height step of the density table's derivatives (m)
-DENSITY_DC_M = 20000.0  # cross-track step of its horizontal derivative (m)
 # Default relative tolerance of the composed truth: 3e-11, a third of a decade below
 # RelativeTruth's. Measured (one orbit, 100x100 + Sun/Moon, 20 km separation, relative
 # position vs the same loop at rtol 1e-13): 0.06 mm at 3e-11 with the loop's safety factor
@@ -246,7 +240,7 @@ class ComposedTruth(PlantBase):
         p[kf.I_THETA0], p[kf.I_OMEGA] = self.rotation.theta0, self.rotation.omega
         p[kf.I_PM : kf.I_PM + 9] = (self.rotation.polar - np.eye(3)).ravel()
         if m.sun or m.moon or m.srp:
-            p[kf.I_EPH : kf.I_EPH + N_FIT] = third_body_fit(self.epoch)
+            p[kf.I_EPH : kf.I_EPH + N_FIT] = cached_third_body_fit(self.epoch)
         from proxops.core.constants import OMEGA_EARTH
 
         p[kf.I_WX : kf.I_WZ + 1] = OMEGA_EARTH * self.rotation.pole_eci
@@ -261,64 +255,16 @@ class ComposedTruth(PlantBase):
         return self.npm, self._C, self._S, self._K, self._V, self._W
 
     def _ensure_table(self, t_end: float) -> None:
-        """Density table along the target's predicted path (drag off) over [0, t_end + margin].
-
-        Columns (every DENSITY_STEP_S): ln rho, geodetic height, d ln rho/dh, d2 ln rho/dh2 and the
-        cross-track d ln rho/dc, from one pymsis call at geodetic points (jitted conversions). The path
-        only places the table (the relative motion is propagated with the full field): it is predicted
-        with the field to degree/order PATH_DEGREE at most, by the multistep path at PATH_STEP_S.
-        Construction vs a 2-orbit propagation, and the table's error against direct NRLMSISE-00
-        calls along the propagated pair: benchmarks/bench_truth.py (module doc). Derivative columns
-        sampled every 4th row and resampled by Catmull-Rom were tried: 35 % instead of 55 % of the
-        propagation, but their 30 s wiggles raised the multistep-vs-DOP853 difference at 100 m from
-        0.0006 to 0.010 mm (tests/test_propagation_multistep.py's bound: 0.01 mm), so every row is sampled."""
+        """Density table along the target's predicted path (drag off) over [0, t_end + margin]
+        (:func:`proxops.propagation.full_setup.density_table`, memoised on its inputs)."""
         if t_end <= self._dens_end:
             return
         span = t_end + DENSITY_MARGIN_S
         check_time_range(self.epoch, span, "duration")
         n = int(math.ceil(span / DENSITY_STEP_S)) + 4
-        times = np.arange(n) * DENSITY_STEP_S
-        p = self.p.copy()
-        p[kf.I_DRAG] = 0.0
-        p[kf.I_NMAX] = min(p[kf.I_NMAX], PATH_DEGREE)
-        p[kf.I_MMAX] = min(p[kf.I_MMAX], PATH_DEGREE)
-        y0 = np.append(self._target0, np.zeros(6))
-        out = np.empty((n, 12))
-        adams = km.adams_coefficients(PATH_ORDER) + km.lookahead_coefficients(PATH_ORDER, *km.DEFAULT_LOOKAHEAD)
-        status, *_ = km.integrate_multistep(y0, times, self._zero_u_(), p, *self._arrays(), self._dens, PATH_STEP_S,
-                                            *adams, p[kf.I_GRAV] == 2.0, self.rtol, self.atol, out)  # fmt: skip
-        if status != kernels.STATUS_OK:
-            raise ProxopsError("target path prediction for the density table failed")
-        r = out[:, :3]
-        geo = kf.geodetic_rows(self.rotation.to_ecef(times, r))
-        # +-5 km: the second difference of ln rho resolves the curvature (~4e-11 /m^2 at 500 km)
-        # above pymsis' float32 noise (1e-5 / dh^2 = 4e-13 /m^2)
-        dh = DENSITY_DH_M
-        up = np.stack([np.cos(geo[:, 0]) * np.cos(geo[:, 1]), np.cos(geo[:, 0]) * np.sin(geo[:, 1]), np.sin(geo[:, 0])], -1)
-        up_eci = self._ecef_to_eci(times, up)
-        # cross-track gradient at constant geodetic height (the chaser's along-track offset
-        # is taken by its lead time, its height by the two height derivatives): points
-        # +-dc along the orbit normal, moved to the target's geodetic height
-        normal = np.cross(r, out[:, 3:6])
-        normal /= np.linalg.norm(normal, axis=1)[:, None]
-        dc = DENSITY_DC_M
-        t2 = np.concatenate([times, times])
-        shifted = kf.geodetic_rows(self.rotation.to_ecef(t2, np.vstack([r + dh * up_eci, r - dh * up_eci])))
-        side = kf.geodetic_rows(self.rotation.to_ecef(t2, np.vstack([r + dc * normal, r - dc * normal])))
-        side[:, 2] = np.concatenate([geo[:, 2], geo[:, 2]])  # moved to the target's geodetic height
-        rho = self.atmosphere.density_geodetic(np.concatenate([times, t2, t2]), np.vstack([geo, shifted, side]))
-        l0, lu, ld, lp, lm = np.split(np.log(rho), 5)
-        table = np.stack([l0, geo[:, 2], (lu - ld) / (2 * dh), (lu - 2.0 * l0 + ld) / dh**2, (lp - lm) / (2 * dc)],
-                         axis=-1)  # fmt: skip
-        self._dens = np.ascontiguousarray(table)
-        self.p[kf.I_DENS_T0] = times[0]
-        self._dens_end = times[-1] - 2 * DENSITY_STEP_S
-
-    def _zero_u_(self) -> np.ndarray:
-        return np.zeros(3)
-
-    def _ecef_to_eci(self, times: np.ndarray, v: np.ndarray) -> np.ndarray:
-        return self.rotation.to_eci(times, v)
+        self._dens = density_table(self, n)
+        self.p[kf.I_DENS_T0] = 0.0
+        self._dens_end = (n - 3) * DENSITY_STEP_S
 
     # ------------------------------------------------------------------ Plant protocol
     def initial_state(self) -> np.ndarray:
