@@ -120,3 +120,17 @@ def test_clarabel_rebuild_equals_a_new_set_up():
     got, ref = s.solve(), new(b2, a2)
     np.testing.assert_array_equal(got.x, ref.x)
     assert got.objective == pytest.approx(-2.0 * math.sqrt(2.0), abs=1e-7)
+
+
+def test_fork_server_warm_up_plans_once_and_fills_the_caches():
+    # what the pool's fork server does for `cortex references` (exec.worker_warmup): the planner's set-ups
+    # and the eclipse profile end up cached, so the forked workers plan their first axis at the warm speed
+    from proxops.exec.worker_warmup import warm_up
+    from proxops.systems import cortex_setup
+
+    phases._SET_UPS.clear()
+    cortex_setup._PROFILES.clear()
+    assert warm_up("cortex-reference")
+    assert len(cortex_setup._PROFILES) == 1
+    assert len(phases._SET_UPS) >= 2  # CP1 and CP2 of the first converged durations
+    assert not warm_up("cortex-reference", ["planner.dt_cp1_s=-1"])  # bad input: no warm-up, no error raised

@@ -259,6 +259,14 @@ class CortexSystem(SystemBase):
         if sc.guidance.closed_loop:
             check_loop(sc)
 
+    def warm_up(self, sc: CortexScenario) -> None:
+        """The check, and for the planner one plan of the scenario's axis: what a campaign worker would do
+        first (solver and numba imports, the eclipse profile and phase set-ups cached per process), done once
+        by the pool's fork server (:mod:`proxops.exec.worker_warmup`) before it forks the workers."""
+        self.check(sc)
+        if not sc.guidance.closed_loop:
+            plan_scenario(sc)
+
     def build(self, sc: CortexScenario):
         if sc.guidance.closed_loop:
             return _loop().build_setup(sc)[0]
