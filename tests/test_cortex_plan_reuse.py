@@ -134,3 +134,28 @@ def test_fork_server_warm_up_plans_once_and_fills_the_caches():
     assert len(cortex_setup._PROFILES) == 1
     assert len(phases._SET_UPS) >= 2  # CP1 and CP2 of the first converged durations
     assert not warm_up("cortex-reference", ["planner.dt_cp1_s=-1"])  # bad input: no warm-up, no error raised
+
+
+def test_references_out_draws_fig11_from_the_rows_without_series(tmp_path):
+    # the rows keep each plan's node positions (metric.trace.*): Fig. 11 without a saved series; the trace
+    # matches the plan's own trajectory to the 0.1 mm rounding and splits at the first approach node
+    from typer.testing import CliRunner
+
+    from proxops.analysis.campaign import load_campaign
+    from proxops.cli import app
+    from proxops.plotting.cortex import plan_traces
+    from proxops.scenarios.loader import load_scenario
+    from proxops.systems.cortex_setup import plan_scenario
+
+    out = tmp_path / "c"
+    res = CliRunner().invoke(app, ["cortex", "references", "--n", "3", "--workers", "1", "--out", str(out), "--json"])
+    assert res.exit_code == 0, res.output
+    assert (out / "fig11_trajectories.png").is_file() and not (out / "series").exists()
+    table = load_campaign(out).table
+    traces = plan_traces(table)
+    assert len(traces) == 3
+    for i, tr in enumerate(traces):
+        sc = load_scenario("cortex-reference", ["axis.fibonacci_n=3", f"axis.fibonacci_index={i}"]).scenario
+        traj = plan_scenario(sc).trajectory()
+        np.testing.assert_allclose(tr.x_true, traj["x"][:, :3], rtol=0, atol=0.5e-4 + 1e-12)
+        assert [m == "approach" for m in tr.mode] == [p == "approach" for p in traj["phase"]]

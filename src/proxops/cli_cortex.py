@@ -136,8 +136,8 @@ def references(
     prestart(scenario, n, workers, list(set_))  # warm-up) while this process imports the campaign engine
     from proxops.analysis.campaign import run_campaign  # the campaign engine: not for `cortex reference`
     t0 = time.perf_counter()
-    res = run_campaign(data, workers=workers, out=out, resume=resume, progress=not as_json, overrides=list(set_),
-                       keep_series=out is not None and figures)
+    # Fig. 11 is drawn from the plans' node positions in the rows (metric.trace.*): no series saved
+    res = run_campaign(data, workers=workers, out=out, resume=resume, progress=not as_json, overrides=list(set_))
     wall = time.perf_counter() - t0
     st = campaign_statistics(res.table)
     st["campaign_wall_s"] = wall
