@@ -50,6 +50,8 @@ def load_previous(rev: str):
         text = text.replace("from proxops.guidance.cortex import holds", "from prevcortex import holds")
         text = re.sub(r"proxops\.constraints\.approach_cone", "prevcortex.approach_cone", text)
         text = re.sub(r"proxops\.control\.cortex_tracking", "prevcortex.cortex_tracking", text)
+        text = text.replace("from proxops.sim.protocols import", "from proxops.contracts import")  # moved since
+        text = text.replace("self.solver.setup(None,", "self.solver.setup_native(None,")  # the adapter's native set-up
         (pkg / f"{name}.py").write_text(text)
     sys.path.insert(0, str(root))
     return {name: importlib.import_module(f"prevcortex.{name}") for name in FILES}
@@ -82,7 +84,9 @@ def plans(prev, n: int) -> None:
             cpu[w].append(time.process_time() - c0)
         a, b = got[0], got[1]
         same += (str(a.status) == str(b.status) and (a.tau1_s == b.tau1_s or math.isnan(a.tau1_s) and math.isnan(b.tau1_s))
-                 and (a.tau2_s == b.tau2_s or math.isnan(a.tau2_s) and math.isnan(b.tau2_s)))
+                 and (a.tau2_s == b.tau2_s or math.isnan(a.tau2_s) and math.isnan(b.tau2_s))
+                 and a.kos_iterations == b.kos_iterations and a.scp_iterations == b.scp_iterations
+                 and a.evaluations_cp1 == b.evaluations_cp1 and a.evaluations_cp2 == b.evaluations_cp2)
         for pa, pb in ((a.cp1, b.cp1), (a.cp2, b.cp2)):
             if pa is not None and pb is not None and pa.x is not None and pb.x is not None and pa.x.shape == pb.x.shape:
                 dx = max(dx, float(np.abs(pa.x - pb.x).max()))
@@ -93,7 +97,7 @@ def plans(prev, n: int) -> None:
     print(f"reference plan, {n} Fibonacci axes alternated ({_load()}): CPU per plan previous median {np.median(p):.4f} s, "
           f"current median {np.median(c):.4f} s (IQR {np.subtract(*np.percentile(c, [75, 25])):.4f}); ratio previous/current "
           f"{np.median(p) / np.median(c):.2f} (sums {p.sum() / c.sum():.2f}); goal 0.05 s per axis")
-    print(f"  same status and durations {same}/{n}; largest differences: node state {dx:.3g} (m, m/s), impulse {ddv:.3g} m/s, "
+    print(f"  same status, durations, durations tried and KOS/SCP iterations {same}/{n}; largest differences: node state {dx:.3g} (m, m/s), impulse {ddv:.3g} m/s, "
           f"total delta-v {dtot:.3g} m/s")
 
 

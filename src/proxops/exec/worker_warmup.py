@@ -26,7 +26,8 @@ def warm_up(scenario: str, overrides=()) -> bool:
         from proxops.scenarios.loader import load_scenario
 
         loaded = load_scenario(scenario, list(overrides))
-        loaded.system.check(loaded.scenario)
+        # a system's own warm-up when it has one (a planner: its solver and caches), else its build
+        getattr(loaded.system, "warm_up", loaded.system.check)(loaded.scenario)
         return True
     except Exception:  # noqa: BLE001 - reported by the workers' own check, never here
         return False

@@ -119,8 +119,8 @@ def campaign_figures(camp, sc, paper: dict, out: Path) -> list[Path]:
     :class:`proxops.analysis.campaign.CampaignResult`, ``sc`` its scenario, ``paper`` the §5.1.1
     medians) into the folder ``out``."""
     table = camp.table
-    results = []
-    for rid in table[table["success"].astype(bool)]["run_id"].tolist():
+    results = plan_traces(table[table["success"].astype(bool)])
+    for rid in ([] if results else table[table["success"].astype(bool)]["run_id"].tolist()):  # older campaigns
         try:
             results.append(camp.series(int(rid)))
         except Exception:  # a campaign without series: Fig. 12 only
@@ -129,6 +129,27 @@ def campaign_figures(camp, sc, paper: dict, out: Path) -> list[Path]:
     if results:
         paths.insert(0, fig11_trajectories(sc, results, Path(out) / "fig11_trajectories.png"))
     return paths
+
+
+def plan_traces(table) -> list:
+    """The plans' node positions from the campaign rows (``metric.trace.*`` of
+    :func:`proxops.systems.cortex.plan_trace`) as objects with ``x_true`` (n, 3) and ``mode`` (flyaround /
+    approach) for :func:`fig11_trajectories`; [] when the table has no traces (then saved series are read)."""
+    import json
+    from types import SimpleNamespace
+
+    if "metric.trace.x" not in table or "metric.trace.approach_from" not in table:
+        return []
+    out = []
+    for xs, ys, zs, k in zip(table["metric.trace.x"], table["metric.trace.y"], table["metric.trace.z"],
+                             table["metric.trace.approach_from"]):
+        try:
+            x = np.column_stack([json.loads(xs), json.loads(ys), json.loads(zs)]).astype(float)
+            k = int(k)
+        except (TypeError, ValueError):
+            continue
+        out.append(SimpleNamespace(x_true=x, mode=["flyaround"] * k + ["approach"] * (len(x) - k)))
+    return out
 
 
 def run_figures(sc, results, out_dir: Path) -> list[Path]:

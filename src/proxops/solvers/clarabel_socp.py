@@ -165,6 +165,8 @@ class ClarabelSOCP(SolverAdapter):
         A = self._data["A"][np.flatnonzero(keep)] if not keep.all() else self._data["A"]
         A = sp.csc_matrix(A)
         A.sort_indices()
+        if keep.all():  # every row kept: the cones as set up
+            return keep, A, self._data["b"], list(self.cones)
         cones, row = [], 0
         for kind, dim in self.cones:
             kept = int(keep[row : row + dim].sum())
@@ -181,17 +183,18 @@ class ClarabelSOCP(SolverAdapter):
         if self._bad.fields or self._crossed is not None:
             self._keep = None  # built once the data are usable
             return
-        keep, A, _, _ = self._reduced()
-        self._keep, self._A_red = keep, A
+        reduced = self._reduced()
+        self._keep, self._A_red = reduced[0], reduced[1]
         try:
-            self._solver = self._new_solver(self._native)
+            self._solver = self._new_solver(self._native, reduced)
         except Exception as exc:
             self._solver_error = error_message(exc)
 
-    def _new_solver(self, native: dict):
-        """A Clarabel solver for the stored data (+inf nonneg rows removed) with the native settings."""
+    def _new_solver(self, native: dict, reduced=None):
+        """A Clarabel solver for the stored data (+inf nonneg rows removed; ``reduced``: that data from
+        :meth:`_reduced` when at hand) with the native settings."""
         cl = self._clarabel
-        _, A, b, cones = self._reduced()
+        _, A, b, cones = self._reduced() if reduced is None else reduced
         makers = {"zero": cl.ZeroConeT, "nonneg": cl.NonnegativeConeT, "soc": cl.SecondOrderConeT}
         settings = cl.DefaultSettings()
         for key, value in native.items():
@@ -302,6 +305,29 @@ class ClarabelSOCP(SolverAdapter):
                 self._solver.update(**changed)
             except Exception as exc:
                 self._solver_error = error_message(exc)
+
+    def rebuild(self, *, b: np.ndarray | None = None, A_values: np.ndarray | None = None) -> None:
+        """Set ``b`` and the values of A like :meth:`update_fast` (trusted data, the same conditions) and set
+        the native solver up again from them: a fresh equilibration and factorisation, so the next solve is
+        the one of a new :meth:`setup` with these data (an in-place update keeps the scaling computed from
+        the first data). For a problem reused with new data (the CORTEX phases reuse one set-up per node
+        grid); after a failed set-up or with rows removed it is :meth:`update_native` then a set-up."""
+        d = self._data
+        if (d is None or self._qp is not None or self._bad.fields or self._crossed is not None or self._keep is None
+                or not self._keep.all()):
+            A = None
+            if A_values is not None and d is not None:
+                A = d["A"].copy()
+                A.data[:] = A_values
+            self.update_native(b=b, A=A)
+            if self._data is not None and not self._bad.fields and self._crossed is None:
+                self._build()
+            return
+        if A_values is not None:
+            d["A"].data[:] = A_values
+        if b is not None:
+            d["b"][:] = b
+        self._build()
 
     # ------------------------------------------------------------------ solve
     def solve(self) -> SolverResult:

@@ -235,6 +235,18 @@ def summarize_plan(plan) -> dict:
     return plan.summary()
 
 
+def plan_trace(plan) -> dict:
+    """The plan's node positions for the campaign's Fig. 11 drawn from the table (no saved series): Hill
+    x, y, z (m, 0.1 mm rounding) of the nodes of hold 1 and CP1, then of CP2 from index ``approach_from``.
+    About 2 kB per plan; empty without a plan."""
+    traj = plan.trajectory()
+    if len(traj["t"]) == 0:
+        return {}
+    r = np.round(traj["x"][:, :3], 4)
+    return {"x": r[:, 0].tolist(), "y": r[:, 1].tolist(), "z": r[:, 2].tolist(),
+            "approach_from": int(sum(p != "approach" for p in traj["phase"]))}
+
+
 def _loop():
     """The closed loop's module (engine, solvers, numba): imported only when a loop is run or built."""
     from proxops.systems import cortex_loop
@@ -250,7 +262,9 @@ class CortexSystem(SystemBase):
         if sc.guidance.closed_loop:
             return _loop().run_closed_loop(sc, seed=seed, progress=progress)
         plan = plan_scenario(sc)
-        return summarize_plan(plan), {"plan": plan_to_result(sc, plan)}
+        summary = summarize_plan(plan)
+        summary["trace"] = plan_trace(plan)
+        return summary, {"plan": plan_to_result(sc, plan)}
 
     def check(self, sc: CortexScenario) -> None:
         """The checks a plan makes before solving (``validate`` and campaigns call this)."""
@@ -258,6 +272,14 @@ class CortexSystem(SystemBase):
         scenario_axis(sc)
         if sc.guidance.closed_loop:
             check_loop(sc)
+
+    def warm_up(self, sc: CortexScenario) -> None:
+        """The check, and for the planner one plan of the scenario's axis: what a campaign worker would do
+        first (solver and numba imports, the eclipse profile and phase set-ups cached per process), done once
+        by the pool's fork server (:mod:`proxops.exec.worker_warmup`) before it forks the workers."""
+        self.check(sc)
+        if not sc.guidance.closed_loop:
+            plan_scenario(sc)
 
     def build(self, sc: CortexScenario):
         if sc.guidance.closed_loop:

@@ -45,6 +45,7 @@ from __future__ import annotations
 
 import math
 import time
+from collections import OrderedDict
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -217,6 +218,7 @@ class _PhaseSOCP:
             c = cone.axis[None, :] / np.cos(angles[kk])[:, None]  # (N-1, 3)
             head = r + 4 * (kk - 1)
             pos = 6 * kk[:, None] + i3[None, :]
+            cone_at = sum(len(v) for v in vals)  # offset of these entries before sorting
             put(head[:, None], pos, -c)
             put(head[:, None] + 1 + i3[None, :], pos, -1.0)
             b.append(np.zeros(4 * (N - 1)))
@@ -227,6 +229,11 @@ class _PhaseSOCP:
         # entries in the order of the canonical CSC matrix (by column, then row; no duplicates), so the
         # edited values are handed to the solver as they are (ClarabelSOCP.update_fast)
         order = np.lexsort((rows, cols))
+        self._cone_entries = None
+        if cone is not None and N > 1:  # where the cone coefficients -e/cos(alpha_k) went (for _reset)
+            where = np.empty(len(order), np.int64)
+            where[order] = np.arange(len(order))
+            self._cone_entries = where[cone_at : cone_at + 3 * (N - 1)]
         self.rows, self.cols, self.vals = rows[order], cols[order], vals[order]
         if np.any((np.diff(self.cols) == 0) & (np.diff(self.rows) == 0)):
             raise RuntimeError("duplicate entries in the phase SOCP pattern")  # a construction bug, not bad input
@@ -245,6 +252,28 @@ class _PhaseSOCP:
         self._kos_entries = self._row_entries(self.kos_row0, N - 1) if kos else None
         self._arc_entries = self._row_entries(self.arc_row0, N) if arc else None
         self._plume_entries = self._row_entries(self.plume_row0, M) if plume else None
+        self._vals0, self._b0 = self.vals.copy(), self.b.copy()  # as set up: no planes, no plume rows
+        self._xf_row = 6 + 6 * N
+
+    def _reset(self, x0, xf, cone: ApproachCone | None, cone_half_angles_rad=None) -> None:
+        """The problem for new end states and cone axis on this node grid (same n, a_bar and position
+        scale L), as :meth:`__init__` would build it: values and b from the set-up copies, then a fresh
+        solver set-up (ClarabelSOCP.rebuild: the same equilibration and solve as a new set-up)."""
+        t0 = time.perf_counter()
+        self.x0, self.xf = np.asarray(x0, float), np.asarray(xf, float)
+        self.vals[:] = self._vals0
+        self.b[:] = self._b0
+        self.b[0:6] = self.x0 / self.D
+        self.b[self._xf_row : self._xf_row + 6] = self.xf / self.D
+        if self._cone_entries is not None:
+            N = self.N
+            angles = (np.full(N + 1, cone.half_angle_rad) if cone_half_angles_rad is None
+                      else np.asarray(cone_half_angles_rad, float))
+            kk = np.arange(1, N)
+            c = cone.axis[None, :] / np.cos(angles[kk])[:, None]
+            self.vals[self._cone_entries] = -c.ravel()
+        self.solver.rebuild(b=self.b, A_values=self.vals)
+        self.setup_time_s = time.perf_counter() - t0
 
     def _A(self) -> sp.csc_matrix:
         return sp.csc_matrix((self.vals.copy(), self.rows.copy(), self._indptr), shape=(self.m, self.nz))
@@ -298,6 +327,33 @@ class _PhaseSOCP:
         return res, x, dv
 
 
+_SET_UPS: OrderedDict = OrderedDict()  # set-up phase problems of this process, least recently used first
+SET_UPS_KEPT = 32  # node grids kept (a campaign of plans uses a few: the durations tried)
+
+
+def _phase_problem(n_rad_s: float, t: np.ndarray, x0, xf, a_bar_mps2: float, *, kos: bool = False,
+                   cone: ApproachCone | None = None, plume: bool = False, arc: bool = False,
+                   solver_settings: dict | None = None, cone_half_angles_rad=None) -> _PhaseSOCP:
+    """A :class:`_PhaseSOCP` for these data: one set up earlier in this process on the same node grid
+    (same n, a_bar, position scale L, rows and solver settings) reset to these end states and cone axis
+    (:meth:`_PhaseSOCP._reset`), else a new one. Saves the pattern assembly and the adapter's checks on
+    every plan after the first of a grid (a Fibonacci campaign plans the same durations for every axis)."""
+    x0, xf = np.asarray(x0, float), np.asarray(xf, float)
+    L = max(float(np.linalg.norm(x0[:3])), float(np.linalg.norm(xf[:3])), 1e-3)
+    key = (float(n_rad_s), np.asarray(t, float).tobytes(), float(a_bar_mps2), L, kos, cone is not None, plume, arc,
+           repr(solver_settings))
+    prob = _SET_UPS.pop(key, None)
+    if prob is None:
+        prob = _PhaseSOCP(n_rad_s, t, x0, xf, a_bar_mps2, kos=kos, cone=cone, plume=plume, arc=arc,
+                          solver_settings=solver_settings, cone_half_angles_rad=cone_half_angles_rad)
+    else:
+        prob._reset(x0, xf, cone, cone_half_angles_rad)
+    _SET_UPS[key] = prob
+    while len(_SET_UPS) > SET_UPS_KEPT:
+        _SET_UPS.popitem(last=False)
+    return prob
+
+
 def _status_of(res) -> tuple[Status, str]:
     if res.status is Status.INFEASIBLE:
         return Status.INFEASIBLE, f"SOCP infeasible ({res.info.get('raw_status', '')})"
@@ -316,7 +372,7 @@ def solve_flyaround(n_rad_s: float, tau_s: float, dt_s: float, x0, xf, a_bar_mps
     re-solved until no node and no interval with a free plane row violates; an interval whose
     coast still dips in after its plane keeps that (reported) penetration."""
     t = node_times(tau_s, dt_s)
-    prob = _PhaseSOCP(n_rad_s, t, x0, xf, a_bar_mps2, kos=True, arc=arc_planes, solver_settings=solver_settings)
+    prob = _phase_problem(n_rad_s, t, x0, xf, a_bar_mps2, kos=True, arc=arc_planes, solver_settings=solver_settings)
     has_arc = np.zeros(prob.N, bool)
     out = PhaseResult(status=Status.MAX_ITER, t=t, setup_time_s=prob.setup_time_s)
     sphere = KeepOutSphere(rho_bar_m)
@@ -371,8 +427,8 @@ def solve_final_approach(n_rad_s: float, tau_s: float, dt_s: float, x0, xf, a_ba
     (a regeneration's funnel back into the planning cone); None: ``cone.half_angle_rad`` at every node."""
     t = node_times(tau_s, dt_s)
     angles = None if cone_half_angle_at is None else np.array([cone_half_angle_at(float(tk)) for tk in t])
-    prob = _PhaseSOCP(n_rad_s, t, x0, xf, a_bar_mps2, cone=cone, plume=True, solver_settings=solver_settings,
-                      cone_half_angles_rad=angles)
+    prob = _phase_problem(n_rad_s, t, x0, xf, a_bar_mps2, cone=cone, plume=True, solver_settings=solver_settings,
+                          cone_half_angles_rad=angles)
     out = PhaseResult(status=Status.MAX_ITER, t=t, setup_time_s=prob.setup_time_s)
     # the largest impulse: no restriction at first; halved when the plume violation grows
     trust = TrustRegion(a_bar_mps2 * float(prob.dt.max()))
@@ -468,10 +524,9 @@ def arc_min_per_interval(n_rad_s: float, t: np.ndarray, x, dv, samples: int = 61
 
 def arc_min_distance(n_rad_s: float, t: np.ndarray, x, dv, samples: int = 61) -> tuple[float, float]:
     """Smallest range ||r(t)|| on the continuous coast arcs between nodes (after each impulse):
-    ``samples`` points per interval, then a bounded scalar search around the worst sample.
-    Returns (min range m, time s)."""
-    from scipy.optimize import minimize_scalar
-
+    ``samples`` points per interval, then Newton's method on d/ds ||r(s)||^2 / 2 = r . v (CW coast:
+    derivative v . v + r . a with a = [3 n^2 x + 2 n v_y, -2 n v_x, -n^2 z]) between the neighbours of
+    the worst sample. Returns (min range m, time s)."""
     x = np.asarray(x, float)
     xp = x[:-1].copy()
     xp[:, 3:] += np.asarray(dv, float)[: len(xp)]
@@ -488,9 +543,38 @@ def arc_min_distance(n_rad_s: float, t: np.ndarray, x, dv, samples: int = 61) ->
                     float(frac[min(j + 1, samples - 1)] * hk))
     val, at, k, lo, hi = best
     if hi > lo:
-        xk = xp[k]
-        f = lambda s: float(np.linalg.norm(_stm_pos_rows(n_rad_s, np.array([s]))[0] @ xk))  # noqa: E731
-        opt = minimize_scalar(f, bounds=(lo, hi), method="bounded", options={"xatol": 1e-6})
-        if opt.fun < val:
-            val, at = float(opt.fun), float(opt.x)
+        s_opt, r_opt = coast_min_range(n_rad_s, xp[k], at, lo, hi)
+        if r_opt < val:
+            val, at = r_opt, s_opt
     return val, float(t[k]) + at
+
+
+def coast_min_range(n_rad_s: float, x0, s0: float, lo: float, hi: float, tol_s: float = 1e-9,
+                    max_iter: int = 30) -> tuple[float, float]:
+    """Local minimum of ||r(s)|| on a CW coast from state ``x0`` (Hill, m and m/s) for s in [lo, hi] (s),
+    from the guess s0: Newton's method on f(s) = r . v (half the derivative of ||r||^2),
+    f'(s) = v . v + r . a with the CW acceleration a = [3 n^2 x + 2 n v_y, -2 n v_x, -n^2 z] (Vallado
+    eq. 6-64), each step kept in the bracket (bisection where f' <= 0 or the step leaves it).
+    Returns (s, ||r(s)||)."""
+    n = n_rad_s
+    x0 = np.asarray(x0, float)
+    s = min(max(float(s0), lo), hi)
+    for _ in range(max_iter):
+        xs = cw_stm(n, s) @ x0
+        r, v = xs[:3], xs[3:]
+        f = float(r @ v)
+        a = np.array([3 * n * n * r[0] + 2 * n * v[1], -2 * n * v[0], -n * n * r[2]])
+        fp = float(v @ v + r @ a)
+        if f > 0:
+            hi = s
+        else:
+            lo = s
+        step = f / fp if fp > 0 else math.inf
+        s_new = s - step
+        if not lo <= s_new <= hi:
+            s_new = 0.5 * (lo + hi)
+        done = abs(s_new - s) <= tol_s
+        s = s_new
+        if done:
+            break
+    return s, float(np.linalg.norm((cw_stm(n, s) @ x0)[:3]))
