@@ -212,7 +212,7 @@ def _scaling_run(N: int, steps: int, mpc_module=None, split: bool = False):
         if proxy is None and ctrl.mpc._solver is not None:
             proxy = ctrl.mpc._solver._model = _TimedModel(ctrl.mpc._solver._model, clock)
             if split:
-                for name in ("update_fast", "solve"):
+                for name in ("update_fast", "solve", "solve_fast"):
                     _timed_method(ctrl.mpc._solver, name, clock, acc, "adapter")
         before = proxy.ns if proxy is not None else 0
         a0 = dict(acc)

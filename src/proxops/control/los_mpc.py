@@ -142,7 +142,7 @@ class LosMpcConfig:
             raise input_error("mpc.solver", self.solver, f"allowed: {', '.join(QP_SOLVERS)}")
 
 
-@dataclass
+@dataclass(slots=True)
 class MpcSolution:
     """Result of one MPC solve. ``u0`` is the body-axes input to apply (m/s^2) and
     ``u0_hill`` the same vector in LVLH components (what the plant receives; computed when asked
@@ -412,23 +412,18 @@ class LosMpc:
         basis = self._load(theta_k, x_body, ref, u_prev, self._zeros_n if plan is None else plan,
                            _HOLD_U_PREV if plan is None else _SHIFT_PLAN)
         build_time = time.perf_counter() - t_build
-        res = self._solver.solve()
-        solve_time, iterations = res.solve_time_s, res.iterations
-        if self.cfg.refinements:
-            for _ in range(self.cfg.refinements):
-                if res.x is None or not res.ok:
-                    break
-                basis = self._load(theta_k, x_body, ref, u_prev, res.x[: self.n_u] + self._u_c[: self.n_u],
-                                   _PLAN_AS_IS)
-                res = self._solver.solve()
-                solve_time += res.solve_time_s
-                iterations += res.iterations
-        status = res.status
-        x = res.x
+        status, x, iterations, solve_time, info = self._solve_qp()
+        for _ in range(self.cfg.refinements):
+            if x is None or not status.ok:
+                break
+            basis = self._load(theta_k, x_body, ref, u_prev, x[: self.n_u] + self._u_c[: self.n_u], _PLAN_AS_IS)
+            status, x, its, dt, info = self._solve_qp()
+            solve_time += dt
+            iterations += its
         if x is None or (status is not _OPTIMAL and not status.ok):
             u0 = self._shifted_plan()
             return MpcSolution(status, u0, theta_k, None, solve_time, build_time, iterations,
-                               info={"raw_status": res.info.get("raw_status")})
+                               info={"raw_status": (info or {}).get("raw_status")})
         if self._fast:
             x += self._u_c  # w + x_c (DAQP's x is a fresh array)
         else:
@@ -441,7 +436,15 @@ class LosMpc:
             slack = 0.0
         # the plan is never modified in place (the next guess is written into a new array)
         return MpcSolution(status, U[:3].copy(), theta_k, U.reshape(self._plan_shape), solve_time, build_time,
-                           iterations, slack, res.info, basis, self._S_flat)
+                           iterations, slack, {} if info is None else info, basis, self._S_flat)
+
+    def _solve_qp(self) -> tuple:
+        """One solve of the QP in the buffers: (status, x in the solver's variables, iterations, solve wall
+        time s, info dict or None). DAQP through its lean ``solve_fast`` (no SolverResult per step)."""
+        if self._fast:
+            return self._solver.solve_fast()
+        res = self._solver.solve()
+        return res.status, res.x, res.iterations, res.solve_time_s, res.info
 
     def _load(self, theta_k: float, x_body: np.ndarray, ref: np.ndarray, u_prev: np.ndarray, plan: np.ndarray,
               how: int) -> np.ndarray:
