@@ -149,7 +149,7 @@ class MpcSolution:
     from ``theta_rad`` = theta_k, the body angle at the solve)."""
 
     status: Status  # the solver status (proxops.status)
-    u0: np.ndarray
+    u0: np.ndarray  # (3,) a view of ``inputs`` after a solve (do not modify)
     theta_rad: float
     inputs: np.ndarray | None  # (N, 3) planned body-axes inputs (m/s^2; the MPC's own plan: do not modify)
     solve_time_s: float  # QP solver's solve call(s)
@@ -272,6 +272,7 @@ class LosMpc:
         self._lb, self._ub = lb, ub
         self._solver = None  # the QP solver's adapter (proxops.solvers.base.SolverAdapter), made at the first solve
         self._fast = False  # DAQP: bounds (and f) through update_fast
+        self._lean = False  # DAQP in hard mode: bounds only
         self._form = True  # set up with the QuadraticProgram form (update takes its names)
         self._plan: np.ndarray | None = None  # (3N,) last planned body-axes inputs (a fresh array per solve)
         self._zeros_n = np.zeros(nu)  # the "plan" argument before the first solve
@@ -291,6 +292,7 @@ class LosMpc:
         self._ub_w = self._work[3 * nv : 4 * nv]
         self._b = self._work[4 * nv :]
         self._n_basis = 9 * N  # per solve, fresh: [g (3N), p_g (6N)] (MpcSolution.prediction)
+        self._kernel_data = (self._consts, self._PB, self._KK, self._H_inv, self._G)  # the kernel's read-only inputs
 
     # ------------------------------------------------------------------ prediction
     def _prediction_blocks(self, model: BodyFrameModel, N: int):
@@ -435,7 +437,7 @@ class LosMpc:
             U = self._plan = x
             slack = 0.0
         # the plan is never modified in place (the next guess is written into a new array)
-        return MpcSolution(status, U[:3].copy(), theta_k, U.reshape(self._plan_shape), solve_time, build_time,
+        return MpcSolution(status, U[:3], theta_k, U.reshape(self._plan_shape), solve_time, build_time,
                            iterations, slack, {} if info is None else info, basis, self._S_flat)
 
     def _solve_qp(self) -> tuple:
@@ -453,10 +455,12 @@ class LosMpc:
         (``how`` = 0), ``plan`` (3N,) shifted by one step (1), or ``plan`` itself (2). Returns the new
         array [g (3N), p_g (6N)], p_g the exact prediction of g (body frame, m, m/s)."""
         basis = np.empty(self._n_basis)
-        finite = _qp_data(theta_k, how, x_body, u_prev, ref, plan, self._consts, self._PB, self._KK, self._H_inv,
-                          self._G, basis, self._work)
-        f = None if self._shift else self._f
+        finite = _qp_data(theta_k, how, x_body, u_prev, ref, plan, *self._kernel_data, basis, self._work)
         solver = self._solver
+        if finite and self._lean:  # DAQP in hard mode, finite data: only the bounds change
+            solver.update_fast(bu=self._b, lb=self._lb_w, ub=self._ub_w)
+            return basis
+        f = None if self._shift else self._f
         if solver is None:
             self._make_solver(f)
         elif finite and self._fast:  # DAQP, finite data: rows stay inequalities, no bound crossed
@@ -493,6 +497,7 @@ class LosMpc:
             solver = make_solver(form, name, **settings)
             self._form = True
         self._fast = name == "daqp"
+        self._lean = self._fast and f is None  # bounds-only updates (hard mode)
         self._solver = solver
 
     def _shifted_plan(self) -> np.ndarray:
@@ -508,6 +513,7 @@ class LosMpc:
     def reset(self) -> None:
         """Forget the warm start and the stored plan."""
         self._solver = None
+        self._lean = False
         self._plan = None
 
 

@@ -162,6 +162,11 @@ class LosGuidanceController(Supervisor):
             self.mpc.reset()
         super().reset(t0, x0)  # mode undetermined until the first sample
 
+    def step(self, t: float, x_est: np.ndarray) -> Command:
+        """:meth:`Supervisor.step` with the regime's command computed here (each sub-controller only forwards
+        to :meth:`_regime_step`, which always names the mode)."""
+        return self._regime_step(self.select(t, x_est), t, x_est)
+
     def regime_rule(self, t: float, x: np.ndarray, mode: str | None) -> str:
         """§7: hold when |r - r_h| <= eps_h and |v_B| < v_switch (latched: ``hold`` is absorbing),
         else far approach beyond r_sync and close approach inside."""
@@ -223,8 +228,8 @@ class LosGuidanceController(Supervisor):
         if self.hold_reached and self.g.stop_at_hold:
             stop, mode = True, "hold_reached"
         c, s = math.cos(theta), math.sin(theta)  # u_L = R_z(theta) u_B (proxops.dynamics.tumbling_target.rotate_z)
-        return Command(u=np.array([c * b0 - s * b1, s * b0 + c * b1, b2]), status=status, solve_time_s=solve_time,
-                       mode=mode, events=events, info=info, stop=stop)
+        return Command(np.array([c * b0 - s * b1, s * b0 + c * b1, b2]), "acceleration", status, solve_time, mode,
+                       events, info, stop)
 
     def _nominal_body(self, mode: str, t: float, x: np.ndarray, theta: float, v_ref: float, v_achv: float) -> np.ndarray:
         """The §7 PD law of regime ``mode`` (body axes, clipped to the box): what is applied without the MPC
