@@ -233,3 +233,28 @@ def test_far_reference_in_floats_is_the_spiral_state_seen_from_the_body_frame(v_
         v_L *= min(1.0, v_achv / np.linalg.norm(v_L))
         expected = np.concatenate([p, R.T @ v_L - np.cross(W, p)])
         np.testing.assert_allclose(ctrl._far_reference(v_ref, v_achv), expected, rtol=0, atol=1e-14)
+
+
+def test_axis_reference_equals_its_closed_form_through_approach_hold_and_reset():
+    """The close-approach / hold MPC reference (§7: range r_ref - v_ref j dt, not below r_h, moving in at v_ref
+    until r_h), written into one buffer and refilled only when (r_ref, v_ref) changes (issue 32 item 2): every
+    call returns the closed form, including a hold after an approach and a new approach after reset."""
+    from proxops.control.los_regimes import LosGuidanceController
+    from proxops.dynamics.tumbling_target import BodyFrameModel
+
+    ctrl = LosGuidanceController(BodyFrameModel(0.0011, np.radians(2.0), 1.0), 0.1)
+    N, r_h, dt = ctrl.mpc.N, ctrl.hold_range, ctrl.dt
+    j = np.arange(1, N + 1)
+
+    def expected(r_ref, v_ref):
+        rj = np.maximum(r_ref - v_ref * dt * j, r_h)
+        out = np.zeros((N, 6))
+        out[:, 1] = rj
+        out[:, 4] = np.where(rj > r_h, -v_ref, 0.0)
+        return out
+
+    for r_ref, v_ref in ((40.0, 0.3), (39.7, 0.3), (r_h + 0.5, 0.05), (r_h, 0.0), (r_h, 0.0), (25.0, 0.2)):
+        if r_ref == 25.0:
+            ctrl.reset(0.0, np.array([0.0, 25.0, 0.0, 0.0, 0.0, 0.0]))
+        ctrl.r_ref = r_ref
+        np.testing.assert_array_equal(ctrl._axis_trajectory(v_ref), expected(r_ref, v_ref))

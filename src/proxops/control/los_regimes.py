@@ -158,6 +158,7 @@ class LosGuidanceController(Supervisor):
         self.r_ref = max(float(np.linalg.norm(np.asarray(x0, float)[:3])), self.hold_range)
         self.hold_reached = False
         self.u_prev = np.zeros(3)  # body axes
+        self._ref_key = None  # (r_ref, v_ref) of the axis reference in _ref_buffer
         if self.mpc is not None:
             self.mpc.reset()
         super().reset(t0, x0)  # mode undetermined until the first sample
@@ -270,9 +271,13 @@ class LosGuidanceController(Supervisor):
 
     def _axis_trajectory(self, v_ref: float) -> np.ndarray:
         """Reference x_1..x_N along +y_B: range r_ref - v j dt (not below r_h), co-rotating.
-        Written into one buffer per controller (the MPC reads it during its solve only)."""
-        _fill_axis_reference(self._ref_buffer, self._step_numbers, self.r_ref, v_ref * self.dt, v_ref,
-                             self.hold_range)
+        Written into one buffer per controller (the MPC reads it during its solve only), refilled when (r_ref, v_ref)
+        changes."""
+        key = (self.r_ref, v_ref)
+        if key != self._ref_key:  # unchanged while holding (r_ref = r_h, v_ref = 0): the buffer is still right
+            _fill_axis_reference(self._ref_buffer, self._step_numbers, self.r_ref, v_ref * self.dt, v_ref,
+                                 self.hold_range)
+            self._ref_key = key
         return self._ref_buffer
 
 
