@@ -68,8 +68,8 @@ Constraint handling (``constraint_mode``):
 Solver: the one named by ``LosMpcConfig.solver`` through :func:`proxops.solvers.make_solver`
 (the :class:`proxops.solvers.forms.QuadraticProgram` P = H, q, A = corridor rows, bu, lb, ub; data
 updated in place each step by the form's field names). Default DAQP, warm-started from the previous
-active set, with its lean paths: no linear term in hard mode (``setup_native`` with f = None) and
-``update_fast``. PIQP and Clarabel (interior point) start cold every step.
+active set, with its lean paths: no linear term in hard mode (``setup_native`` with f = None),
+``update_fast`` (bounds only in hard mode) and ``solve_fast`` (no SolverResult per step). PIQP and Clarabel (interior point) start cold every step.
 
 Per-step cost (benchmarks/bench_los.py prints it for N = 20..160): the kernel reads H^-1 (3N x 3N) and
 O(N) data, ~22 N^2 multiply-adds, below one DAQP iteration (its constraint check reads M = A R^-1,
