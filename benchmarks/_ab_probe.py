@@ -27,7 +27,8 @@ ADAPTERS = {  # module -> adapter classes (present in every release since the so
 _clock = {"solver_s": 0.0, "calls": 0, "depth": 0}
 
 
-SOLVER_METHODS = ("setup", "setup_native", "update", "update_native", "update_fast", "warm_start", "solve")
+SOLVER_METHODS = ("setup", "setup_native", "update", "update_native", "update_fast", "warm_start", "solve", "solve_fast")
+SOLVE_METHODS = ("solve", "solve_fast")  # one solve each (solve_fast's fallback to solve is nested: counted once)
 
 
 def _wrap(cls, method: str) -> None:
@@ -47,7 +48,7 @@ def _wrap(cls, method: str) -> None:
             _clock["depth"] -= 1
             if outer:
                 _clock["solver_s"] += time.perf_counter() - t0
-                _clock["calls"] += method == "solve"
+                _clock["calls"] += method in SOLVE_METHODS
 
     timed._ab_wrapped = True
     setattr(cls, method, timed)

@@ -8,9 +8,11 @@
    shares from sums over the steps not preempted (step < 3x the median), and the log-log growth of
    the medians between successive N. Goal: own < 30 % of the step at N = 40, own growing no faster
    than DAQP. On a loaded machine the ratios inside one run are the figures (the load average is
-   printed); a second table splits "own" into guidance, LosMpc and the solver adapter's Python.
+   printed); a second table splits "own" into guidance, LosMpc and the solver adapter's Python, and gives the
+   solver share as ``make bench`` (benchmarks/ab.py) counts it: the adapter's update/solve calls included.
    ``--ab REV`` runs the same loop with ``control/los_mpc.py`` of commit REV (read with ``git show``;
-   its ``solver.setup(`` call renamed to ``setup_native(`` as the solver adapters now require)
+   its ``solver.setup(`` call renamed to ``setup_native(`` as the solver adapters now require; the guidance is
+   this tree's on both sides: benchmarks/ab.py compares whole releases)
    alternated with this tree's, in the same process.
 2. QP solve time per step (median, p95) of the eq.-(11) MPC on DAQP, N_p = 20 and 40,
    measured inside closed-loop runs against J2 truth (goal: median < 0.2 ms at N_p = 40;
@@ -212,7 +214,7 @@ def _scaling_run(N: int, steps: int, mpc_module=None, split: bool = False):
         if proxy is None and ctrl.mpc._solver is not None:
             proxy = ctrl.mpc._solver._model = _TimedModel(ctrl.mpc._solver._model, clock)
             if split:
-                for name in ("update_fast", "solve"):
+                for name in ("update_fast", "solve", "solve_fast"):
                     _timed_method(ctrl.mpc._solver, name, clock, acc, "adapter")
         before = proxy.ns if proxy is not None else 0
         a0 = dict(acc)
@@ -270,14 +272,14 @@ def horizon_scaling(ab_rev: str | None = None, steps: int = SCALING_STEPS, repea
                   f"{1 - share:.2f} | {grow} |{goal}")
     print("  Where \"own\" goes (this tree; medians per step, us; wrappers of ~0.3 us per call booked to the caller):")
     print("  | N | guidance + supervisor | LosMpc (kernel, glue) | solver adapter (Python) | DAQP | MPC own share of "
-          "LosMpc.solve |")
+          "LosMpc.solve | solver share with the adapter's calls (make bench's definition) |")
     for N in SCALING_N:
         st, dq, mp, ad = (np.concatenate(a) for a in zip(*(_scaling_run(N, steps, None, split=True)
                                                            for _ in range(repeats))))
         keep = st < 3.0 * np.median(st)
         mpc_own = (mp - dq)[keep].sum() / mp[keep].sum()
         print(f"  | {N} | {np.median(st - mp):.1f} | {np.median(mp - ad):.1f} | {np.median(ad - dq):.1f} | "
-              f"{np.median(dq):.1f} | {mpc_own:.2f} |")
+              f"{np.median(dq):.1f} | {mpc_own:.2f} | {ad[keep].sum() / st[keep].sum():.2f} |")
     if ab_rev:
         for N in SCALING_N:
             a, b = out[(ab_rev, N)], out[("this tree", N)]

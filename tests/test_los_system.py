@@ -210,3 +210,51 @@ def test_qp_infeasible_beyond_r_sync_carries_a_hint():
     assert s["status"] == "qp_infeasible" and s["initial_range_m"] > r_sync
     assert math.isclose(s["r_sync_m"], r_sync, rel_tol=1e-12)
     assert "beyond r_sync" in s["hint"] and 'constraint_mode = "soft"' in s["hint"]
+
+
+@pytest.mark.parametrize("v_achv", [1e-3, 0.2, 10.0])  # |v| = 6.1 m/s: limited (twice), not limited
+def test_far_reference_in_floats_is_the_spiral_state_seen_from_the_body_frame(v_achv):
+    """The far-approach MPC reference (Python floats, issue 32 item 2) equals the §7 spiral state built with
+    rotation matrices and cross products: p = r_ref y_B, v_L = R_LB ([0, -v_ref, 0] + W x p) limited to
+    v_achv in norm, v_B = R_LB^T v_L - W x p."""
+    from proxops.control.los_regimes import LosGuidanceController
+    from proxops.dynamics.tumbling_target import BodyFrameModel
+
+    w_t = np.radians(2.0)
+    model = BodyFrameModel(0.0011, w_t, 1.0, 0.7)
+    ctrl = LosGuidanceController(model, 0.1)
+    ctrl.r_ref, v_ref = 180.0, 0.05
+    W = np.array([0.0, 0.0, model.w_rel])
+    p = np.array([0.0, ctrl.r_ref, 0.0])
+    for theta in (0.0, 1.3, -2.9):
+        c, s = np.cos(theta), np.sin(theta)
+        R = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+        v_L = R @ (np.array([0.0, -v_ref, 0.0]) + np.cross(W, p))
+        v_L *= min(1.0, v_achv / np.linalg.norm(v_L))
+        expected = np.concatenate([p, R.T @ v_L - np.cross(W, p)])
+        np.testing.assert_allclose(ctrl._far_reference(v_ref, v_achv), expected, rtol=0, atol=1e-14)
+
+
+def test_axis_reference_equals_its_closed_form_through_approach_hold_and_reset():
+    """The close-approach / hold MPC reference (§7: range r_ref - v_ref j dt, not below r_h, moving in at v_ref
+    until r_h), written into one buffer and refilled only when (r_ref, v_ref) changes (issue 32 item 2): every
+    call returns the closed form, including a hold after an approach and a new approach after reset."""
+    from proxops.control.los_regimes import LosGuidanceController
+    from proxops.dynamics.tumbling_target import BodyFrameModel
+
+    ctrl = LosGuidanceController(BodyFrameModel(0.0011, np.radians(2.0), 1.0), 0.1)
+    N, r_h, dt = ctrl.mpc.N, ctrl.hold_range, ctrl.dt
+    j = np.arange(1, N + 1)
+
+    def expected(r_ref, v_ref):
+        rj = np.maximum(r_ref - v_ref * dt * j, r_h)
+        out = np.zeros((N, 6))
+        out[:, 1] = rj
+        out[:, 4] = np.where(rj > r_h, -v_ref, 0.0)
+        return out
+
+    for r_ref, v_ref in ((40.0, 0.3), (39.7, 0.3), (r_h + 0.5, 0.05), (r_h, 0.0), (r_h, 0.0), (25.0, 0.2)):
+        if r_ref == 25.0:
+            ctrl.reset(0.0, np.array([0.0, 25.0, 0.0, 0.0, 0.0, 0.0]))
+        ctrl.r_ref = r_ref
+        np.testing.assert_array_equal(ctrl._axis_trajectory(v_ref), expected(r_ref, v_ref))

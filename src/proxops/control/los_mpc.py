@@ -68,8 +68,8 @@ Constraint handling (``constraint_mode``):
 Solver: the one named by ``LosMpcConfig.solver`` through :func:`proxops.solvers.make_solver`
 (the :class:`proxops.solvers.forms.QuadraticProgram` P = H, q, A = corridor rows, bu, lb, ub; data
 updated in place each step by the form's field names). Default DAQP, warm-started from the previous
-active set, with its lean paths: no linear term in hard mode (``setup_native`` with f = None) and
-``update_fast``. PIQP and Clarabel (interior point) start cold every step.
+active set, with its lean paths: no linear term in hard mode (``setup_native`` with f = None),
+``update_fast`` (bounds only in hard mode) and ``solve_fast`` (no SolverResult per step). PIQP and Clarabel (interior point) start cold every step.
 
 Per-step cost (benchmarks/bench_los.py prints it for N = 20..160): the kernel reads H^-1 (3N x 3N) and
 O(N) data, ~22 N^2 multiply-adds, below one DAQP iteration (its constraint check reads M = A R^-1,
@@ -142,14 +142,14 @@ class LosMpcConfig:
             raise input_error("mpc.solver", self.solver, f"allowed: {', '.join(QP_SOLVERS)}")
 
 
-@dataclass
+@dataclass(slots=True)
 class MpcSolution:
     """Result of one MPC solve. ``u0`` is the body-axes input to apply (m/s^2) and
     ``u0_hill`` the same vector in LVLH components (what the plant receives; computed when asked
     from ``theta_rad`` = theta_k, the body angle at the solve)."""
 
     status: Status  # the solver status (proxops.status)
-    u0: np.ndarray
+    u0: np.ndarray  # (3,) a view of ``inputs`` after a solve (do not modify)
     theta_rad: float
     inputs: np.ndarray | None  # (N, 3) planned body-axes inputs (m/s^2; the MPC's own plan: do not modify)
     solve_time_s: float  # QP solver's solve call(s)
@@ -272,6 +272,7 @@ class LosMpc:
         self._lb, self._ub = lb, ub
         self._solver = None  # the QP solver's adapter (proxops.solvers.base.SolverAdapter), made at the first solve
         self._fast = False  # DAQP: bounds (and f) through update_fast
+        self._lean = False  # DAQP in hard mode: bounds only
         self._form = True  # set up with the QuadraticProgram form (update takes its names)
         self._plan: np.ndarray | None = None  # (3N,) last planned body-axes inputs (a fresh array per solve)
         self._zeros_n = np.zeros(nu)  # the "plan" argument before the first solve
@@ -291,6 +292,7 @@ class LosMpc:
         self._ub_w = self._work[3 * nv : 4 * nv]
         self._b = self._work[4 * nv :]
         self._n_basis = 9 * N  # per solve, fresh: [g (3N), p_g (6N)] (MpcSolution.prediction)
+        self._kernel_data = (self._consts, self._PB, self._KK, self._H_inv, self._G)  # the kernel's read-only inputs
 
     # ------------------------------------------------------------------ prediction
     def _prediction_blocks(self, model: BodyFrameModel, N: int):
@@ -412,23 +414,18 @@ class LosMpc:
         basis = self._load(theta_k, x_body, ref, u_prev, self._zeros_n if plan is None else plan,
                            _HOLD_U_PREV if plan is None else _SHIFT_PLAN)
         build_time = time.perf_counter() - t_build
-        res = self._solver.solve()
-        solve_time, iterations = res.solve_time_s, res.iterations
-        if self.cfg.refinements:
-            for _ in range(self.cfg.refinements):
-                if res.x is None or not res.ok:
-                    break
-                basis = self._load(theta_k, x_body, ref, u_prev, res.x[: self.n_u] + self._u_c[: self.n_u],
-                                   _PLAN_AS_IS)
-                res = self._solver.solve()
-                solve_time += res.solve_time_s
-                iterations += res.iterations
-        status = res.status
-        x = res.x
+        status, x, iterations, solve_time, info = self._solve_qp()
+        for _ in range(self.cfg.refinements):
+            if x is None or not status.ok:
+                break
+            basis = self._load(theta_k, x_body, ref, u_prev, x[: self.n_u] + self._u_c[: self.n_u], _PLAN_AS_IS)
+            status, x, its, dt, info = self._solve_qp()
+            solve_time += dt
+            iterations += its
         if x is None or (status is not _OPTIMAL and not status.ok):
             u0 = self._shifted_plan()
             return MpcSolution(status, u0, theta_k, None, solve_time, build_time, iterations,
-                               info={"raw_status": res.info.get("raw_status")})
+                               info={"raw_status": (info or {}).get("raw_status")})
         if self._fast:
             x += self._u_c  # w + x_c (DAQP's x is a fresh array)
         else:
@@ -440,8 +437,16 @@ class LosMpc:
             U = self._plan = x
             slack = 0.0
         # the plan is never modified in place (the next guess is written into a new array)
-        return MpcSolution(status, U[:3].copy(), theta_k, U.reshape(self._plan_shape), solve_time, build_time,
-                           iterations, slack, res.info, basis, self._S_flat)
+        return MpcSolution(status, U[:3], theta_k, U.reshape(self._plan_shape), solve_time, build_time,
+                           iterations, slack, {} if info is None else info, basis, self._S_flat)
+
+    def _solve_qp(self) -> tuple:
+        """One solve of the QP in the buffers: (status, x in the solver's variables, iterations, solve wall
+        time s, info dict or None). DAQP through its lean ``solve_fast`` (no SolverResult per step)."""
+        if self._fast:
+            return self._solver.solve_fast()
+        res = self._solver.solve()
+        return res.status, res.x, res.iterations, res.solve_time_s, res.info
 
     def _load(self, theta_k: float, x_body: np.ndarray, ref: np.ndarray, u_prev: np.ndarray, plan: np.ndarray,
               how: int) -> np.ndarray:
@@ -450,10 +455,12 @@ class LosMpc:
         (``how`` = 0), ``plan`` (3N,) shifted by one step (1), or ``plan`` itself (2). Returns the new
         array [g (3N), p_g (6N)], p_g the exact prediction of g (body frame, m, m/s)."""
         basis = np.empty(self._n_basis)
-        finite = _qp_data(theta_k, how, x_body, u_prev, ref, plan, self._consts, self._PB, self._KK, self._H_inv,
-                          self._G, basis, self._work)
-        f = None if self._shift else self._f
+        finite = _qp_data(theta_k, how, x_body, u_prev, ref, plan, *self._kernel_data, basis, self._work)
         solver = self._solver
+        if finite and self._lean:  # DAQP in hard mode, finite data: only the bounds change
+            solver.update_fast(bu=self._b, lb=self._lb_w, ub=self._ub_w)
+            return basis
+        f = None if self._shift else self._f
         if solver is None:
             self._make_solver(f)
         elif finite and self._fast:  # DAQP, finite data: rows stay inequalities, no bound crossed
@@ -490,6 +497,7 @@ class LosMpc:
             solver = make_solver(form, name, **settings)
             self._form = True
         self._fast = name == "daqp"
+        self._lean = self._fast and f is None  # bounds-only updates (hard mode)
         self._solver = solver
 
     def _shifted_plan(self) -> np.ndarray:
@@ -505,6 +513,7 @@ class LosMpc:
     def reset(self) -> None:
         """Forget the warm start and the stored plan."""
         self._solver = None
+        self._lean = False
         self._plan = None
 
 

@@ -43,13 +43,19 @@ from numba import njit
 from proxops.constraints.los_corridor import LosCorridor
 from proxops.control.los_mpc import LosMpc, LosMpcConfig
 from proxops.control.supervisor import Supervisor
-from proxops.dynamics.tumbling_target import BodyFrameModel, cross3, rot_z, rotate_z, sync_range
+from proxops.dynamics.tumbling_target import BodyFrameModel, cross3, rot_z, sync_range
 from proxops.errors import input_error
 from proxops.contracts import Command
 from proxops.status import Status
 
 
 _NO_EVENTS = ()  # a step without events (a step with events makes its own list)
+_F64 = np.dtype(np.float64)
+
+
+def _six(x) -> list:
+    """The first six components of a state as Python floats (cheaper than numpy on 3-vectors)."""
+    return (x.tolist() if x.__class__ is np.ndarray and x.ndim == 1 else np.asarray(x, float).reshape(-1).tolist())[:6]
 
 
 def auto_hold_range(a_max: float, tumble_rate_rad_s: float) -> float:
@@ -152,78 +158,69 @@ class LosGuidanceController(Supervisor):
         self.r_ref = max(float(np.linalg.norm(np.asarray(x0, float)[:3])), self.hold_range)
         self.hold_reached = False
         self.u_prev = np.zeros(3)  # body axes
+        self._ref_key = None  # (r_ref, v_ref) of the axis reference in _ref_buffer
         if self.mpc is not None:
             self.mpc.reset()
         super().reset(t0, x0)  # mode undetermined until the first sample
 
+    def step(self, t: float, x_est: np.ndarray) -> Command:
+        """:meth:`Supervisor.step` with the regime's command computed here (each sub-controller only forwards
+        to :meth:`_regime_step`, which always names the mode)."""
+        return self._regime_step(self.select(t, x_est), t, x_est)
+
     def regime_rule(self, t: float, x: np.ndarray, mode: str | None) -> str:
         """§7: hold when |r - r_h| <= eps_h and |v_B| < v_switch (latched: ``hold`` is absorbing),
         else far approach beyond r_sync and close approach inside."""
-        p, v = x[:3], x[3:6]
-        r = math.sqrt(p @ p)
-        if abs(r - self.hold_range) <= self.g.hold_band_m and math.sqrt(v @ v) < self.g.v_switch_mps:
+        p0, p1, p2, v0, v1, v2 = _six(x)
+        r = math.sqrt(p0 * p0 + p1 * p1 + p2 * p2)
+        if abs(r - self.hold_range) <= self.g.hold_band_m and math.sqrt(v0 * v0 + v1 * v1 + v2 * v2) < self.g.v_switch_mps:
             return "hold"
         return "far" if r > self.r_sync else "close"
 
     def _regime_step(self, mode: str, t: float, x_est: np.ndarray) -> Command:
-        """The command of regime ``mode`` (reference, PD law, MPC safety filter)."""
+        """The command of regime ``mode`` (reference, PD law, MPC safety filter). Scalars in Python floats,
+        the horizon's arrays in the MPC's kernel (per-step cost: issue 32 item 2)."""
         if self.attitude_source is not None:  # the body frame as estimated: theta^ = theta(t) + psi
             self.model.theta0_rad = self._theta0_rad + self.attitude_source.frame_angle_error()
-        x = np.asarray(x_est, float)
-        p, v = x[:3], x[3:6]
-        r = math.sqrt(p @ p)
-        v_achv = min(self.a_max * (t - self.mode_start + self.dt) / 2.0, self.g.v_max_mps)
+        x = x_est if x_est.__class__ is np.ndarray and x_est.dtype == _F64 else np.asarray(x_est, float)
+        p0, p1, p2 = _six(x)[:3]
+        r = math.sqrt(p0 * p0 + p1 * p1 + p2 * p2)
+        dt, a_max = self.dt, self.a_max
+        v_achv = min(a_max * (t - self.mode_start + dt) / 2.0, self.g.v_max_mps)
         r_h = self.hold_range
         # reference range along +y_B
         if mode == "hold":
             self.r_ref, v_ref = r_h, 0.0
         else:
-            v_ref = min(v_achv, math.sqrt(self.a_max * max(self.r_ref - r_h, 0.0)))
-            self.r_ref = max(self.r_ref - v_ref * self.dt, r_h)
-        theta = self.model.theta0_rad + self.model.w_rel * t
-        p_ref = R_LB = v_ref_L = None
-        if mode == "far":
-            p_ref = np.array([0.0, self.r_ref, 0.0])
-            R_LB = rot_z(theta)
-            v_ref_L = self._spiral_velocity(p_ref, v_ref, v_achv, R_LB)
-            x_ref = np.concatenate([p_ref, R_LB.T @ v_ref_L - cross3(self.W, p_ref)])  # limited ref in F_B
-        else:
-            x_ref = self._axis_trajectory(v_ref) if self.mpc is not None else None
-
-        def nominal_body() -> np.ndarray:
-            """The §7 PD law of the current regime (body axes, clipped to the box)."""
-            nonlocal p_ref, R_LB
-            if R_LB is None:
-                p_ref, R_LB = np.array([0.0, self.r_ref, 0.0]), rot_z(theta)
-            x_hill = self.model.hill_from_body(t, x)
-            if mode == "far":
-                u_hill = (self.kp * (R_LB @ p_ref - x_hill[:3]) + self.kd * (v_ref_L - x_hill[3:6])
-                          + cw_feedforward(self.model.n, x_hill))
-            else:
-                a_des = self.kp * (p_ref - p) + self.kd * (np.array([0.0, -v_ref, 0.0]) - v)
-                a_body = a_des + 2.0 * cross3(self.W, v) + cross3(self.W, cross3(self.W, p))
-                u_hill = R_LB @ a_body + cw_feedforward(self.model.n, x_hill)
-            return np.minimum(np.maximum(R_LB.T @ u_hill, -self.a_max), self.a_max)
-
+            v_ref = min(v_achv, math.sqrt(a_max * max(self.r_ref - r_h, 0.0)))
+            self.r_ref = max(self.r_ref - v_ref * dt, r_h)
+        model = self.model
+        theta = model.theta0_rad + model.w_rel * t
         stop = False
-        if self.mpc is None:
-            u_body, status, solve_time = nominal_body(), Status.OK, 0.0
+        mpc = self.mpc
+        if mpc is None:
+            u_body, status, solve_time = self._nominal_body(mode, t, x, theta, v_ref, v_achv), Status.OK, 0.0
             info = {"range_m": r, "r_ref_m": self.r_ref}
         else:
-            sol = self.mpc.solve(t, x, x_ref, self.u_prev)
+            if mode == "far":  # the limited spiral state in F_B (one state held over the horizon)
+                x_ref = self._far_reference(v_ref, v_achv)
+            else:
+                x_ref = self._axis_trajectory(v_ref)
+            sol = mpc.solve(t, x, x_ref, self.u_prev)
             status, solve_time = sol.status, sol.solve_time_s
             info = {"range_m": r, "r_ref_m": self.r_ref, "mpc_iterations": sol.iterations,
                     "mpc_build_ms": sol.build_time_s * 1e3, "slack_m": sol.max_slack_m}
             if sol.ok:
                 u_body = sol.u0
-            elif self.mpc.soft:
-                u_body = nominal_body()
+            elif mpc.soft:
+                u_body = self._nominal_body(mode, t, x, theta, v_ref, v_achv)
             else:
                 u_body = sol.u0  # shifted previous plan
                 if self.g.stop_on_infeasible:
                     stop = True
                     mode = "qp_infeasible"
-        info["u_body_0"], info["u_body_1"], info["u_body_2"] = u_body.tolist()
+        b0, b1, b2 = u_body.tolist()
+        info["u_body_0"], info["u_body_1"], info["u_body_2"] = b0, b1, b2
         self.u_prev = u_body
         events = _NO_EVENTS
         if mode == "hold" and not self.hold_reached:
@@ -231,8 +228,25 @@ class LosGuidanceController(Supervisor):
             events = [("hold", f"hold reached at range {r:.2f} m")]
         if self.hold_reached and self.g.stop_at_hold:
             stop, mode = True, "hold_reached"
-        return Command(u=rotate_z(theta, u_body), status=status, solve_time_s=solve_time, mode=mode, events=events,
-                       info=info, stop=stop)
+        c, s = math.cos(theta), math.sin(theta)  # u_L = R_z(theta) u_B (proxops.dynamics.tumbling_target.rotate_z)
+        return Command(np.array([c * b0 - s * b1, s * b0 + c * b1, b2]), "acceleration", status, solve_time, mode,
+                       events, info, stop)
+
+    def _nominal_body(self, mode: str, t: float, x: np.ndarray, theta: float, v_ref: float, v_achv: float) -> np.ndarray:
+        """The §7 PD law of regime ``mode`` (body axes, clipped to the box): what is applied without the MPC
+        and the fallback after a failed soft-mode solve."""
+        p, v = x[:3], x[3:6]
+        p_ref, R_LB = np.array([0.0, self.r_ref, 0.0]), rot_z(theta)
+        x_hill = self.model.hill_from_body(t, x)
+        if mode == "far":
+            v_ref_L = self._spiral_velocity(p_ref, v_ref, v_achv, R_LB)
+            u_hill = (self.kp * (R_LB @ p_ref - x_hill[:3]) + self.kd * (v_ref_L - x_hill[3:6])
+                      + cw_feedforward(self.model.n, x_hill))
+        else:
+            a_des = self.kp * (p_ref - p) + self.kd * (np.array([0.0, -v_ref, 0.0]) - v)
+            a_body = a_des + 2.0 * cross3(self.W, v) + cross3(self.W, cross3(self.W, p))
+            u_hill = R_LB @ a_body + cw_feedforward(self.model.n, x_hill)
+        return np.minimum(np.maximum(R_LB.T @ u_hill, -self.a_max), self.a_max)
 
     # ------------------------------------------------------------------ pieces
     def _spiral_velocity(self, p_ref_B, v_ref, v_achv, R_LB) -> np.ndarray:
@@ -244,11 +258,26 @@ class LosGuidanceController(Supervisor):
             v_ref_L *= v_achv / speed
         return v_ref_L
 
+    def _far_reference(self, v_ref: float, v_achv: float) -> np.ndarray:
+        """Far-approach MPC reference in F_B (6,): the axis point p = [0, r_ref, 0] with the spiral velocity
+        of :meth:`_spiral_velocity` seen from the body frame, v_B = R_LB^T v_L - W x p. In body axes that
+        velocity is k [-w r_ref, -v_ref, 0] (k = min(1, v_achv / its norm): a rotation keeps the norm), so
+        v_B = [(1 - k) w r_ref, -k v_ref, 0] (m, m/s)."""
+        w, r_ref = self.model.w_rel, self.r_ref
+        a0, a1 = -w * r_ref, -v_ref
+        speed = math.sqrt(a0 * a0 + a1 * a1)
+        k = v_achv / speed if speed > v_achv else 1.0
+        return np.array([0.0, r_ref, 0.0, k * a0 + w * r_ref, k * a1, 0.0])
+
     def _axis_trajectory(self, v_ref: float) -> np.ndarray:
         """Reference x_1..x_N along +y_B: range r_ref - v j dt (not below r_h), co-rotating.
-        Written into one buffer per controller (the MPC reads it during its solve only)."""
-        _fill_axis_reference(self._ref_buffer, self._step_numbers, self.r_ref, v_ref * self.dt, v_ref,
-                             self.hold_range)
+        Written into one buffer per controller (the MPC reads it during its solve only), refilled when (r_ref, v_ref)
+        changes."""
+        key = (self.r_ref, v_ref)
+        if key != self._ref_key:  # unchanged while holding (r_ref = r_h, v_ref = 0): the buffer is still right
+            _fill_axis_reference(self._ref_buffer, self._step_numbers, self.r_ref, v_ref * self.dt, v_ref,
+                                 self.hold_range)
+            self._ref_key = key
         return self._ref_buffer
 
 

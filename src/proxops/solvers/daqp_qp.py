@@ -29,7 +29,7 @@ import numpy as np
 
 from proxops.errors import input_error
 from proxops.solvers import _util
-from proxops.solvers.base import SolverAdapter
+from proxops.solvers.base import HAS_X, SolverAdapter
 from proxops.solvers.forms import QuadraticProgram
 from proxops.solvers.result import SolverResult, SolveStatus, error_message, failed_result
 
@@ -54,6 +54,7 @@ RAW_NAMES = {
     -8: "unsupported",
 }
 RAW_STATUS = {flag: f"{flag} ({name})" for flag, name in RAW_NAMES.items()}
+_OPTIMAL = SolveStatus.OPTIMAL
 SENSE_EQUALITY = 5  # DAQP: ACTIVE | IMMUTABLE
 SENSE_SOFT = 8
 
@@ -341,6 +342,30 @@ class DaqpQP(SolverAdapter):
                 or not self.warm_start_enabled):
             return self._solve_checked()
         return self._run_model()
+
+    def solve_fast(self) -> tuple:
+        """:meth:`solve` for per-step loops fed through :meth:`update_fast`, without building a
+        :class:`SolverResult`: (status, x, iterations, wall_s, info). On the lean path (healthy model,
+        warm start) x is DAQP's fresh array when the status carries an iterate (:data:`HAS_X`: OPTIMAL,
+        MAX_ITER, TIME_LIMIT; else None) and ``info`` is None after DAQP's plain "optimal" exit (else
+        ``{"raw_status", "soft_relaxed"}``); otherwise these are the fields of :meth:`solve`'s result. Saves the
+        ~2-4 us of SolverResult assembly of a warm DAQP step (issue 32 item 2)."""
+        if (self._bad.fields or self._crossed is not None or self._solver_error is not None or self._solver_flag < 0
+                or not self.warm_start_enabled):
+            res = self.solve()
+            return res.status, res.x, res.iterations, res.solve_time_s, res.info
+        try:
+            t0 = time.perf_counter()
+            x, _, flag, info = self._model.solve()
+            wall = time.perf_counter() - t0
+        except Exception as exc:
+            res = failed_result(self.name, error_message(exc))
+            return res.status, None, 0, 0.0, res.info
+        if flag == 1:
+            return _OPTIMAL, x, info["iterations"], wall, None
+        status = STATUS_MAP.get(flag, SolveStatus.NUMERICAL_ERROR)
+        raw = {"raw_status": RAW_STATUS.get(flag) or f"{flag} (unknown)", "soft_relaxed": flag == 2}
+        return status, (x if status in HAS_X else None), info["iterations"], wall, raw
 
     def _solve_checked(self) -> SolverResult:
         """:meth:`solve` when something is off (bad data, crossed bounds, a failed set-up) or the
