@@ -278,12 +278,13 @@ def _steps(prefix: str, horizon_s: float, period_s: float) -> int:
     return n
 
 
-def _solve_box_qp(solver, name: str, H, f, lb, ub, max_iter: int, kappa, A=None, bl=None, bu=None):
+def _solve_box_qp(solver, name: str, H, f, lb, ub, max_iter: int, kappa, A=None, bl=None, bu=None, trusted=False):
     """Solve min 1/2 U'HU + f'U, lb <= U <= ub (and, given A, the rows bl <= A U <= bu: the rate
     bounds) with the QP solver ``name`` (proxops.solvers.make_solver), set up on the first call and
     updated in place after (same structure every step). DAQP is set up natively so that the rate
     rows are soft (DAQP may relax them at a penalty); the others take the QuadraticProgram form
-    (hard rows). Returns (solver, result, info dict)."""
+    (hard rows). ``trusted``: the data are fresh finite kernel arrays with no equality row (rate bound > 0),
+    updated through DAQP's lean path (``update_fast``). Returns (solver, result, info dict)."""
     t_solver = time.perf_counter()
     if solver is None:
         solver = make_solver("QP", name, max_iter=max_iter)
@@ -292,6 +293,11 @@ def _solve_box_qp(solver, name: str, H, f, lb, ub, max_iter: int, kappa, A=None,
             solver.setup_native(H, f, A, bl, bu, lb=lb, ub=ub, soft_rows=soft)
         else:
             solver.setup(QuadraticProgram(P=H, q=f, A=A, bl=bl, bu=bu, lb=lb, ub=ub))
+    elif name == "daqp" and trusted:  # fresh finite kernel arrays, no equality row: DAQP's lean path
+        if A is None:
+            solver.update_fast(H=H, f=f, lb=lb, ub=ub)
+        else:
+            solver.update_fast(H=H, f=f, A=A, bl=bl, bu=bu, lb=lb, ub=ub)
     elif name == "daqp":  # native names after setup_native
         if A is None:
             solver.update(H=H, f=f, lb=lb, ub=ub)
@@ -701,7 +707,8 @@ class CaptureMPC:
             self._solver = None
         self._solver_form = "qp"
         rows = (Ar, bl, bu) if rate_w >= 0.0 else (None, None, None)
-        self._solver, res, out = _solve_box_qp(self._solver, cfg.solver, H, f, lb, ub, cfg.max_iter, kappa, *rows)
+        self._solver, res, out = _solve_box_qp(self._solver, cfg.solver, H, f, lb, ub, cfg.max_iter, kappa, *rows,
+                                               trusted=rate_w != 0.0)
         if res.x is None or not res.ok:
             self._plan_rho = None
             return out
@@ -854,7 +861,7 @@ class PostCaptureMPC:
         ub = np.tile(self.u_max - kappa, N)
         rows = (Ar, bl, bu) if rate_w >= 0.0 else (None, None, None)
         self._solver, res, out = _solve_box_qp(self._solver, self.config.solver, H, f, lb, ub, self.config.max_iter,
-                                               kappa, *rows)
+                                               kappa, *rows, trusted=rate_w != 0.0)
         if res.x is None or not res.ok:
             return out
         U = np.clip(res.x, lb, ub)
