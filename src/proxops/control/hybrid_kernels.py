@@ -109,6 +109,37 @@ def tape_eval(code, a, b, o, c, inp, w, out):
 
 
 @njit(cache=True)
+def _matmul_into(A, B, out):
+    """out = A @ B by the loops of small_linalg.matmul (same order, same bits), written into ``out``."""
+    n, k = A.shape
+    m = B.shape[1]
+    for i in range(n):
+        for j in range(m):
+            out[i, j] = 0.0
+        for l in range(k):
+            a = A[i, l]
+            if a != 0.0:
+                for j in range(m):
+                    out[i, j] += a * B[l, j]
+
+
+@njit(cache=True)
+def _matmul_tn_into(A, B, out):
+    """out = A.T @ B by the loops of small_linalg.matmul_tn (same order, same bits), written into ``out``."""
+    k, n = A.shape
+    m = B.shape[1]
+    for i in range(n):
+        for j in range(m):
+            out[i, j] = 0.0
+    for l in range(k):
+        for i in range(n):
+            a = A[l, i]
+            if a != 0.0:
+                for j in range(m):
+                    out[i, j] += a * B[l, j]
+
+
+@njit(cache=True)
 def condensed_qp(A, B, dt, N, dx0, W, r_blk, ref, face_a, wf, rate_first, rate_w):
     """Condensed box QP of a linear MPC over N stages with ZOH period dt (s).
 
@@ -152,8 +183,14 @@ def condensed_qp(A, B, dt, N, dx0, W, r_blk, ref, face_a, wf, rate_first, rate_w
     g = np.zeros(n)
     AdT = np.ascontiguousarray(Ad.T)
     BdT = np.ascontiguousarray(Bd.T)
+    # work buffers (each product written in place: the same operations in the same order as the
+    # allocating matmul / matmul_tn / matvec, so the same bits)
+    Wt = np.empty((n, n))
+    PA = np.empty((n, n))
+    PBj = np.empty((n, m))
+    gj = np.empty(n)
     for j in range(N - 1, -1, -1):
-        Wt = np.zeros((n, n))
+        Wt[:, :] = 0.0
         for i in range(n):
             Wt[i, i] = W[j * n + i]
         if wf > 0.0:
@@ -161,7 +198,6 @@ def condensed_qp(A, B, dt, N, dx0, W, r_blk, ref, face_a, wf, rate_first, rate_w
                 for l in range(3):
                     Wt[i, l] += wf * face_a[j, i] * face_a[j, l]
         # linear term: diag(W_j) (free_j - ref_j) + wf a_j (a_j' free_j[0:3]) (the face rows see rho itself)
-        gj = np.empty(n)
         for i in range(n):
             gj[i] = W[j * n + i] * (free[j * n + i] - ref[j * n + i])
         if wf > 0.0:
@@ -169,15 +205,29 @@ def condensed_qp(A, B, dt, N, dx0, W, r_blk, ref, face_a, wf, rate_first, rate_w
             for i in range(3):
                 gj[i] += wf * face_a[j, i] * af
         if j == N - 1:
-            P = Wt
-            g = gj
+            P[:, :] = Wt
+            g[:] = gj
         else:
-            P = Wt + matmul_tn(Ad, matmul(P, Ad))
-            g = gj + matvec(AdT, g)
-        PBj = matmul(P, Bd)
-        f[j * m:(j + 1) * m] = matvec(BdT, g)
+            _matmul_into(P, Ad, PA)  # P Ad
+            _matmul_tn_into(Ad, PA, P)  # Ad' (P Ad)
+            for i in range(n):
+                for l in range(n):
+                    P[i, l] = Wt[i, l] + P[i, l]
+            for i in range(n):  # g = gj + Ad' g
+                sacc = 0.0
+                for l in range(n):
+                    sacc += AdT[i, l] * g[l]
+                PA[0, i] = sacc
+            for i in range(n):
+                g[i] = gj[i] + PA[0, i]
+        _matmul_into(P, Bd, PBj)
+        for i in range(m):
+            sacc = 0.0
+            for l in range(n):
+                sacc += BdT[i, l] * g[l]
+            f[j * m + i] = sacc
         for i in range(j + 1):
-            H[i * m:(i + 1) * m, j * m:(j + 1) * m] = matmul_tn(PB[j - i], PBj)
+            _matmul_tn_into(PB[j - i], PBj, H[i * m:(i + 1) * m, j * m:(j + 1) * m])
     for i in range(nU):  # the lower triangle (H symmetric up to round-off: mirrored)
         for l in range(i):
             H[i, l] = H[l, i]

@@ -862,8 +862,8 @@ class PostCaptureMPC:
         else:
             u = np.clip(plan["kappa"], -self.u_max, self.u_max)
             events = [("fallback", f"post-capture MPC {plan['status']}: applied the steady input kappa^1 (clipped)")]
-        err = reduced_post_capture_state(x)
-        info = {"iterations": float(plan["iterations"]), "tracking_error_m": float(np.linalg.norm(err[6:9]))}
+        info = {"iterations": float(plan["iterations"]),
+                "tracking_error_m": float(np.linalg.norm(x[S_RN] - x[S_REF][0:3]))}  # rho_n - r_des
         return _command(u, plan["status"], t_start, plan["solver_time_s"], self.mode, events, info,
                         plan.get("detail", ""))
 
@@ -875,8 +875,7 @@ class PostCaptureMPC:
         rate_w = -1.0 if self.config.rate_max_deg_s is None else math.radians(self.config.rate_max_deg_s)
         H, f, G, free, Ar, bl, bu = condensed_qp(A, B, self.dt, N, dx0, self._W, self._r_blk, self._zero_ref,
                                                  self._zero_face, 0.0, 3, rate_w)  # one numba call (hybrid_kernels)
-        lb = np.tile(-self.u_max - kappa, N)
-        ub = np.tile(self.u_max - kappa, N)
+        lb, ub = box_bounds(self.u_max, kappa, N)
         rows = (Ar, bl, bu) if rate_w >= 0.0 else (None, None, None)
         self._solver, res, out = _solve_box_qp(self._solver, self.config.solver, H, f, lb, ub, self.config.max_iter,
                                                kappa, *rows, trusted=rate_w != 0.0)
