@@ -196,3 +196,61 @@ def test_post_model_kernel_matches_numpy_model():
     np.testing.assert_allclose(A, A0, rtol=1e-12, atol=1e-18)
     np.testing.assert_allclose(B, B0, rtol=1e-12, atol=1e-18)
     np.testing.assert_allclose(kappa, np.concatenate([C_TD.T @ k1, k2]), rtol=1e-12, atol=1e-15)
+
+
+@pytest.mark.parametrize("decouple", [False, True])
+def test_capture_model_kernel_matches_casadi_and_numpy(decouple):
+    """CaptureMPC.continuous_model (one numba call replaying the tape) against CasADi's own
+    evaluation of the linearisation followed by the numpy formulas of eqs. 22 and 27 at the
+    measured q (scalar part < 0: the kinematics take -q), with and without the decoupling."""
+    from proxops.core.quaternion import skew
+
+    mpc = CaptureMPC(PARAMS)
+    lin = mpc.linearization
+    for _ in range(5):
+        p, wc = _unit(RNG.standard_normal(4)), 0.05 * RNG.standard_normal(3)
+        q = _unit(RNG.standard_normal(4))
+        q[3] = -abs(q[3])
+        A, B, kappa = mpc.continuous_model(p, wc, q, decouple)
+        out = np.asarray(lin._fun(p, wc)).ravel()
+        A0 = out[:144].reshape(12, 12, order="F")
+        B0 = out[144:216].reshape(12, 6, order="F")
+        k0 = out[216:222].copy()
+        if decouple:
+            A0[0:6, 6:12] = 0.0
+        Qt = quat_to_dcm(q)  # C_{C<-D} = Q^T (q: D relative to C)
+        B0[3:6, 0:3] = Qt / PARAMS.mass_deputy_kg
+        k0[0:3] = Qt.T @ k0[0:3]
+        qq = -q
+        A0[9:12, 6:9] = 0.5 * (skew(qq[0:3]) + qq[3] * np.eye(3))
+        np.testing.assert_allclose(A, A0, rtol=1e-14, atol=1e-300)
+        np.testing.assert_allclose(B, B0, rtol=1e-14, atol=1e-300)
+        np.testing.assert_allclose(kappa, k0, rtol=1e-14, atol=1e-16)
+
+
+def test_box_bounds_shifted_face_rows_and_penalty_match_numpy():
+    """The capture MPC's small kernels against their numpy forms: the input box (np.tile of
+    -u_max - kappa, u_max - kappa), the face rows at the last plan shifted by one step
+    (face_pointing_linearized, terminal row 0) or at the measured rho without a plan, and the
+    summed eq. 66 penalty of a plan (face_pointing_penalty over stages 0..N-2)."""
+    from proxops.control.hybrid_kernels import box_bounds, face_penalty_sum, shifted_face_rows
+    from proxops.control.hybrid_mpc import face_pointing_linearized, face_pointing_penalty
+
+    N, n = 10, 12
+    u_max, kappa = np.array([1.0, 1.0, 1.0, 2.0, 2.0, 2.0]), RNG.standard_normal(6)
+    lb, ub = box_bounds(u_max, kappa, N)
+    np.testing.assert_array_equal(lb, np.tile(-u_max - kappa, N))
+    np.testing.assert_array_equal(ub, np.tile(u_max - kappa, N))
+    v = _unit([0.1, 1.0, -0.2])
+    plan, rho0 = RNG.standard_normal((N, 3)), RNG.standard_normal(3)
+    plan[4] = 0.0  # |rho_bar| = 0: zero row
+    ref = face_pointing_linearized(np.vstack([plan[1:], plan[-1:]]), v)
+    ref[N - 1] = 0.0
+    np.testing.assert_allclose(shifted_face_rows(plan, rho0, True, v, N), ref, rtol=1e-15, atol=0.0)
+    ref0 = face_pointing_linearized(np.tile(rho0, (N, 1)), v)
+    ref0[N - 1] = 0.0
+    np.testing.assert_allclose(shifted_face_rows(plan, rho0, False, v, N), ref0, rtol=1e-15, atol=0.0)
+    X = RNG.standard_normal(N * n)
+    rho = X.reshape(N, n)[:, 0:3]
+    assert face_penalty_sum(X, n, N, v, 100.0) == pytest.approx(face_pointing_penalty(rho[:-1], v, 100.0).sum(),
+                                                                 rel=1e-13)

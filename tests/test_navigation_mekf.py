@@ -227,3 +227,32 @@ def test_gate_rejects_an_outlier_and_bad_input():
         AttitudeMEKF([0, 0, 0, 1], [0, 0, 0], np.eye(6), [1, -2, 3], 1e-9)
     with pytest.raises(ProxopsInputError, match="sigma"):
         f.update_attitude([0, 0, 0, 1], 0.0)
+
+
+def test_restart_is_reset_without_the_checks():
+    """``restart`` (HybridNavigation's per-sample known inputs) leaves the filter exactly as the
+    checked ``reset`` does (state, covariance, bias, counters), so a prediction and an update after
+    either are bitwise the same; ``reset`` still refuses a covariance that is not positive definite."""
+    J = np.diag([10.0, 14.0, 9.0])
+    q0 = np.array([0.1, -0.2, 0.3, 0.9])
+    w0, P0 = np.array([0.01, -0.02, 0.015]), np.diag([1e-4] * 3 + [1e-6] * 3)
+    a = AttitudeMEKF(q0, w0, P0, J, 1e-8, gyro_bias=False)
+    b = AttitudeMEKF(q0, w0, P0, J, 1e-8, gyro_bias=False)
+    for f in (a, b):
+        f.predict(1.0)
+        f.update_attitude(np.array([0.11, -0.19, 0.31, 0.9]), 0.01)
+    P = a.P
+    P[3:6, 3:6] += 1e-4 * np.eye(3)
+    w = a.omega + 1e-3
+    a.reset(a.q, w, P)
+    b.restart(b.q, w, P)
+    for f in (a, b):
+        f.predict(1.0)
+        f.update_attitude(np.array([0.12, -0.18, 0.3, 0.9]), 0.01)
+    np.testing.assert_array_equal(a.q, b.q)
+    np.testing.assert_array_equal(a.omega, b.omega)
+    np.testing.assert_array_equal(a.P, b.P)
+    np.testing.assert_array_equal(a.bias, b.bias)
+    assert (a.updates, a.rejected, a.nis) == (b.updates, b.rejected, b.nis)
+    with pytest.raises(ProxopsInputError):
+        a.reset(a.q, w, -P)

@@ -131,6 +131,31 @@ def test_daqp_update_fast_matches_validated_update():
     np.testing.assert_allclose(s.solve().x, [0.5, -1.0], atol=1e-9)  # p = (3, -1) clipped by x1 <= 0.5 only
 
 
+def test_daqp_update_fast_hessian_and_rows_closed_form():
+    # The lean path also takes H and A (hybrid MPCs: a new condensed Hessian every step).
+    # min 1/2 x'Hx + f'x, H = diag(2, 8), f = (-4, -8): unconstrained x = (2, 1). With the row
+    # x1 + x2 <= 1 active, KKT: 2 x1 - 4 + l = 0, 8 x2 - 8 + l = 0, x1 + x2 = 1 -> l = 3.2,
+    # x = (0.4, 0.6). Then the row x1 <= 0 (A changed): x = (0, 1).
+    lb, ub = -5 * np.ones(2), 5 * np.ones(2)
+    s = DaqpQP()
+    s.setup_native(np.eye(2), np.zeros(2), np.array([[1.0, 1.0]]), [-10.0], [10.0], lb, ub)
+    assert s.solve().ok
+    s.update_fast(H=np.diag([2.0, 8.0]), f=np.array([-4.0, -8.0]), A=np.array([[1.0, 1.0]]),
+                  bl=np.array([-10.0]), bu=np.array([1.0]))
+    r = s.solve()
+    assert r.ok
+    np.testing.assert_allclose(r.x, [0.4, 0.6], atol=1e-12)
+    s.update_fast(A=np.array([[1.0, 0.0]]), bu=np.array([0.0]))
+    r = s.solve()
+    np.testing.assert_allclose(r.x, [0.0, 1.0], atol=1e-12)
+    # a crossing of less than DAQP's primal tolerance seen by the checked update is reported as
+    # INFEASIBLE; the lean path must then re-check (not keep that verdict once the bounds are valid)
+    s.update(bl=[1e-9], bu=[0.0])
+    assert s.solve().status is SolveStatus.INFEASIBLE
+    s.update_fast(bl=np.array([-10.0]), bu=np.array([0.0]))
+    np.testing.assert_allclose(s.solve().x, [0.0, 1.0], atol=1e-12)
+
+
 def test_daqp_without_linear_term_shifted_variable():
     # f=None: min 1/2 |w|^2 with the variable shifted to the unconstrained minimiser p
     # (x = p + w): rows b - a'p, bounds lb - p, ub - p, written by update_fast. x = p + w must

@@ -109,6 +109,37 @@ def tape_eval(code, a, b, o, c, inp, w, out):
 
 
 @njit(cache=True)
+def _matmul_into(A, B, out):
+    """out = A @ B by the loops of small_linalg.matmul (same order, same bits), written into ``out``."""
+    n, k = A.shape
+    m = B.shape[1]
+    for i in range(n):
+        for j in range(m):
+            out[i, j] = 0.0
+        for l in range(k):
+            a = A[i, l]
+            if a != 0.0:
+                for j in range(m):
+                    out[i, j] += a * B[l, j]
+
+
+@njit(cache=True)
+def _matmul_tn_into(A, B, out):
+    """out = A.T @ B by the loops of small_linalg.matmul_tn (same order, same bits), written into ``out``."""
+    k, n = A.shape
+    m = B.shape[1]
+    for i in range(n):
+        for j in range(m):
+            out[i, j] = 0.0
+    for l in range(k):
+        for i in range(n):
+            a = A[l, i]
+            if a != 0.0:
+                for j in range(m):
+                    out[i, j] += a * B[l, j]
+
+
+@njit(cache=True)
 def condensed_qp(A, B, dt, N, dx0, W, r_blk, ref, face_a, wf, rate_first, rate_w):
     """Condensed box QP of a linear MPC over N stages with ZOH period dt (s).
 
@@ -152,8 +183,14 @@ def condensed_qp(A, B, dt, N, dx0, W, r_blk, ref, face_a, wf, rate_first, rate_w
     g = np.zeros(n)
     AdT = np.ascontiguousarray(Ad.T)
     BdT = np.ascontiguousarray(Bd.T)
+    # work buffers (each product written in place: the same operations in the same order as the
+    # allocating matmul / matmul_tn / matvec, so the same bits)
+    Wt = np.empty((n, n))
+    PA = np.empty((n, n))
+    PBj = np.empty((n, m))
+    gj = np.empty(n)
     for j in range(N - 1, -1, -1):
-        Wt = np.zeros((n, n))
+        Wt[:, :] = 0.0
         for i in range(n):
             Wt[i, i] = W[j * n + i]
         if wf > 0.0:
@@ -161,7 +198,6 @@ def condensed_qp(A, B, dt, N, dx0, W, r_blk, ref, face_a, wf, rate_first, rate_w
                 for l in range(3):
                     Wt[i, l] += wf * face_a[j, i] * face_a[j, l]
         # linear term: diag(W_j) (free_j - ref_j) + wf a_j (a_j' free_j[0:3]) (the face rows see rho itself)
-        gj = np.empty(n)
         for i in range(n):
             gj[i] = W[j * n + i] * (free[j * n + i] - ref[j * n + i])
         if wf > 0.0:
@@ -169,15 +205,29 @@ def condensed_qp(A, B, dt, N, dx0, W, r_blk, ref, face_a, wf, rate_first, rate_w
             for i in range(3):
                 gj[i] += wf * face_a[j, i] * af
         if j == N - 1:
-            P = Wt
-            g = gj
+            P[:, :] = Wt
+            g[:] = gj
         else:
-            P = Wt + matmul_tn(Ad, matmul(P, Ad))
-            g = gj + matvec(AdT, g)
-        PBj = matmul(P, Bd)
-        f[j * m:(j + 1) * m] = matvec(BdT, g)
+            _matmul_into(P, Ad, PA)  # P Ad
+            _matmul_tn_into(Ad, PA, P)  # Ad' (P Ad)
+            for i in range(n):
+                for l in range(n):
+                    P[i, l] = Wt[i, l] + P[i, l]
+            for i in range(n):  # g = gj + Ad' g
+                sacc = 0.0
+                for l in range(n):
+                    sacc += AdT[i, l] * g[l]
+                PA[0, i] = sacc
+            for i in range(n):
+                g[i] = gj[i] + PA[0, i]
+        _matmul_into(P, Bd, PBj)
+        for i in range(m):
+            sacc = 0.0
+            for l in range(n):
+                sacc += BdT[i, l] * g[l]
+            f[j * m + i] = sacc
         for i in range(j + 1):
-            H[i * m:(i + 1) * m, j * m:(j + 1) * m] = matmul_tn(PB[j - i], PBj)
+            _matmul_tn_into(PB[j - i], PBj, H[i * m:(i + 1) * m, j * m:(j + 1) * m])
     for i in range(nU):  # the lower triangle (H symmetric up to round-off: mirrored)
         for l in range(i):
             H[i, l] = H[l, i]
@@ -283,3 +333,85 @@ def post_model_kernel(x, A0, B0, G1, G2, gyro, arm, m, kinematics, thrust):
         for j in range(3):
             kappa[j] = C[0, j] * k1[0] + C[1, j] * k1[1] + C[2, j] * k1[2]
     return A, B, kappa
+
+
+@njit(cache=True)
+def capture_model_kernel(code, a, b, o, c, n_work, n_out, p, wc, q, mass_d, decouple, thrust, kinematics):
+    """(A (12, 12), B (12, 6), kappa^0 (6,)) of the capture MPC (hybrid_mpc.CaptureMPC.continuous_model):
+    the tape of the CasADi linearisation (:class:`Tape`, inputs p (4), omega_c (3); packed output
+    vec(A), vec(B), kappa, f0 in column-major order) replayed, then ``decouple`` (translational rows
+    blind to the deputy's rate and attitude), ``thrust`` (force block of B and kappa_1 at the measured
+    q: Q^T / m_d, Q kappa_1) and ``kinematics`` (q_eta' = (q_eta^x + q_mu I) omega / 2 at the measured q)."""
+    inp = np.empty(7)
+    for i in range(4):
+        inp[i] = p[i]
+    for i in range(3):
+        inp[4 + i] = wc[i]
+    out = np.zeros(n_out)
+    tape_eval(code, a, b, o, c, inp, np.empty(n_work), out)
+    A = np.empty((12, 12))
+    B = np.empty((12, 6))
+    for j in range(12):
+        for i in range(12):
+            A[i, j] = out[12 * j + i]
+    for j in range(6):
+        for i in range(12):
+            B[i, j] = out[144 + 12 * j + i]
+    kappa = out[216:222].copy()
+    if decouple:
+        for i in range(6):
+            for j in range(6, 12):
+                A[i, j] = 0.0
+    if thrust:
+        Qt = dcm_kernel(q)  # C_{C<-D} = Q^T
+        k0, k1, k2 = kappa[0], kappa[1], kappa[2]
+        for j in range(3):
+            for i in range(3):
+                B[3 + i, j] = Qt[i, j] / mass_d  # eq. 22's Q^T F_d / m_d at the measured q
+            kappa[j] = Qt[0, j] * k0 + Qt[1, j] * k1 + Qt[2, j] * k2  # Q kappa_1 (D components)
+    if kinematics:
+        s = 1.0 if q[3] >= 0.0 else -1.0
+        x, y, z, w = s * q[0], s * q[1], s * q[2], s * q[3]
+        A[9, 6], A[9, 7], A[9, 8] = 0.5 * w, 0.5 * -z, 0.5 * y  # eq. 27: (q_eta^x + q_mu I) / 2
+        A[10, 6], A[10, 7], A[10, 8] = 0.5 * z, 0.5 * w, 0.5 * -x
+        A[11, 6], A[11, 7], A[11, 8] = 0.5 * -y, 0.5 * x, 0.5 * w
+    return A, B, kappa
+
+
+@njit(cache=True)
+def shifted_face_rows(plan_rho, rho0, has_plan, v, N):
+    """Face-term rows a_k (:func:`face_rows`) at the linearisation points rho_bar_k: the last plan's
+    predicted rho shifted by one step (its last point repeated), or rho0 at every stage without a plan."""
+    bar = np.empty((N, 3))
+    for k in range(N):
+        src = min(k + 1, N - 1)
+        for i in range(3):
+            bar[k, i] = plan_rho[src, i] if has_plan else rho0[i]
+    return face_rows(bar, v, N)
+
+
+@njit(cache=True)
+def box_bounds(u_max, kappa, N):
+    """(lb, ub) of the input box around the steady input over N stages: -u_max - kappa <= du_k <= u_max - kappa."""
+    m = u_max.shape[0]
+    lb = np.empty(N * m)
+    ub = np.empty(N * m)
+    for i in range(m):
+        lo = -u_max[i] - kappa[i]
+        hi = u_max[i] - kappa[i]
+        for k in range(N):
+            lb[k * m + i] = lo
+            ub[k * m + i] = hi
+    return lb, ub
+
+
+@njit(cache=True)
+def face_penalty_sum(X, n, N, v, weight):
+    """sum_{k < N-1} weight (|rho_k| - v' rho_k)^2 of eq. 66 on the predicted rho_k = X[k n : k n + 3]
+    (hybrid_mpc.face_pointing_penalty summed over the plan's stages but the terminal one)."""
+    s = 0.0
+    for k in range(N - 1):
+        r0, r1, r2 = X[k * n], X[k * n + 1], X[k * n + 2]
+        d = math.sqrt(r0 * r0 + r1 * r1 + r2 * r2) - (r0 * v[0] + r1 * v[1] + r2 * v[2])
+        s += weight * d * d
+    return s

@@ -125,7 +125,16 @@ import numpy as np
 import scipy.linalg
 import scipy.sparse as sp
 
-from proxops.control.hybrid_kernels import Tape, approach_target_kernel, condensed_qp, face_rows, post_model_kernel
+from proxops.control.hybrid_kernels import (
+    Tape,
+    approach_target_kernel,
+    box_bounds,
+    capture_model_kernel,
+    condensed_qp,
+    face_penalty_sum,
+    post_model_kernel,
+    shifted_face_rows,
+)
 from proxops.core.quaternion import dcm_kernel, quat_to_dcm, skew
 from proxops.dynamics.hybrid_relative import (
     S_OM,
@@ -278,12 +287,13 @@ def _steps(prefix: str, horizon_s: float, period_s: float) -> int:
     return n
 
 
-def _solve_box_qp(solver, name: str, H, f, lb, ub, max_iter: int, kappa, A=None, bl=None, bu=None):
+def _solve_box_qp(solver, name: str, H, f, lb, ub, max_iter: int, kappa, A=None, bl=None, bu=None, trusted=False):
     """Solve min 1/2 U'HU + f'U, lb <= U <= ub (and, given A, the rows bl <= A U <= bu: the rate
     bounds) with the QP solver ``name`` (proxops.solvers.make_solver), set up on the first call and
     updated in place after (same structure every step). DAQP is set up natively so that the rate
     rows are soft (DAQP may relax them at a penalty); the others take the QuadraticProgram form
-    (hard rows). Returns (solver, result, info dict)."""
+    (hard rows). ``trusted``: the data are fresh finite kernel arrays with no equality row (rate bound > 0),
+    updated through DAQP's lean path (``update_fast``). Returns (solver, result, info dict)."""
     t_solver = time.perf_counter()
     if solver is None:
         solver = make_solver("QP", name, max_iter=max_iter)
@@ -292,6 +302,11 @@ def _solve_box_qp(solver, name: str, H, f, lb, ub, max_iter: int, kappa, A=None,
             solver.setup_native(H, f, A, bl, bu, lb=lb, ub=ub, soft_rows=soft)
         else:
             solver.setup(QuadraticProgram(P=H, q=f, A=A, bl=bl, bu=bu, lb=lb, ub=ub))
+    elif name == "daqp" and trusted:  # fresh finite kernel arrays, no equality row: DAQP's lean path
+        if A is None:
+            solver.update_fast(H=H, f=f, lb=lb, ub=ub)
+        else:
+            solver.update_fast(H=H, f=f, A=A, bl=bl, bu=bu, lb=lb, ub=ub)
     elif name == "daqp":  # native names after setup_native
         if A is None:
             solver.update(H=H, f=f, lb=lb, ub=ub)
@@ -540,6 +555,7 @@ class CaptureMPC:
                                        + config.safe_margin_m)
         self.target_rho = np.zeros(3)
         self._cond = _Condensed(self.N, N_DX, N_U)
+        self._no_plan = np.zeros((self.N, 3))
         self.collisions = 0
         self._solver = None
         self._solver_form = None
@@ -588,7 +604,20 @@ class CaptureMPC:
         return Ad, Bd, kappa, A, B
 
     def continuous_model(self, p, omega_c, q=None, decouple: bool = False):
-        """(A, B, kappa^0) of :meth:`model` before the discretisation (fresh arrays)."""
+        """(A, B, kappa^0) of :meth:`model` before the discretisation (fresh arrays; one numba call,
+        hybrid_kernels.capture_model_kernel, when the linearisation's tape replays and q is given)."""
+        tape = self.linearization._tape
+        if tape.ok and q is not None:
+            cfg = self.config
+            return capture_model_kernel(tape.code, tape.a, tape.b, tape.o, tape.c, tape.n_work, tape.n_out,
+                                        np.asarray(p, float), np.asarray(omega_c, float), np.asarray(q, float),
+                                        float(self.params.mass_deputy_kg), bool(decouple),
+                                        bool(cfg.thrust_at_current_attitude), bool(cfg.kinematics_at_current_attitude))
+        return self._continuous_model_numpy(p, omega_c, q, decouple)
+
+    def _continuous_model_numpy(self, p, omega_c, q=None, decouple: bool = False):
+        """The numpy form of :meth:`continuous_model` (CasADi or its tape, then numpy; kept for the
+        test of the kernel and for a q-less call)."""
         A, B, kappa, _ = self.linearization(p, omega_c)
         if decouple:
             A[0:6, 6:12] = 0.0
@@ -638,12 +667,6 @@ class CaptureMPC:
         return self.waypoint_radius_m * e_next - self.params.P_c  # on the sphere: far off, the waypoint pulls in
 
     # ---------------------------------------------------------------- problem
-    def _face_directions(self, rho0: np.ndarray) -> np.ndarray:
-        """Linearisation points rho_bar_k (k = 1..N) of |rho| (QP form): the last plan shifted by one step."""
-        if self._plan_rho is None:
-            return np.tile(rho0, (self.N, 1))
-        return np.vstack([self._plan_rho[1:], self._plan_rho[-1:]])
-
     def solve(self, x_rel) -> dict:
         """One solve of Problem 2 from ``x_rel``: dict with u (6,), status, du plan (N, 6),
         predicted dx (N, 12), kappa, iterations, solver_time_s."""
@@ -690,10 +713,12 @@ class CaptureMPC:
         self.target_rho = self.approach_target(x[S_RHO]) if cfg.approach_guidance else np.zeros(3)
         ref = np.zeros((N, N_DX))
         ref[:, 0:3] = self.target_rho
-        lb = np.tile(-self.u_max - kappa, N)
-        ub = np.tile(self.u_max - kappa, N)
-        face_a = (face_rows(self._face_directions(dx0[0:3]), self.v, N) if cfg.face_weight > 0.0
-                  else np.zeros((N, 3)))
+        lb, ub = box_bounds(self.u_max, kappa, N)
+        if cfg.face_weight > 0.0:  # rows at the last plan shifted by one step (the measured rho without one)
+            has_plan = self._plan_rho is not None
+            face_a = shifted_face_rows(self._plan_rho if has_plan else self._no_plan, dx0[0:3], has_plan, self.v, N)
+        else:
+            face_a = np.zeros((N, 3))
         rate_w = -1.0 if cfg.rate_max_deg_s is None else math.radians(cfg.rate_max_deg_s)
         H, f, G, free, Ar, bl, bu = condensed_qp(A, B, dt, N, dx0, W, r_blk, ref.ravel(), face_a,
                                                  dt * cfg.face_weight, 6, rate_w)
@@ -701,15 +726,15 @@ class CaptureMPC:
             self._solver = None
         self._solver_form = "qp"
         rows = (Ar, bl, bu) if rate_w >= 0.0 else (None, None, None)
-        self._solver, res, out = _solve_box_qp(self._solver, cfg.solver, H, f, lb, ub, cfg.max_iter, kappa, *rows)
+        self._solver, res, out = _solve_box_qp(self._solver, cfg.solver, H, f, lb, ub, cfg.max_iter, kappa, *rows,
+                                               trusted=rate_w != 0.0)
         if res.x is None or not res.ok:
             self._plan_rho = None
             return out
         U = np.clip(res.x, lb, ub)  # DAQP keeps the bounds to its primal tolerance
         X = free + G @ U
         self._plan_rho = X.reshape(N, N_DX)[:, 0:3].copy()
-        rho_pred = self._plan_rho
-        face = float(dt * face_pointing_penalty(rho_pred[:-1], self.v, cfg.face_weight).sum())
+        face = dt * face_penalty_sum(X, N_DX, N, self.v, cfg.face_weight)
         out.update(u=kappa + U[0:6], du=U.reshape(N, 6), dx=X.reshape(N, N_DX), face_penalty=face)
         self.last_plan = out
         return out
@@ -837,8 +862,8 @@ class PostCaptureMPC:
         else:
             u = np.clip(plan["kappa"], -self.u_max, self.u_max)
             events = [("fallback", f"post-capture MPC {plan['status']}: applied the steady input kappa^1 (clipped)")]
-        err = reduced_post_capture_state(x)
-        info = {"iterations": float(plan["iterations"]), "tracking_error_m": float(np.linalg.norm(err[6:9]))}
+        info = {"iterations": float(plan["iterations"]),
+                "tracking_error_m": float(np.linalg.norm(x[S_RN] - x[S_REF][0:3]))}  # rho_n - r_des
         return _command(u, plan["status"], t_start, plan["solver_time_s"], self.mode, events, info,
                         plan.get("detail", ""))
 
@@ -850,11 +875,10 @@ class PostCaptureMPC:
         rate_w = -1.0 if self.config.rate_max_deg_s is None else math.radians(self.config.rate_max_deg_s)
         H, f, G, free, Ar, bl, bu = condensed_qp(A, B, self.dt, N, dx0, self._W, self._r_blk, self._zero_ref,
                                                  self._zero_face, 0.0, 3, rate_w)  # one numba call (hybrid_kernels)
-        lb = np.tile(-self.u_max - kappa, N)
-        ub = np.tile(self.u_max - kappa, N)
+        lb, ub = box_bounds(self.u_max, kappa, N)
         rows = (Ar, bl, bu) if rate_w >= 0.0 else (None, None, None)
         self._solver, res, out = _solve_box_qp(self._solver, self.config.solver, H, f, lb, ub, self.config.max_iter,
-                                               kappa, *rows)
+                                               kappa, *rows, trusted=rate_w != 0.0)
         if res.x is None or not res.ok:
             return out
         U = np.clip(res.x, lb, ub)

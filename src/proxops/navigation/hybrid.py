@@ -82,7 +82,7 @@ class HybridNavigation(NavigationBase):
         if x[32] > self._contacts:  # a contact impulse: the rate is uncertain by a few deg/s
             self._contacts = float(x[32])
             P[3:6, 3:6] += math.radians(self.contact_rate_sigma_deg_s) ** 2 * np.eye(3)
-        f.reset(f.q, w, P)
+        f.restart(f.q, w, P)  # the filter's own state plus known increments: no re-check of P
 
     def _start(self, x: np.ndarray, rng: np.random.Generator) -> None:
         s_a, s_w = math.radians(self.initial_attitude_sigma_deg), math.radians(self.initial_rate_sigma_deg_s)

@@ -227,6 +227,20 @@ class AttitudeMEKF:
         self.updates = 0
         self.events: list[tuple[str, str]] = []
 
+    def restart(self, q0, w0, P0, b0=None) -> None:
+        """:meth:`reset` for a caller that hands back the filter's own state with known changes (a
+        rate increment, a widened rate covariance): the same assignments without re-checking P0
+        (symmetry, positive definiteness), which cost more than the filter's prediction. P0 must be
+        a symmetric positive definite (n, n) array (e.g. :attr:`P` plus a PSD term)."""
+        self._q = quat_normalize(np.asarray(q0, dtype=float))
+        self._w = np.array(w0, dtype=float).reshape(3)
+        self._b = np.zeros(3) if b0 is None else np.array(b0, dtype=float).reshape(3)
+        self._P = np.array(P0, dtype=float)
+        self.nis = []
+        self.rejected = 0
+        self.updates = 0
+        self.events = []
+
     # --- state ------------------------------------------------------------------------
     @property
     def q(self) -> np.ndarray:
