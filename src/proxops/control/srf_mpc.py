@@ -343,6 +343,66 @@ def _row_bounds_kernel(phi, i, x, relax, a, b, fN, rx_past, nodes, hop_r, hop_w,
 
 
 
+
+@njit(cache=True)
+def _cbf_rows_kernel(phi_tau, cx, xr, center, radius, alpha, um, eps_norm):
+    """Rows (29j) of the free drift after impulse w (SrfMpc._build, scaled units), from the unforced drift
+    cx = Phi(tau_f) x and the reference drift xr = cx + Phi(tau_f)[:, 3:6] u_ref (both (F, 6), numpy's
+    matmul): the supporting half-spaces n_f . (p_u(tau_f) - c) >= r and the CBF condition linearised about
+    xr (KeepOutSphere.halfspace / cbf_linearization, eqs. 26-28), one pass with numpy's order of the sums
+    (the same rows bit for bit; with the KOZ centre off the origin the caller recomputes half_lo from n_hat
+    with numpy's n . c). Returns (half (F, 3), half_lo (F,), lin (F, 3), gu (F, 3) dg/du, g_ref (F,),
+    scale (F,), n_hat (F, 3), ok); ok False when a reference point lies at the KOZ centre."""
+    F = phi_tau.shape[0]
+    half = np.empty((F, 3))
+    half_lo = np.empty(F)
+    lin = np.empty((F, 3))
+    gu = np.empty((F, 3))
+    g_ref = np.empty(F)
+    scale = np.empty(F)
+    n_hat = np.empty((F, 3))
+    for f in range(F):
+        d0, d1, d2 = xr[f, 0] - center[0], xr[f, 1] - center[1], xr[f, 2] - center[2]
+        norm = math.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
+        if norm <= eps_norm:
+            return half, half_lo, lin, gu, g_ref, scale, n_hat, False
+        n0, n1, n2 = d0 / norm, d1 / norm, d2 / norm
+        n_hat[f, 0], n_hat[f, 1], n_hat[f, 2] = n0, n1, n2
+        b_half = radius + ((n0 * center[0] + n2 * center[2]) + n1 * center[1])
+        for l in range(3):
+            half[f, l] = (n0 * phi_tau[f, 0, 3 + l] + n1 * phi_tau[f, 1, 3 + l] + n2 * phi_tau[f, 2, 3 + l]) * um / 1000.0
+        # n . cx summed as numpy's einsum('fk,fk->f') sums it ((0 + 2) + 1)
+        half_lo[f] = (b_half - ((n0 * cx[f, 0] + n2 * cx[f, 2]) + n1 * cx[f, 1])) / 1000.0
+        # g = hdot + alpha h, grad = [2 v + 2 alpha (p - c), 2 (p - c)]
+        g_ref[f] = 2.0 * (d0 * xr[f, 3] + d1 * xr[f, 4] + d2 * xr[f, 5]) + alpha * (d0 * d0 + d1 * d1 + d2 * d2
+                                                                                    - radius * radius)
+        grad0 = 2.0 * xr[f, 3] + 2.0 * alpha * d0
+        grad1 = 2.0 * xr[f, 4] + 2.0 * alpha * d1
+        grad2 = 2.0 * xr[f, 5] + 2.0 * alpha * d2
+        for l in range(3):
+            gu[f, l] = (grad0 * phi_tau[f, 0, 3 + l] + grad1 * phi_tau[f, 1, 3 + l] + grad2 * phi_tau[f, 2, 3 + l]
+                        + 2.0 * d0 * phi_tau[f, 3, 3 + l] + 2.0 * d1 * phi_tau[f, 4, 3 + l] + 2.0 * d2 * phi_tau[f, 5, 3 + l])
+        scale[f] = max(math.sqrt(gu[f, 0] * gu[f, 0] + gu[f, 1] * gu[f, 1] + gu[f, 2] * gu[f, 2]) * um, 1e-12)
+        for l in range(3):
+            lin[f, l] = gu[f, l] * um / scale[f]
+    return half, half_lo, lin, gu, g_ref, scale, n_hat, True
+
+
+@njit(cache=True)
+def _drift_check_kernel(xs, center, radius, alpha):
+    """Per free-drift sample: distance to the KOZ centre and g = hdot + alpha h (eq. 28), with the same
+    arithmetic as np.linalg.norm / KeepOutSphere.cbf_value; returns (min dist, min g, dist, g)."""
+    F = xs.shape[0]
+    dist = np.empty(F)
+    g = np.empty(F)
+    for f in range(F):
+        d0, d1, d2 = xs[f, 0] - center[0], xs[f, 1] - center[1], xs[f, 2] - center[2]
+        dd = d0 * d0 + d1 * d1 + d2 * d2
+        dist[f] = math.sqrt(dd)
+        g[f] = 2.0 * (d0 * xs[f, 3] + d1 * xs[f, 4] + d2 * xs[f, 5]) + alpha * (dd - radius * radius)
+    return dist, g
+
+
 @dataclass
 class NodeSchedule:
     """MPC nodes on the engine grid: node ``j`` is engine step ``steps[j]`` (t = steps[j] dt).
@@ -871,18 +931,18 @@ class SrfMpc:
             gv = gv.copy()
             gv[sel] = sign * gains[node, comp]
         n_cbf = self._n_cbf if with_cbf else 0
-        if n_cbf:
-            cx = self._phi_tau @ x  # (F, 6) drift without impulse
-            D = self._phi_tau[:, :, 3:6]  # (F, 6, 3)
+        if n_cbf:  # (29j) about the reference drift, one jitted pass (_cbf_rows_kernel)
             ur = np.zeros(3) if u_ref is None else u_ref
-            xr = cx + D @ ur
-            n_hat, b_half = self.koz.halfspace(xr[:, :3])
-            half = np.einsum("fk,fkl->fl", n_hat, D[:, :3, :]) * um / KM
-            half_lo = (b_half - np.einsum("fk,fk->f", n_hat, cx[:, :3])) / KM
-            grad, g_ref = self.koz.cbf_linearization(xr, c.cbf_alpha_per_s)
-            gu = np.einsum("fk,fkl->fl", grad, D)  # (F, 3) dg/du
-            scale = np.maximum(np.linalg.norm(gu, axis=1) * um, 1e-12)
-            lin = gu * um / scale[:, None]
+            koz = self.koz
+            cx = self._phi_tau @ x  # (F, 6) drift without impulse
+            xr = cx + self._phi_tau[:, :, 3:6] @ ur
+            half, half_lo, lin, gu, g_ref, scale, n_hat, ok = _cbf_rows_kernel(
+                self._phi_tau, cx, xr, koz.center_m, float(koz.radius_m), float(c.cbf_alpha_per_s), float(um),
+                1e-12 * max(1.0, koz.radius_m))
+            if not ok:  # a reference point at the KOZ centre: KeepOutSphere.halfspace's one-line error
+                koz.halfspace(xr[:, :3])
+            if np.any(koz.center_m):  # b = r + n . c with numpy's sum (the kernel's is for c = 0)
+                half_lo = (koz.radius_m + n_hat @ koz.center_m - np.einsum("fk,fk->f", n_hat, cx[:, :3])) / KM
             lin_lo = (gu @ ur - g_ref) / scale
             gv = np.concatenate([gv, half.ravel(), lin.ravel()])
             g_lo = np.concatenate([g_lo, half_lo, lin_lo])
@@ -1037,8 +1097,7 @@ class SrfMpc:
         self.last_drift = xs
         if self.koz is None:
             return True, math.nan, float(np.min(np.linalg.norm(xs[:, :3], axis=1)))
-        dist = np.linalg.norm(xs[:, :3] - self.koz.center_m, axis=1)
-        g = self.koz.cbf_value(xs, self.cfg.cbf_alpha_per_s)
+        dist, g = _drift_check_kernel(xs, self.koz.center_m, float(self.koz.radius_m), float(self.cfg.cbf_alpha_per_s))
         if not self.cfg.cbf:
             return True, float(g.min()), float(dist.min())
         g_tol = 1e-6 * self.cfg.cbf_alpha_per_s * self.koz.radius_m**2
