@@ -987,6 +987,8 @@ class SrfMpc:
                             "drop_fixed": True}
                 self._solver = make_solver(qp.as_form(), self.cfg.solver,
                                            **(settings if self.cfg.solver == "piqp" else {}))
+            elif self.cfg.solver == "piqp":  # PIQP's trusted path: this layout's fixed patterns, fresh vectors
+                self._solver.update_fast(A=qp.A_eq, b=qp.b_eq, G=qp.G, h_l=qp.g_lo, h_u=qp.g_hi, x_lb=qp.lb, x_ub=qp.ub)
             else:
                 self._solver.update(A_eq=qp.A_eq, b_eq=qp.b_eq, A=qp.G, bl=qp.g_lo, bu=qp.g_hi, lb=qp.lb, ub=qp.ub)
             res = self._solver.solve()
