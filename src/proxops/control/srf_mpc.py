@@ -552,6 +552,9 @@ class SrfMpc:
                 end = int(schedule.hop_nodes[np.searchsorted(schedule.hop_nodes, h, side="right")])
                 self.hold_nodes += [(j, t_node) for j in range(t_node + 1, end)]
         self.hold_nodes = sorted(self.hold_nodes)  # (node j, its trim node)
+        # last node whose drift gain a row uses (_drift_gains) and the gravity parameters of drift_model
+        self._drift_last = min(int(max([self.drift_nodes.max()] + [j for j, _ in self.hold_nodes])), schedule.n)
+        self._drift_params = self.drift_model._params() if self.drift_model is not None else None
         self._layout()
         pdiag = np.zeros(self._nz)
         pdiag[self._ie:self._ie + 3] = c.q_terminal_per_m2 * KM**2
@@ -609,17 +612,22 @@ class SrfMpc:
         if self.drift_model is None:
             k[i:, 1] = 1.0
             return k
+        last = self._drift_last
+        if last < i:
+            return k
         plan = self.plan.copy()
         plan[:i] = 0.0
         flat = plan.ravel()
-        last = min(int(max([self.drift_nodes.max()] + [j for j, _ in self.hold_nodes])), N)
-        if last < i:
-            return k
         xs = np.empty((last - i + 1, 6))
         xs[0] = x
         if last > i:  # predicted states at nodes i+1..last, then their gains in one jitted call
             xs[1:] = np.einsum("lij,j->li", self._phi[i + 1:last + 1, i], x) + self._S[i + 1:last + 1] @ flat
-        k[i:last + 1] = self.drift_model.gains(self.sched.times[i:last + 1], xs)
+        from proxops.propagation.kernels import energy_gains
+
+        targets = self._per_node.get(("targets", i))
+        if targets is None:  # the target states at nodes i..last (EnergyDrift._targets): made once per node
+            targets = self._per_node[("targets", i)] = self.drift_model._targets(self.sched.times[i:last + 1])
+        k[i:last + 1] = energy_gains(targets, xs, self._drift_params)  # = drift_model.gains(times, xs)
         return k
 
     def step(self, t: float, x_est) -> Command:

@@ -190,6 +190,7 @@ class PiqpQP(SolverAdapter):
             free = self._free_variables()
         self._solver_error = None
         self._rebuilt = True
+        self._solver = None  # release the previous factorisation before allocating the next one
         try:
             solver = self._piqp.SparseSolver()
             for key, value in self._native.items():
