@@ -72,3 +72,33 @@ def test_drift_check_kernel_matches_the_definition_on_and_off_the_sphere():
         assert np.array_equal(g, koz.cbf_value(xs, ALPHA))
         # independent value on the sphere: h = 0 there, so g = hdot = 2 (p - c) . v
         assert g[:20] == pytest.approx(2.0 * np.sum((xs[:20, :3] - centre) * xs[:20, 3:], axis=1), abs=1e-9)
+
+
+def test_max_violation_kernel_equals_the_numpy_definition():
+    """_Qp.max_violation's jitted pass against the definition written with scipy/numpy (rows switched off
+    at +-inf, bounds at +-inf, points inside and outside), and exactly 0 at a feasible point."""
+    import scipy.sparse as sp
+
+    from proxops.control.srf_mpc import _Qp
+
+    rng = np.random.default_rng(3)
+    for trial in range(40):
+        n, p, m = 30, 5, 25
+        A = sp.random(p, n, density=0.4, random_state=trial, format="csc")
+        G = sp.random(m, n, density=0.3, random_state=trial + 100, format="csc")
+        z0 = rng.uniform(0.0, 1.0, n)
+        gz = G @ z0
+        lo, hi = gz - rng.uniform(0, 0.1, m), gz + rng.uniform(0, 0.1, m)
+        lo[:3], hi[3:6] = -np.inf, np.inf
+        lb, ub = np.zeros(n), np.ones(n)
+        lb[-2:], ub[-2:] = -np.inf, np.inf
+        qp = _Qp(None, None, A, A @ z0, G, lo, hi, lb, ub, 1)
+        z = z0 if trial % 4 == 0 else z0 + rng.normal(0.0, 0.05, n)
+        eq = np.abs(A @ z - qp.b_eq)
+        g = G @ z
+        ref = max(eq.max(), np.maximum(np.maximum(lo - g, g - hi), 0.0).max(),
+                  np.maximum(np.maximum(lb - z, z - ub), 0.0).max())
+        got = qp.max_violation(z)
+        assert got == ref
+        if trial % 4 == 0:
+            assert got <= 1e-15  # z0 satisfies every row (up to the rounding of A z0)
