@@ -919,21 +919,17 @@ class SrfMpc:
         np.take(values, perm, out=mat.data)
         return mat
 
-    def _rx_const(self, i: int, x: np.ndarray, j: int) -> float:
-        """Constant part of a . p at node j: prediction from x_i (j > i) or the recorded value."""
-        if j > i:
-            return float(self.a @ (self._phi[j, i] @ x)[:3])
-        return self.rx_hist.get(j, float(self.a @ x[:3]))
-
     def _row_bounds(self, i: int, x: np.ndarray, relax: int, fN: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Bounds (g_lo, g_hi) of the rows with constant coefficients at node ``i`` (scaled units) and the
-        constant part of a . p at node 0 and every hop end (m, :meth:`_rx_const`), one jitted call on the
+        constant part of a . p at node 0 and every hop end (m: the prediction a . (Phi(t_j - t_i) x)[:3] for a node
+        ahead, else the recorded value, else a . p now), one jitted call on the
         index maps of :meth:`_layout` (:func:`_row_bounds_kernel`): the brake box (29d), hop rows
         (29l)-(29m), drift and hold rows, hop distances, (29n)-(29o) and the budget (29g); rows of past
         nodes or relaxed rows are switched off to +-OFF."""
         c = self.cfg
         nodes = self._boundaries
-        rx_past = np.array([self._rx_const(i, x, int(j)) if j <= i else 0.0 for j in nodes])
+        ax = float(self.a @ x[:3])  # a . p now: the value of a past node without a record
+        rx_past = np.array([self.rx_hist.get(int(j), ax) if j <= i else 0.0 for j in nodes])
         drift = (math.nan, math.nan)
         d_rows, d_js = self._row_sets.get("drift", (_NO_ROWS, _NO_ROWS))
         if relax < 3 and d_js.size and d_js.max() >= i:  # the same estimate for every drift row of this node
