@@ -125,21 +125,12 @@ def _orbit_index(t, period, whole):
 
 @njit(cache=True)
 def _certificate_kernel(t, p, v, radius, k_at, h00, h10, h01, h11):
-    """One pass over a drift relative to the KOZ centre (p, v): the first-entry search of
-    :func:`first_entry_time` (first sample inside, first segment dipping inside before it; -1 if none),
-    the minimum over every segment of each whole orbit k_at[m-1]..k_at[m] (:func:`hermite_min_range`
-    of that slice) and over the whole drift (the minimum of the orbits' and the two ends' ranges, which
-    cover every segment once)."""
+    """One pass over a drift relative to the KOZ centre (p, v): the minimum over every segment of each
+    whole orbit k_at[m-1]..k_at[m] (:func:`hermite_min_range` of that slice) and over the whole drift (the
+    minimum of the orbits' and the two ends' ranges, which cover every segment once), then the first-entry
+    search of :func:`first_entry_time` (first sample inside, first segment dipping inside before it; -1 if
+    none), skipped when that minimum is not below the radius (no sample or segment can then be inside)."""
     n = p.shape[0]
-    k_in = -1
-    for k in range(n):
-        if math.sqrt(p[k, 0] * p[k, 0] + p[k, 1] * p[k, 1] + p[k, 2] * p[k, 2]) < radius:
-            k_in = k
-            break
-    last = n - 1 if k_in < 0 else k_in
-    hit = -1
-    if last >= 1:
-        hit = _first_dip_kernel(t[:last + 1], p[:last + 1], v[:last + 1], radius, h00, h10, h01, h11)
     whole = k_at.shape[0] - 1
     per = np.empty(whole)
     best = _range_min(t, p, v, 0, k_at[0], h00, h10, h01, h11)
@@ -147,6 +138,17 @@ def _certificate_kernel(t, p, v, radius, k_at, h00, h10, h01, h11):
         per[m - 1] = _range_min(t, p, v, k_at[m - 1], k_at[m], h00, h10, h01, h11)
         best = min(best, per[m - 1])
     best = min(best, _range_min(t, p, v, k_at[whole], n - 1, h00, h10, h01, h11))
+    k_in = -1
+    hit = -1
+    if best >= radius:  # every sample and every segment's minimum is >= best: nothing enters
+        return k_in, hit, per, best
+    for k in range(n):
+        if math.sqrt(p[k, 0] * p[k, 0] + p[k, 1] * p[k, 1] + p[k, 2] * p[k, 2]) < radius:
+            k_in = k
+            break
+    last = n - 1 if k_in < 0 else k_in
+    if last >= 1:
+        hit = _first_dip_kernel(t[:last + 1], p[:last + 1], v[:last + 1], radius, h00, h10, h01, h11)
     return k_in, hit, per, best
 
 
@@ -234,7 +236,10 @@ def free_drift_checks(times, drift, koz: KeepOutSphere, period_s: float, window_
     c = np.asarray(koz.center_m, dtype=float)
     r_koz = float(koz.radius_m)
     whole = int(math.floor(window + 1e-9))
-    tt, p, v = _relative(t, x, c)
+    if np.any(c):
+        tt, p, v = _relative(t, x, c)
+    else:  # a KOZ about the origin: the drift's own columns (views, no copies; x - 0 = x)
+        tt, p, v = np.ascontiguousarray(t), x[:, :3], x[:, 3:6]
     k_at_arr = _orbit_index(tt, period, whole)
     k_in, hit, per, best = _certificate_kernel(tt, p, v, r_koz, k_at_arr, _H00, _H10, _H01, _H11)
     k_at = [int(k) for k in k_at_arr]
