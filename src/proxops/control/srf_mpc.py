@@ -103,7 +103,10 @@ the shrinking horizon keeps one sparsity pattern (past impulses fixed to 0 by th
 past hop rows switched off), so a single solver is set up once and updated in place; PIQP removes
 the fixed past impulses from what it factors (``drop_fixed``: a new PIQP set-up at each node, updates in
 place between the SCP solves of a node; 4x less solver time over a run, solutions within its tolerance).
-Every accepted solution is checked for feasibility against its own rows.
+The per-node data come from jitted passes (:func:`_row_bounds_kernel`, :func:`_cbf_rows_kernel`, with numpy's
+order of the sums: the same QP bit for bit) and reach PIQP through its trusted ``update_fast`` (fixed patterns,
+vectors handed over without copies). Every accepted solution is checked for feasibility against its own rows
+(:func:`_max_violation_kernel`).
 """
 
 from __future__ import annotations
