@@ -53,13 +53,19 @@ def assembly_share(n_runs: int = 10) -> None:
     acc = {"piqp": 0.0, "build": 0.0, "adapter": 0.0, "node": 0.0, "solves": 0}
     clock = time.thread_time
 
+    depth: dict = {}  # nesting per key
+
     def timed(fn, key, count=False):
         def wrapper(*a, **k):
+            outer = depth.setdefault(key, 0) == 0  # an adapter call made inside another (update_fast -> update_native) counts once
+            depth[key] += 1
             t0 = clock()
             try:
                 return fn(*a, **k)
             finally:
-                acc[key] += clock() - t0
+                depth[key] -= 1
+                if outer:
+                    acc[key] += clock() - t0
                 if count:
                     acc["solves"] += 1
         return wrapper
@@ -69,21 +75,26 @@ def assembly_share(n_runs: int = 10) -> None:
         update = timed(piqp.SparseSolver.update, "piqp")
         solve = timed(piqp.SparseSolver.solve, "piqp", count=True)
 
-    saved = (piqp.SparseSolver, srf_mpc.SrfMpc._build, srf_mpc.SrfMpc._solve_node,
-             piqp_qp.PiqpQP.setup, piqp_qp.PiqpQP.update, piqp_qp.PiqpQP.solve)
+    methods = ("setup", "update", "update_native", "update_fast", "solve")  # every adapter entry SrfMpc may use
+    saved = (piqp.SparseSolver, srf_mpc.SrfMpc._build, srf_mpc.SrfMpc._solve_node)
+    own = {m: piqp_qp.PiqpQP.__dict__.get(m) for m in methods}  # None: inherited from SolverAdapter
     run_campaign("srf-vbar-mc", n_runs=2, workers=1, progress=False)  # warm-up (imports, numba)
     try:
         piqp.SparseSolver = TimedPiqp
         srf_mpc.SrfMpc._build = timed(saved[1], "build")
         srf_mpc.SrfMpc._solve_node = timed(saved[2], "node")
-        for name, fn in zip(("setup", "update", "solve"), saved[3:]):
-            setattr(piqp_qp.PiqpQP, name, timed(fn, "adapter"))
+        for name in methods:
+            setattr(piqp_qp.PiqpQP, name, timed(getattr(piqp_qp.PiqpQP, name), "adapter"))
         c0 = time.process_time()
         run_campaign("srf-vbar-mc", n_runs=n_runs, workers=1, progress=False)
         cpu = time.process_time() - c0
     finally:
         piqp.SparseSolver, srf_mpc.SrfMpc._build, srf_mpc.SrfMpc._solve_node = saved[:3]
-        piqp_qp.PiqpQP.setup, piqp_qp.PiqpQP.update, piqp_qp.PiqpQP.solve = saved[3:]
+        for name, fn in own.items():
+            if fn is None:
+                delattr(piqp_qp.PiqpQP, name)
+            else:
+                setattr(piqp_qp.PiqpQP, name, fn)
     solver = acc["piqp"]
     assembly = acc["build"] + acc["adapter"] - solver
     print(f"srf-vbar-mc, {n_runs} runs in one process: {cpu / n_runs * 1e3:.0f} ms CPU per run; {acc['solves']} PIQP solves "

@@ -94,3 +94,69 @@ def test_window_longer_than_the_drift_is_refused():
     t = _times(2)
     with pytest.raises(ValueError, match="window"):
         certify_free_drift(t, _cw(200.0, 0.0, t), KOZ, T, 3)
+
+
+def _brute_minima(t, x, center):
+    """Every segment's minimum distance to ``center`` by the definition (numpy, no skipping): both samples
+    and the 19 interior points of the cubic Hermite interpolant."""
+    s = np.linspace(0.0, 1.0, 21)[1:-1, None]
+    h00, h10, h01, h11 = 2 * s**3 - 3 * s**2 + 1, s**3 - 2 * s**2 + s, -2 * s**3 + 3 * s**2, s**3 - s**2
+    out = np.empty(len(t) - 1)
+    for k in range(len(t) - 1):
+        dt = t[k + 1] - t[k]
+        p0, p1 = x[k, :3] - center, x[k + 1, :3] - center
+        pts = h00 * p0 + h10 * dt * x[k, 3:6] + h01 * p1 + h11 * dt * x[k + 1, 3:6]
+        out[k] = min(np.linalg.norm(p0), np.linalg.norm(p1), np.linalg.norm(pts, axis=1).min())
+    return out
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_one_pass_certificate_equals_the_separate_checks_at_the_tangent_radius(seed):
+    """free_drift_checks computes the entry, the per-orbit and whole minima in one jitted pass. Against the
+    definition (every segment's minimum, numpy) and the separate functions, on CW drifts over 15 orbits
+    (noise added, centre off the origin for odd seeds) with the KOZ radius AT the drift's minimum (tangent:
+    no segment dips strictly inside, so no entry, while drift_safety's strict 'safe' is False) and one ulp
+    above it (the tangent segment enters): same verdicts, the same entry sample, minima per orbit."""
+    from proxops.constraints.passive_safety import drift_safety, first_entry_time, free_drift_checks, hermite_min_range
+
+    rng = np.random.default_rng(seed)
+    W = 15
+    t = np.linspace(0.0, W * T, W * 60 + 1)
+    x0 = np.concatenate([rng.uniform(-300, 300, 3), rng.uniform(-0.05, 0.05, 3)])
+    x = np.array([_cw_full(x0, tk) for tk in t]) + rng.normal(0.0, 0.01, (t.size, 6))
+    center = rng.uniform(-20, 20, 3) if seed % 2 else np.zeros(3)
+    seg = _brute_minima(t, x, center)
+    k_at = [int(np.argmin(np.abs(t - m * T))) for m in range(W + 1)]
+    for radius in (float(seg.min()), float(np.nextafter(seg.min(), np.inf))):
+        koz = KeepOutSphere(radius, center)
+        cert, checks = free_drift_checks(t, x, koz, T, W)
+        assert cert == certify_free_drift(t, x, koz, T, W)
+        assert checks["orbit_index"] == k_at
+        assert checks["first_entry_s"] == first_entry_time(t, x, center, radius)
+        assert checks["safety"] == drift_safety(t, x, koz)
+        assert checks["safety"]["min_koz_distance_m"] == pytest.approx(seg.min() - radius, abs=1e-9)
+        assert not checks["safety"]["safe"]  # 0 or -1 ulp from the surface: not strictly outside
+        per = [seg[a:b].min() for a, b in zip(k_at[:-1], k_at[1:])]
+        assert cert["min_range_per_orbit_m"] == pytest.approx(per, rel=1e-12)
+        assert cert["min_range_per_orbit_m"] == [hermite_min_range(t[a:b + 1], x[a:b + 1], center)
+                                                 for a, b in zip(k_at[:-1], k_at[1:])]
+        dips = np.nonzero(seg < radius)[0]
+        if radius == seg.min():
+            assert dips.size == 0 and cert["safe"] and cert["first_koz_entry_s"] is None
+        else:
+            assert dips.size and not cert["safe"] and cert["first_koz_entry_s"] == t[dips[0]]
+            assert cert["verdict"] == f"enters KOZ at {t[dips[0]] / T:.2f} orbits"
+
+
+def _cw_full(x0, t):
+    """Closed-form CW state at t from x0 (cw_stm is the code under test elsewhere; this is Vallado eq. 6-66)."""
+    s, c = math.sin(N * t), math.cos(N * t)
+    x, y, z, vx, vy, vz = x0
+    return np.array([
+        (4 - 3 * c) * x + s / N * vx + 2 / N * (1 - c) * vy,
+        6 * (s - N * t) * x + y - 2 / N * (1 - c) * vx + (4 * s - 3 * N * t) / N * vy,
+        c * z + s / N * vz,
+        3 * N * s * x + c * vx + 2 * s * vy,
+        6 * N * (c - 1) * x - 2 * s * vx + (4 * c - 3) * vy,
+        -N * s * z + c * vz,
+    ])

@@ -117,3 +117,59 @@ def test_cached_column_maps_equal_dense_indexing_across_refills_and_sizes():
             assert A is not G and np.array_equal(A.toarray(), M.toarray()[:, free])
             assert np.array_equal(G.toarray(), M.toarray()[:, free])
             assert np.array_equal(_kept("P", Q, free).toarray(), Q.toarray()[np.ix_(free, free)])
+
+
+def _shared_pattern(M):
+    """A canonical CSC copy with read-only index arrays (a caller's fixed layout)."""
+    S = sp.csc_matrix(M, copy=True)
+    S.sort_indices()
+    S.indices.flags.writeable = False
+    S.indptr.flags.writeable = False
+    return S
+
+
+def test_update_fast_makes_the_calls_of_update_native_and_still_catches_bad_data():
+    """update_fast (trusted: fixed patterns by identity, vectors not copied) against update_native on the same
+    sequence -- new values in place, a new fixed set (re-set-up), NaN, crossed bounds, another pattern
+    (falls back) -- gives bit-identical results (PIQP receives the same data), and Clarabel agrees."""
+    rng = np.random.default_rng(5)
+    pr = _random_qp(rng, fixed_values=False)
+    A_eq, G = _shared_pattern(pr.A_eq), _shared_pattern(pr.A)
+    fast, ref = (make_solver("QP", "piqp", drop_fixed=True) for _ in range(2))
+    for s in (fast, ref):
+        s.setup_native(pr.P, pr.q, A_eq, pr.b_eq, G, pr.bl, pr.bu, pr.lb, pr.ub)
+        s.solve()
+    fast.update_native(A=A_eq, G=G)  # registers the read-only pattern (the first update checks it)
+    ref.update_native(A=A_eq, G=G)
+    lb, ub = pr.lb.copy(), pr.ub.copy()
+    k = int(np.flatnonzero(lb == ub)[0])
+    steps = []
+    for step in range(6):
+        A_eq.data[:] = A_eq.data * rng.uniform(0.9, 1.1, A_eq.nnz)
+        G.data[:] = G.data * rng.uniform(0.9, 1.1, G.nnz)
+        bl, bu = pr.bl - rng.uniform(0, 0.1, pr.bl.size), pr.bu + rng.uniform(0, 0.1, pr.bu.size)
+        b = A_eq @ np.where(lb == ub, 0.0, rng.uniform(-0.2, 0.2, lb.size))
+        if step == 2:  # a new set of fixed variables
+            lb, ub = lb.copy(), ub.copy()
+            lb[k], ub[k] = -1.0, 1.0
+        if step == 3:
+            bl = bl.copy()
+            bl[0] = np.nan
+        if step == 4:
+            bl, bu = bl.copy(), bu.copy()
+            bl[1], bu[1] = 1.0, 0.0
+        fields = dict(A=A_eq, b=b, G=G, h_l=bl, h_u=bu, x_lb=lb, x_ub=ub)
+        if step == 5:  # another pattern (a plain copy with writeable indices): the checked path
+            fields["G"] = G.copy()
+        fast.update_fast(**fields)
+        assert (fast._data["h_l"] is bl) == (step != 5)  # the trusted path keeps the caller's vector
+        ref.update_native(**{k_: (v.copy() if hasattr(v, "copy") else v) for k_, v in fields.items()})
+        a, r = fast.solve(), ref.solve()
+        assert a.status == r.status and a.info.get("rebuilt") == r.info.get("rebuilt")
+        assert (a.x is None and r.x is None) or np.array_equal(a.x, r.x)
+        steps.append(a.status)
+        if a.status == SolveStatus.OPTIMAL:
+            pr_k = QuadraticProgram(P=pr.P, q=pr.q, A_eq=A_eq, b_eq=b, A=G, bl=bl, bu=bu, lb=lb, ub=ub)
+            np.testing.assert_allclose(a.x, solve_qp(pr_k, "clarabel").x, atol=1e-5)
+    assert steps[3] == SolveStatus.NUMERICAL_ERROR and steps[4] == SolveStatus.INFEASIBLE
+    assert steps[0] == steps[1] == steps[2] == steps[5] == SolveStatus.OPTIMAL

@@ -59,27 +59,35 @@ def _segment_lower_bound(t, p, v, k) -> float:
 
 
 @njit(cache=True)
-def _min_range_kernel(t, p, v, h00, h10, h01, h11) -> float:
-    """Minimum of :func:`_segment_min` over all segments: first the two segments at the closest
-    sample, then only the segments whose lower bound does not clear the minimum so far."""
-    n = p.shape[0]
-    k_near = 0
+def _range_min(t, p, v, lo, hi, h00, h10, h01, h11) -> float:
+    """Minimum of :func:`_segment_min` over the segments of samples lo..hi (|p[lo]| if lo == hi): first
+    the two segments at the closest sample, then only the segments whose lower bound does not clear
+    the minimum so far (the minimum of every segment's value, in any order: skipping changes nothing)."""
+    if hi <= lo:
+        return math.sqrt(p[lo, 0] * p[lo, 0] + p[lo, 1] * p[lo, 1] + p[lo, 2] * p[lo, 2])
+    k_near = lo
     r_near = math.inf
-    for k in range(n):
+    for k in range(lo, hi + 1):
         r = math.sqrt(p[k, 0] * p[k, 0] + p[k, 1] * p[k, 1] + p[k, 2] * p[k, 2])
         if r < r_near:
             r_near, k_near = r, k
     best = math.inf
     for k in (k_near - 1, k_near):
-        if 0 <= k < n - 1:
+        if lo <= k < hi:
             best = min(best, _segment_min(t, p, v, k, h00, h10, h01, h11))
-    for k in range(n - 1):
+    for k in range(lo, hi):
         if _segment_lower_bound(t, p, v, k) > best * (1.0 + _SKIP_MARGIN) + _SKIP_MARGIN:
             continue
         d = _segment_min(t, p, v, k, h00, h10, h01, h11)
         if d < best:
             best = d
     return best
+
+
+@njit(cache=True)
+def _min_range_kernel(t, p, v, h00, h10, h01, h11) -> float:
+    """Minimum of :func:`_segment_min` over all segments (:func:`_range_min` of the whole drift)."""
+    return _range_min(t, p, v, 0, p.shape[0] - 1, h00, h10, h01, h11)
 
 
 @njit(cache=True)
@@ -92,6 +100,56 @@ def _first_dip_kernel(t, p, v, radius, h00, h10, h01, h11) -> int:
         if _segment_min(t, p, v, k, h00, h10, h01, h11) < radius:
             return k
     return -1
+
+
+@njit(cache=True)
+def _orbit_index(t, period, whole):
+    """k_at[m] = np.argmin(np.abs(t - m period)) (its first minimum), m = 0..whole, for increasing t:
+    |t - target| (rounded) does not increase before the first t >= target and does not decrease from it,
+    so the minimum is at that index or at the one before it (the first of its equal values)."""
+    n = t.shape[0]
+    k_at = np.empty(whole + 1, dtype=np.int64)
+    for m in range(whole + 1):
+        target = m * period
+        j = np.searchsorted(t, target)  # first t[j] >= target
+        if j >= n:
+            j = n - 1
+        k = j
+        if j > 0 and abs(t[j - 1] - target) <= abs(t[j] - target):
+            k = j - 1
+            while k > 0 and abs(t[k - 1] - target) == abs(t[k] - target):
+                k -= 1
+        k_at[m] = k
+    return k_at
+
+
+@njit(cache=True)
+def _certificate_kernel(t, p, v, radius, k_at, h00, h10, h01, h11):
+    """One pass over a drift relative to the KOZ centre (p, v): the minimum over every segment of each
+    whole orbit k_at[m-1]..k_at[m] (:func:`hermite_min_range` of that slice) and over the whole drift (the
+    minimum of the orbits' and the two ends' ranges, which cover every segment once), then the first-entry
+    search of :func:`first_entry_time` (first sample inside, first segment dipping inside before it; -1 if
+    none), skipped when that minimum is not below the radius (no sample or segment can then be inside)."""
+    n = p.shape[0]
+    whole = k_at.shape[0] - 1
+    per = np.empty(whole)
+    best = _range_min(t, p, v, 0, k_at[0], h00, h10, h01, h11)
+    for m in range(1, whole + 1):
+        per[m - 1] = _range_min(t, p, v, k_at[m - 1], k_at[m], h00, h10, h01, h11)
+        best = min(best, per[m - 1])
+    best = min(best, _range_min(t, p, v, k_at[whole], n - 1, h00, h10, h01, h11))
+    k_in = -1
+    hit = -1
+    if best >= radius:  # every sample and every segment's minimum is >= best: nothing enters
+        return k_in, hit, per, best
+    for k in range(n):
+        if math.sqrt(p[k, 0] * p[k, 0] + p[k, 1] * p[k, 1] + p[k, 2] * p[k, 2]) < radius:
+            k_in = k
+            break
+    last = n - 1 if k_in < 0 else k_in
+    if last >= 1:
+        hit = _first_dip_kernel(t[:last + 1], p[:last + 1], v[:last + 1], radius, h00, h10, h01, h11)
+    return k_in, hit, per, best
 
 
 def _relative(t, x, center):
@@ -158,6 +216,17 @@ def certify_free_drift(times, drift, koz: KeepOutSphere, period_s: float, window
     lies on one side of the target along-track farther than the KOZ radius (|y - c_y| > r on every
     sample: with the CW periodic + secular motion moving away, |y| and so the range cannot fall below that
     minimum later), else ``"safe over W orbits"``."""
+    return free_drift_checks(times, drift, koz, period_s, window_orbits)[0]
+
+
+def free_drift_checks(times, drift, koz: KeepOutSphere, period_s: float, window_orbits: float) -> tuple[dict, dict]:
+    """:func:`certify_free_drift` and, from the same pass, what a caller would otherwise recompute:
+    ``{"first_entry_s": first_entry_time(...) (s, inf if none; not limited to the window),
+    "safety": drift_safety(...), "orbit_index": the sample index at m whole orbits, m = 0..W}``.
+
+    One jitted pass over the drift (:func:`_certificate_kernel`) gives the first entry, the minimum of
+    every whole orbit and of the whole drift: the same segments and the same arithmetic as the separate
+    functions, so the same numbers (tests/test_passive_certificate.py compares them bit for bit)."""
     t = np.asarray(times, dtype=float)
     x = np.asarray(drift, dtype=float)
     period = float(period_s)
@@ -166,18 +235,29 @@ def certify_free_drift(times, drift, koz: KeepOutSphere, period_s: float, window
         raise ValueError(f"free drift covers {t[-1] if t.size else 0.0:g} s, the window needs {window * period:g} s")
     c = np.asarray(koz.center_m, dtype=float)
     r_koz = float(koz.radius_m)
-    entry = first_entry_time(t, x, c, r_koz)
-    entry = entry if entry <= window * period * (1 + 1e-12) else np.inf
-    base = drift_safety(t, x, koz)
-    per_min, miss, along = [], [], []
     whole = int(math.floor(window + 1e-9))
-    k_at = [int(np.argmin(np.abs(t - m * period))) for m in range(whole + 1)]
-    centre = []
+    if np.any(c):
+        tt, p, v = _relative(t, x, c)
+    else:  # a KOZ about the origin: the drift's own columns (views, no copies; x - 0 = x)
+        tt, p, v = np.ascontiguousarray(t), x[:, :3], x[:, 3:6]
+    k_at_arr = _orbit_index(tt, period, whole)
+    k_in, hit, per, best = _certificate_kernel(tt, p, v, r_koz, k_at_arr, _H00, _H10, _H01, _H11)
+    k_at = [int(k) for k in k_at_arr]
+    first_entry = float(t[hit]) if hit >= 0 else (float(t[k_in]) if k_in >= 0 else np.inf)
+    entry = first_entry if first_entry <= window * period * (1 + 1e-12) else np.inf
+    if np.any(c):  # drift_safety: the range to the origin, and the KOZ distance from the centred minimum
+        rng = hermite_min_range(t, x, np.zeros(3))
+    else:
+        rng = float(best)
+    base = {"min_range_m": rng, "min_koz_distance_m": float(best) - r_koz, "safe": bool(float(best) - r_koz > 0.0)}
+    per_min = [float(d) for d in per]
+    miss, along, centre = [], [], []
+    # np.trapezoid(y[a:b+1], t[a:b+1]) of each orbit = sum of these terms over a..b-1 (same products, same sums)
+    terms = np.diff(t) * (x[1:, 1] + x[:-1, 1]) / 2.0
     for m in range(1, whole + 1):
         a, b = k_at[m - 1], k_at[m]
-        per_min.append(hermite_min_range(t[a:b + 1], x[a:b + 1], c))
         miss.append(float(np.linalg.norm(x[b, :3] - x[a, :3])))
-        centre.append(float(np.trapezoid(x[a:b + 1, 1], t[a:b + 1]) / (t[b] - t[a])) - c[1])
+        centre.append(float(terms[a:b].sum() / (t[b] - t[a])) - c[1])
     # W whole orbits give W - 1 centre steps (orbit k against k - 1); a one-orbit window: y(T) - y(0)
     if whole >= 2:
         for m in range(1, whole):
@@ -198,7 +278,7 @@ def certify_free_drift(times, drift, koz: KeepOutSphere, period_s: float, window
                    f"whole orbit beyond {r_koz:g} m)")
     else:
         verdict = f"safe over {window:g} orbits"
-    return {
+    cert = {
         "window_orbits": window, "verdict": verdict, "safe": safe, "indefinite": indefinite,
         "min_range_m": base["min_range_m"], "min_koz_distance_m": base["min_koz_distance_m"],
         "first_koz_entry_s": float(entry) if not safe else None,
@@ -208,3 +288,4 @@ def certify_free_drift(times, drift, koz: KeepOutSphere, period_s: float, window
         "centre_along_track_m": centre,  # orbit-mean y - c_y per whole orbit (m, Hill +y: the raw centre positions)
         "drift_median_m_per_orbit": float(np.median(along)) if along else math.nan,
     }
+    return cert, {"first_entry_s": first_entry, "safety": base, "orbit_index": k_at}

@@ -103,7 +103,10 @@ the shrinking horizon keeps one sparsity pattern (past impulses fixed to 0 by th
 past hop rows switched off), so a single solver is set up once and updated in place; PIQP removes
 the fixed past impulses from what it factors (``drop_fixed``: a new PIQP set-up at each node, updates in
 place between the SCP solves of a node; 4x less solver time over a run, solutions within its tolerance).
-Every accepted solution is checked for feasibility against its own rows.
+The per-node data come from jitted passes (:func:`_row_bounds_kernel`, :func:`_cbf_rows_kernel`, with numpy's
+order of the sums: the same QP bit for bit) and reach PIQP through its trusted ``update_fast`` (fixed patterns,
+vectors handed over without copies). Every accepted solution is checked for feasibility against its own rows
+(:func:`_max_violation_kernel`).
 """
 
 from __future__ import annotations
@@ -343,6 +346,94 @@ def _row_bounds_kernel(phi, i, x, relax, a, b, fN, rx_past, nodes, hop_r, hop_w,
 
 
 
+
+@njit(cache=True)
+def _cbf_rows_kernel(phi_tau, cx, xr, center, radius, alpha, um, eps_norm):
+    """Rows (29j) of the free drift after impulse w (SrfMpc._build, scaled units), from the unforced drift
+    cx = Phi(tau_f) x and the reference drift xr = cx + Phi(tau_f)[:, 3:6] u_ref (both (F, 6), numpy's
+    matmul): the supporting half-spaces n_f . (p_u(tau_f) - c) >= r and the CBF condition linearised about
+    xr (KeepOutSphere.halfspace / cbf_linearization, eqs. 26-28), one pass with numpy's order of the sums
+    (the same rows bit for bit; with the KOZ centre off the origin the caller recomputes half_lo from n_hat
+    with numpy's n . c). Returns (half (F, 3), half_lo (F,), lin (F, 3), gu (F, 3) dg/du, g_ref (F,),
+    scale (F,), n_hat (F, 3), ok); ok False when a reference point lies at the KOZ centre."""
+    F = phi_tau.shape[0]
+    half = np.empty((F, 3))
+    half_lo = np.empty(F)
+    lin = np.empty((F, 3))
+    gu = np.empty((F, 3))
+    g_ref = np.empty(F)
+    scale = np.empty(F)
+    n_hat = np.empty((F, 3))
+    for f in range(F):
+        d0, d1, d2 = xr[f, 0] - center[0], xr[f, 1] - center[1], xr[f, 2] - center[2]
+        norm = math.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
+        if norm <= eps_norm:
+            return half, half_lo, lin, gu, g_ref, scale, n_hat, False
+        n0, n1, n2 = d0 / norm, d1 / norm, d2 / norm
+        n_hat[f, 0], n_hat[f, 1], n_hat[f, 2] = n0, n1, n2
+        b_half = radius + ((n0 * center[0] + n2 * center[2]) + n1 * center[1])
+        for l in range(3):
+            half[f, l] = (n0 * phi_tau[f, 0, 3 + l] + n1 * phi_tau[f, 1, 3 + l] + n2 * phi_tau[f, 2, 3 + l]) * um / 1000.0
+        # n . cx summed as numpy's einsum('fk,fk->f') sums it ((0 + 2) + 1)
+        half_lo[f] = (b_half - ((n0 * cx[f, 0] + n2 * cx[f, 2]) + n1 * cx[f, 1])) / 1000.0
+        # g = hdot + alpha h, grad = [2 v + 2 alpha (p - c), 2 (p - c)]
+        g_ref[f] = 2.0 * (d0 * xr[f, 3] + d1 * xr[f, 4] + d2 * xr[f, 5]) + alpha * (d0 * d0 + d1 * d1 + d2 * d2
+                                                                                    - radius * radius)
+        grad0 = 2.0 * xr[f, 3] + 2.0 * alpha * d0
+        grad1 = 2.0 * xr[f, 4] + 2.0 * alpha * d1
+        grad2 = 2.0 * xr[f, 5] + 2.0 * alpha * d2
+        for l in range(3):
+            gu[f, l] = (grad0 * phi_tau[f, 0, 3 + l] + grad1 * phi_tau[f, 1, 3 + l] + grad2 * phi_tau[f, 2, 3 + l]
+                        + 2.0 * d0 * phi_tau[f, 3, 3 + l] + 2.0 * d1 * phi_tau[f, 4, 3 + l] + 2.0 * d2 * phi_tau[f, 5, 3 + l])
+        scale[f] = max(math.sqrt(gu[f, 0] * gu[f, 0] + gu[f, 1] * gu[f, 1] + gu[f, 2] * gu[f, 2]) * um, 1e-12)
+        for l in range(3):
+            lin[f, l] = gu[f, l] * um / scale[f]
+    return half, half_lo, lin, gu, g_ref, scale, n_hat, True
+
+
+@njit(cache=True)
+def _drift_check_kernel(xs, center, radius, alpha):
+    """Per free-drift sample: distance to the KOZ centre and g = hdot + alpha h (eq. 28), with the same
+    arithmetic as np.linalg.norm / KeepOutSphere.cbf_value; returns (min dist, min g, dist, g)."""
+    F = xs.shape[0]
+    dist = np.empty(F)
+    g = np.empty(F)
+    for f in range(F):
+        d0, d1, d2 = xs[f, 0] - center[0], xs[f, 1] - center[1], xs[f, 2] - center[2]
+        dd = d0 * d0 + d1 * d1 + d2 * d2
+        dist[f] = math.sqrt(dd)
+        g[f] = 2.0 * (d0 * xs[f, 3] + d1 * xs[f, 4] + d2 * xs[f, 5]) + alpha * (dd - radius * radius)
+    return dist, g
+
+
+
+@njit(cache=True)
+def _csc_matvec(indptr, indices, data, n_rows, z):
+    """A z for a CSC matrix, column by column (scipy's csc_matvec order: the same sums)."""
+    y = np.zeros(n_rows)
+    for j in range(indptr.shape[0] - 1):
+        zj = z[j]
+        for q in range(indptr[j], indptr[j + 1]):
+            y[indices[q]] += data[q] * zj
+    return y
+
+
+@njit(cache=True)
+def _max_violation_kernel(a_ptr, a_idx, a_val, b_eq, g_ptr, g_idx, g_val, g_lo, g_hi, lb, ub, z):
+    """_Qp.max_violation in one pass: max of |A_eq z - b_eq|, the row excess of G z over [g_lo, g_hi]
+    and the bound excess of z over [lb, ub] (0 when nothing is violated)."""
+    worst = 0.0
+    eq = _csc_matvec(a_ptr, a_idx, a_val, b_eq.shape[0], z)
+    for r in range(b_eq.shape[0]):
+        worst = max(worst, abs(eq[r] - b_eq[r]))
+    gz = _csc_matvec(g_ptr, g_idx, g_val, g_lo.shape[0], z)
+    for r in range(g_lo.shape[0]):
+        worst = max(worst, g_lo[r] - gz[r], gz[r] - g_hi[r])
+    for k in range(z.shape[0]):
+        worst = max(worst, lb[k] - z[k], z[k] - ub[k])
+    return worst
+
+
 @dataclass
 class NodeSchedule:
     """MPC nodes on the engine grid: node ``j`` is engine step ``steps[j]`` (t = steps[j] dt).
@@ -407,7 +498,13 @@ class _Qp:
                                 np.concatenate([self.b_eq, self.g_hi]), self.lb, self.ub)
 
     def max_violation(self, z: np.ndarray) -> float:
-        """Largest violation of any row or bound at ``z`` (scaled units)."""
+        """Largest violation of any row or bound at ``z`` (scaled units); one jitted pass for a finite ``z``
+        (:func:`_max_violation_kernel`: the matrix products in scipy's order, the same maximum)."""
+        z = np.asarray(z, dtype=float)
+        if np.isfinite(z).all():
+            A, G = self.A_eq, self.G
+            return float(_max_violation_kernel(A.indptr, A.indices, A.data, self.b_eq, G.indptr, G.indices, G.data,
+                                               self.g_lo, self.g_hi, self.lb, self.ub, z))
         eq = np.abs(self.A_eq @ z - self.b_eq)
         gz = self.G @ z
         with np.errstate(invalid="ignore"):
@@ -492,6 +589,9 @@ class SrfMpc:
                 end = int(schedule.hop_nodes[np.searchsorted(schedule.hop_nodes, h, side="right")])
                 self.hold_nodes += [(j, t_node) for j in range(t_node + 1, end)]
         self.hold_nodes = sorted(self.hold_nodes)  # (node j, its trim node)
+        # last node whose drift gain a row uses (_drift_gains) and the gravity parameters of drift_model
+        self._drift_last = min(int(max([self.drift_nodes.max()] + [j for j, _ in self.hold_nodes])), schedule.n)
+        self._drift_params = self.drift_model._params() if self.drift_model is not None else None
         self._layout()
         pdiag = np.zeros(self._nz)
         pdiag[self._ie:self._ie + 3] = c.q_terminal_per_m2 * KM**2
@@ -549,17 +649,22 @@ class SrfMpc:
         if self.drift_model is None:
             k[i:, 1] = 1.0
             return k
+        last = self._drift_last
+        if last < i:
+            return k
         plan = self.plan.copy()
         plan[:i] = 0.0
         flat = plan.ravel()
-        last = min(int(max([self.drift_nodes.max()] + [j for j, _ in self.hold_nodes])), N)
-        if last < i:
-            return k
         xs = np.empty((last - i + 1, 6))
         xs[0] = x
         if last > i:  # predicted states at nodes i+1..last, then their gains in one jitted call
             xs[1:] = np.einsum("lij,j->li", self._phi[i + 1:last + 1, i], x) + self._S[i + 1:last + 1] @ flat
-        k[i:last + 1] = self.drift_model.gains(self.sched.times[i:last + 1], xs)
+        from proxops.propagation.kernels import energy_gains
+
+        targets = self._per_node.get(("targets", i))
+        if targets is None:  # the target states at nodes i..last (EnergyDrift._targets): made once per node
+            targets = self._per_node[("targets", i)] = self.drift_model._targets(self.sched.times[i:last + 1])
+        k[i:last + 1] = energy_gains(targets, xs, self._drift_params)  # = drift_model.gains(times, xs)
         return k
 
     def step(self, t: float, x_est) -> Command:
@@ -817,21 +922,17 @@ class SrfMpc:
         np.take(values, perm, out=mat.data)
         return mat
 
-    def _rx_const(self, i: int, x: np.ndarray, j: int) -> float:
-        """Constant part of a . p at node j: prediction from x_i (j > i) or the recorded value."""
-        if j > i:
-            return float(self.a @ (self._phi[j, i] @ x)[:3])
-        return self.rx_hist.get(j, float(self.a @ x[:3]))
-
     def _row_bounds(self, i: int, x: np.ndarray, relax: int, fN: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Bounds (g_lo, g_hi) of the rows with constant coefficients at node ``i`` (scaled units) and the
-        constant part of a . p at node 0 and every hop end (m, :meth:`_rx_const`), one jitted call on the
+        constant part of a . p at node 0 and every hop end (m: the prediction a . (Phi(t_j - t_i) x)[:3] for a node
+        ahead, else the recorded value, else a . p now), one jitted call on the
         index maps of :meth:`_layout` (:func:`_row_bounds_kernel`): the brake box (29d), hop rows
         (29l)-(29m), drift and hold rows, hop distances, (29n)-(29o) and the budget (29g); rows of past
         nodes or relaxed rows are switched off to +-OFF."""
         c = self.cfg
         nodes = self._boundaries
-        rx_past = np.array([self._rx_const(i, x, int(j)) if j <= i else 0.0 for j in nodes])
+        ax = float(self.a @ x[:3])  # a . p now: the value of a past node without a record
+        rx_past = np.array([self.rx_hist.get(int(j), ax) if j <= i else 0.0 for j in nodes])
         drift = (math.nan, math.nan)
         d_rows, d_js = self._row_sets.get("drift", (_NO_ROWS, _NO_ROWS))
         if relax < 3 and d_js.size and d_js.max() >= i:  # the same estimate for every drift row of this node
@@ -871,18 +972,18 @@ class SrfMpc:
             gv = gv.copy()
             gv[sel] = sign * gains[node, comp]
         n_cbf = self._n_cbf if with_cbf else 0
-        if n_cbf:
-            cx = self._phi_tau @ x  # (F, 6) drift without impulse
-            D = self._phi_tau[:, :, 3:6]  # (F, 6, 3)
+        if n_cbf:  # (29j) about the reference drift, one jitted pass (_cbf_rows_kernel)
             ur = np.zeros(3) if u_ref is None else u_ref
-            xr = cx + D @ ur
-            n_hat, b_half = self.koz.halfspace(xr[:, :3])
-            half = np.einsum("fk,fkl->fl", n_hat, D[:, :3, :]) * um / KM
-            half_lo = (b_half - np.einsum("fk,fk->f", n_hat, cx[:, :3])) / KM
-            grad, g_ref = self.koz.cbf_linearization(xr, c.cbf_alpha_per_s)
-            gu = np.einsum("fk,fkl->fl", grad, D)  # (F, 3) dg/du
-            scale = np.maximum(np.linalg.norm(gu, axis=1) * um, 1e-12)
-            lin = gu * um / scale[:, None]
+            koz = self.koz
+            cx = self._phi_tau @ x  # (F, 6) drift without impulse
+            xr = cx + self._phi_tau[:, :, 3:6] @ ur
+            half, half_lo, lin, gu, g_ref, scale, n_hat, ok = _cbf_rows_kernel(
+                self._phi_tau, cx, xr, koz.center_m, float(koz.radius_m), float(c.cbf_alpha_per_s), float(um),
+                1e-12 * max(1.0, koz.radius_m))
+            if not ok:  # a reference point at the KOZ centre: KeepOutSphere.halfspace's one-line error
+                koz.halfspace(xr[:, :3])
+            if np.any(koz.center_m):  # b = r + n . c with numpy's sum (the kernel's is for c = 0)
+                half_lo = (koz.radius_m + n_hat @ koz.center_m - np.einsum("fk,fk->f", n_hat, cx[:, :3])) / KM
             lin_lo = (gu @ ur - g_ref) / scale
             gv = np.concatenate([gv, half.ravel(), lin.ravel()])
             g_lo = np.concatenate([g_lo, half_lo, lin_lo])
@@ -927,6 +1028,8 @@ class SrfMpc:
                             "drop_fixed": True}
                 self._solver = make_solver(qp.as_form(), self.cfg.solver,
                                            **(settings if self.cfg.solver == "piqp" else {}))
+            elif self.cfg.solver == "piqp":  # PIQP's trusted path: this layout's fixed patterns, fresh vectors
+                self._solver.update_fast(A=qp.A_eq, b=qp.b_eq, G=qp.G, h_l=qp.g_lo, h_u=qp.g_hi, x_lb=qp.lb, x_ub=qp.ub)
             else:
                 self._solver.update(A_eq=qp.A_eq, b_eq=qp.b_eq, A=qp.G, bl=qp.g_lo, bu=qp.g_hi, lb=qp.lb, ub=qp.ub)
             res = self._solver.solve()
@@ -1037,8 +1140,7 @@ class SrfMpc:
         self.last_drift = xs
         if self.koz is None:
             return True, math.nan, float(np.min(np.linalg.norm(xs[:, :3], axis=1)))
-        dist = np.linalg.norm(xs[:, :3] - self.koz.center_m, axis=1)
-        g = self.koz.cbf_value(xs, self.cfg.cbf_alpha_per_s)
+        dist, g = _drift_check_kernel(xs, self.koz.center_m, float(self.koz.radius_m), float(self.cfg.cbf_alpha_per_s))
         if not self.cfg.cbf:
             return True, float(g.min()), float(dist.min())
         g_tol = 1e-6 * self.cfg.cbf_alpha_per_s * self.koz.radius_m**2

@@ -182,17 +182,20 @@ class PiqpQP(SolverAdapter):
         self._build()
         self._rebuilt = False
 
-    def _build(self) -> None:
-        """(Re)create the PIQP solver from the stored data."""
-        d = self._data
-        self._check_crossed()
+    def _build(self, free=False) -> None:
+        """(Re)create the PIQP solver from the stored data (``free``: the free set when the caller just
+        computed it after checking the bounds, else both are done here)."""
+        if free is False:
+            self._check_crossed()
+            free = self._free_variables()
         self._solver_error = None
         self._rebuilt = True
+        self._solver = None  # release the previous factorisation before allocating the next one
         try:
             solver = self._piqp.SparseSolver()
             for key, value in self._native.items():
                 setattr(solver.settings, key, value)
-            self._free = self._free_variables()
+            self._free = free
             r = self._piqp_data(("P", "c", "A", "b", "G", "h_l", "h_u", "x_lb", "x_ub"))
             solver.setup(
                 r["P"], r["c"],
@@ -276,9 +279,44 @@ class PiqpQP(SolverAdapter):
             d[key] = new
             if self._bad.check(key, new, allow_inf=key in ("h_l", "h_u", "x_lb", "x_ub")):
                 changed[key] = new
+        self._apply(changed, rebuild)
+
+    def update_fast(self, *, c=None, A=None, b=None, G=None, h_l=None, h_u=None, x_lb=None, x_ub=None,
+                    **others) -> None:
+        """Trusted :meth:`update_native` for a loop that owns its data layout (the srf MPC's per-node data):
+        vectors are float64 1-D arrays of the right sizes, kept as given (not copied: the caller does not
+        write them afterwards); A and G are canonical CSC matrices on the stored pattern, passed with the
+        same read-only index arrays every time (:func:`_util.refill_same_pattern`). NaN data and crossed
+        bounds are still caught, and PIQP gets the calls :meth:`update_native` would make. Anything else
+        (P, another pattern, a first update) takes :meth:`update_native`."""
+        d = self._data
+        mats = {"A": A, "G": G}
+        fast = d is not None and not others and all(
+            (src := getattr(d[k], "_pattern_source", None)) is not None and src[0] is m.indices and src[1] is m.indptr
+            for k, m in mats.items() if m is not None)
+        if not fast:
+            self.update_native(c=c, A=A, b=b, G=G, h_l=h_l, h_u=h_u, x_lb=x_lb, x_ub=x_ub, **others)
+            return
+        changed = {}
+        for key, value in (("A", A), ("G", G), ("c", c), ("b", b), ("h_l", h_l), ("h_u", h_u), ("x_lb", x_lb),
+                           ("x_ub", x_ub)):
+            if value is None:
+                continue
+            if key in mats:
+                d[key].data[:] = value.data
+                value = d[key]
+            d[key] = value
+            if self._bad.check(key, value, allow_inf=key in ("h_l", "h_u", "x_lb", "x_ub")):
+                changed[key] = value
+        self._apply(changed, False)
+
+    def _apply(self, changed: dict, rebuild: bool) -> None:
+        """Pass the stored fields named in ``changed`` to PIQP (in place), or set it up again when the
+        pattern or the set of fixed variables changed."""
         self._check_crossed()
         if self._bad.fields:
             return  # solve() reports NUMERICAL_ERROR; data are passed once they are finite again
+        free = False
         if self._drop_fixed and ("x_lb" in changed or "x_ub" in changed):
             free = self._free_variables()
             if (free is None) != (self._free is None) or (free is not None and not np.array_equal(free, self._free)):
@@ -286,7 +324,7 @@ class PiqpQP(SolverAdapter):
             elif free is not None:
                 changed.update(dict.fromkeys(("c", "b", "h_l", "h_u"), None))  # the fixed values may have moved
         if rebuild or self._solver is None:
-            self._build()
+            self._build(free)
             return
         if not changed:
             return

@@ -393,7 +393,7 @@ def passive_abort(sc: SrfScenario, result) -> list[dict]:
     of those divided by its number of orbits); ``hop_t_s``; with a trim also ``trim_dv_mps`` and the
     drift from the hop impulse alone (an abort between hop impulse and trim): ``untrimmed_safe_window_orbits``,
     ``untrimmed_min_koz_distance_m``, ``untrimmed_return_miss_per_orbit_m``."""
-    from proxops.constraints.passive_safety import certify_free_drift, drift_safety, first_entry_time
+    from proxops.constraints.passive_safety import free_drift_checks
     from proxops.propagation.truth import CWPlant, RelativeTruth
     from proxops.systems.common import translational_plant
 
@@ -407,7 +407,6 @@ def passive_abort(sc: SrfScenario, result) -> list[dict]:
     required = required_abort_orbits(sc)
     times = np.linspace(0.0, window * period, int(round(window * sc.safety.abort_samples_per_orbit)) + 1)
     zero = np.zeros(3)
-    whole = range(1, int(math.floor(window + 1e-9)) + 1)
 
     def sample(t_at: float) -> int | None:
         k = int(np.argmin(np.abs(result.t - t_at)))
@@ -423,12 +422,11 @@ def passive_abort(sc: SrfScenario, result) -> list[dict]:
             drift = plant.free_drift(plant.with_relative_state(state["full"], x_post), times)
         else:
             drift = plant.free_drift(x_post, times)
-        entry = first_entry_time(times, drift, koz.center_m, koz.radius_m)
-        misses = [float(np.linalg.norm(drift[int(np.argmin(np.abs(times - m * period))), :3] - x_post[:3]))
-                  for m in whole]
-        cert = certify_free_drift(times, drift, koz, period, window)
+        cert, checks = free_drift_checks(times, drift, koz, period, window)  # one pass: entry, minima, orbit samples
+        entry = checks["first_entry_s"]
+        misses = [float(np.linalg.norm(drift[k, :3] - x_post[:3])) for k in checks["orbit_index"][1:]]
         cert.update(truth=type(plant).__name__, samples_per_orbit=int(sc.safety.abort_samples_per_orbit))
-        return {**drift_safety(times, drift, koz), "safe_window_orbits": float(min(entry / period, window)),
+        return {**checks["safety"], "safe_window_orbits": float(min(entry / period, window)),
                 "safe_required": bool(entry > required * period * (1 - 1e-9)), "return_miss_m": misses,
                 "return_miss_per_orbit_m": misses[-1] / len(misses) if misses else math.nan,
                 "passive_safety": cert}
