@@ -3,18 +3,28 @@ the common scenario sections (one place, so every system reads them the same way
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from proxops.actuators import IdealActuator, thruster_from_values
-from proxops.core.layout import HILL_LAYOUT
-from proxops.navigation import GaussianNavigation, PerfectNavigation
-from proxops.scenarios.schema import ActuatorSection, InitialSection, NavigationSection, OrbitSection, TruthSection
-from proxops.frames.lvlh import lvlh_to_hill
-from proxops.frames.elements import OrbitalElements
-from proxops.environment.spaceweather import space_weather_at, eop_at
+from proxops.constraints.passive_safety import certify_free_drift
 from proxops.core.cw import mean_motion
-from proxops.errors import input_error
+from proxops.core.layout import HILL_LAYOUT
+from proxops.environment.eclipse import illumination, kepler_positions
+from proxops.environment.ephemeris import sun_position_eci
 from proxops.environment.epochs import parse_epoch
+from proxops.environment.forces import Spacecraft, SpaceWeather
+from proxops.environment.spaceweather import eop_at, weather_history
+from proxops.errors import input_error
+from proxops.frames.elements import OrbitalElements
+from proxops.frames.lvlh import lvlh_to_hill
+from proxops.navigation import GaussianNavigation, PerfectNavigation
+from proxops.navigation.ekf import RelativeEKF, SensorModel
+from proxops.propagation.composed import ComposedTruth, ForceModels
+from proxops.propagation.relative_predictor import HillPredictor
+from proxops.propagation.truth import CWPlant, RelativeTruth
+from proxops.scenarios.schema import ActuatorSection, InitialSection, NavigationSection, OrbitSection, TruthSection
 
 
 def initial_hill_state(initial: InitialSection) -> np.ndarray:
@@ -33,28 +43,19 @@ def target_elements(orbit: OrbitSection):
 
 def translational_plant(orbit: OrbitSection, truth: TruthSection, x0_hill: np.ndarray):
     """Truth plant for a chaser starting at ``x0_hill`` relative to the target on ``orbit``."""
-    from proxops.propagation.truth import CWPlant, RelativeTruth
-
     elements = target_elements(orbit)
     if truth.model == "cw":
         return CWPlant.from_orbit(elements, x0_hill)
     if truth.model == "full":
-        from proxops.propagation.composed import ComposedTruth
-
         return ComposedTruth(elements, x0_hill, force_models(orbit, truth), integrator=truth.integrator)
     return RelativeTruth(elements, x0_hill, j2=truth.model == "j2", integrator=truth.integrator)
 
 
 def force_models(orbit: OrbitSection, truth: TruthSection):
     """:class:`proxops.propagation.composed.ForceModels` of a ``model = "full"`` [truth] section."""
-    from proxops.environment.forces import Spacecraft, SpaceWeather
-    from proxops.propagation.composed import ForceModels
-
     order = truth.gravity_degree if truth.gravity_order is None else truth.gravity_order
     weather = SpaceWeather(truth.f107, truth.f107a, truth.ap)
     if truth.space_weather == "cssi" and truth.drag:
-        from proxops.environment.spaceweather import weather_history
-
         weather = weather_history(orbit.epoch_utc)
     return ForceModels(
         epoch=orbit.epoch_utc,
@@ -78,8 +79,6 @@ def _earth_orientation(orbit: OrbitSection, truth: TruthSection) -> dict:
     = "iers"``, else zeros."""
     if truth.earth_orientation != "iers":
         return {"ut1_utc_s": 0.0, "polar_motion_arcsec": (0.0, 0.0)}
-    from proxops.environment.spaceweather import eop_at
-
     eop = eop_at(orbit.epoch_utc, "truth.earth_orientation")
     return {"ut1_utc_s": eop["ut1_utc_s"], "polar_motion_arcsec": (eop["x_arcsec"], eop["y_arcsec"])}
 
@@ -117,10 +116,6 @@ def ekf_navigation(nav: NavigationSection, orbit: OrbitSection | None, control_d
     (``execution_covariance``, or that of its ``errors`` stage) the filter adds to its covariance
     at each command. ``process_model = "j2"``: the mean is predicted by
     :class:`proxops.propagation.relative_predictor.HillPredictor` on the target orbit."""
-    import math
-
-    from proxops.navigation.ekf import RelativeEKF, SensorModel
-
     if orbit is None or control_dt_s is None:
         raise input_error("navigation.model", "ekf", f"{system} does not run on the Hill-state filter: allowed: noise")
     period = nav.update_period_s
@@ -150,8 +145,6 @@ def ekf_navigation(nav: NavigationSection, orbit: OrbitSection | None, control_d
                          boresight=boresight, outage_probability=nav.outage_probability, illuminated=illuminated)
     predictor = None
     if nav.process_model == "j2":
-        from proxops.propagation.relative_predictor import HillPredictor
-
         predictor = HillPredictor(target_elements(orbit), j2=True)
     command_covariance = getattr(actuator, "execution_covariance", None)
     if command_covariance is None:
@@ -175,9 +168,6 @@ class target_illumination:  # noqa: N801 (a picklable callable)
     def __call__(self, t: float) -> bool:
         lit = self._cache.get(t)
         if lit is None:
-            from proxops.environment.eclipse import illumination, kepler_positions
-            from proxops.environment.ephemeris import sun_position_eci
-
             ts = np.array([t])
             r = kepler_positions(target_elements(self.orbit), ts)
             sun = sun_position_eci(parse_epoch(self.orbit.epoch_utc), ts)
@@ -191,8 +181,6 @@ def passive_safety_certificate(plant, state, koz, period_s: float, window_orbits
     of the thrust-free TRUTH from ``state`` (the plant's full state: what ``plant.free_drift`` takes)
     over ``window_orbits`` orbits of ``period_s`` s, sampled ``samples_per_orbit`` times per orbit.
     One block for every system with an abort or a free-drift phase (srf, cortex)."""
-    from proxops.constraints.passive_safety import certify_free_drift
-
     times = np.linspace(0.0, window_orbits * period_s, int(round(window_orbits * samples_per_orbit)) + 1)
     drift = plant.free_drift(np.asarray(state, dtype=float), times)
     return {**certify_free_drift(times, drift, koz, period_s, window_orbits),
