@@ -31,7 +31,7 @@ from proxops.errors import input_error
 SYSTEMS_PACKAGE = "proxops.systems"
 SCHEMA_PACKAGE = "proxops.systems.schema"
 ENTRY_POINT_GROUP = "proxops.systems"
-_HELPERS = {"common", "base", "cortex_loop", "cortex_setup"}  # modules of proxops.systems that are not systems (helpers, SystemBase, the cortex closed loop and set-up)
+_HELPERS = {"common", "base", "cortex_loop", "cortex_setup", "full_truth", "ekf_setup"}  # modules of proxops.systems that are not systems (shared builders, SystemBase, the cortex closed loop and set-up)
 
 
 def _discover(package: str) -> dict[str, str]:
@@ -83,7 +83,9 @@ def register_system(name: str):
 
 
 def system_module(name: str) -> str:
-    """The module that registers system ``name`` (not imported); ProxopsInputError if none."""
+    """The module that registers system ``name`` (found, not imported); ProxopsInputError if none."""
+    if name in _SYSTEMS:
+        return type(_SYSTEMS[name]).__module__
     module = SYSTEM_MODULES.get(name) or plugin_modules().get(name)
     if module is None:
         allowed = sorted({**SYSTEM_MODULES, **plugin_modules()})

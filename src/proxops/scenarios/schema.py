@@ -14,10 +14,11 @@ from typing import Annotated, Any, ClassVar, Literal
 from pydantic import BaseModel, ConfigDict, Field, create_model, field_validator, model_validator
 
 from proxops.actuators import THRUSTER_PARAMETERS
-from proxops.core.constants import R_EARTH, KARMAN_LINE_KM
+from proxops.core.constants import EGM96_SHIPPED_DEGREE, KARMAN_LINE_KM, R_EARTH
 from proxops.errors import ProxopsInputError
 from proxops.frames.elements import eci_to_elements
 from proxops.environment.epochs import parse_epoch
+from proxops.orbitdata.ccsds import read_opm
 from proxops.scenarios.dispersions import parse_dispersions
 
 
@@ -163,7 +164,8 @@ class OrbitSection(Section):
 
 
 def _source_state(key: str, value):
-    """(epoch ISO UTC, ECI state (6,) m, m/s) of an orbit source; ValueError naming the problem."""
+    """(epoch ISO UTC, ECI state (6,) m, m/s) of an orbit source; ValueError naming the problem. The TLE
+    reader is imported here: SGP4 and the TEME rotation (numba, erfa) only for scenarios with a TLE."""
     from proxops.orbitdata.tle import read_tle_file, tle_orbit
 
     try:
@@ -172,8 +174,6 @@ def _source_state(key: str, value):
         elif key == "tle_file":
             o = tle_orbit(read_tle_file(value))
         else:
-            from proxops.orbitdata.ccsds import read_opm
-
             o = read_opm(value)
     except ProxopsInputError as exc:
         raise ValueError(str(exc)) from None
@@ -345,10 +345,8 @@ class TruthSection(Section):
     @field_validator("gravity_degree")
     @classmethod
     def _degree(cls, v):
-        from proxops.environment.harmonics import SHIPPED_DEGREE
-
-        if not 2 <= v <= SHIPPED_DEGREE:
-            raise ValueError(f"must be in [2, {SHIPPED_DEGREE}] (the shipped EGM96 truncation)")
+        if not 2 <= v <= EGM96_SHIPPED_DEGREE:
+            raise ValueError(f"must be in [2, {EGM96_SHIPPED_DEGREE}] (the shipped EGM96 truncation)")
         return v
 
     @model_validator(mode="after")

@@ -10,7 +10,6 @@ systems never import plotting.
 
 from __future__ import annotations
 
-from proxops.sim.engine import Setup, run_steps, simulate
 from proxops.status import Status, StopReason
 
 
@@ -27,6 +26,8 @@ class SystemBase:
 
     def run(self, sc, seed: int = 0, progress: bool = False) -> tuple[dict, dict]:
         """One closed loop: ``(summarize(sc, result), {"run": result})``."""
+        from proxops.sim.engine import simulate  # here: a planner's check (cortex) needs no engine (nor numba)
+
         result = simulate(self.build(sc), seed=seed, progress=progress)
         return self.summarize(sc, result), {"run": result}
 
@@ -34,6 +35,8 @@ class SystemBase:
         """The checks of a run before its first step: by default, build it (and discard it) and
         check its number of steps (:func:`proxops.sim.engine.run_steps`)."""
         setup = self.build(sc)
+        from proxops.sim.engine import Setup, run_steps
+
         if isinstance(setup, Setup):
             run_steps(setup)
 
