@@ -259,8 +259,7 @@ def test_eclipse_dropout_follows_the_eclipse_profile():
     target is in umbra, and measures while it is in full sunlight (500 km, i = 0, one orbit)."""
     from proxops.environment.eclipse import eclipse_profile
     from proxops.scenarios.schema import OrbitSection
-    from proxops.systems.common import target_elements
-    from proxops.systems.ekf_setup import target_illumination
+    from proxops.systems.common import target_elements, target_illumination
 
     orbit = OrbitSection(altitude_km=500.0)
     t, illum = eclipse_profile(target_elements(orbit), orbit.epoch_utc, n_per_orbit=200)

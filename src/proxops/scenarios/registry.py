@@ -31,7 +31,7 @@ from proxops.errors import input_error
 SYSTEMS_PACKAGE = "proxops.systems"
 SCHEMA_PACKAGE = "proxops.systems.schema"
 ENTRY_POINT_GROUP = "proxops.systems"
-_HELPERS = {"common", "base", "cortex_loop", "cortex_setup", "full_truth", "ekf_setup"}  # modules of proxops.systems that are not systems (shared builders, SystemBase, the cortex closed loop and set-up)
+_HELPERS = {"common", "base", "cortex_loop", "cortex_setup", "full_truth"}  # modules of proxops.systems that are not systems (shared builders, SystemBase, the cortex closed loop and set-up)
 
 
 def _discover(package: str) -> dict[str, str]:

@@ -35,8 +35,7 @@ from proxops.guidance.cortex.replanner import CortexReplanner
 from proxops.guidance.cortex.timeline import timeline_from_plan
 from proxops.navigation import GaussianNavigation, PerfectNavigation
 from proxops.sim.engine import Setup, simulate
-from proxops.systems.common import passive_safety_certificate, translational_plant
-from proxops.systems.ekf_setup import ekf_navigation
+from proxops.systems.common import ekf_navigation, passive_safety_certificate, translational_plant
 from proxops.systems.cortex_setup import (eps_r, check_loop, check_navigation, config_from_scenario, eclipse_profile,
                                           plan_scenario, scenario_axis)
 
@@ -60,7 +59,7 @@ def navigation_of(sc, layout=None, actuator=None):
     """The navigation slot of the closed loop. ``[navigation] model = "noise"`` (default): the
     injection errors of Algorithm 3 (``[errors] delta_r_m``, §5.1.2 range law, white on the truth;
     the [navigation] noise sigmas are not used by cortex and must stay 0). ``model = "ekf"``: the
-    relative-navigation filter (:func:`proxops.systems.ekf_setup.ekf_navigation`) at the impulse
+    relative-navigation filter (:func:`proxops.systems.common.ekf_navigation`) at the impulse
     period delta_t_g on the plant's Hill blocks (``layout``); ``errors.delta_r_m`` must then be 0
     (the sensor sets the measurement errors)."""
     check_navigation(sc)

@@ -101,7 +101,7 @@ def check_navigation(sc) -> None:
         if e.delta_r_m != 0.0:
             raise input_error("errors.delta_r_m", e.delta_r_m, "must be 0 with navigation.model = ekf (the injection "
                               "errors of Algorithm 3 are the noise option; the filter's sensor sets the errors)", "m")
-        from proxops.systems.ekf_setup import ekf_navigation  # the filter's own checks (numba: ekf scenarios only)
+        from proxops.systems.common import ekf_navigation  # the filter's own checks (numba: ekf scenarios only)
 
         ekf_navigation(nav, sc.orbit, sc.guidance.substep_s, system="cortex")
         return

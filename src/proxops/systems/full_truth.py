@@ -9,13 +9,15 @@ import numpy as np
 from proxops.environment.forces import Spacecraft, SpaceWeather
 from proxops.environment.spaceweather import eop_at, weather_history
 from proxops.propagation.composed import ComposedTruth, ForceModels
+from proxops.frames.elements import OrbitalElements
 from proxops.scenarios.schema import OrbitSection, TruthSection
-from proxops.systems.common import target_elements
 
 
-def full_truth_plant(orbit: OrbitSection, truth: TruthSection, x0_hill: np.ndarray) -> ComposedTruth:
-    """Truth plant (composed force models) for a chaser starting at ``x0_hill`` relative to the target."""
-    return ComposedTruth(target_elements(orbit), x0_hill, force_models(orbit, truth), integrator=truth.integrator)
+def full_truth_plant(elements: OrbitalElements, orbit: OrbitSection, truth: TruthSection,
+                     x0_hill: np.ndarray) -> ComposedTruth:
+    """Truth plant (composed force models) for a chaser starting at ``x0_hill`` relative to the target
+    on osculating ``elements`` (those of ``orbit``)."""
+    return ComposedTruth(elements, x0_hill, force_models(orbit, truth), integrator=truth.integrator)
 
 
 def force_models(orbit: OrbitSection, truth: TruthSection):
