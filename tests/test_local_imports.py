@@ -279,6 +279,14 @@ def test_validating_a_scenario_imports_its_schema_not_its_system():
     assert not {m.split(".")[0] for m in modules} & set(HEAVY), sorted({m.split(".")[0] for m in modules} & set(HEAVY))
 
 
+def test_keys_of_a_system_reads_its_schema_only():
+    """`keys los` documents the los schema: its system module (engine, numba, solvers) stays unloaded."""
+    modules = _all_modules_after("keys", "los")
+    assert "proxops.systems.schema.los" in modules and "proxops.systems.los" not in modules
+    top = {m.split(".")[0] for m in modules}
+    assert not top & set(HEAVY), sorted(top & set(HEAVY))
+
+
 def test_validate_of_a_planner_imports_no_numba_scipy_or_solvers():
     """`validate cortex-reference`: schema plus the planner's own checks (no closed loop to build), so
     nothing heavy; `validate station-keeping` builds its closed loop (the default check: plant,
