@@ -24,7 +24,7 @@ PACKAGE = Path(proxops.__file__).parent
 # a station-keeping run, a campaign's parent process (it validates scenarios, never runs them).
 # 139 after the merge of the cortex set-up module (systems/cortex_setup.py) the same day; 78 after each
 # system was split into its schema (proxops.systems.schema.<name>: what validation imports) and its
-# system module (build, summary: imports at module level). The 14 left in systems/ and scenarios/ load an
+# system module (build, summary: imports at module level). The 17 left in systems/ and scenarios/ load an
 # optional heavy part only where it is used: the full truth, the EKF and its eclipse model, the TLE
 # reader, the engine in SystemBase and the cortex planner/loop (a planner's check needs neither), and
 # hybrid's physics checks (its schema validates with the two-body model objects).
