@@ -18,7 +18,6 @@ from proxops.core.constants import EGM96_SHIPPED_DEGREE, KARMAN_LINE_KM, R_EARTH
 from proxops.errors import ProxopsInputError
 from proxops.frames.elements import eci_to_elements
 from proxops.environment.epochs import parse_epoch
-from proxops.orbitdata.ccsds import read_opm
 from proxops.scenarios.dispersions import parse_dispersions
 
 
@@ -164,8 +163,9 @@ class OrbitSection(Section):
 
 
 def _source_state(key: str, value):
-    """(epoch ISO UTC, ECI state (6,) m, m/s) of an orbit source; ValueError naming the problem. The TLE
-    reader is imported here: SGP4 and the TEME rotation (numba, erfa) only for scenarios with a TLE."""
+    """(epoch ISO UTC, ECI state (6,) m, m/s) of an orbit source; ValueError naming the problem. The
+    readers are imported here, for the scenarios with a source only (the TLE's SGP4 and TEME rotation:
+    numba, erfa; the OPM parser: ~5-25 ms that validate and keys would pay for every scenario)."""
     from proxops.orbitdata.tle import read_tle_file, tle_orbit
 
     try:
@@ -174,6 +174,8 @@ def _source_state(key: str, value):
         elif key == "tle_file":
             o = tle_orbit(read_tle_file(value))
         else:
+            from proxops.orbitdata.ccsds import read_opm
+
             o = read_opm(value)
     except ProxopsInputError as exc:
         raise ValueError(str(exc)) from None
