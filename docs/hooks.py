@@ -62,21 +62,23 @@ def on_files(files, config):
 # first line of their docstring and every equation, algorithm, table and section they cite.
 SYSTEM_MODULES = {
     "srf": ["guidance/hop_times.py", "control/srf_mpc.py", "constraints/keep_out.py", "constraints/passive_safety.py",
-            "frames/lvlh.py", "systems/srf.py", "cli_srf.py", "plotting/srf.py"],
+            "frames/lvlh.py", "systems/schema/srf.py", "systems/srf.py", "cli_srf.py", "plotting/srf.py"],
     "los": ["dynamics/tumbling_target.py", "constraints/los_corridor.py", "control/los_mpc.py",
             "control/los_regimes.py", "analysis/reach.py", "analysis/feasibility_maps.py",
-            "analysis/los_boundary.py", "analysis/los_sweep.py", "systems/los.py", "cli_reach.py"],
+            "analysis/los_boundary.py", "analysis/los_sweep.py", "systems/schema/los.py", "systems/los.py",
+            "cli_reach.py"],
     "cortex": ["guidance/cortex/config.py", "guidance/cortex/reference.py", "guidance/cortex/phases.py",
                "guidance/cortex/holds.py", "guidance/cortex/timeline.py", "guidance/cortex/replanner.py",
                "control/cortex_supervisor.py", "control/cortex_triggers.py", "control/cortex_cpg.py",
                "control/cortex_insertion.py", "control/cortex_tracking.py", "control/relaxation.py",
                "constraints/approach_cone.py", "constraints/plume.py", "actuators/thrusters.py",
-               "environment/eclipse.py", "navigation/ekf.py", "systems/cortex.py", "systems/cortex_setup.py",
-               "systems/cortex_loop.py"],
+               "environment/eclipse.py", "navigation/ekf.py", "systems/schema/cortex.py", "systems/cortex.py",
+               "systems/cortex_setup.py", "systems/cortex_loop.py"],
     "hybrid": ["dynamics/two_rigid_bodies.py", "dynamics/hybrid_relative.py", "propagation/hybrid_plant.py",
-               "control/hybrid_mpc.py", "control/hybrid_supervisor.py", "systems/hybrid.py",
-               "analysis/hybrid_model_check.py"],
-    "underactuated": ["dynamics/planar_cubesat.py", "control/nmpc_underactuated.py", "systems/underactuated.py"],
+               "control/hybrid_mpc.py", "control/hybrid_supervisor.py", "systems/schema/hybrid.py",
+               "systems/hybrid.py", "analysis/hybrid_model_check.py"],
+    "underactuated": ["dynamics/planar_cubesat.py", "control/nmpc_underactuated.py", "systems/schema/underactuated.py",
+                      "systems/underactuated.py"],
 }
 _CITE = r"(?:[Ee]qs?\. ?\(?\d+[a-z]?\)?|Algorithm \d+|Problem \d+|Table \d+|Fig(?:s)?\. ?\d+|§\d+(?:\.\d+)*)"
 

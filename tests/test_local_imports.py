@@ -22,11 +22,14 @@ PACKAGE = Path(proxops.__file__).parent
 # session, lowered by hoisting them to module level where that adds no heavy library (numba, scipy,
 # pandas, matplotlib, solvers) to the paths that must stay light: the commands that do not simulate,
 # a station-keeping run, a campaign's parent process (it validates scenarios, never runs them).
-# Most of those left are in systems/ (kept lazy so validating a scenario does not import the engine;
-# splitting each system into a schema module and a build module frees them). 139 after the merge of the
-# cortex set-up module (systems/cortex_setup.py) the same day.
+# 139 after the merge of the cortex set-up module (systems/cortex_setup.py) the same day; 79 after each
+# system was split into its schema (proxops.systems.schema.<name>: what validation imports) and its
+# system module (build, summary: imports at module level). The 18 left in systems/ and scenarios/ load an
+# optional heavy part only where it is used: the full truth, the EKF and its eclipse model, the TLE and
+# OPM readers, the engine in SystemBase and the cortex planner/loop (a planner's check needs neither), and
+# hybrid's physics checks (its schema validates with the two-body model objects).
 # Goal < 60. Lower this number as more go; never raise it.
-MAX_LOCAL_IMPORTS = 139
+MAX_LOCAL_IMPORTS = 79
 
 
 def _is_proxops_import(node: ast.AST) -> bool:
@@ -181,6 +184,11 @@ HEAVY = ("numba", "scipy", "pandas", "pyarrow", "casadi", "daqp", "piqp", "clara
 
 
 def _modules_after(*argv: str) -> set[str]:
+    """The top-level packages a ``proxops`` command has imported when it exits."""
+    return {m.split(".")[0] for m in _all_modules_after(*argv)}
+
+
+def _all_modules_after(*argv: str) -> set[str]:
     """The modules a ``proxops`` command (through the console entry point) has imported when it exits."""
     code = ("import atexit, json, sys\n"
             "atexit.register(lambda: sys.stderr.write('MODULES ' + json.dumps(sorted(sys.modules)) + '\\n'))\n"
@@ -190,7 +198,7 @@ def _modules_after(*argv: str) -> set[str]:
                           env={**__import__("os").environ, "PYTHONPATH": str(PACKAGE.parent)})
     assert proc.returncode == 0, proc.stderr
     line = next(l for l in proc.stderr.splitlines() if l.startswith("MODULES "))
-    return {m.split(".")[0] for m in json.loads(line[len("MODULES "):])}
+    return set(json.loads(line[len("MODULES "):]))
 
 
 @pytest.mark.parametrize("argv, allowed", [
@@ -246,3 +254,57 @@ def test_lazy_command_table_short_help_is_the_commands_own():
         own = " ".join((cmd.help or "").split("\n\n")[0].split())
         assert " ".join(entry.short_help.split()) == own, name
     assert root.list_commands(None) == list(COMMANDS)
+
+
+def _modules_after_code(code: str) -> set[str]:
+    """Top-level names of the modules a fresh interpreter holds after running ``code``."""
+    code += "\nimport json, sys\nprint(json.dumps(sorted(sys.modules)))\n"
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120,
+                          env={**__import__("os").environ, "PYTHONPATH": str(PACKAGE.parent)})
+    assert proc.returncode == 0, proc.stderr
+    return set(json.loads(proc.stdout.strip().splitlines()[-1]))
+
+
+def test_validating_a_scenario_imports_its_schema_not_its_system():
+    """Loading (validating) scenarios of five systems, the full truth and an EKF among them, imports their
+    schema modules only: no system module, no engine, no numba, scipy or solver (hybrid is left out:
+    its schema's physics checks build the two-body model objects, numba)."""
+    names = ("srf-vbar-mc", "los-tumble-ekf", "station-keeping-mc", "underactuated-case1", "cortex-nominal")
+    modules = _modules_after_code("from proxops.scenarios.loader import load_scenario\n"
+                                  f"for name in {names!r}:\n    load_scenario(name)\n")
+    systems = {m for m in modules if m.startswith("proxops.systems.")}
+    assert systems == {"proxops.systems.schema", *(f"proxops.systems.schema.{s}" for s in
+                                                   ("srf", "los", "station_keeping", "underactuated", "cortex"))}
+    assert not {m for m in modules if m.startswith("proxops.sim")}
+    assert not {m.split(".")[0] for m in modules} & set(HEAVY), sorted({m.split(".")[0] for m in modules} & set(HEAVY))
+
+
+def test_keys_of_a_system_reads_its_schema_only():
+    """`keys los` documents the los schema: its system module (engine, numba, solvers) stays unloaded."""
+    modules = _all_modules_after("keys", "los")
+    assert "proxops.systems.schema.los" in modules and "proxops.systems.los" not in modules
+    top = {m.split(".")[0] for m in modules}
+    assert not top & set(HEAVY), sorted(top & set(HEAVY))
+
+
+def test_validate_of_a_planner_imports_no_numba_scipy_or_solvers():
+    """`validate cortex-reference`: schema plus the planner's own checks (no closed loop to build), so
+    nothing heavy; `validate station-keeping` builds its closed loop (the default check: plant,
+    controller, navigation and the engine's step count), so it loads its system module."""
+    planner = _all_modules_after("validate", "cortex-reference")
+    assert "proxops.systems.cortex" in planner and "proxops.sim.engine" not in planner
+    top = {m.split(".")[0] for m in planner}
+    assert not top & set(HEAVY), sorted(top & set(HEAVY))
+    closed_loop = _all_modules_after("validate", "station-keeping")
+    assert "proxops.systems.station_keeping" in closed_loop and "proxops.sim.engine" in closed_loop
+
+
+def test_every_system_has_one_schema_registered_under_its_name():
+    """The schema modules and the system modules name the same systems, and each system's ``Scenario``
+    is the model its schema registered (one definition, found by validation and by a run alike)."""
+    from proxops.scenarios.registry import SCHEMA_MODULES, SYSTEM_MODULES, get_system, scenario_model
+
+    assert sorted(SCHEMA_MODULES) == sorted(SYSTEM_MODULES) and len(SYSTEM_MODULES) == 6
+    for name in SYSTEM_MODULES:
+        assert get_system(name).Scenario is scenario_model(name), name
+

@@ -79,7 +79,7 @@ def test_range_boundaries_are_one_line_errors():
 
 def test_cssi_reaches_the_drag_model():
     from proxops.scenarios.loader import load_scenario
-    from proxops.systems.common import force_models
+    from proxops.systems.full_truth import force_models
 
     sc = load_scenario("station-keeping-iss", ["truth.space_weather=cssi"]).scenario
     w = force_models(sc.orbit, sc.truth).weather
@@ -121,7 +121,7 @@ def test_iers_ut1_puts_the_earth_rotation_angle_on_astropy(iso):
 
 def test_iers_earth_orientation_reaches_the_truth():
     from proxops.scenarios.loader import load_scenario
-    from proxops.systems.common import force_models
+    from proxops.systems.full_truth import force_models
 
     sc = load_scenario("station-keeping-iss", ["truth.earth_orientation=iers"]).scenario
     _, _, u0, _ = finals(54729)

@@ -60,6 +60,7 @@ from proxops.analysis.statistics import (
     statistics_dict,
 )
 from proxops.errors import ProxopsInputError
+from proxops.scenarios.registry import system_module
 
 
 MAX_RUNS = 10_000_000  # rows of one campaign; items are made lazily, the table of results is what grows
@@ -304,7 +305,7 @@ def run_campaign(scenario, n_runs: int | None = None, workers: int | None = None
     if n_runs > MAX_RUNS:
         raise ProxopsInputError(f"runs = {n_runs:,} (the grid size): at most {MAX_RUNS:,} runs in one campaign")
 
-    system_module = type(prep.loaded.system).__module__
+    module = system_module(sc.system)  # found, not imported: this process never builds the system
     data_hash = scenario_hash(prep.data)
     manifest = {
         "format": FORMAT,
@@ -319,7 +320,7 @@ def run_campaign(scenario, n_runs: int | None = None, workers: int | None = None
         "dispersion_columns": [DISP_PREFIX + c for c in plan.columns()],
         "grid_axes": [[DISP_PREFIX + c for c in cols] for cols in plan.grid_columns()],
         "keep_series": bool(keep_series),
-        "system_module": system_module,
+        "system_module": module,
         "scenario_data": prep.data,
         "proxops_version": _version(),
     }
@@ -337,7 +338,7 @@ def run_campaign(scenario, n_runs: int | None = None, workers: int | None = None
             done_ids = set(int(i) for i in existing["run_id"].tolist())
 
     spec_data = {k: v for k, v in prep.data.items() if k != "dispersions"}
-    spec = CampaignSpec(data=spec_data, system=sc.system, system_module=system_module, source=prep.source,
+    spec = CampaignSpec(data=spec_data, system=sc.system, system_module=module, source=prep.source,
                         scenario_hash=data_hash, keep_series=manifest["keep_series"])
     items = _LazyItems(plan, seed, n_runs, done_ids)
     # connect (Dask) / check workers before writing anything, so a bad --scheduler leaves no folder behind

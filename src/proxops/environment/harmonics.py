@@ -58,9 +58,9 @@ from numba.core import cgutils
 from numba.core.errors import TypingError
 from numba.extending import intrinsic
 
+from proxops.core.constants import EGM96_SHIPPED_DEGREE as SHIPPED_DEGREE
 from proxops.errors import input_error
 
-SHIPPED_DEGREE = 120
 DATA_FILE = "egm96_120.npz"
 
 

@@ -15,7 +15,7 @@ from pydantic import BaseModel, ValidationError
 
 from proxops.errors import ProxopsInputError
 from proxops.scenarios.dispersion_spec import SPEC_KEYS, flatten_table
-from proxops.scenarios.registry import get_system
+from proxops.scenarios.registry import get_system, scenario_model
 
 BUILTIN_DIR = Path(__file__).parent / "builtin"
 
@@ -67,11 +67,16 @@ def unit_of_metric(key: str) -> str:
 
 @dataclass
 class LoadedScenario:
-    """A validated scenario, the system that runs it and where it came from."""
+    """A validated scenario and where it came from; ``system``: the system that runs it."""
 
     scenario: Any  # the system's pydantic Scenario model
-    system: Any
     source: str
+
+    @property
+    def system(self):
+        """The system object (its module, with the engine, is imported on first use: validation
+        needs only the schema)."""
+        return get_system(self.scenario.system)
 
 
 def builtin_names() -> list[str]:
@@ -121,14 +126,14 @@ def validate_scenario(data: dict, overrides=(), source: str = "<dict>") -> Loade
     system_name = data.get("system")
     if not isinstance(system_name, str):
         raise ProxopsInputError(f"{source}: missing top-level key 'system' (the system that runs this scenario)")
-    system = get_system(system_name)
+    model = scenario_model(system_name)
     for item in overrides:
-        apply_override(data, item, system.Scenario)
+        apply_override(data, item, model)
     try:
-        scenario = system.Scenario.model_validate(data)
+        scenario = model.model_validate(data)
     except ValidationError as exc:
         raise ProxopsInputError(f"{source}: {format_validation_error(exc, data)}") from None
-    return LoadedScenario(scenario=scenario, system=system, source=source)
+    return LoadedScenario(scenario=scenario, source=source)
 
 
 def parse_value(text: str) -> Any:

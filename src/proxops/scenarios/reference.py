@@ -25,7 +25,7 @@ from pydantic.fields import FieldInfo
 
 from proxops.scenarios.dispersion_spec import DispersionSpec
 from proxops.scenarios.loader import list_builtin, unit_of
-from proxops.scenarios.registry import SYSTEM_MODULES, get_system
+from proxops.scenarios.registry import SYSTEM_MODULES, scenario_model
 
 
 @dataclass
@@ -79,7 +79,7 @@ def list_systems() -> list[dict]:
 
 def reference(system: str) -> list[SectionDoc]:
     """Sections and keys of ``system``'s scenario (raises ProxopsInputError for an unknown system)."""
-    model = get_system(system).Scenario
+    model = scenario_model(system)
     sections: list[SectionDoc] = []
     _walk(model, "", "(top level)", "keys every scenario file has", True, sections)
     return sections

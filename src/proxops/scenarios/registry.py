@@ -1,17 +1,23 @@
-"""Systems by name. A system turns a validated scenario into a simulator Setup.
+"""Systems by name, and their scenario schemas. A system turns a validated scenario into a
+simulator Setup.
 
-A system object has ``Scenario`` (a pydantic model subclassing ScenarioBase),
-``build(sc) -> Setup`` and ``summarize(sc, result) -> dict`` (the other hooks default in
-:class:`proxops.systems.base.SystemBase`); it registers itself with
-``@register_system(name)`` when its module is imported. Figures live in
-``proxops.plotting.<name>`` (see :mod:`proxops.plotting.systems`).
+Each built-in system has two modules: its *schema* ``proxops.systems.schema.<module>`` (the
+pydantic ``Scenario`` model and its sections, registered with ``@register_scenario(name)``;
+pydantic and light proxops modules only) and its *system* ``proxops.systems.<module>`` (build,
+summary and hooks; it imports the engine, plants and controllers). A system object has
+``Scenario`` (the schema's model), ``build(sc) -> Setup`` and ``summarize(sc, result) -> dict``
+(the other hooks default in :class:`proxops.systems.base.SystemBase`); it registers itself with
+``@register_system(name)`` when its module is imported. Validating a scenario
+(:func:`scenario_model`) imports the schema only; running it (:func:`get_system`) the system.
+Figures live in ``proxops.plotting.<name>`` (see :mod:`proxops.plotting.systems`).
 
 The systems fill this registry, it holds no table of them: every module of the
 ``proxops.systems`` package except the helpers in ``_HELPERS`` is a system whose name is
 the module name with ``_`` written ``-`` (``station_keeping`` -> ``station-keeping``),
 and other packages add systems through the ``proxops.systems`` entry-point group
-(``name = "package.module"``). Modules are found without importing them and imported
-only when their system is used, so ``proxops scenarios`` does not import CasADi.
+(``name = "package.module"``; such a module registers the system, whose ``Scenario`` is then
+the schema). Modules are found without importing them and imported only when used, so
+``proxops scenarios`` does not import CasADi.
 """
 
 from __future__ import annotations
@@ -23,17 +29,18 @@ import pkgutil
 from proxops.errors import input_error
 
 SYSTEMS_PACKAGE = "proxops.systems"
+SCHEMA_PACKAGE = "proxops.systems.schema"
 ENTRY_POINT_GROUP = "proxops.systems"
-_HELPERS = {"common", "base", "cortex_loop", "cortex_setup"}  # modules of proxops.systems that are not systems (helpers, SystemBase, the cortex closed loop and set-up)
+_HELPERS = {"common", "base", "cortex_loop", "cortex_setup", "full_truth"}  # modules of proxops.systems that are not systems (shared builders, SystemBase, the cortex closed loop and set-up)
 
 
-def _discover() -> dict[str, str]:
-    """Built-in system name -> module, from the systems package (found, not imported)."""
-    spec = importlib.util.find_spec(SYSTEMS_PACKAGE)
+def _discover(package: str) -> dict[str, str]:
+    """Built-in system name -> module of ``package`` (found, not imported; subpackages skipped)."""
+    spec = importlib.util.find_spec(package)
     found = {}
     for info in pkgutil.iter_modules(spec.submodule_search_locations if spec else []):
-        if not info.name.startswith("_") and info.name not in _HELPERS:
-            found[info.name.replace("_", "-")] = f"{SYSTEMS_PACKAGE}.{info.name}"
+        if not info.name.startswith("_") and not info.ispkg and info.name not in _HELPERS:
+            found[info.name.replace("_", "-")] = f"{package}.{info.name}"
     return dict(sorted(found.items()))
 
 
@@ -48,9 +55,21 @@ def plugin_modules() -> dict[str, str]:
         return {}
 
 
-SYSTEM_MODULES = _discover()
+SYSTEM_MODULES = _discover(SYSTEMS_PACKAGE)
+SCHEMA_MODULES = _discover(SCHEMA_PACKAGE)
 
 _SYSTEMS: dict[str, object] = {}
+_SCENARIOS: dict[str, type] = {}
+
+
+def register_scenario(name: str):
+    """Class decorator: register the ``Scenario`` model of system ``name`` (in its schema module)."""
+
+    def decorate(cls):
+        _SCENARIOS[name] = cls
+        return cls
+
+    return decorate
 
 
 def register_system(name: str):
@@ -63,11 +82,29 @@ def register_system(name: str):
     return decorate
 
 
+def system_module(name: str) -> str:
+    """The module that registers system ``name`` (found, not imported); ProxopsInputError if none."""
+    if name in _SYSTEMS:
+        return type(_SYSTEMS[name]).__module__
+    module = SYSTEM_MODULES.get(name) or plugin_modules().get(name)
+    if module is None:
+        allowed = sorted({**SYSTEM_MODULES, **plugin_modules()})
+        raise input_error("system", name, f"allowed: {', '.join(allowed)}")
+    return module
+
+
 def get_system(name: str):
+    """The system object of ``name`` (imports its system module: the engine, plants, controllers)."""
     if name not in _SYSTEMS:
-        module = SYSTEM_MODULES.get(name) or plugin_modules().get(name)
-        if module is None:
-            allowed = sorted({**SYSTEM_MODULES, **plugin_modules()})
-            raise input_error("system", name, f"allowed: {', '.join(allowed)}")
-        importlib.import_module(module)
+        importlib.import_module(system_module(name))
     return _SYSTEMS[name]
+
+
+def scenario_model(name: str) -> type:
+    """The pydantic ``Scenario`` model of system ``name``: its schema module only when it has one
+    (validation imports no engine), else the system's own ``Scenario`` (plug-ins, test systems)."""
+    if name not in _SCENARIOS and name in SCHEMA_MODULES:
+        importlib.import_module(SCHEMA_MODULES[name])
+    if name in _SCENARIOS:
+        return _SCENARIOS[name]
+    return get_system(name).Scenario

@@ -14,7 +14,7 @@ from typing import Annotated, Any, ClassVar, Literal
 from pydantic import BaseModel, ConfigDict, Field, create_model, field_validator, model_validator
 
 from proxops.actuators import THRUSTER_PARAMETERS
-from proxops.core.constants import R_EARTH, KARMAN_LINE_KM
+from proxops.core.constants import EGM96_SHIPPED_DEGREE, KARMAN_LINE_KM, R_EARTH
 from proxops.errors import ProxopsInputError
 from proxops.frames.elements import eci_to_elements
 from proxops.environment.epochs import parse_epoch
@@ -163,7 +163,9 @@ class OrbitSection(Section):
 
 
 def _source_state(key: str, value):
-    """(epoch ISO UTC, ECI state (6,) m, m/s) of an orbit source; ValueError naming the problem."""
+    """(epoch ISO UTC, ECI state (6,) m, m/s) of an orbit source; ValueError naming the problem. The
+    readers are imported here, for the scenarios with a source only (the TLE's SGP4 and TEME rotation:
+    numba, erfa; the OPM parser: ~5-25 ms that validate and keys would pay for every scenario)."""
     from proxops.orbitdata.tle import read_tle_file, tle_orbit
 
     try:
@@ -345,10 +347,8 @@ class TruthSection(Section):
     @field_validator("gravity_degree")
     @classmethod
     def _degree(cls, v):
-        from proxops.environment.harmonics import SHIPPED_DEGREE
-
-        if not 2 <= v <= SHIPPED_DEGREE:
-            raise ValueError(f"must be in [2, {SHIPPED_DEGREE}] (the shipped EGM96 truncation)")
+        if not 2 <= v <= EGM96_SHIPPED_DEGREE:
+            raise ValueError(f"must be in [2, {EGM96_SHIPPED_DEGREE}] (the shipped EGM96 truncation)")
         return v
 
     @model_validator(mode="after")

@@ -26,7 +26,7 @@ class SystemBase:
 
     def run(self, sc, seed: int = 0, progress: bool = False) -> tuple[dict, dict]:
         """One closed loop: ``(summarize(sc, result), {"run": result})``."""
-        from proxops.sim.engine import simulate  # here: validating a scenario needs no engine (nor numba)
+        from proxops.sim.engine import simulate  # here: a planner's check (cortex) needs no engine (nor numba)
 
         result = simulate(self.build(sc), seed=seed, progress=progress)
         return self.summarize(sc, result), {"run": result}

@@ -28,19 +28,27 @@ prints the paper's layout with our columns next to the paper's. Standalone:
 
 from __future__ import annotations
 
-from typing import Annotated, Literal
+import math
 
 import numpy as np
-from pydantic import Field
 
+from proxops.constraints.los_corridor import LosCorridor
+from proxops.control.los_mpc import LosMpcConfig
+from proxops.control.los_regimes import LosGuidanceConfig, LosGuidanceController
 from proxops.core.cw import mean_motion
-from proxops.dynamics.tumbling_target import sync_range
-from proxops.scenarios.registry import register_system
-from proxops.systems.base import SystemBase
-from proxops.scenarios.schema import OrbitSection, ScenarioBase, Section, TruthSection, Vector3
-from proxops.sim.engine import Setup
-from proxops.status import Status
+from proxops.core.memo import memo_get
+from proxops.dynamics.tumbling_target import BodyFrameModel, TumblingTarget, TumblingTargetTruth, sync_range
 from proxops.errors import input_error
+from proxops.frames.elements import OrbitalElements, elements_to_eci
+from proxops.navigation.mekf import PoseAttitudeSensor, attitude_summary
+from proxops.navigation.target_attitude import TargetAttitudeNavigation
+from proxops.propagation.truth import RelativeTruth
+from proxops.scenarios.registry import register_system
+from proxops.sim.engine import Setup, simulate
+from proxops.status import Status
+from proxops.systems.base import SystemBase
+from proxops.systems.common import actuator_model, navigation_model
+from proxops.systems.schema.los import LosScenario
 
 VIOLATION_TOLERANCE_M = 1e-3  # §9 step 3
 COMPLETED_OUTCOMES = ("completed", "hold_reached")  # ran to T_sim (or stopped at hold on request)
@@ -58,72 +66,6 @@ def is_feasible_run(los_violations, max_violation_m, qp_infeasible, outcome) -> 
         return False
     qp_bad = True if qp_infeasible is None else bool(qp_infeasible)  # NaN -> True
     return bool(n_viol == 0 and v_max <= VIOLATION_TOLERANCE_M and not qp_bad and str(outcome) in COMPLETED_OUTCOMES)
-
-
-class TargetSection(Section):
-    """Tumbling target and its docking corridor (Table 1)."""
-
-    tumble_rate_deg_s: Annotated[float, Field(ge=0.0, le=30.0)] = Field(
-        2.0, description="target tumble rate w_t about the orbit normal")
-    initial_angle_deg: float = Field(0.0, description="angle of the body frame F_B about the orbit normal from F_L at t = 0")
-    corridor_half_angle_deg: Annotated[float, Field(gt=0.0, lt=90.0)] = Field(
-        30.0, description="LOS corridor half-angle alpha_c about the docking axis +y_B")
-    corridor_faces: Annotated[int, Field(ge=3, le=64)] = Field(
-        8, description="half-spaces approximating the corridor cone (eq. 9)")
-    corridor_floor_m: Annotated[float, Field(ge=0.0)] = Field(
-        1.0, description="corridor floor y_B >= y_min (eq. 9)")
-
-
-class ChaserSection(Section):
-    """Thrust authority and initial state. ``initial_velocity_frame``: "body" means the
-    velocity is given in F_B (zero = co-rotating with the target, §9 IC sampling);
-    "lvlh" means it is the Hill-frame relative velocity (zero = LVLH-stationary)."""
-
-    a_max_mps2: Annotated[float, Field(gt=0.0, le=10.0)] = Field(
-        0.1, description="chaser acceleration limit per body axis (input box)")
-    initial_body_position_m: Vector3 = Field(
-        [0.0, 150.0, 0.0], description="initial chaser position in the target body frame F_B")
-    initial_velocity_mps: Vector3 = Field([0.0, 0.0, 0.0], description="initial chaser velocity, in initial_velocity_frame")
-    initial_velocity_frame: Literal["body", "lvlh"] = Field(
-        "body", description="body: velocity in F_B (zero = co-rotating); lvlh: Hill relative velocity")
-
-
-class MpcSection(Section):
-    """Eq. (11). ``config``: "single" (N_p = 40, R_du = 1e4 I) or "monte-carlo"
-    (N_p = 20, R_du = diag(1e5, 1e4, 1e5)), §6; ``horizon`` overrides N_p."""
-
-    config: Literal["single", "monte-carlo"] = Field(
-        "single", description="single: N_p = 40, R_du = 1e4 I; monte-carlo: N_p = 20, R_du = diag(1e5, 1e4, 1e5) (§6)")
-    horizon: Annotated[int, Field(ge=1, le=200)] | None = Field(
-        None, description="prediction horizon N_p in steps (none: from config)")
-    constraint_mode: Literal["hard", "soft"] = Field(
-        "hard", description="corridor as hard constraints or soft with a penalised slack")
-    slack_penalty: Annotated[float, Field(gt=0.0)] = Field(1e7, description="soft mode: weight on the corridor slack")
-
-
-class GuidanceSection(Section):
-    """§7 regimes (documented defaults; the paper gives no values)."""
-
-    hold_range_m: Annotated[float, Field(gt=0.0)] | None = Field(
-        None, description="hold point range r_h on the docking axis (none: min(10, max(2, a_max / (2 w_t^2))))")
-    hold_band_m: Annotated[float, Field(gt=0.0)] = Field(1.0, description="hold is reached within this of r_h (eps_h)")
-    v_switch_mps: Annotated[float, Field(gt=0.0)] = Field(
-        0.05, description="hold is reached below this body-frame speed")
-    v_max_mps: Annotated[float, Field(gt=0.0)] = Field(1.0, description="largest reference approach speed")
-    pd_period_s: Annotated[float, Field(gt=0.0)] = Field(
-        2 * np.pi / 0.05, description="natural period of the PD loops (2 pi / 0.05 rad/s)")
-    use_mpc: bool = Field(True, description="filter the PD command through the eq.-(11) MPC (false: PD only)")
-    stop_on_infeasible: bool = Field(True, description="end the run when the hard-constrained QP is infeasible (§9.3)")
-    stop_at_hold: bool = Field(False, description="end the run when hold is reached (faster campaigns)")
-
-
-class LosScenario(ScenarioBase):
-    orbit: OrbitSection = Field(description="target orbit (Table 1: 500 km circular)")
-    truth: TruthSection = Field(TruthSection(), description="truth model")
-    target: TargetSection = Field(TargetSection(), description="tumbling target and corridor")
-    chaser: ChaserSection = Field(ChaserSection(), description="chaser authority and initial state")
-    mpc: MpcSection = Field(MpcSection(), description="eq.-(11) MPC")
-    guidance: GuidanceSection = Field(GuidanceSection(), description="§7 guidance regimes")
 
 
 def default_scenario(**sections) -> LosScenario:
@@ -145,16 +87,6 @@ _TARGET_CACHE: dict = {}  # orbit, tumble rate, initial angle, dt -> (elements, 
 
 def build_setup(sc: LosScenario) -> Setup:
     """Plant (J2 truth + tumbling target), controller, corridor check for one scenario."""
-    from proxops.constraints.los_corridor import LosCorridor
-    from proxops.control.los_mpc import LosMpcConfig
-    from proxops.dynamics.tumbling_target import BodyFrameModel, TumblingTarget, TumblingTargetTruth
-    from proxops.frames.elements import OrbitalElements, elements_to_eci
-    from proxops.control.los_regimes import LosGuidanceConfig, LosGuidanceController
-    from proxops.errors import input_error
-    from proxops.propagation.truth import RelativeTruth
-    from proxops.systems.common import actuator_model, navigation_model
-    from proxops.core.memo import memo_get
-
     o = sc.orbit
     dt = sc.sim.dt_s or 1.0
 
@@ -213,11 +145,6 @@ def attitude_navigation(sc: LosScenario, target, dt: float):
     """:class:`proxops.navigation.target_attitude.TargetAttitudeNavigation` of a ``model = "ekf"``
     [navigation] section: the target's attitude and rate from pose measurements (attitude_* keys),
     the truth from ``target`` (the plant's closed-form attitude)."""
-    import math
-
-    from proxops.navigation.mekf import PoseAttitudeSensor
-    from proxops.navigation.target_attitude import TargetAttitudeNavigation
-
     nav = sc.navigation
     period = nav.update_period_s
     if period is not None:
@@ -249,8 +176,6 @@ class target_truth_attitude:  # noqa: N801 (a picklable callable)
 
 def summarize_result(sc: LosScenario, result) -> dict:
     """Extra JSON keys: los_violations, max_violation_m, r_sync_m, hold_reached, ..."""
-    from proxops.constraints.los_corridor import LosCorridor
-
     corridor = LosCorridor(np.radians(sc.target.corridor_half_angle_deg), sc.target.corridor_floor_m,
                            sc.target.corridor_faces, VIOLATION_TOLERANCE_M)
     viol = np.asarray(corridor.violation_body(result.x_true[:, :3]))
@@ -264,8 +189,6 @@ def summarize_result(sc: LosScenario, result) -> dict:
     max_viol = float(viol.max()) if viol.size else 0.0
     extra = {}
     if "attitude_filter" in result.meta:
-        from proxops.navigation.mekf import attitude_summary
-
         extra = attitude_summary(result.meta["attitude_filter"])
     if qp_infeasible and sc.mpc.constraint_mode == "hard":
         where = "beyond" if r0 > r_sync else "inside"
@@ -297,8 +220,6 @@ def run_case(tumble_rate_deg_s: float, a_max_mps2: float, initial_body_position_
 
     Defaults follow the paper's Monte Carlo (§9): MC MPC configuration, 400 s, zero
     body-frame initial velocity, hard constraints (infeasible QP = failed run)."""
-    from proxops.sim.engine import simulate
-
     if duration_s is None:
         duration_s = 600.0 if mpc_config == "single" else 400.0
     sc = default_scenario(

@@ -38,148 +38,30 @@ the time to the first KOZ entry within the window.
 
 from __future__ import annotations
 
+import copy
 import math
-from typing import TYPE_CHECKING, Annotated, Literal
 
 import numpy as np
-from pydantic import Field, model_validator
 
-from proxops.core.cw import cw_stm, mean_motion
-from proxops.core.memo import memo_get
-from proxops.errors import ProxopsInputError, input_error
-from proxops.scenarios.registry import register_system
-from proxops.systems.base import SystemBase
-from proxops.scenarios.schema import InitialSection, OrbitSection, ScenarioBase, Section, TruthSection, Vector3
-from proxops.solvers.stats import solve_time_stats
+from proxops.constraints.keep_out import KeepOutSphere
+from proxops.constraints.passive_safety import free_drift_checks, hermite_min_range
+from proxops.control.srf_mpc import EnergyDrift, SrfMpc, SrfMpcConfig, build_schedule
 from proxops.core.constants import J2_EARTH, MU_EARTH, R_EARTH
-
-# The engine and the numba kernels (passive safety) are imported where a run needs them: a campaign's
-# parent process validates the scenario with this module and never runs it (numba: 0.2 s of its start-up).
-if TYPE_CHECKING:
-    from proxops.sim.engine import Setup
+from proxops.core.cw import mean_motion
+from proxops.core.memo import memo_get
+from proxops.errors import input_error
+from proxops.frames.lvlh import hill_vector_to_lvlh, lvlh_vector_to_hill
+from proxops.guidance.hop_times import plan_hops
+from proxops.propagation.truth import CWPlant, RelativeTruth
+from proxops.scenarios.registry import register_system
+from proxops.sim.engine import Setup, simulate
+from proxops.solvers.stats import solve_time_stats
+from proxops.systems.base import SystemBase
+from proxops.systems.common import (actuator_model, initial_hill_state, navigation_model, target_elements,
+                                    translational_plant)
+from proxops.systems.schema.srf import SrfScenario
 
 ENGINE_STEPS_PER_ORBIT = 720
-
-
-class ApproachSection(Section):
-    """Guidance expert inputs (Algorithm 1). ``angle_deg`` from the V-bar towards the R-bar."""
-
-    angle_deg: Annotated[float, Field(ge=-360.0, le=360.0)] = Field(
-        0.0, description="approach axis from the V-bar towards the R-bar (0 V-bar, 90 R-bar, else glideslope; "
-        "180-360 or negative: the other quadrants, e.g. 250 as in Fig. 9b)")
-    hops: Annotated[int, Field(ge=1, le=50)] = Field(3, description="number of hops of Algorithm 1")
-    gamma: Annotated[float, Field(gt=0.0, lt=1.0)] = Field(
-        0.5, description="hop-length ratio of Algorithm 1 (each hop gamma times the previous)")
-    start_m: Annotated[float, Field(gt=0.0)] = Field(2000.0, description="start distance along the approach axis")
-    end_m: Annotated[float, Field(gt=0.0)] = Field(
-        100.0, description="reference point distance where the approach ends (Table 2: 0.1 km); < start_m")
-    vbar_period_fraction: Annotated[float, Field(gt=0.0, lt=1.0)] = Field(
-        0.5, description="V-bar hop time as a fraction of the orbit period, eq. (8) (0.6 in §5.4)")
-
-    @model_validator(mode="after")
-    def _end_before_start(self):
-        if self.end_m >= self.start_m:
-            raise ValueError(f"approach.end_m = {self.end_m} m must be < approach.start_m = {self.start_m} m")
-        return self
-
-
-class SrfMpcSection(Section):
-    """Problem (29) settings (SI). ``None`` means the documented per-approach default."""
-
-    steps_per_hop: Annotated[int, Field(ge=1, le=100)] | None = Field(
-        None, description="MPC nodes per hop (none: 6, or horizon_steps // hops)")
-    horizon_steps: Annotated[int, Field(ge=1, le=1000)] | None = Field(
-        None, description="maximum MPC horizon N in nodes (none: hops x steps_per_hop)")
-    q_terminal_per_m2: Annotated[float, Field(gt=0.0)] = Field(
-        1e-3, description="terminal position weight Q = q I of (29a) (cost in m/s units)")
-    r_fuel: Annotated[float, Field(gt=0.0)] = Field(1.0, description="weight R on the l1 norm of the impulses (29a)")
-    mid_hop_fuel_weight: Annotated[float, Field(ge=1.0)] | None = Field(
-        None, description="fuel weight of impulses between hop instants (none: 1 V-bar, 2 others)")
-    u_max_mps: Annotated[float, Field(gt=0.0)] = Field(3.0, description="impulse limit per axis (29e-f)")
-    u_budget_mps: Annotated[float, Field(gt=0.0)] | None = Field(
-        None, description="cumulative l1 delta-v budget (29g) (none: unlimited)")
-    terminal_pos_tol_m: Annotated[float, Field(gt=0.0)] = Field(
-        2.0, description="terminal box on the position error at the reference point (29d)")
-    terminal_vel_tol_mps: Annotated[float, Field(gt=0.0)] = Field(
-        0.005, description="terminal box on the velocity after the braking impulse (29d)")
-    r_tol_m: Annotated[float, Field(gt=0.0)] = Field(1.0, description="hop-end offset from the approach axis (29l)")
-    w_tol_mps: Annotated[float, Field(gt=0.0)] = Field(
-        0.002, description="hop-end along-axis velocity tolerance (29m, on the rotated velocity w)")
-    h_min_m: Annotated[float, Field(ge=0.0)] = Field(0.0, description="V-bar: shortest hop length (29n)")
-    h_max_m: Annotated[float, Field(gt=0.0)] | None = Field(
-        None, description="V-bar: longest hop length (29n) (none: approach.start_m)")
-    epsilon_m: Annotated[float, Field(ge=0.0)] = Field(
-        50.0, description="V-bar: each hop shorter than the previous by at least this (29o, corrected sign)")
-    hop_distance_tol_frac: Annotated[float, Field(gt=0.0)] | None = Field(
-        None, description="hop ends within this fraction of the hop length of Algorithm 1's distances "
-        "(none: off for V-bar, 0.1 others)")
-    hop_distance_weight_per_m2: Annotated[float, Field(ge=0.0)] | None = Field(
-        None, description="quadratic pull of hop ends towards Algorithm 1's distances (none: 1e-7 V-bar, 0 others)")
-    drift_free: bool = Field(
-        True, description="V-bar: |vy+ + 2 n x| (J2-aware energy form on J2 truth) <= drift_free_tol_mps after every "
-        "hop-start impulse, so the free drift returns to the hop start (not in the paper; its indefinite hold)")
-    drift_free_tol_mps: Annotated[float, Field(gt=0.0)] = Field(
-        5e-5, description="V-bar drift-free row tolerance (5e-5 m/s: 1.1 m of drift per orbit at a = 8100 km)")
-    drift_outward_mps: Annotated[float, Field(ge=0.0)] = Field(
-        0.0, description="V-bar drift rows: ONE-SIDED band, the invariant after a hop-start or trim impulse must give a "
-        "drift away from the target by at least this (m/s of c = vy + 2 n x; 3 c t_orb of along-track drift per orbit) "
-        "and at most this + 2 drift_free_tol_mps (the two-sided row sat on its inward edge)")
-    drift_trim: bool = Field(
-        True, description="V-bar (with drift_free): a drift-free row also at a trim node after every hop start, so "
-        "the MPC nulls the drift left by the hop impulse's execution errors and its single-sample estimate with a "
-        "small trim impulse (raised to actuator.min_impulse if below it); the passive-abort drift starts after it")
-    drift_hold_after_trim: bool = Field(
-        False, description="V-bar with drift_trim: every later impulse of the hop keeps the trimmed drift invariant "
-        "(within drift_free_tol_mps; relaxed with the design rows), so the free drift stays null after any of them "
-        "(off: in the Monte Carlo it forces costly radial-only corrections)")
-    drift_trim_delay_nodes: Annotated[int, Field(ge=1, le=99)] = Field(
-        1, description="MPC nodes from a hop start to its trim (1: the next node, 1/steps_per_hop of a hop later)")
-    drift_estimator_window_s: Annotated[float, Field(gt=0.0)] | None = Field(
-        None, description="the drift invariant is averaged over the navigation samples of this window before a "
-        "node (none: every sample since the last impulse)")
-    solver: Literal["piqp", "clarabel", "daqp"] = Field("piqp", description="QP solver of problem (29)")
-
-
-class KeepOutSection(Section):
-    """Spherical KOZ (eq. 26) and its CBF (eqs. 27-29j). ``center_m`` in the paper's LVLH."""
-
-    radius_m: Annotated[float, Field(gt=0.0)] = Field(50.0, description="keep-out sphere radius (eq. 26)")
-    center_m: Vector3 = Field([0.0, 0.0, 0.0], description="keep-out sphere centre in the paper's LVLH")
-    cbf: bool = Field(True, description="enforce the control barrier function on the free drift (27-29j)")
-    alpha_per_s: Annotated[float, Field(gt=0.0)] = Field(0.01, description="CBF class-K gain alpha (29j)")
-    margin_m: Annotated[float, Field(ge=0.0)] = Field(
-        10.0, description="the MPC plans against radius + margin (CW, navigation and J2 mismatch)")
-    free_drift_orbits: Annotated[float, Field(gt=0.0, le=5.0)] = Field(
-        1.0, description="passive-abort free-drift horizon checked by the MPC, in orbits")
-    free_drift_nodes_per_orbit: Annotated[int, Field(ge=4, le=1000)] = Field(
-        36, description="free-drift samples per orbit (29h-i)")
-    compare_without_cbf: bool = Field(False, description="run twice, with and without the CBF (§5.4)")
-
-
-class SafetySection(Section):
-    """Per-run safety and success evaluation."""
-
-    reference_tolerance_m: Annotated[float, Field(gt=0.0)] = Field(
-        5.0, description="success: final distance to the reference point at most this")
-    abort_orbits: Annotated[float, Field(ge=1.0, le=50.0)] = Field(
-        5.0, description="passive-abort check on the truth: free drift from every hop state over this many orbits "
-        "(the window of the passive-safety certificate)")
-    abort_samples_per_orbit: Annotated[int, Field(ge=10, le=100000)] = Field(
-        720, description="samples per orbit of each passive-abort drift")
-    abort_required_orbits: Annotated[float, Field(gt=0.0, le=10.0)] | None = Field(
-        None, description="window that counts for success (none: all of abort_orbits for V-bar, the indefinite "
-        "hold of §2; 1 orbit for R-bar and glideslopes, which the paper says lack indefinite safety, §5.2)")
-
-
-class SrfScenario(ScenarioBase):
-    orbit: OrbitSection = Field(description="target orbit")
-    truth: TruthSection = Field(TruthSection(), description="truth model")
-    initial: InitialSection | None = Field(
-        None, description="initial chaser state (none: at rest on the approach axis at approach.start_m)")
-    approach: ApproachSection = Field(ApproachSection(), description="hop guidance (Algorithm 1)")
-    mpc: SrfMpcSection = Field(SrfMpcSection(), description="hopping MPC, problem (29)")
-    keep_out: KeepOutSection = Field(KeepOutSection(), description="keep-out zone and CBF")
-    safety: SafetySection = Field(SafetySection(), description="success and passive-abort evaluation")
 
 
 # --------------------------------------------------------------------------- geometry
@@ -189,16 +71,12 @@ def _is_vbar(theta: float) -> bool:
 
 def approach_axes_hill(theta: float) -> tuple[np.ndarray, np.ndarray]:
     """Approach direction e_A and perpendicular e_perp2 of eq. (20), as Hill unit vectors."""
-    from proxops.frames.lvlh import lvlh_vector_to_hill
-
     a = lvlh_vector_to_hill(np.array([math.cos(theta), 0.0, math.sin(theta)]))
     b = lvlh_vector_to_hill(np.array([-math.sin(theta), 0.0, math.cos(theta)]))
     return a, b
 
 
 def initial_state_hill(sc: SrfScenario) -> np.ndarray:
-    from proxops.systems.common import initial_hill_state
-
     if sc.initial is not None:
         return initial_hill_state(sc.initial)
     a, _ = approach_axes_hill(math.radians(sc.approach.angle_deg))
@@ -211,9 +89,6 @@ def engine_dt(sc: SrfScenario) -> float:
 
 
 def keep_out_hill(sc: SrfScenario):
-    from proxops.constraints.keep_out import KeepOutSphere
-    from proxops.frames.lvlh import lvlh_vector_to_hill
-
     return KeepOutSphere(sc.keep_out.radius_m, lvlh_vector_to_hill(np.array(sc.keep_out.center_m)), name="keep_out")
 
 
@@ -227,10 +102,6 @@ _EPHEMERIS_CACHE: dict = {}
 def plan_of(sc: SrfScenario):
     """Algorithm 1 output for the scenario (raises ProxopsInputError in the infeasible band); a copy
     of the plan cached per (approach, orbit) in this process."""
-    import copy
-
-    from proxops.guidance.hop_times import plan_hops
-
     ap = sc.approach
     args = (math.radians(ap.angle_deg), ap.hops, ap.gamma, ap.start_m, ap.end_m, mean_motion(sc.orbit.sma_m))
     key = (*args, ap.vbar_period_fraction)
@@ -242,8 +113,6 @@ def onboard_drift_model(sc: SrfScenario, dt: float, span_s: float):
     """The MPC's J2-aware drift invariant: the target's ECI states every engine step over the mission
     (the onboard ephemeris of the known target orbit, same force model as the truth: two-body or J2).
     The ephemeris (read-only) is cached per (orbit, truth model, dt, span) in this process."""
-    from proxops.control.srf_mpc import EnergyDrift
-
     j2 = sc.truth.model == "j2"
     key = (sc.orbit.model_dump_json(), j2, sc.truth.integrator, float(dt), float(span_s))
     states = memo_get(_EPHEMERIS_CACHE, key, lambda: _target_ephemeris(sc, j2, dt, span_s))
@@ -251,9 +120,6 @@ def onboard_drift_model(sc: SrfScenario, dt: float, span_s: float):
 
 
 def _target_ephemeris(sc: SrfScenario, j2: bool, dt: float, span_s: float) -> np.ndarray:
-    from proxops.propagation.truth import RelativeTruth
-    from proxops.systems.common import target_elements
-
     plant = RelativeTruth(target_elements(sc.orbit), np.zeros(6), j2=j2, integrator=sc.truth.integrator)
     n = int(math.ceil(span_s / dt)) + 3
     # n - 1 propagate() calls of dt in one (jitted) coast: the same numbers
@@ -265,8 +131,6 @@ def _target_ephemeris(sc: SrfScenario, j2: bool, dt: float, span_s: float) -> np
 
 def build_controller(sc: SrfScenario, cbf: bool | None = None):
     """(controller, plan, schedule) of a scenario; ``cbf`` overrides keep_out.cbf."""
-    from proxops.control.srf_mpc import SrfMpc, SrfMpcConfig, build_schedule
-
     ap, m, ko = sc.approach, sc.mpc, sc.keep_out
     theta = math.radians(ap.angle_deg)
     vbar = _is_vbar(theta)
@@ -326,8 +190,6 @@ def build_controller(sc: SrfScenario, cbf: bool | None = None):
         min_impulse_mps=float(sc.actuator.min_impulse or 0.0),
         cbf=use_cbf, cbf_alpha_per_s=ko.alpha_per_s, free_drift_s=ko.free_drift_orbits * plan.period_s,
         free_drift_nodes=max(4, int(round(ko.free_drift_nodes_per_orbit * ko.free_drift_orbits))), solver=m.solver)
-    from proxops.constraints.keep_out import KeepOutSphere
-
     if koz.contains(target) or (ko.margin_m > 0 and np.linalg.norm(target - koz.center_m) <= koz.radius_m + ko.margin_m):
         raise input_error("keep_out.margin_m", ko.margin_m,
                           f"the reference point ({ap.end_m:g} m out) must lie outside the KOZ radius + margin "
@@ -338,9 +200,6 @@ def build_controller(sc: SrfScenario, cbf: bool | None = None):
 
 
 def build_setup(sc: SrfScenario, cbf: bool | None = None) -> Setup:
-    from proxops.sim.engine import Setup
-    from proxops.systems.common import actuator_model, navigation_model, translational_plant
-
     ctrl, plan, sched = build_controller(sc, cbf)
     plant = translational_plant(sc.orbit, sc.truth, initial_state_hill(sc))
     theta = math.radians(sc.approach.angle_deg)
@@ -393,10 +252,6 @@ def passive_abort(sc: SrfScenario, result) -> list[dict]:
     of those divided by its number of orbits); ``hop_t_s``; with a trim also ``trim_dv_mps`` and the
     drift from the hop impulse alone (an abort between hop impulse and trim): ``untrimmed_safe_window_orbits``,
     ``untrimmed_min_koz_distance_m``, ``untrimmed_return_miss_per_orbit_m``."""
-    from proxops.constraints.passive_safety import free_drift_checks
-    from proxops.propagation.truth import CWPlant, RelativeTruth
-    from proxops.systems.common import translational_plant
-
     period = float(result.meta.get("period_s") or 2 * math.pi / mean_motion(sc.orbit.sma_m))
     hop_starts = [0.0] + list(result.meta.get("hop_node_times_s", []))[:-1]
     trims = list(result.meta.get("hop_trim_times_s", []))
@@ -473,9 +328,6 @@ def _check_vbar_hop_lengths(ap, m) -> None:
 
 def summarize_result(sc: SrfScenario, result) -> dict:
     """Extra JSON keys of an srf run: arrival, hops, dv per LVLH axis, KOZ and passive-abort safety."""
-    from proxops.constraints.passive_safety import hermite_min_range
-    from proxops.frames.lvlh import hill_vector_to_lvlh
-
     theta = math.radians(sc.approach.angle_deg)
     a, _ = approach_axes_hill(theta)
     p_ref = sc.approach.end_m * a
@@ -568,8 +420,6 @@ class SrfSystem(SystemBase):
 
     def run(self, sc: SrfScenario, seed: int = 0, progress: bool = False):
         """One run, or two (with / without the CBF) when keep_out.compare_without_cbf (§5.4)."""
-        from proxops.sim.engine import simulate
-
         if not sc.keep_out.compare_without_cbf:
             result = simulate(build_setup(sc), seed=seed, progress=progress)
             return summarize_result(sc, result), {"run": result}
