@@ -126,7 +126,8 @@ def references(
     as_json: Annotated[bool, typer.Option("--json", help="One JSON object on stdout.")] = False,
 ):
     """Plan the references of N Fibonacci-sphere axes as a campaign; statistics next to §5.1.1."""
-    from proxops.analysis.campaign import run_campaign  # the campaign engine: not for `cortex reference`
+    # Kept local: the campaign engine (pandas, pyarrow) is this command's, not `cortex reference`'s
+    from proxops.analysis.campaign import _campaign_system, load_campaign, run_campaign  # noqa: PLC2701
 
     if workers is not None and not 1 <= workers <= MAX_WORKERS:
         raise input_error("--workers", workers, f"must be a whole number from 1 to {MAX_WORKERS}")
@@ -143,8 +144,7 @@ def references(
     st["paper"] = PAPER_5_1_1
     files = []
     if out is not None and figures:
-        from proxops.analysis.campaign import _campaign_system, load_campaign  # noqa: PLC2701
-        from proxops.plotting.cortex import campaign_figures
+        from proxops.plotting.cortex import campaign_figures  # matplotlib: only with figures
 
         camp = load_campaign(out)
         files = [str(p) for p in campaign_figures(camp, _campaign_system(camp.manifest).scenario, PAPER_5_1_1, Path(out))]

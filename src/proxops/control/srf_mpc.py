@@ -120,7 +120,9 @@ from proxops.constraints.keep_out import KeepOutSphere
 from proxops.control.relaxation import climb
 from proxops.core.cw import cw_stm
 from proxops.core.memo import memo_get
+from proxops.core.twobody import accel_gravity_vec
 from proxops.errors import input_error
+from proxops.propagation.kernels import energy_gains, energy_invariants
 from proxops.contracts import Command
 from proxops.solvers import QuadraticProgram, SolveStatus, make_solver, solve_qp, successive_convexification
 from proxops.status import Status
@@ -183,8 +185,6 @@ class EnergyDrift:
         return self.states[self._index(t)]
 
     def _accel(self, r: np.ndarray) -> np.ndarray:
-        from proxops.core.twobody import accel_gravity_vec
-
         return accel_gravity_vec(r, self.mu, self.j2, self.re)
 
     def _index(self, t: float) -> int:
@@ -199,8 +199,6 @@ class EnergyDrift:
     def invariants(self, t: np.ndarray, xs: np.ndarray) -> np.ndarray:
         """:meth:`invariant` of Hill states (n, 6) at times (n,) on the ephemeris grid, one jitted
         call (:func:`proxops.propagation.kernels.energy_invariants`; the same numbers row by row)."""
-        from proxops.propagation.kernels import energy_invariants
-
         return energy_invariants(self._targets(t), np.ascontiguousarray(xs[:, :6], dtype=float), self._params())
 
     def _params(self) -> np.ndarray:
@@ -217,8 +215,6 @@ class EnergyDrift:
     def gains(self, t, xs) -> np.ndarray:
         """:meth:`gain` of Hill states (n, 6) at times (n,), one jitted call
         (:func:`proxops.propagation.kernels.energy_gains`)."""
-        from proxops.propagation.kernels import energy_gains
-
         return energy_gains(self._targets(t), np.ascontiguousarray(xs[:, :6], dtype=float), self._params())
 
     def gain(self, t: float, x=None) -> np.ndarray:

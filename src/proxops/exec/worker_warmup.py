@@ -17,14 +17,13 @@ from __future__ import annotations
 import json
 import os
 
-ENV = "PROXOPS_WARM_SCENARIO"
+from proxops.exec.prestart import ENV
+from proxops.scenarios.loader import load_scenario
 
 
 def warm_up(scenario: str, overrides=()) -> bool:
     """Load and build ``scenario`` with ``overrides`` in this process; True if it built."""
     try:
-        from proxops.scenarios.loader import load_scenario
-
         loaded = load_scenario(scenario, list(overrides))
         loaded.system.check(loaded.scenario)
         return True
