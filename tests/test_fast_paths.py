@@ -256,6 +256,18 @@ def test_early_prestart_reads_only_unambiguous_mc_command_lines(argv, expected):
     assert _read_mc_argv(argv) == expected
 
 
+def test_early_prestart_finds_the_system_module_of_a_builtin_and_of_a_file(tmp_path):
+    """The fork server imports the scenario's system module up front: read from the TOML without the
+    loader (a built-in by name, a file by path; () when it cannot be told)."""
+    from proxops.exec.prestart import system_module
+
+    assert system_module("srf-vbar-mc") == ("proxops.systems.srf",)
+    path = tmp_path / "s.toml"
+    path.write_text('system = "station-keeping"\n')
+    assert system_module(str(path)) == ("proxops.systems.station_keeping",)
+    assert system_module("no-such-scenario") == ()
+
+
 def _reach(duration_s=400.0):
     return ["sim.duration_s=" + repr(float(duration_s)), "mpc.config=monte-carlo", "mpc.constraint_mode=hard"]
 

@@ -18,10 +18,10 @@ from __future__ import annotations
 import json
 import math
 import os
-import tomllib
-from pathlib import Path
 from typing import Sequence
 
+from proxops.exec.backends import START_METHOD, default_workers, prestart_pool
+from proxops.scenarios.catalog import read_toml, resolve  # tomllib only
 from proxops.scenarios.registry import SYSTEM_MODULES  # importlib only: no system is imported
 
 ENV = "PROXOPS_WARM_SCENARIO"  # the scenario the fork server builds once (read by exec.worker_warmup)
@@ -41,9 +41,6 @@ _FLAGS = {"--resume", "--series", "--no-series", "--report", "--no-report", "--p
 def prestart(scenario: str, runs: int | None, workers: int | None, overrides: Sequence[str] = ()) -> None:
     """Start the local pool a campaign of ``scenario`` with these options uses (no effect when it
     exists or with fewer than 2 workers): its workers' start-up overlaps this process's work."""
-    # Kept local: every command's entry imports this module, the execution layer (multiprocessing,
-    # concurrent.futures: ~35 ms, measured under load) only a command that starts a pool.
-    from proxops.exec.backends import START_METHOD, default_workers, prestart_pool
 
     n_workers = workers if workers is not None else default_workers()
     if runs is not None:
@@ -205,13 +202,10 @@ def _read_mc_argv(argv: list[str]):
 def system_module(scenario: str) -> tuple[str, ...]:
     """The module of the scenario's system (for the workers to import up front), read from its TOML
     without validating it (the campaign does that); () when it cannot be told (the run imports it).
-    Resolves the name like ``scenarios.loader.resolve`` without importing the loader: it imports
-    pydantic (~0.5 s), and this runs before the pool starts, whose start it would delay."""
+    Reads it with :mod:`proxops.scenarios.catalog`, not the loader: that imports pydantic (~0.5 s),
+    and this runs before the pool starts, whose start it would delay."""
     try:
-        path = Path(scenario)
-        if not path.is_file():
-            path = Path(__file__).parent / "scenarios" / "builtin" / f"{scenario}.toml"
-        module = SYSTEM_MODULES.get(tomllib.loads(path.read_text()).get("system"))
+        module = SYSTEM_MODULES.get(read_toml(resolve(scenario)).get("system"))
         return (module,) if module else ()
     except Exception:  # noqa: BLE001 - a bad scenario is reported by the campaign's own check
         return ()
