@@ -38,30 +38,25 @@ def _plain_values_without_pydantic() -> None:
     anything else (numbers, paths, choices, a parser, a value of another type) still goes through
     the adapter typer builds. Without these typer internals (another typer) nothing changes."""
     try:
-        from dataclasses import dataclass
-
         from typer import core as typer_core
-        from typer._coercion import RuntimeParam, TypeDescriptor
+        from typer._coercion import RuntimeParam
     except ImportError:  # pragma: no cover - another typer: its own coercion, unchanged
         return
     build = getattr(typer_core, "build_runtime_param", None)
     if build is None or getattr(build, "_proxops", False):
         return
 
-    @dataclass(frozen=True)
     class PlainValue(RuntimeParam):
-        descriptor: TypeDescriptor
-
         def _coerce_value(self, value, param, ctx):
             if type(value) is self.annotation:
                 return value
-            return build(self.descriptor)._coerce_value(value, param=param, ctx=ctx)
+            return build(param.type_descriptor)._coerce_value(value, param=param, ctx=ctx)
 
     def build_runtime_param(descriptor):
         info = descriptor.parameter_info
         if (descriptor.annotation in (str, bool) and descriptor.file_annotation is None
                 and getattr(info, "parser", None) is None and getattr(info, "click_type", None) is None):
-            return PlainValue(parameter_info=info, annotation=descriptor.annotation, descriptor=descriptor)
+            return PlainValue(parameter_info=info, annotation=descriptor.annotation)
         return build(descriptor)
 
     build_runtime_param._proxops = True
