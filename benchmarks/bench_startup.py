@@ -1,7 +1,8 @@
 """Start-up of the command line (issue 32 item 5): whole-command wall and CPU time of the commands
 that do not simulate (goal < 0.15 s) and of ``proxops run station-keeping`` (goal < 0.6 s on 2 idle
 cores, numba cache warm), the heavy libraries each imports, and the import profile of the run (top
-modules by cumulative import time from ``python -X importtime``).
+modules by cumulative import time from ``python -X importtime``), and the third-party floor under
+the run (typer, pydantic, numpy, numba, scipy.linalg, numba's first kernel load: no proxops code).
 
 Timings on a loaded machine are not claims: the load average is printed with them; the import
 profile's shares inside one process are the reliable figures. ``python benchmarks/bench_startup.py
@@ -28,6 +29,7 @@ COMMANDS = {  # name: (argv, goal in s, whole command on 2 idle cores)
     "--version": (["--version"], 0.15),
     "--help": (["--help"], 0.15),
     "keys": (["keys"], 0.15),
+    "keys srf": (["keys", "srf"], 0.15),
     "scenarios": (["scenarios"], 0.15),
     "validate station-keeping": (["validate", "station-keeping"], 0.15),
     "run station-keeping": (["run", "station-keeping"], 0.6),
@@ -57,6 +59,33 @@ def _run(argv: list[str], *flags: str) -> tuple[float, float, subprocess.Complet
 def _modules(proc: subprocess.CompletedProcess) -> list[str]:
     line = next((l for l in proc.stderr.splitlines() if l.startswith("MODULES ")), None)
     return json.loads(line[len("MODULES "):]) if line else []
+
+
+_FLOOR = ("import json, sys, time\n"
+          "rows, c0, w0 = [], time.process_time(), time.perf_counter()\n"
+          "def mark(name):\n"
+          "    global c0, w0\n"
+          "    c, w = time.process_time(), time.perf_counter()\n"
+          "    rows.append((name, c - c0, w - w0)); c0, w0 = c, w\n"
+          "import typer; mark('typer')\n"
+          "import pydantic; mark('pydantic')\n"
+          "import numpy; mark('numpy')\n"
+          "import numba; mark('numba')\n"
+          "import scipy.linalg; mark('scipy.linalg (numba checks BLAS through it)')\n"
+          "from numba.core.registry import cpu_target\n"
+          "cpu_target.target_context.refresh(); mark(\"numba's target refresh (first kernel load)\")\n"
+          "print(json.dumps(rows))\n")
+
+
+def third_party_floor() -> list[tuple[str, float, float]]:
+    """(step, CPU s, wall s) of the third-party start-up every simulating command pays before any
+    proxops code: typer, pydantic, numpy, numba, scipy.linalg (numba's first kernel load imports it
+    for its BLAS check: numba.np.arraymath._check_blas) and numba's target refresh (the registries its
+    first cached-kernel load imports). The floor of ``proxops run station-keeping``."""
+    proc = subprocess.run([sys.executable, "-c", _FLOOR], capture_output=True, text=True, env=_env(), timeout=600)
+    if proc.returncode != 0:
+        raise RuntimeError(proc.stderr[-300:])
+    return [tuple(r) for r in json.loads(proc.stdout.strip().splitlines()[-1])]
 
 
 def import_profile(argv: list[str], top: int = 15) -> list[tuple[str, float, float]]:
@@ -95,6 +124,14 @@ def main() -> None:
         cpu = statistics.median(c for _, c in times[name])
         tops = sorted({m.split(".")[0] for m in modules[name]} & set(HEAVY), key=HEAVY.index)
         print(f"{name:<26} {wall:>7.3f} {cpu:>6.3f} {goal:>6.2f}  {len(modules[name]):>7}  {', '.join(tops) or '-'}")
+    floors = [third_party_floor() for _ in range(args.repeat)]
+    print("\nthird-party floor of a simulating command (median of the runs; no proxops code):")
+    print(f"{'step':<46} {'CPU s':>6} {'wall s':>7}")
+    for k, (step, _, _) in enumerate(floors[0]):
+        print(f"{step:<46} {statistics.median(f[k][1] for f in floors):>6.3f} "
+              f"{statistics.median(f[k][2] for f in floors):>7.3f}")
+    print(f"{'total':<46} {statistics.median(sum(r[1] for r in f) for f in floors):>6.3f} "
+          f"{statistics.median(sum(r[2] for r in f) for f in floors):>7.3f}")
     for name in ("--help", "run station-keeping"):
         print(f"\nimport profile of `proxops {name}` (top by cumulative import time, ms; one run):")
         print(f"{'module':<44} {'self':>8} {'cumulative':>11}")
