@@ -181,9 +181,13 @@ def test_every_module_imports_first():
 HEAVY = ("numba", "scipy", "pandas", "pyarrow", "casadi", "daqp", "piqp", "clarabel", "highspy", "matplotlib")
 
 
-def _modules_after(*argv: str, full: bool = False) -> set[str]:
-    """The top-level packages (every module with ``full``) a ``proxops`` command (through the console
-    entry point) has imported when it exits."""
+def _modules_after(*argv: str) -> set[str]:
+    """The top-level packages a ``proxops`` command has imported when it exits."""
+    return {m.split(".")[0] for m in _all_modules_after(*argv)}
+
+
+def _all_modules_after(*argv: str) -> set[str]:
+    """The modules a ``proxops`` command (through the console entry point) has imported when it exits."""
     code = ("import atexit, json, sys\n"
             "atexit.register(lambda: sys.stderr.write('MODULES ' + json.dumps(sorted(sys.modules)) + '\\n'))\n"
             f"sys.argv = ['proxops', *{list(argv)!r}]\n"
@@ -192,8 +196,7 @@ def _modules_after(*argv: str, full: bool = False) -> set[str]:
                           env={**__import__("os").environ, "PYTHONPATH": str(PACKAGE.parent)})
     assert proc.returncode == 0, proc.stderr
     line = next(l for l in proc.stderr.splitlines() if l.startswith("MODULES "))
-    modules = json.loads(line[len("MODULES "):])
-    return set(modules) if full else {m.split(".")[0] for m in modules}
+    return set(json.loads(line[len("MODULES "):]))
 
 
 @pytest.mark.parametrize("argv", [
@@ -209,7 +212,7 @@ def test_commands_that_do_not_simulate_import_nothing_heavy(argv):
     """`keys` reads the checked-in listing (scenarios/keys.json), `scenarios` the built-in files with
     tomllib, and typer's parameter coercion leaves pydantic out for values click parsed
     (proxops.cli_common): no pydantic, no numpy, no pool machinery, no system and no schema."""
-    modules = _modules_after(*argv, full=True)
+    modules = _all_modules_after(*argv)
     top = {m.split(".")[0] for m in modules}
     assert "proxops" in top and "typer" in top  # the command ran
     assert not top & (set(HEAVY) | {"numpy", "pydantic"}), sorted(top & (set(HEAVY) | {"numpy", "pydantic"}))
@@ -236,7 +239,7 @@ def test_validate_and_run_import_no_dataframes_plots_or_solvers():
     station-keeping run adds no dataframe, plotting or solver library either."""
     for argv in (("validate", "station-keeping"),
                  ("run", "station-keeping", "--set", "truth.model=cw", "--set", "sim.duration_s=100")):
-        modules = _modules_after(*argv, full=True)
+        modules = _all_modules_after(*argv)
         top = {m.split(".")[0] for m in modules}
         unexpected = top & {"pandas", "pyarrow", "matplotlib", "casadi", "daqp", "piqp", "clarabel", "highspy"}
         assert not unexpected, (argv, sorted(unexpected))
