@@ -6,7 +6,8 @@ the run (typer, pydantic, numpy, numba, scipy.linalg, numba's first kernel load:
 
 Timings on a loaded machine are not claims: the load average is printed with them; the import
 profile's shares inside one process are the reliable figures. ``python benchmarks/bench_startup.py
---repeat 7``.
+--repeat 7``; ``--base /tmp/base/src`` alternates every command with another tree (e.g. the previous
+release: ``git archive b3055eb src | tar -x -C /tmp/base``) and prints the CPU ratio.
 """
 
 from __future__ import annotations
@@ -40,16 +41,17 @@ _WRAPPER = ("import atexit, json, sys\n"
             "from proxops.exec.entry import main\nmain()\n")
 
 
-def _env() -> dict:
-    return {**os.environ, "PYTHONPATH": str(SRC), "OPENBLAS_NUM_THREADS": "1", "OMP_NUM_THREADS": "1"}
+def _env(src: Path = SRC) -> dict:
+    return {**os.environ, "PYTHONPATH": str(src), "OPENBLAS_NUM_THREADS": "1", "OMP_NUM_THREADS": "1"}
 
 
-def _run(argv: list[str], *flags: str) -> tuple[float, float, subprocess.CompletedProcess]:
-    """(wall s, CPU s of the child, the finished process) of ``python [flags] -c WRAPPER argv``."""
+def _run(argv: list[str], *flags: str, src: Path = SRC) -> tuple[float, float, subprocess.CompletedProcess]:
+    """(wall s, CPU s of the child, the finished process) of ``python [flags] -c WRAPPER argv`` with
+    the package under ``src``."""
     before = resource.getrusage(resource.RUSAGE_CHILDREN)
     t0 = time.perf_counter()
     proc = subprocess.run([sys.executable, *flags, "-c", _WRAPPER, json.dumps(argv)], capture_output=True,
-                          text=True, env=_env(), timeout=600)
+                          text=True, env=_env(src), timeout=600)
     wall = time.perf_counter() - t0
     after = resource.getrusage(resource.RUSAGE_CHILDREN)
     cpu = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
@@ -104,19 +106,30 @@ def import_profile(argv: list[str], top: int = 15) -> list[tuple[str, float, flo
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--repeat", type=int, default=5, help="runs of each command (alternated; median shown)")
+    parser.add_argument("--base", type=Path, default=None,
+                        help="another tree's src/ (e.g. `git archive b3055eb src | tar -x -C /tmp/base`): each "
+                             "command alternates with it and the CPU ratio this/base is shown")
     args = parser.parse_args()
     print(f"machine: {platform.machine()}, {os.cpu_count()} CPUs, Python {platform.python_version()}; "
           f"load average before: {open('/proc/loadavg').read().split()[:3]}")
     _run(COMMANDS["run station-keeping"][0])  # numba's cache warm (a changed source recompiles once)
+    if args.base is not None:
+        _run(COMMANDS["run station-keeping"][0], src=args.base)
     times: dict[str, list[tuple[float, float]]] = {name: [] for name in COMMANDS}
+    base: dict[str, list[tuple[float, float]]] = {name: [] for name in COMMANDS}
     modules: dict[str, list[str]] = {}
-    for _ in range(args.repeat):  # alternate the commands: a load change hits them all alike
+    for _ in range(args.repeat):  # alternate the commands (and the trees): a load change hits them all alike
         for name, (argv, _goal) in COMMANDS.items():
-            wall, cpu, proc = _run(argv)
-            if proc.returncode != 0:
-                raise RuntimeError(f"proxops {' '.join(argv)} exited {proc.returncode}: {proc.stderr[-300:]}")
-            times[name].append((wall, cpu))
-            modules[name] = _modules(proc)
+            for src, into in ((SRC, times), (args.base, base)):
+                if src is None:
+                    continue
+                wall, cpu, proc = _run(argv, src=src)
+                if proc.returncode != 0:
+                    raise RuntimeError(f"proxops {' '.join(argv)} ({src}) exited {proc.returncode}: "
+                                       f"{proc.stderr[-300:]}")
+                into[name].append((wall, cpu))
+                if src == SRC:
+                    modules[name] = _modules(proc)
     print(f"load average after: {open('/proc/loadavg').read().split()[:3]} (under load the times are not a claim)")
     print(f"{'command':<26} {'wall s':>7} {'CPU s':>6} {'goal s':>6}  modules  heavy libraries imported")
     for name, (argv, goal) in COMMANDS.items():
@@ -124,6 +137,13 @@ def main() -> None:
         cpu = statistics.median(c for _, c in times[name])
         tops = sorted({m.split(".")[0] for m in modules[name]} & set(HEAVY), key=HEAVY.index)
         print(f"{name:<26} {wall:>7.3f} {cpu:>6.3f} {goal:>6.2f}  {len(modules[name]):>7}  {', '.join(tops) or '-'}")
+    if args.base is not None:
+        print(f"\nA/B against {args.base} (alternated in the same run; the CPU ratio is the figure to trust):")
+        print(f"{'command':<26} {'base CPU s':>10} {'this CPU s':>10} {'ratio':>6}")
+        for name in COMMANDS:
+            b = statistics.median(c for _, c in base[name])
+            t = statistics.median(c for _, c in times[name])
+            print(f"{name:<26} {b:>10.3f} {t:>10.3f} {t / b:>6.2f}")
     floors = [third_party_floor() for _ in range(args.repeat)]
     print("\nthird-party floor of a simulating command (median of the runs; no proxops code):")
     print(f"{'step':<46} {'CPU s':>6} {'wall s':>7}")
