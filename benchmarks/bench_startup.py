@@ -1,11 +1,13 @@
 """Start-up of the command line (issue 32 item 5): whole-command wall and CPU time of the commands
 that do not simulate (goal < 0.15 s) and of ``proxops run station-keeping`` (goal < 0.6 s on 2 idle
 cores, numba cache warm), the heavy libraries each imports, and the import profile of the run (top
-modules by cumulative import time from ``python -X importtime``).
+modules by cumulative import time from ``python -X importtime``), and the third-party floor under
+the run (typer, pydantic, numpy, numba, scipy.linalg, numba's first kernel load: no proxops code).
 
 Timings on a loaded machine are not claims: the load average is printed with them; the import
 profile's shares inside one process are the reliable figures. ``python benchmarks/bench_startup.py
---repeat 7``.
+--repeat 7``; ``--base /tmp/base/src`` alternates every command with another tree (e.g. the previous
+release: ``git archive b3055eb src | tar -x -C /tmp/base``) and prints the CPU ratio.
 """
 
 from __future__ import annotations
@@ -28,6 +30,7 @@ COMMANDS = {  # name: (argv, goal in s, whole command on 2 idle cores)
     "--version": (["--version"], 0.15),
     "--help": (["--help"], 0.15),
     "keys": (["keys"], 0.15),
+    "keys srf": (["keys", "srf"], 0.15),
     "scenarios": (["scenarios"], 0.15),
     "validate station-keeping": (["validate", "station-keeping"], 0.15),
     "run station-keeping": (["run", "station-keeping"], 0.6),
@@ -38,16 +41,17 @@ _WRAPPER = ("import atexit, json, sys\n"
             "from proxops.exec.entry import main\nmain()\n")
 
 
-def _env() -> dict:
-    return {**os.environ, "PYTHONPATH": str(SRC), "OPENBLAS_NUM_THREADS": "1", "OMP_NUM_THREADS": "1"}
+def _env(src: Path = SRC) -> dict:
+    return {**os.environ, "PYTHONPATH": str(src), "OPENBLAS_NUM_THREADS": "1", "OMP_NUM_THREADS": "1"}
 
 
-def _run(argv: list[str], *flags: str) -> tuple[float, float, subprocess.CompletedProcess]:
-    """(wall s, CPU s of the child, the finished process) of ``python [flags] -c WRAPPER argv``."""
+def _run(argv: list[str], *flags: str, src: Path = SRC) -> tuple[float, float, subprocess.CompletedProcess]:
+    """(wall s, CPU s of the child, the finished process) of ``python [flags] -c WRAPPER argv`` with
+    the package under ``src``."""
     before = resource.getrusage(resource.RUSAGE_CHILDREN)
     t0 = time.perf_counter()
     proc = subprocess.run([sys.executable, *flags, "-c", _WRAPPER, json.dumps(argv)], capture_output=True,
-                          text=True, env=_env(), timeout=600)
+                          text=True, env=_env(src), timeout=600)
     wall = time.perf_counter() - t0
     after = resource.getrusage(resource.RUSAGE_CHILDREN)
     cpu = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
@@ -57,6 +61,33 @@ def _run(argv: list[str], *flags: str) -> tuple[float, float, subprocess.Complet
 def _modules(proc: subprocess.CompletedProcess) -> list[str]:
     line = next((l for l in proc.stderr.splitlines() if l.startswith("MODULES ")), None)
     return json.loads(line[len("MODULES "):]) if line else []
+
+
+_FLOOR = ("import json, sys, time\n"
+          "rows, c0, w0 = [], time.process_time(), time.perf_counter()\n"
+          "def mark(name):\n"
+          "    global c0, w0\n"
+          "    c, w = time.process_time(), time.perf_counter()\n"
+          "    rows.append((name, c - c0, w - w0)); c0, w0 = c, w\n"
+          "import typer; mark('typer')\n"
+          "import pydantic; mark('pydantic')\n"
+          "import numpy; mark('numpy')\n"
+          "import numba; mark('numba')\n"
+          "import scipy.linalg; mark('scipy.linalg (numba checks BLAS through it)')\n"
+          "from numba.core.registry import cpu_target\n"
+          "cpu_target.target_context.refresh(); mark(\"numba's target refresh (first kernel load)\")\n"
+          "print(json.dumps(rows))\n")
+
+
+def third_party_floor() -> list[tuple[str, float, float]]:
+    """(step, CPU s, wall s) of the third-party start-up every simulating command pays before any
+    proxops code: typer, pydantic, numpy, numba, scipy.linalg (numba's first kernel load imports it
+    for its BLAS check: numba.np.arraymath._check_blas) and numba's target refresh (the registries its
+    first cached-kernel load imports). The floor of ``proxops run station-keeping``."""
+    proc = subprocess.run([sys.executable, "-c", _FLOOR], capture_output=True, text=True, env=_env(), timeout=600)
+    if proc.returncode != 0:
+        raise RuntimeError(proc.stderr[-300:])
+    return [tuple(r) for r in json.loads(proc.stdout.strip().splitlines()[-1])]
 
 
 def import_profile(argv: list[str], top: int = 15) -> list[tuple[str, float, float]]:
@@ -75,19 +106,30 @@ def import_profile(argv: list[str], top: int = 15) -> list[tuple[str, float, flo
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--repeat", type=int, default=5, help="runs of each command (alternated; median shown)")
+    parser.add_argument("--base", type=Path, default=None,
+                        help="another tree's src/ (e.g. `git archive b3055eb src | tar -x -C /tmp/base`): each "
+                             "command alternates with it and the CPU ratio this/base is shown")
     args = parser.parse_args()
     print(f"machine: {platform.machine()}, {os.cpu_count()} CPUs, Python {platform.python_version()}; "
           f"load average before: {open('/proc/loadavg').read().split()[:3]}")
     _run(COMMANDS["run station-keeping"][0])  # numba's cache warm (a changed source recompiles once)
+    if args.base is not None:
+        _run(COMMANDS["run station-keeping"][0], src=args.base)
     times: dict[str, list[tuple[float, float]]] = {name: [] for name in COMMANDS}
+    base: dict[str, list[tuple[float, float]]] = {name: [] for name in COMMANDS}
     modules: dict[str, list[str]] = {}
-    for _ in range(args.repeat):  # alternate the commands: a load change hits them all alike
+    for _ in range(args.repeat):  # alternate the commands (and the trees): a load change hits them all alike
         for name, (argv, _goal) in COMMANDS.items():
-            wall, cpu, proc = _run(argv)
-            if proc.returncode != 0:
-                raise RuntimeError(f"proxops {' '.join(argv)} exited {proc.returncode}: {proc.stderr[-300:]}")
-            times[name].append((wall, cpu))
-            modules[name] = _modules(proc)
+            for src, into in ((SRC, times), (args.base, base)):
+                if src is None:
+                    continue
+                wall, cpu, proc = _run(argv, src=src)
+                if proc.returncode != 0:
+                    raise RuntimeError(f"proxops {' '.join(argv)} ({src}) exited {proc.returncode}: "
+                                       f"{proc.stderr[-300:]}")
+                into[name].append((wall, cpu))
+                if src == SRC:
+                    modules[name] = _modules(proc)
     print(f"load average after: {open('/proc/loadavg').read().split()[:3]} (under load the times are not a claim)")
     print(f"{'command':<26} {'wall s':>7} {'CPU s':>6} {'goal s':>6}  modules  heavy libraries imported")
     for name, (argv, goal) in COMMANDS.items():
@@ -95,6 +137,21 @@ def main() -> None:
         cpu = statistics.median(c for _, c in times[name])
         tops = sorted({m.split(".")[0] for m in modules[name]} & set(HEAVY), key=HEAVY.index)
         print(f"{name:<26} {wall:>7.3f} {cpu:>6.3f} {goal:>6.2f}  {len(modules[name]):>7}  {', '.join(tops) or '-'}")
+    if args.base is not None:
+        print(f"\nA/B against {args.base} (alternated in the same run; the CPU ratio is the figure to trust):")
+        print(f"{'command':<26} {'base CPU s':>10} {'this CPU s':>10} {'ratio':>6}")
+        for name in COMMANDS:
+            b = statistics.median(c for _, c in base[name])
+            t = statistics.median(c for _, c in times[name])
+            print(f"{name:<26} {b:>10.3f} {t:>10.3f} {t / b:>6.2f}")
+    floors = [third_party_floor() for _ in range(args.repeat)]
+    print("\nthird-party floor of a simulating command (median of the runs; no proxops code):")
+    print(f"{'step':<46} {'CPU s':>6} {'wall s':>7}")
+    for k, (step, _, _) in enumerate(floors[0]):
+        print(f"{step:<46} {statistics.median(f[k][1] for f in floors):>6.3f} "
+              f"{statistics.median(f[k][2] for f in floors):>7.3f}")
+    print(f"{'total':<46} {statistics.median(sum(r[1] for r in f) for f in floors):>6.3f} "
+          f"{statistics.median(sum(r[2] for r in f) for f in floors):>7.3f}")
     for name in ("--help", "run station-keeping"):
         print(f"\nimport profile of `proxops {name}` (top by cumulative import time, ms; one run):")
         print(f"{'module':<44} {'self':>8} {'cumulative':>11}")

@@ -247,11 +247,55 @@ def test_fork_server_registers_its_quick_exit_and_workers_inherit_only_the_pid()
     (["mc", "s", "t"], None),                     # two scenarios
     (["mc"], None),
     (["run", "mc"], None),                        # another command
+    (["-q", "--debug", "mc", "s"], ("s", None, None, [])),  # proxops.cli.main's flags before the command
+    (["--verbose", "mc", "s", "-n", "2"], ("s", 2, None, [])),
 ])
 def test_early_prestart_reads_only_unambiguous_mc_command_lines(argv, expected):
     from proxops.exec.prestart import _read_mc_argv
 
     assert _read_mc_argv(argv) == expected
+
+
+def test_early_prestart_finds_the_system_module_of_a_builtin_and_of_a_file(tmp_path):
+    """The fork server imports the scenario's system module up front: read from the TOML without the
+    loader (a built-in by name, a file by path; () when it cannot be told)."""
+    from proxops.exec.prestart import system_module
+
+    assert system_module("srf-vbar-mc") == ("proxops.systems.srf",)
+    path = tmp_path / "s.toml"
+    path.write_text('system = "station-keeping"\n')
+    assert system_module(str(path)) == ("proxops.systems.station_keeping",)
+    assert system_module("no-such-scenario") == ()
+
+
+def _reach(duration_s=400.0):
+    return ["sim.duration_s=" + repr(float(duration_s)), "mpc.config=monte-carlo", "mpc.constraint_mode=hard"]
+
+
+@pytest.mark.parametrize("argv, expected", [
+    # runs = omegas x a_max x n_x x n_y: the paper's 5 x 4 axes and 13 x 15 ICs by default (§9: 3900 runs)
+    (["reach", "mc", "--out", "o"], ("los-tumble", 5 * 4 * 13 * 15, None, _reach())),
+    (["-q", "reach", "mc", "--out=o", "--workers", "2", "--n-x", "3", "--n-y=2", "--omega-deg-s", "2",
+      "--omega-deg", "3", "--amax", "0.1", "--duration-s", "50", "--no-progress", "--json"],
+     ("los-tumble", 2 * 1 * 3 * 2, 2, _reach(50))),
+    (["reach", "mc", "--out", "o", "--grid", "2"], None),        # below 3 points: reach mc's error, no pool
+    (["reach", "mc", "--out", "o", "--n-x", "201"], None),       # above MAX_IC_AXIS
+    (["reach", "mc", "--out", "o", "--duration-s", "inf"], None),
+    (["reach", "mc", "--out", "o", "--amax", "-0.1"], None),
+    (["reach", "mc", "--out", "o", "--workers", "0"], None),
+    (["reach", "mc", "--out", "o", "--resume"], None),           # resuming starts no pool
+    (["reach", "mc", "--out", "o", "--scheduler", "tcp://h:1"], None),
+    (["reach", "mc", "--out", "o", "--help"], None),
+    (["reach", "mc", "--out"], None),                             # missing value
+    (["reach", "mc", "extra"], None),
+    (["reach", "table"], None),
+])
+def test_early_prestart_reads_only_unambiguous_reach_mc_command_lines(argv, expected):
+    """`proxops reach mc` starts its pool before the CLI and cli_reach's imports (numba, scipy,
+    matplotlib) too, sized like the command sizes it; anything in doubt is left to the command."""
+    from proxops.exec.prestart import _read_reach_mc_argv, _without_global_options
+
+    assert _read_reach_mc_argv(_without_global_options(argv)) == expected
 
 
 def test_mc_bad_scenario_after_early_prestart_is_one_error_line_exit_2(tmp_path):

@@ -103,9 +103,28 @@ def test_units_ranges_and_defaults_come_from_the_schema():
     assert disp["percent"].allowed == ">= 0" and disp["linspace"].type == "list of 3 numbers"
 
 
+def test_checked_in_key_listing_is_the_live_schema():
+    """`proxops keys` reads src/proxops/scenarios/keys.json (no pydantic): it must be what the schema
+    generates now, byte for byte."""
+    from proxops.scenarios import key_listing
+
+    assert key_listing.LISTING.read_text(encoding="utf-8") == ref.listing_json(), \
+        "regenerate: python -m proxops.scenarios.reference > src/proxops/scenarios/keys.json"
+    assert key_listing.system_names() == sorted(ref.SYSTEM_MODULES)
+    # the listing read back gives the schema's own key records (types, defaults, ranges) for every system
+    for system in key_listing.system_names():
+        live = {k.key: k for sec in ref.reference(system) for k in sec.keys}
+        listed = {k["key"]: k for sec in key_listing.sections(system) for k in sec["keys"]}
+        assert listed.keys() == live.keys()
+        assert all(listed[key]["default"] == k.default and listed[key]["allowed"] == k.allowed
+                   and listed[key]["required"] == k.required for key, k in live.items())
+
+
 def test_committed_docs_equal_the_generated_reference():
+    from proxops.scenarios import key_listing
+
     committed = (ROOT / "docs" / "scenario-keys.md").read_text()
-    assert committed == ref.all_markdown(), "regenerate: proxops keys --all --markdown > docs/scenario-keys.md"
+    assert committed == key_listing.all_markdown(), "regenerate: proxops keys --all --markdown > docs/scenario-keys.md"
     res = CliRunner().invoke(app, ["keys", "--all", "--markdown"])
     assert res.exit_code == 0 and res.stdout == committed
     assert "docs/scenario-keys.md" in (ROOT / "README.md").read_text()

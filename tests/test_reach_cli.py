@@ -89,8 +89,9 @@ def test_mc_command_small(tmp_path):
 
 
 def test_mc_paper_axes_known_before_the_analysis_import():
-    """cli_reach sizes the pool it starts early from its own copy of the paper's axes."""
-    from proxops import cli_reach
+    """proxops.exec.entry sizes the pool it starts early for `reach mc` from exec.prestart's own copy of
+    the paper's axes (before importing analysis.reach)."""
+    from proxops.exec import prestart
 
-    assert cli_reach.PAPER_OMEGAS_DEG_S == R.PAPER_OMEGAS_DEG_S
-    assert cli_reach.PAPER_A_MAX_MPS2 == R.PAPER_A_MAX_MPS2
+    assert prestart.REACH_OMEGAS_DEG_S == R.PAPER_OMEGAS_DEG_S
+    assert prestart.REACH_A_MAX_MPS2 == R.PAPER_A_MAX_MPS2

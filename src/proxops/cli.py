@@ -32,7 +32,7 @@ from proxops.cli_common import (EXIT_CODES_HELP, STATE, LazyCommand, LazyCommand
 # (the first line of the command's docstring; tests/test_local_imports.py checks they agree).
 COMMANDS = {
     "scenarios": LazyCommand("proxops.cli_scenarios", "scenarios", "command", "List the built-in scenarios."),
-    "validate": LazyCommand("proxops.cli_scenarios", "validate", "command",
+    "validate": LazyCommand("proxops.cli_validate", "validate", "command",
                             "Validate a scenario file (exit 0 if valid, 2 with a one-line error otherwise)."),
     "run": LazyCommand("proxops.cli_run", "run", "command",
                        "Run one closed-loop simulation and print its summary (exit code 4 if the run finished but failed)."),
@@ -86,7 +86,7 @@ def _version(value: bool):
 
 @app.callback()
 def main(
-    version: Annotated[Optional[bool], typer.Option("--version", callback=_version, is_eager=True, help="Print the version.")] = None,
+    version: Annotated[bool, typer.Option("--version", callback=_version, is_eager=True, help="Print the version.")] = False,
     debug: Annotated[bool, typer.Option("--debug", help="Show tracebacks for errors.")] = False,
     verbose: Annotated[bool, typer.Option("--verbose", "-v", help="More lines on stderr: every stage with its detail.")] = False,
     quiet: Annotated[bool, typer.Option("--quiet", "-q", help="Only errors on stderr: no stage lines, no progress bars.")] = False,

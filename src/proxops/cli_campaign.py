@@ -14,10 +14,13 @@ from typing import Annotated, Optional
 
 import typer
 
+from proxops.analysis.campaign import CampaignInterrupted, load_campaign, run_campaign
+from proxops.analysis.statistics import format_navigation_consistency, format_text_table
 from proxops.cli_common import Interrupted, check_out_dir
 from proxops.errors import ProxopsError, ProxopsInputError
 from proxops.exec.backends import MAX_WORKERS
 from proxops.exec.prestart import prestart
+from proxops.report.campaign import write_report
 
 
 def mc(
@@ -49,10 +52,6 @@ def mc(
     check_out_dir(out, campaign=True)
     if scheduler is None:  # local workers start now (if proxops.exec.entry has not): their imports overlap ours
         prestart(scenario, runs, workers, set_)
-    from proxops.analysis.campaign import CampaignInterrupted, run_campaign
-    from proxops.report.campaign import write_report
-    from proxops.cli_common import Interrupted
-
     log = logging.getLogger("proxops.mc")
     log.debug("campaign %s: %s runs on %s, results in %s", scenario, runs if runs is not None else "all grid",
              scheduler or f"{workers or 'all usable'} local worker(s)", out)
@@ -101,10 +100,6 @@ def report(
     as_json: Annotated[bool, typer.Option("--json", help="One JSON object on stdout.")] = False,
 ):
     """Rebuild the statistics tables, report.md and figures of a campaign folder."""
-    from proxops.analysis.campaign import load_campaign
-    from proxops.report.campaign import write_report
-    from proxops.cli_common import check_out_dir
-
     if max_overlay < 0:
         raise ProxopsInputError(f"--max-overlay {max_overlay}: give a whole number >= 0")
     result = load_campaign(folder)
@@ -118,8 +113,6 @@ def report(
 
 
 def format_campaign(summary: dict, stats) -> str:
-    from proxops.analysis.statistics import format_text_table
-
     wall = summary.get("wall_time_s")
     wall_text = f" ({summary.get('new_runs', 0)} new in {wall:.1f} s)" if isinstance(wall, (int, float)) and math.isfinite(wall) else ""
     lines = [
@@ -130,8 +123,6 @@ def format_campaign(summary: dict, stats) -> str:
         f"violations    {summary['with_violations']} runs {summary.get('violations_by_constraint') or ''}",
     ]
     if summary.get("navigation_consistency"):
-        from proxops.analysis.statistics import format_navigation_consistency
-
         lines.append(format_navigation_consistency(summary["navigation_consistency"]))
     lines += [
         "",

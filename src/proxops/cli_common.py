@@ -28,6 +28,43 @@ from typer.core import TyperGroup
 from proxops.jsonable import json_default  # noqa: F401 (one home; re-exported for the CLI modules)
 from proxops.errors import ProxopsInputError
 
+
+def _plain_values_without_pydantic() -> None:
+    """typer (0.29) coerces each parameter's value through a pydantic ``TypeAdapter`` built on first
+    use, so any command imported pydantic (0.1 s idle, most of ``proxops scenarios``; measured with
+    ``python -X importtime``) even when click had already parsed every value: a ``str`` of a ``str``
+    parameter, a ``bool`` of a flag, None for one not given. Those values come back unchanged from
+    the adapter (typer's ``_parse_cli_str``/``_parse_cli_bool``), so they are returned as they are;
+    anything else (numbers, paths, choices, a parser, a value of another type) still goes through
+    the adapter typer builds. Without these typer internals (another typer) nothing changes."""
+    try:
+        from typer import core as typer_core
+        from typer._coercion import RuntimeParam
+    except ImportError:  # pragma: no cover - another typer: its own coercion, unchanged
+        return
+    build = getattr(typer_core, "build_runtime_param", None)
+    if build is None or getattr(build, "_proxops", False):
+        return
+
+    class PlainValue(RuntimeParam):
+        def _coerce_value(self, value, param, ctx):
+            if type(value) is self.annotation:
+                return value
+            return build(param.type_descriptor)._coerce_value(value, param=param, ctx=ctx)
+
+    def build_runtime_param(descriptor):
+        info = descriptor.parameter_info
+        if (descriptor.annotation in (str, bool) and descriptor.file_annotation is None
+                and getattr(info, "parser", None) is None and getattr(info, "click_type", None) is None):
+            return PlainValue(parameter_info=info, annotation=descriptor.annotation)
+        return build(descriptor)
+
+    build_runtime_param._proxops = True
+    typer_core.build_runtime_param = build_runtime_param
+
+
+_plain_values_without_pydantic()
+
 STATE = {"debug": False, "quiet": False}  # set by the top-level --debug and --quiet options
 
 EXIT_OK, EXIT_INTERNAL, EXIT_INPUT, EXIT_ALL_FAILED, EXIT_RUN_FAILED, EXIT_INTERRUPTED = 0, 1, 2, 3, 4, 130

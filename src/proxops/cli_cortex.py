@@ -134,7 +134,8 @@ def references(
     from proxops.exec.prestart import prestart  # the pool starts now: its fork server plans once (the workers'
 
     prestart(scenario, n, workers, list(set_))  # warm-up) while this process imports the campaign engine
-    from proxops.analysis.campaign import run_campaign  # the campaign engine: not for `cortex reference`
+    # the campaign engine (pandas, pyarrow): this command's, not `cortex reference`'s
+    from proxops.analysis.campaign import _campaign_system, load_campaign, run_campaign  # noqa: PLC2701
     t0 = time.perf_counter()
     # Fig. 11 is drawn from the plans' node positions in the rows (metric.trace.*): no series saved
     res = run_campaign(data, workers=workers, out=out, resume=resume, progress=not as_json, overrides=list(set_))
@@ -145,8 +146,7 @@ def references(
     st["paper"] = PAPER_5_1_1
     files = []
     if out is not None and figures:
-        from proxops.analysis.campaign import _campaign_system, load_campaign  # noqa: PLC2701
-        from proxops.plotting.cortex import campaign_figures
+        from proxops.plotting.cortex import campaign_figures  # matplotlib: only with figures
 
         camp = load_campaign(out)
         files = [str(p) for p in campaign_figures(camp, _campaign_system(camp.manifest).scenario, PAPER_5_1_1, Path(out))]

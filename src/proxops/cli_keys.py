@@ -1,5 +1,6 @@
 """``proxops keys``: the scenario key reference (every section and key with unit, default,
-allowed range and meaning), generated from the schema by :mod:`proxops.scenarios.reference`.
+allowed range and meaning), generated from the schema by :mod:`proxops.scenarios.reference` and read
+from its checked-in output by :mod:`proxops.scenarios.key_listing` (json only: no pydantic, no numpy).
 
 Listed in the lazy command table of :mod:`proxops.cli` (input errors -> one line, exit code 2)::
 
@@ -17,7 +18,7 @@ import typer
 
 from proxops.cli_common import emit
 from proxops.errors import ProxopsInputError
-from proxops.scenarios import reference as ref
+from proxops.scenarios import key_listing as ref
 
 
 def keys(

@@ -21,16 +21,17 @@ from proxops.cli_common import (check_out_dir, make_app, emit as _emit, friendly
                                 json_default as _default)
 from proxops.errors import ProxopsInputError
 from proxops.exec.backends import MAX_WORKERS
-from proxops.exec.prestart import prestart
+from proxops.analysis import feasibility_maps as F
+from proxops.analysis import reach as R
+from proxops.exec.prestart import REACH_MAX_GRID as MAX_GRID
+from proxops.exec.prestart import REACH_MAX_IC_AXIS as MAX_IC_AXIS
+from proxops.exec.prestart import REACH_SCENARIO, prestart, reach_overrides
+from proxops.plotting import reach as P
 
 reach_app = make_app(
     "reach",
     "Safe-start regions for the approach to a tumbling target: Table 2, hierarchy, backward LP, Monte Carlo maps.",
 )
-
-
-MAX_GRID = 3000  # points per axis: the maps hold several float arrays of grid^2 per combination
-MAX_IC_AXIS = 200  # ICs per axis of the Monte Carlo (n_x * n_y runs per combination)
 
 
 def _check_grid(grid: int, y_max_m: float = 320.0) -> None:
@@ -64,9 +65,6 @@ def table(
     as_json: Annotated[bool, typer.Option("--json", help="Print one JSON object.")] = False,
 ):
     """Table 2 (nominal), stochastic/robust regions, pointwise hierarchy, backward kernel, Table 4 timings."""
-    from proxops.analysis import reach as R
-
-
     _check_grid(grid, y_max_m)
     if backward_start not in ("inertial", "body"):
         raise ProxopsInputError(f"--backward-start = {backward_start!r}: allowed inertial, body")
@@ -87,8 +85,6 @@ def table(
         "assumptions": R.DEFAULTS_NOTE,
     }
     if out is not None:
-        from proxops.plotting import reach as P
-
         out.mkdir(parents=True, exist_ok=True)
         files = [P.hierarchy_figure(results, g, out / "fig1_hierarchy.png"), P.scaling_figure(results, out / "scaling.png")]
         secs = R.double_integrator_sections()
@@ -133,10 +129,6 @@ def map_(
     as_json: Annotated[bool, typer.Option("--json", help="Print one JSON object.")] = False,
 ):
     """Nominal, stochastic, robust and backward maps of one (w_t, a_max) as a figure and JSON."""
-    from proxops.analysis import reach as R
-    from proxops.plotting import reach as P
-
-
     _check_grid(grid, y_max_m)
     _check_rates([omega_deg], [amax])
     check_out_dir(out)
@@ -145,8 +137,6 @@ def map_(
     payload = res.as_json()
     fmap = None
     if mc is not None:
-        from proxops.analysis import feasibility_maps as F
-
         fmap = F.feasibility_map(F.read_outcomes(mc), g, omega_deg, amax)
         payload["monte_carlo"] = F.certify_combination(fmap, g, res)
     out.mkdir(parents=True, exist_ok=True)
@@ -171,17 +161,12 @@ def map_(
 
 
 # --------------------------------------------------------------------------- mc
-PAPER_OMEGAS_DEG_S = (1.0, 2.0, 3.0, 4.0, 5.0)  # = analysis.reach's, known here before importing it
-PAPER_A_MAX_MPS2 = (0.20, 0.10, 0.05, 0.02)
-
-
 def _prestart_workers(workers: Optional[int], n_runs: int, duration_s: float) -> None:
-    """Start the local pool now, as ``proxops mc`` does (:func:`proxops.exec.prestart.prestart`): the
-    workers' start-up overlaps this process's imports, and the fork server builds a §9 closed loop
-    once (los-tumble in its Monte Carlo configuration; best effort), so each forked worker starts
-    with the los modules imported and its kernels loaded."""
-    prestart("los-tumble", n_runs, workers,
-             [f"sim.duration_s={float(duration_s)!r}", "mpc.config=monte-carlo", "mpc.constraint_mode=hard"])
+    """Start the local pool now, as ``proxops mc`` does (:func:`proxops.exec.prestart.prestart`; no
+    effect when :func:`proxops.exec.entry.main` started it before this module's imports): the fork
+    server builds a §9 closed loop once (los-tumble in its Monte Carlo configuration; best effort),
+    so each forked worker starts with the los modules imported and its kernels loaded."""
+    prestart(REACH_SCENARIO, n_runs, workers, reach_overrides(duration_s))
 
 
 @reach_app.command("mc")
@@ -213,13 +198,9 @@ def mc(
     _check_rates(omega_deg or (), amax or ())
 
     check_out_dir(out, campaign=True)
-    if scheduler is None and not resume:  # before this process's own imports (numba, pandas, scipy)
-        n_combos = len(omega_deg or PAPER_OMEGAS_DEG_S) * len(amax or PAPER_A_MAX_MPS2)
+    if scheduler is None and not resume:
+        n_combos = len(omega_deg or R.PAPER_OMEGAS_DEG_S) * len(amax or R.PAPER_A_MAX_MPS2)
         _prestart_workers(workers, n_combos * n_x * n_y, duration_s)
-    from proxops.analysis import feasibility_maps as F
-    from proxops.analysis import reach as R
-    from proxops.plotting import reach as P  # now: it overlaps the workers' start-up (measured)
-
     omegas = tuple(omega_deg) if omega_deg else R.PAPER_OMEGAS_DEG_S
     amaxs = tuple(amax) if amax else R.PAPER_A_MAX_MPS2
     positions = F.mc_initial_positions(n_y=n_y, n_x=n_x)

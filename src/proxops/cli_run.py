@@ -14,6 +14,7 @@ from proxops import runner
 from proxops.analysis.formatting import format_quantity
 from proxops.cli_common import EXIT_RUN_FAILED, STATE, check_out_dir, check_out_file, emit
 from proxops.errors import input_error
+from proxops.report.run import write_run_report
 from proxops.scenarios.loader import load_scenario
 
 
@@ -41,8 +42,6 @@ def run(
     summary = runner.run_scenario(loaded, seed=seed, out=out, figures=figures,
                            progress=not as_json and not STATE["quiet"], oem=oem, mat=mat)
     if report:
-        from proxops.report.run import write_run_report  # --report only: the report layer (figures)
-
         summary["report"] = str(write_run_report(out, summary))
     emit(summary, as_json, format_summary(summary))
     if not summary["success"]:  # the system's own test, as campaigns count it (analysis.runs.execute)

@@ -1,6 +1,7 @@
-"""``proxops scenarios`` and ``proxops validate``: the built-in scenarios, a scenario's checks.
+"""``proxops scenarios``: the built-in scenarios.
 
-Imported by :mod:`proxops.cli` only when one of these commands runs (its lazy command table).
+Imported by :mod:`proxops.cli` only when this command runs (its lazy command table). Reads the
+built-in files with :mod:`proxops.scenarios.catalog` (tomllib): no pydantic, no numpy.
 """
 
 from __future__ import annotations
@@ -11,9 +12,7 @@ from typing import Annotated
 
 import typer
 
-from proxops.analysis.runs import check_scenario
-from proxops.cli_common import emit
-from proxops.scenarios.loader import list_builtin, load_scenario
+from proxops.scenarios.catalog import list_builtin
 
 
 def scenarios(as_json: Annotated[bool, typer.Option("--json", help="Machine-readable output.")] = False):
@@ -26,16 +25,3 @@ def scenarios(as_json: Annotated[bool, typer.Option("--json", help="Machine-read
         sys.stdout.write(json.dumps(rows) + "\n")
     else:
         typer.echo(text)
-
-
-def validate(
-    scenario: Annotated[str, typer.Argument(help="Scenario file or built-in name.")],
-    set_: Annotated[list[str], typer.Option("--set", help="Override a key: --set sim.duration_s=600.")] = [],
-    as_json: Annotated[bool, typer.Option("--json")] = False,
-):
-    """Validate a scenario file (exit 0 if valid, 2 with a one-line error otherwise)."""
-    loaded = load_scenario(scenario, set_)
-    check_scenario(loaded)
-    sc = loaded.scenario
-    emit({"valid": True, "name": sc.name, "system": sc.system, "source": loaded.source}, as_json,
-         f"{loaded.source}: valid ({sc.system} scenario '{sc.name}')")

@@ -17,6 +17,7 @@ from proxops.scenarios.loader import LoadedScenario, load_scenario
 from proxops.analysis.runs import check_scenario, execute  # noqa: F401 (re-exported)
 from proxops.sim.result import SimResult
 from proxops.analysis.formatting import format_quantity
+from proxops.plotting.systems import run_figures
 
 log = logging.getLogger("proxops.runner")
 
@@ -28,10 +29,12 @@ def run_scenario(name_or_path, overrides=(), seed: int | None = None, out: Path 
     save one scenario; returns the summary dict. ``oem``/``mat``: also write CCSDS OEM / MATLAB
     files (:mod:`proxops.analysis.export`; summary key ``export``)."""
     loaded = name_or_path if isinstance(name_or_path, LoadedScenario) else load_scenario(name_or_path, list(overrides))
+    if oem is not None or mat is not None:
+        # optional outputs, imported when asked: analysis.export re-runs campaigns (pandas, pyarrow) and
+        # propagates the truth (numba, scipy), which a plain run of a light system does not import
+        from proxops.analysis import export
     if oem is not None:
-        from proxops.analysis.export import check_exportable  # optional outputs (pandas, matplotlib): imported when asked
-
-        check_exportable(loaded.scenario)  # before the run, not after it
+        export.check_exportable(loaded.scenario)  # before the run, not after it
     log.debug("%s: %s scenario loaded from %s", loaded.scenario.name, loaded.scenario.system, loaded.source)
     start = time.perf_counter()
     summary, results = execute(loaded, seed=seed, progress=progress)
@@ -41,9 +44,7 @@ def run_scenario(name_or_path, overrides=(), seed: int | None = None, out: Path 
         summary["out"] = str(out)
         log.info("%s: time series, summary%s written to %s", loaded.scenario.name, " and figures" if figures else "", out)
     if oem is not None or mat is not None:
-        from proxops.analysis.export import export_run
-
-        summary["export"] = export_run(loaded, summary, results, oem=oem, mat=mat)
+        summary["export"] = export.export_run(loaded, summary, results, oem=oem, mat=mat)
     return summary
 
 
@@ -55,8 +56,6 @@ def save_run(loaded, summary: dict, results: dict[str, SimResult], out: Path, fi
     (out / "scenario.json").write_text(json.dumps(loaded.scenario.model_dump(mode="json", exclude_none=True), indent=2))
     paths: list[Path] = []
     if figures:
-        from proxops.plotting.systems import run_figures
-
         paths = run_figures(loaded.scenario.system, loaded.system, loaded.scenario, results, out)
     return paths
 

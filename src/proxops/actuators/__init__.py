@@ -11,6 +11,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from proxops.core.constants import G0
+from proxops.errors import input_error
 
 
 @dataclass
@@ -76,8 +77,6 @@ class ThrusterModel(ActuatorBase):
     azimuth_sigma_rad: float = 0.0
 
     def __post_init__(self):
-        from proxops.errors import input_error
-
         p = self.missed_probability
         if not (isinstance(p, (int, float)) and 0.0 <= p <= 1.0):
             raise input_error("missed_probability", p, "must be a probability in [0, 1]")

@@ -50,6 +50,9 @@ import numpy as np
 import pandas as pd
 
 from proxops.scenarios.dispersions import DispersionPlan, apply_values, parse_dispersions
+from proxops.scenarios.loader import LoadedScenario, read_toml, resolve, validate_scenario
+from proxops.sim.result import SimResult
+from proxops.analysis.runs import check_scenario
 from proxops.analysis.metric_order import ordered_metrics
 from proxops.analysis.statistics import (
     METRIC_PREFIX,
@@ -129,8 +132,6 @@ class _Prepared:
 
 
 def _prepare(scenario, overrides: Sequence[str]) -> _Prepared:
-    from proxops.scenarios.loader import LoadedScenario, read_toml, resolve, validate_scenario
-
     overrides = list(overrides)
     if isinstance(scenario, LoadedScenario):
         if overrides:
@@ -223,8 +224,6 @@ class CampaignResult:
 
     def series(self, run_id: int):
         """The saved time series of a run (``keep_series=True`` campaigns)."""
-        from proxops.sim.result import SimResult
-
         if self.out is None:
             raise ProxopsInputError("this campaign was not written to disk; rerun(run_id) gives its time series")
         path = series_dir(self.out, run_id)
@@ -402,8 +401,6 @@ def _check_campaign(backend, prep: _Prepared) -> None:
     (:func:`check_nominal`, one task per worker: it is their warm-up -- imports, numba kernels,
     per-process caches -- which the first run would do anyway), so this process never builds the
     system; its error is raised here as it would be by the check in this process."""
-    from proxops.analysis.runs import check_scenario
-
     if isinstance(backend, _PoolBackend):
         try:
             if backend.check(check_nominal):
@@ -463,8 +460,6 @@ def rerun(row: dict, campaign, keep_series: bool = True):
 
 def _campaign_system(manifest: dict):
     """The campaign's nominal scenario, validated, with its system (for the report hooks)."""
-    from proxops.scenarios.loader import validate_scenario
-
     data = {k: v for k, v in manifest["scenario_data"].items() if k != "dispersions"}
     return validate_scenario(data, source=str(manifest.get("scenario")))
 

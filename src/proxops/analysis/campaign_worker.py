@@ -15,9 +15,13 @@ import traceback
 from dataclasses import dataclass
 from typing import Any
 
+import importlib
+
 import numpy as np
 
+from proxops.analysis.runs import execute
 from proxops.scenarios.dispersions import apply_values
+from proxops.scenarios.loader import validate_scenario
 
 METRIC_PREFIX = "metric."
 DISP_PREFIX = "disp."
@@ -50,10 +54,6 @@ def _prepared(spec: CampaignSpec):
     """(system, nominal validated scenario) of a spec, cached per process."""
     got = _PREPARED.get(spec.scenario_hash)
     if got is None:
-        import importlib
-
-        from proxops.scenarios.loader import validate_scenario
-
         if spec.system_module:
             importlib.import_module(spec.system_module)
         loaded = validate_scenario(copy.deepcopy(spec.data), (), source=spec.source)
@@ -74,9 +74,6 @@ def check_nominal(spec: CampaignSpec, _item=None) -> None:
 def campaign_run(spec: CampaignSpec, item: RunItem):
     """Run one dispersed closed loop; returns ``(row, SimResult or None)``. Never raises:
     an exception becomes ``outcome = "error"`` with its message."""
-    from proxops.analysis.runs import execute
-    from proxops.scenarios.loader import validate_scenario
-
     t0, cpu0 = time.perf_counter(), time.process_time()
     row: dict[str, Any] = {"run_id": int(item.run_id), "seed": int(item.seed), "grid_index": int(item.grid_index)}
     row.update({DISP_PREFIX + k: v for k, v in item.values.items()})

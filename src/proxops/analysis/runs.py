@@ -3,6 +3,7 @@ shared by ``proxops run``, ``validate`` and the campaign workers."""
 
 from __future__ import annotations
 
+from proxops.scenarios.dispersions import parse_dispersions
 from proxops.sim.result import SimResult
 from proxops.status import Status
 
@@ -31,7 +32,5 @@ def check_scenario(loaded) -> None:
     """Every check a run makes before its first step: the schema (done when loading), the
     system's build (geometry, feasibility of the hop ladder, KOZ vs start...) and the
     dispersions table. Raises ProxopsInputError with one line; ``validate`` and ``mc`` call it."""
-    from proxops.scenarios.dispersions import parse_dispersions
-
     loaded.system.check(loaded.scenario)  # default: build; planners without a closed loop check without building
     parse_dispersions(loaded.scenario, loaded.scenario.dispersions)

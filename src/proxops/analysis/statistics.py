@@ -179,6 +179,8 @@ def navigation_consistency(table: pd.DataFrame, probability: float = 0.95, max_o
     bounds that of N time means -- derivation in that module), ``epochs_in_band`` = the fraction of all
     epochs of all runs inside their per-epoch chi^2(d) band, and the verdict ``consistent`` = mean inside
     its band and at most ``max_outside`` of the epochs outside theirs."""
+    # Kept local: the navigation package's __init__ imports numba (core.quaternion), which a campaign's
+    # parent process (it imports this module) must not load
     from proxops.navigation.consistency import chi2_band, mean_band
 
     if METRIC_PREFIX + "nav_nees_mean" not in table:

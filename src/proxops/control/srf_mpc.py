@@ -123,7 +123,9 @@ from proxops.constraints.keep_out import KeepOutSphere
 from proxops.control.relaxation import climb
 from proxops.core.cw import cw_stm
 from proxops.core.memo import memo_get
+from proxops.core.twobody import accel_gravity_vec
 from proxops.errors import input_error
+from proxops.propagation.kernels import energy_gains, energy_invariants
 from proxops.contracts import Command
 from proxops.solvers import QuadraticProgram, SolveStatus, make_solver, solve_qp, successive_convexification
 from proxops.status import Status
@@ -186,8 +188,6 @@ class EnergyDrift:
         return self.states[self._index(t)]
 
     def _accel(self, r: np.ndarray) -> np.ndarray:
-        from proxops.core.twobody import accel_gravity_vec
-
         return accel_gravity_vec(r, self.mu, self.j2, self.re)
 
     def _index(self, t: float) -> int:
@@ -202,8 +202,6 @@ class EnergyDrift:
     def invariants(self, t: np.ndarray, xs: np.ndarray) -> np.ndarray:
         """:meth:`invariant` of Hill states (n, 6) at times (n,) on the ephemeris grid, one jitted
         call (:func:`proxops.propagation.kernels.energy_invariants`; the same numbers row by row)."""
-        from proxops.propagation.kernels import energy_invariants
-
         return energy_invariants(self._targets(t), np.ascontiguousarray(xs[:, :6], dtype=float), self._params())
 
     def _params(self) -> np.ndarray:
@@ -220,8 +218,6 @@ class EnergyDrift:
     def gains(self, t, xs) -> np.ndarray:
         """:meth:`gain` of Hill states (n, 6) at times (n,), one jitted call
         (:func:`proxops.propagation.kernels.energy_gains`)."""
-        from proxops.propagation.kernels import energy_gains
-
         return energy_gains(self._targets(t), np.ascontiguousarray(xs[:, :6], dtype=float), self._params())
 
     def gain(self, t: float, x=None) -> np.ndarray:
@@ -659,7 +655,6 @@ class SrfMpc:
         xs[0] = x
         if last > i:  # predicted states at nodes i+1..last, then their gains in one jitted call
             xs[1:] = np.einsum("lij,j->li", self._phi[i + 1:last + 1, i], x) + self._S[i + 1:last + 1] @ flat
-        from proxops.propagation.kernels import energy_gains
 
         targets = self._per_node.get(("targets", i))
         if targets is None:  # the target states at nodes i..last (EnergyDrift._targets): made once per node

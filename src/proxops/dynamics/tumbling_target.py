@@ -46,6 +46,7 @@ from proxops.core.constants import MU_EARTH
 from proxops.core.cw import cw_discretize_zoh
 from proxops.core.quaternion import IDENTITY, dcm_kernel, dcm_to_quat, quat_normalize, quat_propagate, quat_to_dcm
 from proxops.errors import input_error
+from proxops.frames.hill import hill_dcm
 from proxops.dynamics.plant import PlantBase
 
 
@@ -71,8 +72,6 @@ class TumblingTarget:
     def aligned_with_hill(cls, tumble_rate_rad_s: float, target_eci_state: np.ndarray, theta0_rad: float = 0.0):
         """Target whose body axes equal the Hill axes of ``target_eci_state`` turned by
         ``theta0_rad`` about the orbit normal at t = 0 (body z = orbit normal)."""
-        from proxops.frames.hill import hill_dcm
-
         R_IL = hill_dcm(np.asarray(target_eci_state, float)).T  # columns: Hill axes in ECI
         R_IB = R_IL @ rot_z(theta0_rad)
         return cls(tumble_rate_rad_s, dcm_to_quat(R_IB))

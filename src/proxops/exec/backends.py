@@ -24,6 +24,8 @@ from pathlib import Path
 from typing import Any, Callable, Iterable, Sequence
 
 from proxops.errors import ProxopsError, ProxopsInputError
+from proxops.exec import forkserver_exit  # in a parent or worker it only defines (see its docstring)
+from proxops.exec.startup import defer_unused_numpy_submodules
 
 # forkserver (POSIX): workers are forked from a server process started once per parent, which
 # imports the modules given to :func:`prestart_pool` first, so each worker starts with them loaded
@@ -73,13 +75,9 @@ def _init_worker() -> None:
     except ValueError:  # not the main thread
         pass
     signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})
-    from proxops.exec import forkserver_exit
-
     if forkserver_exit.SERVER_PID is not None:  # forked by the fork server: end when it ends
         forkserver_exit.die_with_parent(forkserver_exit.SERVER_PID)
     atexit.register(_worker_exit)
-    from proxops.exec.startup import defer_unused_numpy_submodules
-
     defer_unused_numpy_submodules()  # runs after the handlers registered later (numba's): last
 
 
@@ -88,9 +86,7 @@ def _worker_exit() -> None:
     every module (0.3-0.9 s with numba's kernels loaded, measured), which ``shutdown_pools`` would
     wait for. The worker has handed every result over the pool's synchronous result queue and run
     multiprocessing's exit functions by then."""
-    from proxops.exec.forkserver_exit import exit_without_teardown
-
-    exit_without_teardown()
+    forkserver_exit.exit_without_teardown()
 
 
 class _sigint_blocked:
@@ -288,15 +284,11 @@ def _ensure_fork_server() -> None:
     another thread), and its workers die with it."""
     import threading
 
-    from multiprocessing import forkserver
-
-    from proxops.exec.forkserver_exit import PARENT_ENV
-
-    from multiprocessing import resource_tracker
+    from multiprocessing import forkserver, resource_tracker
 
     main_thread = threading.current_thread() is threading.main_thread()
     if main_thread:
-        os.environ[PARENT_ENV] = str(os.getpid())
+        os.environ[forkserver_exit.PARENT_ENV] = str(os.getpid())
     try:
         # The tracker first: its start unblocks SIGINT in this thread whatever the mask was before,
         # which let the fork server start with SIGINT deliverable (a Ctrl-C during its imports of
@@ -306,7 +298,7 @@ def _ensure_fork_server() -> None:
         with _sigint_blocked():
             forkserver.ensure_running()
     finally:
-        os.environ.pop(PARENT_ENV, None)
+        os.environ.pop(forkserver_exit.PARENT_ENV, None)
 
 
 def prestart_pool(workers: int, modules: Sequence[str] = ()) -> None:

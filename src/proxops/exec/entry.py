@@ -8,7 +8,6 @@ import signal
 import sys
 
 from proxops import __version__
-from proxops.exec.prestart import prestart_from_argv  # json, math, os, pathlib only
 from proxops.exec.startup import defer_when_numpy_is_imported  # importlib only
 
 
@@ -18,9 +17,13 @@ def main() -> None:
         sys.exit(0)
     code = 130
     try:
-        if "mc" in sys.argv[1:3]:  # a campaign's workers start before the CLI is imported (0.13-0.25 s)
+        if "mc" in sys.argv[1:]:  # a campaign's workers start before the CLI is imported (0.13-0.25 s)
+            # Kept local: only a campaign needs the pool's start (multiprocessing, the scenario catalog)
+            from proxops.exec.prestart import prestart_from_argv
+
             prestart_from_argv(sys.argv[1:])
         defer_when_numpy_is_imported()  # before scipy (through numba) reads all of numpy
+        # Kept local: `--version` answers without it, and a Ctrl-C while it imports (typer, click) is caught
         from proxops.cli import run_app
 
         code = run_app()

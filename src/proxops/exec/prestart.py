@@ -18,10 +18,13 @@ from __future__ import annotations
 import json
 import math
 import os
-from pathlib import Path
 from typing import Sequence
 
-from proxops.exec.worker_warmup import ENV  # json, os only; its warm-up runs only in the fork server
+from proxops.exec.backends import START_METHOD, default_workers, prestart_pool
+from proxops.scenarios.catalog import read_toml, resolve  # tomllib only
+from proxops.scenarios.registry import SYSTEM_MODULES  # importlib only: no system is imported
+
+ENV = "PROXOPS_WARM_SCENARIO"  # the scenario the fork server builds once (read by exec.worker_warmup)
 
 # What every campaign worker imports (the system module comes with the first check)
 WORKER_MODULES = ("proxops.analysis.campaign_worker", "proxops.analysis.runs", "proxops.scenarios.loader",
@@ -38,7 +41,6 @@ _FLAGS = {"--resume", "--series", "--no-series", "--report", "--no-report", "--p
 def prestart(scenario: str, runs: int | None, workers: int | None, overrides: Sequence[str] = ()) -> None:
     """Start the local pool a campaign of ``scenario`` with these options uses (no effect when it
     exists or with fewer than 2 workers): its workers' start-up overlaps this process's work."""
-    from proxops.exec.backends import START_METHOD, default_workers, prestart_pool
 
     n_workers = workers if workers is not None else default_workers()
     if runs is not None:
@@ -54,23 +56,94 @@ def prestart(scenario: str, runs: int | None, workers: int | None, overrides: Se
         os.environ.pop(ENV, None)
 
 
+# Monte Carlo of ``proxops reach mc`` (Iskender 2026 §9): los-tumble in its Monte Carlo configuration over
+# the paper's axes (= analysis.reach.PAPER_OMEGAS_DEG_S, PAPER_A_MAX_MPS2; tests/test_reach_cli.py checks)
+REACH_SCENARIO = "los-tumble"
+REACH_OMEGAS_DEG_S = (1.0, 2.0, 3.0, 4.0, 5.0)
+REACH_A_MAX_MPS2 = (0.20, 0.10, 0.05, 0.02)
+REACH_MAX_GRID = 3000  # points per axis: the maps hold several float arrays of grid^2 per combination
+REACH_MAX_IC_AXIS = 200  # ICs per axis of the Monte Carlo (n_x * n_y runs per combination)
+
+
+def reach_overrides(duration_s: float) -> list[str]:
+    """The ``--set`` overrides of one run of ``proxops reach mc`` of ``duration_s`` s."""
+    return [f"sim.duration_s={float(duration_s)!r}", "mpc.config=monte-carlo", "mpc.constraint_mode=hard"]
+
+
 def prestart_from_argv(argv: Sequence[str]) -> None:
-    """:func:`prestart` for ``proxops [--debug] mc SCENARIO [options]`` when ``argv`` (without the
-    program name) reads unambiguously as that with valid numbers and no ``--scheduler``; otherwise
-    nothing."""
-    parsed = _read_mc_argv(list(argv))
+    """:func:`prestart` for ``proxops [--debug] mc SCENARIO [options]`` or ``proxops reach mc [options]``
+    when ``argv`` (without the program name) reads unambiguously as that with valid numbers, no
+    ``--scheduler`` (and for reach no ``--resume``); otherwise nothing."""
+    argv = _without_global_options(list(argv))
+    parsed = _read_mc_argv(argv) if argv[:1] == ["mc"] else _read_reach_mc_argv(argv)
     if parsed is None:
         return
     try:
         prestart(*parsed)
-    except Exception:  # noqa: BLE001 - mc's own call of prestart reports what went wrong
+    except Exception:  # noqa: BLE001 - the command's own call of prestart reports what went wrong
         return
+
+
+_GLOBAL_FLAGS = {"--debug", "--verbose", "-v", "--quiet", "-q"}  # proxops.cli.main's options without a value
+
+
+def _without_global_options(argv: list[str]) -> list[str]:
+    while argv and argv[0] in _GLOBAL_FLAGS:
+        argv = argv[1:]
+    return argv
+
+
+def _read_reach_mc_argv(argv: list[str]):
+    """(scenario, runs, workers, overrides) of ``reach mc [options]`` or None when in any doubt (its
+    checks as ``proxops.cli_reach.mc`` makes them, so that an error is not preceded by a pool start)."""
+    if argv[:2] != ["reach", "mc"]:
+        return None
+    values: dict = {"workers": None, "duration": 400.0, "n_x": 13, "n_y": 15, "omegas": [], "amaxs": []}
+    ints = {"--workers": ("workers", 1, math.inf), "--n-x": ("n_x", 1, REACH_MAX_IC_AXIS),
+            "--n-y": ("n_y", 1, REACH_MAX_IC_AXIS), "--grid": (None, 3, REACH_MAX_GRID)}
+    floats = {"--duration-s": "duration", "--omega-deg-s": "omegas", "--omega-deg": "omegas",
+              "--a-max-mps2": "amaxs", "--amax": "amaxs"}
+    rest = argv[2:]
+    k = 0
+    while k < len(rest):
+        name, eq, value = rest[k].partition("=")
+        k += 1
+        if name in ("--progress", "--no-progress", "--viability-check", "--json") and not eq:
+            continue
+        if name not in ints and name not in floats and name != "--out" or (eq and not name.startswith("--")):
+            return None  # --help, --resume, --scheduler, a positional, a typo: reach mc decides
+        if not eq:
+            if k >= len(rest):
+                return None
+            value = rest[k]
+            k += 1
+        try:
+            if name in ints:
+                field, lo, hi = ints[name]
+                number = int(value)
+                if not lo <= number <= hi:
+                    return None
+                if field is not None:
+                    values[field] = number
+            elif name in floats:
+                number = float(value)
+                if not (math.isfinite(number) and number > 0):
+                    return None
+                field = floats[name]
+                if isinstance(values[field], list):
+                    values[field].append(number)
+                else:
+                    values[field] = number
+        except ValueError:
+            return None
+    n_runs = (len(values["omegas"] or REACH_OMEGAS_DEG_S) * len(values["amaxs"] or REACH_A_MAX_MPS2)
+              * values["n_x"] * values["n_y"])
+    return REACH_SCENARIO, n_runs, values["workers"], reach_overrides(values["duration"])
 
 
 def _read_mc_argv(argv: list[str]):
     """(scenario, runs, workers, overrides) or None when in any doubt."""
-    while argv and argv[0] == "--debug":
-        argv = argv[1:]
+    argv = _without_global_options(argv)
     if not argv or argv[0] != "mc":
         return None
     values: dict = {"runs": None, "workers": None, "set": []}
@@ -129,17 +202,10 @@ def _read_mc_argv(argv: list[str]):
 def system_module(scenario: str) -> tuple[str, ...]:
     """The module of the scenario's system (for the workers to import up front), read from its TOML
     without validating it (the campaign does that); () when it cannot be told (the run imports it).
-    Resolves the name like ``scenarios.loader.resolve`` without importing the loader: it imports
-    pydantic (~0.5 s), and this runs before the pool starts, whose start it would delay."""
+    Reads it with :mod:`proxops.scenarios.catalog`, not the loader: that imports pydantic (~0.5 s),
+    and this runs before the pool starts, whose start it would delay."""
     try:
-        import tomllib
-
-        from proxops.scenarios.registry import SYSTEM_MODULES
-
-        path = Path(scenario)
-        if not path.is_file():
-            path = Path(__file__).parent / "scenarios" / "builtin" / f"{scenario}.toml"
-        module = SYSTEM_MODULES.get(tomllib.loads(path.read_text()).get("system"))
+        module = SYSTEM_MODULES.get(read_toml(resolve(scenario)).get("system"))
         return (module,) if module else ()
     except Exception:  # noqa: BLE001 - a bad scenario is reported by the campaign's own check
         return ()

@@ -17,14 +17,13 @@ from __future__ import annotations
 import json
 import os
 
-ENV = "PROXOPS_WARM_SCENARIO"
+from proxops.exec.prestart import ENV
+from proxops.scenarios.loader import load_scenario
 
 
 def warm_up(scenario: str, overrides=()) -> bool:
     """Load and build ``scenario`` with ``overrides`` in this process; True if it built."""
     try:
-        from proxops.scenarios.loader import load_scenario
-
         loaded = load_scenario(scenario, list(overrides))
         # a system's own warm-up when it has one (a planner: its solver and caches), else its build
         getattr(loaded.system, "warm_up", loaded.system.check)(loaded.scenario)

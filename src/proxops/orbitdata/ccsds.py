@@ -163,6 +163,8 @@ def parse_opm(text: str, where: str = "OPM") -> OpmState:
         raise ProxopsInputError(str(exc)) from None
     state = np.array([_number(k, values[k][1], u, where, values[k][0]) for k, u in _STATE_KEYS]) * 1e3
     if frame == "TEME":
+        # TEME only, kept local: the scenario schema reads OPM files while validating, which must not
+        # import numba (environment.earth's kernels)
         from proxops.environment.earth import teme_to_eci_matrix
 
         rot = teme_to_eci_matrix(iso)

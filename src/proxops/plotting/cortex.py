@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 
 from proxops.plotting.common import plt, save
-from proxops.plotting.cortex_loop import run_figure, table_figures
+from proxops.plotting.cortex_loop import campaign_figures, run_figure, table_figures
 
 
 def _sphere(ax, radius: float, **kw) -> None:
@@ -163,8 +163,6 @@ def run_figures(sc, results, out_dir: Path) -> list[Path]:
 def mc_figures(sc, results, out_dir: Path) -> list[Path]:
     """Campaign figure: Fig. 11 trajectories (closed loop: Figs. 13/14 and 15)."""
     if sc.guidance.closed_loop:
-        from proxops.plotting.cortex_loop import campaign_figures
-
         return campaign_figures(sc, results, Path(out_dir))
     return [fig11_trajectories(sc, results, Path(out_dir) / "fig11_trajectories.png")]
 

@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 
 from proxops.plotting.common import plt, save
-from proxops.frames.lvlh import hill_to_lvlh, hill_vector_to_lvlh
+from proxops.frames.lvlh import hill_to_lvlh, hill_vector_to_lvlh, lvlh_vector_to_hill
 from proxops.core.cw import cw_stm
 
 
@@ -190,8 +190,6 @@ def plot_cbf_comparison(no_cbf, with_cbf, path: Path, *, theta_deg: float, koz_r
 
 def scenario_figures(sc, results: dict, out_dir: Path) -> list[Path]:
     """The figures of one ``proxops run`` of an srf scenario."""
-    from proxops.frames.lvlh import hill_vector_to_lvlh, lvlh_vector_to_hill
-
     out_dir = Path(out_dir)
     theta = sc.approach.angle_deg
     r = sc.keep_out.radius_m

@@ -40,6 +40,8 @@ def run_figures(system_name: str, system, sc, results: dict, out_dir: Path) -> l
     paths = _draw(system_name, system, "figures", "run_figures", sc, results, out_dir)
     if paths is not None:
         return paths
+    # matplotlib only when a figure is drawn: report.campaign imports this dispatcher at module level
+    # and a campaign's parent process (which draws nothing without --report) must stay free of it
     from proxops.plotting.common import plot_run
 
     return [plot_run(next(iter(results.values())), Path(out_dir) / "trajectory.png", title=sc.name)]

@@ -66,10 +66,11 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from proxops.core.constants import J2_EARTH, KARMAN_LINE_KM, MU_EARTH, R_EARTH
+from proxops.core.constants import J2_EARTH, KARMAN_LINE_KM, MU_EARTH, OMEGA_EARTH, R_EARTH
 from proxops.core.memo import memo_get
 from proxops.environment.earth import earth_rotation, geodetic_height
-from proxops.environment.ephemeris import AU, GM_MOON, GM_SUN, N_FIT, R_SUN, cached_third_body_fit
+from proxops.environment.eclipse import shadow_boundaries
+from proxops.environment.ephemeris import AU, GM_MOON, GM_SUN, N_FIT, R_SUN, cached_third_body_fit, fitted_position
 from proxops.environment.epochs import Epoch, check_time_range, parse_epoch
 from proxops.environment.forces import Atmosphere, Spacecraft, SpaceWeather
 from proxops.environment.harmonics import SphericalHarmonics, check_degree_order
@@ -241,8 +242,6 @@ class ComposedTruth(PlantBase):
         p[kf.I_PM : kf.I_PM + 9] = (self.rotation.polar - np.eye(3)).ravel()
         if m.sun or m.moon or m.srp:
             p[kf.I_EPH : kf.I_EPH + N_FIT] = cached_third_body_fit(self.epoch)
-        from proxops.core.constants import OMEGA_EARTH
-
         p[kf.I_WX : kf.I_WZ + 1] = OMEGA_EARTH * self.rotation.pole_eci
         p[kf.I_GM_SUN], p[kf.I_GM_MOON], p[kf.I_AU] = GM_SUN, GM_MOON, AU
         p[kf.I_R_EARTH], p[kf.I_R_SUN] = R_EARTH, R_SUN
@@ -411,9 +410,6 @@ class ComposedTruth(PlantBase):
     def _shadow_events(self) -> list:
         """Event functions g(t, y) of the shadow boundaries (target and chaser; penumbra and
         umbra, one for the cylindrical model) for scipy's solve_ivp."""
-        from proxops.environment.eclipse import shadow_boundaries
-        from proxops.environment.ephemeris import fitted_position
-
         p = self.p
         conical = self.models.shadow == "conical"
 

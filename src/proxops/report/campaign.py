@@ -10,19 +10,18 @@ import pandas as pd
 
 from proxops.analysis.campaign import CampaignResult, _campaign_system, load_campaign, series_dir
 from proxops.analysis.metric_order import ordered_metrics
-from proxops.analysis.statistics import metric_statistics
+from proxops.analysis.formatting import format_percent, format_quantity
+from proxops.analysis.statistics import METRIC_PREFIX, format_table4, metric_statistics, navigation_table, wilson_interval
 from proxops.errors import ProxopsInputError
 from proxops.plotting.systems import mc_figures, mc_table_figures
 from proxops.report.html import write_html
+from proxops.sim.result import SimResult
 
 
 def write_report(campaign, report_dir: str | Path | None = None, figures: bool = True, max_overlay: int = 100) -> dict:
     """Rebuild tables and figures of a campaign folder (or CampaignResult) under ``report_dir``
     (default ``<out>/report``): statistics.csv (Table 4 layout), summary.json, report.md and
     PNG figures. Returns ``{"summary": ..., "files": [...]}``."""
-    from proxops.analysis.formatting import format_percent, format_quantity
-    from proxops.analysis.statistics import format_table4, navigation_table
-
     result = campaign if isinstance(campaign, CampaignResult) else load_campaign(campaign)
     if result.out is None and report_dir is None:
         raise ProxopsInputError("report: this campaign has no folder; give report_dir")
@@ -89,6 +88,7 @@ def write_report(campaign, report_dir: str | Path | None = None, figures: bool =
         (rdir / "paper_table.md").write_text(system_table + "\n")
         files.append(rdir / "paper_table.md")
     if figures and len(table):
+        # matplotlib only when figures are drawn: a campaign's parent imports this module (mc --report)
         from proxops.plotting import campaign as cplot
 
         figs = [
@@ -101,8 +101,6 @@ def write_report(campaign, report_dir: str | Path | None = None, figures: bool =
             for r in table.head(max_overlay).itertuples():
                 d = series_dir(result.out, int(r.run_id))
                 if d.is_dir():
-                    from proxops.sim.result import SimResult
-
                     picked.append((SimResult.load(d), r.outcome))
             figs.append(cplot.plot_trajectory_overlay(picked, rdir / "trajectories.png", title=f"{m.get('scenario')}: "
                                                       f"{len(picked)} trajectories"))
@@ -121,9 +119,6 @@ def write_report(campaign, report_dir: str | Path | None = None, figures: bool =
 def headline(result: CampaignResult, summary: dict) -> list[tuple[str, str, str]]:
     """The numbers a reader looks for first, as ``(label, value, note)`` cards: the success rate
     with its 95 % Wilson interval, total Δv, safety, timings."""
-    from proxops.analysis.formatting import format_percent, format_quantity
-    from proxops.analysis.statistics import METRIC_PREFIX, wilson_interval
-
     table, counts = result.table, result.counts()
     n, k = counts["runs"], counts["succeeded"]
     lo, hi = wilson_interval(k, n)

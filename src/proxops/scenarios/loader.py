@@ -8,16 +8,14 @@ from __future__ import annotations
 
 import tomllib
 from dataclasses import dataclass
-from pathlib import Path
 from typing import Any
 
 from pydantic import BaseModel, ValidationError
 
 from proxops.errors import ProxopsInputError
+from proxops.scenarios.catalog import BUILTIN_DIR, builtin_names, list_builtin, read_toml, resolve  # noqa: F401
 from proxops.scenarios.dispersion_spec import SPEC_KEYS, flatten_table
 from proxops.scenarios.registry import get_system, scenario_model
-
-BUILTIN_DIR = Path(__file__).parent / "builtin"
 
 UNIT_SUFFIXES = (  # longest first: "_deg_s2" before "_deg_s" before "_s"
     ("_m_per_orbit", "m/orbit"),  # a drift per orbital period (passive_safety.drift_median_m_per_orbit)
@@ -77,42 +75,6 @@ class LoadedScenario:
         """The system object (its module, with the engine, is imported on first use: validation
         needs only the schema)."""
         return get_system(self.scenario.system)
-
-
-def builtin_names() -> list[str]:
-    return sorted(p.stem for p in BUILTIN_DIR.glob("*.toml"))
-
-
-def list_builtin() -> list[dict]:
-    """``[{name, description, system}]`` of the built-in scenarios (files are not validated here)."""
-    out = []
-    for path in sorted(BUILTIN_DIR.glob("*.toml")):
-        data = read_toml(path)
-        out.append({"name": path.stem, "description": data.get("description", ""), "system": data.get("system", "")})
-    return out
-
-
-def resolve(name_or_path: str) -> Path:
-    path = Path(name_or_path)
-    if path.is_file():
-        return path
-    builtin = BUILTIN_DIR / f"{name_or_path}.toml"
-    if builtin.is_file():
-        return builtin
-    raise ProxopsInputError(
-        f"scenario {name_or_path!r}: no such file and no built-in scenario of that name "
-        f"('proxops scenarios' lists the {len(builtin_names())} built-ins)"
-    )
-
-
-def read_toml(path: Path) -> dict:
-    try:
-        return tomllib.loads(path.read_text(encoding="utf-8"))
-    except UnicodeDecodeError as exc:
-        raise ProxopsInputError(f"{path}: not UTF-8 text (byte 0x{exc.object[exc.start]:02x} at offset {exc.start}); "
-                                "TOML files are UTF-8: save it as UTF-8") from None
-    except tomllib.TOMLDecodeError as exc:
-        raise ProxopsInputError(f"{path}: not valid TOML: {exc}") from None
 
 
 def load_scenario(name_or_path: str, overrides: list[str] | tuple[str, ...] = ()) -> LoadedScenario:

@@ -135,6 +135,8 @@ class SimResult:
         dimension; the same for ``nav_nis_*``; ``nav_consistent`` (NEES mean inside its band and <= 10 % of
         the epochs outside theirs); the innovation-whiteness statistic of the run and the number of
         windows flagged overconfident. Empty without a recorded NEES (``info["nav_nees"]``)."""
+        # Kept local: the navigation package's __init__ imports numba (core.quaternion); a campaign's
+        # parent and report load results without it
         from proxops.navigation.consistency import consistency_stats
 
         if "nav_nees" not in self.info:

@@ -27,6 +27,7 @@ import numpy as np
 from proxops.errors import input_error
 from proxops.solvers import _util
 from proxops.solvers.base import SolverAdapter
+from proxops.solvers.feasibility import farkas_margin
 from proxops.solvers.forms import QuadraticProgram
 from proxops.solvers.result import SolverResult, SolveStatus, error_message, failed_result
 
@@ -367,8 +368,6 @@ class PiqpQP(SolverAdapter):
         infeasibility by more than ``certify_margin``; else None."""
         if self._certify_after is None or getattr(raw, "name", "") != "PIQP_MAX_ITER_REACHED":
             return None
-        from proxops.solvers.feasibility import farkas_margin
-
         d, res = self._data, self._solver.result
         margin = farkas_margin(d["A"] if self.p else None, d["b"] if self.p else None,
                                d["G"] if self.m else None, d["h_l"] if self.m else None,
