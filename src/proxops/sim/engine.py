@@ -580,8 +580,8 @@ class _Loop:
         """The first coasted sample where the stop condition holds (index, reason), or (None, None)."""
         stop_condition = self.setup.stop_condition
         if stop_condition is not None:
-            for i in range(len(sample_t)):
-                reason = stop_condition(float(sample_t[i]), xs[i])
+            for i, (t, x) in enumerate(zip(sample_t.tolist(), xs)):  # t: float(sample_t[i]), x: the row xs[i]
+                reason = stop_condition(t, x)
                 if reason:
                     return i, reason
         return None, None
