@@ -1,6 +1,8 @@
 """Engine overhead (issue 12): the time the closed-loop engine itself adds per step, measured on a
 plant and a controller that do (almost) nothing, single-rate and multi-rate; plus the wall time
-of two engine-bound built-in runs (station-keeping: J2 truth + LQR; los-tumble 120 s).
+of two engine-bound built-in runs (station-keeping: J2 truth + LQR; los-tumble 120 s), and the
+per-step cost of the los-tumble and srf-vbar loops with and without their controller (its commands
+replayed: what the engine, plant, navigation, actuator and constraint checks cost per step).
 
     python benchmarks/bench_engine.py [N_STEPS]
 
@@ -119,6 +121,42 @@ def builtin_wall_s(name: str, overrides: list[str], repeats: int = 5) -> float:
     return best
 
 
+def replay_per_step_us(name: str, repeats: int = 5) -> tuple[float, float]:
+    """Per step of a built-in's closed loop (us): the whole loop, and the loop with its controller
+    replaced by a replay of the commands it gave (the engine, plant, navigation, actuator and
+    constraint checks: everything that is not the controller). Best of ``repeats``."""
+    from proxops import api
+
+    loaded = api.load_scenario(name, [])
+    setup = loaded.system.build(loaded.scenario)
+    cmds, step = [], setup.controller.step
+    setup.controller.step = lambda t, x: cmds.append(step(t, x)) or cmds[-1]
+    api.simulate(setup, seed=0)  # warm-up, recording the commands
+
+    class Replay:
+        def __init__(self, dt):
+            self.dt, self.i = dt, 0
+
+        def reset(self, t0, x0):
+            self.i = 0
+
+        def step(self, t, x):
+            self.i += 1
+            return cmds[self.i - 1]
+
+    best_all = best_rest = float("inf")
+    for _ in range(repeats):
+        for replay in (False, True):
+            run = loaded.system.build(loaded.scenario)
+            if replay:
+                run.controller = Replay(run.controller.dt)
+            t0 = time.perf_counter()
+            res = api.simulate(run, seed=0)
+            per = (time.perf_counter() - t0) / (len(res.t) - 1) * 1e6
+            best_all, best_rest = (best_all, min(best_rest, per)) if replay else (min(best_all, per), best_rest)
+    return best_all, best_rest
+
+
 def main() -> None:
     n = int(sys.argv[1]) if len(sys.argv) > 1 else 20000
     print(f"load average {os.getloadavg()[0]:.2f} (2 cores)")
@@ -131,6 +169,14 @@ def main() -> None:
         print("engine per-step overhead, multi-rate: not supported by this tree")
     print(f"station-keeping (J2, 600 s, 60 steps) wall:       {builtin_wall_s('station-keeping', ['sim.duration_s=600']) * 1e3:7.1f} ms")
     print(f"los-tumble (120 s, 120 MPC steps) wall:           {builtin_wall_s('los-tumble', ['sim.duration_s=120']) * 1e3:7.1f} ms")
+    for name in ("los-tumble", "srf-vbar"):
+        try:
+            whole, rest = replay_per_step_us(name)
+        except (ImportError, AttributeError):
+            print(f"{name}: replayed loop not supported by this tree")
+            continue
+        print(f"{name} per step: loop {whole:7.1f} us, without the controller (commands replayed) {rest:6.1f} us "
+              f"({100 * rest / whole:.0f} %)")
 
 
 if __name__ == "__main__":

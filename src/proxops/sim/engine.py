@@ -247,9 +247,9 @@ class Recorder:
     coast write through the same methods (an index ``idx`` is a sample number or a slice of them), so
     a coast records exactly the samples of the ticks it replaces."""
 
-    def __init__(self, n_steps: int, n_x: int, n_u: int, constraints: Sequence, batches: Sequence):
+    def __init__(self, n_steps: int, n_x: int, n_u: int, constraints: Sequence, batches: Sequence, h: float):
         self.n_steps = n_steps
-        self.t = np.zeros(n_steps + 1)
+        self.t = np.arange(n_steps + 1) * h  # t_k = k h (s): the numbers the per-tick path and the coast use
         self.x_true = np.zeros((n_steps + 1, n_x))
         self.x_est = np.zeros((n_steps + 1, n_x))
         self.u_cmd = np.zeros((n_steps + 1, n_u))
@@ -264,12 +264,13 @@ class Recorder:
         self.max_violation: dict[str, float] = {}
         self.in_violation: dict[str, bool] = {}
         self.constraints, self.batches = tuple(constraints), tuple(batches)
+        self.checks = tuple((con.violation, con.name) for con in self.constraints)  # per-tick check, looked up once
         self.last_mode: str | None = None
         self.kinds_seen: set[str] = set()  # command kinds of the run (the unit of a "kind" control column)
 
-    def samples(self, idx, t, x_true, x_est) -> None:
-        """Time (s), true and estimated measured state of the samples ``idx``."""
-        self.t[idx], self.x_true[idx], self.x_est[idx] = t, x_true, x_est
+    def samples(self, idx, x_true, x_est) -> None:
+        """True and estimated measured state of the samples ``idx`` (their times are preset)."""
+        self.x_true[idx], self.x_est[idx] = x_true, x_est
 
     def commands(self, idx, n: int, cmd: Command, u_applied, status: Status) -> None:
         """The ``n`` samples ``idx`` of command ``cmd`` (applied ``u_applied``): u, solve time, status,
@@ -283,10 +284,11 @@ class Recorder:
             self.modes.extend([cmd.mode] * n)
         info = self.info
         for key, val in cmd.info.items():
-            series = info.get(key)
-            if series is None:
+            try:
+                info[key][idx] = val
+            except KeyError:  # the key's first sample: its column, NaN where it has no value
                 series = info[key] = np.full(self.n_steps + 1, np.nan)
-            series[idx] = val
+                series[idx] = val
 
     def mode(self, t: float, mode: str, into: list) -> None:
         """A ``mode`` event into ``into`` when the controller mode changes at ``t`` (s)."""
@@ -318,14 +320,17 @@ class Recorder:
 
     def check(self, t: float, xr: np.ndarray) -> None:
         """Constraints at one check point: maximum violation and a ``violation`` event on entry."""
-        for con in self.constraints:
-            v = float(con.violation(t, xr))
-            name = con.name
-            if v > self.max_violation.get(name, 0.0):
-                self.max_violation[name] = v
-            if v > 0.0 and not self.in_violation.get(name, False):
-                self.events.append((t, "violation", f"{name} violated by {v:.3g}"))
-            self.in_violation[name] = v > 0.0
+        in_violation = self.in_violation
+        for violation, name in self.checks:
+            v = float(violation(t, xr))
+            if v > 0.0:
+                if v > self.max_violation.get(name, 0.0):
+                    self.max_violation[name] = v
+                if not in_violation.get(name, False):
+                    self.events.append((t, "violation", f"{name} violated by {v:.3g}"))
+                in_violation[name] = True
+            elif name in in_violation:  # (a name never violated stays absent: v <= 0 is its default)
+                in_violation[name] = False
 
     def check_many(self, chk_t: np.ndarray, chk_x: np.ndarray, at: dict) -> None:
         """:meth:`check` on every check point in turn (times (n,) s, states (n, n_x)), vectorised
@@ -383,6 +388,7 @@ class _Loop:
         self.step, self.apply, self.plant_propagate = self.ctrl.step, self.act.apply, self.plant.propagate
         self.delta_v, self.observe_truth = hooks.delta_v, hooks.observe_truth
         self.nav_command, self.act_limited = hooks.nav_command, hooks.act_limited
+        self.kinds_seen = rec.kinds_seen
 
     def stop(self, outcome: str, reason: StopReason, t: float) -> None:
         self.outcome, self.stop_reason = outcome, reason
@@ -397,7 +403,7 @@ class _Loop:
         nav_events, stop_condition, periodic = self.hooks.nav_events, self.setup.stop_condition, sched.periodic
         plant_mode = None if self.hooks.plain_mode else plant.mode
         check = rec.check if rec.constraints else None
-        events, samples, tick = rec.events, rec.samples, self.tick
+        events, tick, x_true_rec, x_est_rec = rec.events, self.tick, rec.x_true, rec.x_est
         xe, cmd, u, k = x0, None, self.zero_u, 0
         while k <= n_steps:
             t = k * h
@@ -407,7 +413,7 @@ class _Loop:
                 if nav_events:
                     events.extend((t, kind, msg) for kind, msg in nav_events)
                     nav_events.clear()
-            samples(k, t, xr, xe)
+            x_true_rec[k], x_est_rec[k] = xr, xe  # rec.samples(k, xr, xe), inline
             if plant_mode is not None:
                 rec.plant_modes.append(plant_mode(state))
             if check is not None:
@@ -461,8 +467,10 @@ class _Loop:
                 u = np.asarray(self.apply(t, cmd.u, cmd.kind, self.rng_act), dtype=float)
             rec.held(k, self.zero_u if cmd.kind == "impulse" else cmd.u, u)
         kind = cmd.kind
-        rec.kinds_seen.add(kind)
-        rec.delta_v(k, 1, self.delta_v(u, kind, self.h))
+        if kind not in self.kinds_seen:
+            self.kinds_seen.add(kind)
+        dv_cum = rec.dv_cum
+        dv_cum[k + 1] = dv_cum[k] + self.delta_v(u, kind, self.h)  # rec.delta_v(k, 1, ...), inline
         if kind == "impulse":
             if ctrl_tick and u.any():
                 state = self.plant.apply_impulse(t, state, u)
@@ -480,7 +488,9 @@ class _Loop:
         if self.observe_truth is not None:
             self.observe_truth(t, xr)
         cmd = self.step(t, xe)
-        st = Status.parse(cmd.status)
+        st = cmd.status
+        if st.__class__ is not Status:  # Status.parse, inline (a member passes as it is)
+            st = Status.parse(st)
         if cmd.stop:
             self.stop(cmd.mode or "stopped", StopReason.CONTROLLER, t)
             rec.status.append(st)
@@ -493,7 +503,8 @@ class _Loop:
         events = rec.events
         if st not in NOT_FLAGGED:  # st.flagged, inline
             events.append((t, "solver", cmd.status_detail or st.value))
-        rec.mode(t, cmd.mode, events)
+        if cmd.mode != rec.last_mode:
+            rec.mode(t, cmd.mode, events)
         if cmd.events:
             events.extend((t, kind, msg) for kind, msg in cmd.events)
         return cmd, u, (self.coast_end(k, t, cmd) if cmd.idle is not None and self.can_coast else 0)
@@ -543,7 +554,7 @@ class _Loop:
         n_idle = m if stop_i is None else stop_i  # samples where the controller would have stepped
         at: dict[int, list] = {}  # events by check point (i * n_sub + s), in the step path's order
         xe_rows = self.coast_measure(sample_t[:n_rec], xs[:n_rec], n_idle, idle, at)
-        rec.samples(slice(j0, j0 + n_rec), sample_t[:n_rec], xs[:n_rec], xe_rows)
+        rec.samples(slice(j0, j0 + n_rec), xs[:n_rec], xe_rows)
         if not self.hooks.plain_mode:
             rec.plant_modes.extend(self.plant.mode(states[i * n_sub]) for i in range(n_rec))
         n_chk = m * n_sub if stop_i is None else stop_i * n_sub + 1  # check points up to the stop sample
@@ -569,8 +580,8 @@ class _Loop:
         """The first coasted sample where the stop condition holds (index, reason), or (None, None)."""
         stop_condition = self.setup.stop_condition
         if stop_condition is not None:
-            for i in range(len(sample_t)):
-                reason = stop_condition(float(sample_t[i]), xs[i])
+            for i, (t, x) in enumerate(zip(sample_t.tolist(), xs)):  # t: float(sample_t[i]), x: the row xs[i]
+                reason = stop_condition(t, x)
                 if reason:
                     return i, reason
         return None, None
@@ -607,7 +618,7 @@ def simulate(setup: Setup, seed: int = 0, progress: bool = False, coast: bool = 
     for comp in setup.periodic:
         comp.reset(0.0)
     sched, hooks = Schedule.of(setup), Hooks.of(setup)
-    rec = Recorder(sched.n_steps, plant.n_x, plant.n_u, setup.constraints, hooks.batches)
+    rec = Recorder(sched.n_steps, plant.n_x, plant.n_u, setup.constraints, hooks.batches, sched.h)
     loop = _Loop(setup, sched, hooks, rec, streams, coast)
     state = plant.initial_state()
     bar = _progress_bar(sched.n_steps, progress)
