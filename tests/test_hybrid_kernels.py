@@ -8,7 +8,7 @@ import pytest
 import scipy.linalg
 
 from proxops.control.hybrid_kernels import approach_target_kernel, condensed_qp, face_rows
-from proxops.core.small_linalg import expm_pade13
+from proxops.core.small_linalg import expm_pade13, matmul, matmul_into, matmul_tn, matmul_tn_into, matvec
 from proxops.control.hybrid_mpc import CaptureMPC, CaptureMPCConfig
 from proxops.core.quaternion import quat_conjugate, quat_multiply, quat_to_dcm
 from proxops.dynamics.hybrid_relative import relative_from_truth
@@ -34,6 +34,27 @@ def test_tape_replays_casadi_exactly():
         ref = np.asarray(lin._fun(p, wc)).ravel()
         got = lin._tape(np.concatenate([p, wc]))
         np.testing.assert_allclose(got, ref, rtol=1e-15, atol=1e-300)
+
+
+def test_loop_products_match_numpy_and_fill_a_block_view():
+    """small_linalg's loop products (shared by the hybrid condensing and the MEKF) against numpy's @,
+    with exact zeros in A (skipped by the loops); the _into forms overwrite a block of a larger
+    matrix and nothing else."""
+    A = RNG.standard_normal((7, 5))
+    A[A < -0.5] = 0.0
+    B = RNG.standard_normal((5, 4))
+    C = RNG.standard_normal((7, 4))
+    np.testing.assert_allclose(matmul(A, B), A @ B, rtol=1e-14, atol=1e-14)
+    np.testing.assert_allclose(matmul_tn(A, C), A.T @ C, rtol=1e-14, atol=1e-14)
+    np.testing.assert_allclose(matvec(A, B[:, 0]), A @ B[:, 0], rtol=1e-14, atol=1e-14)
+    big = np.full((12, 12), 7.0)
+    matmul_into(A, B, big[2:9, 3:7])
+    np.testing.assert_array_equal(big[2:9, 3:7], matmul(A, B))
+    matmul_tn_into(A, C, big[0:5, 8:12])
+    np.testing.assert_array_equal(big[0:5, 8:12], matmul_tn(A, C))
+    untouched = np.ones((12, 12), bool)
+    untouched[2:9, 3:7] = untouched[0:5, 8:12] = False
+    assert np.all(big[untouched] == 7.0)
 
 
 @pytest.mark.parametrize("norm", [1e-3, 0.5, 3.0, 40.0])

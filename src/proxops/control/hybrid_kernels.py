@@ -20,7 +20,7 @@ import numpy as np
 from numba import njit
 
 from proxops.core.quaternion import dcm_kernel
-from proxops.core.small_linalg import expm_pade13, matmul, matmul_tn, matvec
+from proxops.core.small_linalg import expm_pade13, matmul, matmul_into, matmul_tn_into, matvec
 
 # CasADi opcodes -> ours (casadi.OP_*; checked at Tape construction)
 _OP_NAMES = ("INPUT", "OUTPUT", "CONST", "ADD", "SUB", "MUL", "DIV", "NEG", "SQ", "TWICE", "SQRT", "INV", "ASSIGN")
@@ -109,37 +109,6 @@ def tape_eval(code, a, b, o, c, inp, w, out):
 
 
 @njit(cache=True)
-def _matmul_into(A, B, out):
-    """out = A @ B by the loops of small_linalg.matmul (same order, same bits), written into ``out``."""
-    n, k = A.shape
-    m = B.shape[1]
-    for i in range(n):
-        for j in range(m):
-            out[i, j] = 0.0
-        for l in range(k):
-            a = A[i, l]
-            if a != 0.0:
-                for j in range(m):
-                    out[i, j] += a * B[l, j]
-
-
-@njit(cache=True)
-def _matmul_tn_into(A, B, out):
-    """out = A.T @ B by the loops of small_linalg.matmul_tn (same order, same bits), written into ``out``."""
-    k, n = A.shape
-    m = B.shape[1]
-    for i in range(n):
-        for j in range(m):
-            out[i, j] = 0.0
-    for l in range(k):
-        for i in range(n):
-            a = A[l, i]
-            if a != 0.0:
-                for j in range(m):
-                    out[i, j] += a * B[l, j]
-
-
-@njit(cache=True)
 def condensed_qp(A, B, dt, N, dx0, W, r_blk, ref, face_a, wf, rate_first, rate_w):
     """Condensed box QP of a linear MPC over N stages with ZOH period dt (s).
 
@@ -208,8 +177,8 @@ def condensed_qp(A, B, dt, N, dx0, W, r_blk, ref, face_a, wf, rate_first, rate_w
             P[:, :] = Wt
             g[:] = gj
         else:
-            _matmul_into(P, Ad, PA)  # P Ad
-            _matmul_tn_into(Ad, PA, P)  # Ad' (P Ad)
+            matmul_into(P, Ad, PA)  # P Ad
+            matmul_tn_into(Ad, PA, P)  # Ad' (P Ad)
             for i in range(n):
                 for l in range(n):
                     P[i, l] = Wt[i, l] + P[i, l]
@@ -220,14 +189,14 @@ def condensed_qp(A, B, dt, N, dx0, W, r_blk, ref, face_a, wf, rate_first, rate_w
                 PA[0, i] = sacc
             for i in range(n):
                 g[i] = gj[i] + PA[0, i]
-        _matmul_into(P, Bd, PBj)
+        matmul_into(P, Bd, PBj)
         for i in range(m):
             sacc = 0.0
             for l in range(n):
                 sacc += BdT[i, l] * g[l]
             f[j * m + i] = sacc
         for i in range(j + 1):
-            _matmul_tn_into(PB[j - i], PBj, H[i * m:(i + 1) * m, j * m:(j + 1) * m])
+            matmul_tn_into(PB[j - i], PBj, H[i * m:(i + 1) * m, j * m:(j + 1) * m])
     for i in range(nU):  # the lower triangle (H symmetric up to round-off: mirrored)
         for l in range(i):
             H[i, l] = H[l, i]

@@ -52,32 +52,50 @@ def expm_pade13(M):
 
 
 @njit(cache=True)
-def matmul(A, B):
-    """A @ B by loops (the blocks here are at most 12 x 12: numba's @ calls BLAS, ~1 us per call)."""
+def matmul_into(A, B, out):
+    """out = A @ B by loops (the blocks here are at most 12 x 12: numba's @ calls BLAS, ~1 us per call);
+    ``out`` may be a view (a block of a larger matrix) and must not alias A or B."""
     n, k = A.shape
     m = B.shape[1]
-    out = np.zeros((n, m))
     for i in range(n):
+        for j in range(m):
+            out[i, j] = 0.0
         for l in range(k):
             a = A[i, l]
             if a != 0.0:
                 for j in range(m):
                     out[i, j] += a * B[l, j]
+
+
+@njit(cache=True)
+def matmul(A, B):
+    """A @ B by loops (:func:`matmul_into` into a new array)."""
+    out = np.empty((A.shape[0], B.shape[1]))
+    matmul_into(A, B, out)
     return out
 
 
 @njit(cache=True)
-def matmul_tn(A, B):
-    """A.T @ B by loops."""
+def matmul_tn_into(A, B, out):
+    """out = A.T @ B by loops; ``out`` must not alias A or B."""
     k, n = A.shape
     m = B.shape[1]
-    out = np.zeros((n, m))
+    for i in range(n):
+        for j in range(m):
+            out[i, j] = 0.0
     for l in range(k):
         for i in range(n):
             a = A[l, i]
             if a != 0.0:
                 for j in range(m):
                     out[i, j] += a * B[l, j]
+
+
+@njit(cache=True)
+def matmul_tn(A, B):
+    """A.T @ B by loops (:func:`matmul_tn_into` into a new array)."""
+    out = np.empty((A.shape[1], B.shape[1]))
+    matmul_tn_into(A, B, out)
     return out
 
 
