@@ -6,7 +6,7 @@ and both versions run in the same venv, in fresh processes, alternating the orde
 repetition (A B, B A, ...), so load drifts hit both sides alike. A regression shows as a ratio.
 
 Closed loops: ``simulate`` of a built-in's set-up (the loop alone) and ``api.run`` (set-up, loop,
-summary), after one warm-up run in the same process; the solver share is the time inside every
+summary), after one warm-up run in the same process, the fastest of ``INNER_REPS`` = 5 loops in it; the solver share is the time inside every
 solver adapter's set-up, update and solve calls over the wall time (see ``_ab_probe.py``). Commands: the whole process, as a user sees it.
 
     python benchmarks/ab.py [--reps 3] [--only srf,help] [--json out.json]
@@ -76,8 +76,11 @@ def _env(src: Path) -> dict:
     return env
 
 
+INNER_REPS = 5  # loops per process (the fastest is kept: a 0.05-0.1 s loop is easily preempted once)
+
+
 def run_loop(src: Path, scenario: str, overrides: list[str]) -> dict:
-    out = subprocess.run([sys.executable, str(PROBE), "loop", scenario, "1", *overrides], env=_env(src),
+    out = subprocess.run([sys.executable, str(PROBE), "loop", scenario, str(INNER_REPS), *overrides], env=_env(src),
                          capture_output=True, text=True)
     if out.returncode != 0:
         return {"error": (out.stderr.strip().splitlines() or ["?"])[-1]}
@@ -143,7 +146,8 @@ def main(argv: list[str] | None = None) -> int:
     dirty = subprocess.run(["git", "-C", str(ROOT), "status", "--porcelain", "src"], capture_output=True,
                            text=True).stdout.strip()
     print(f"A/B: this checkout ({head}{' + uncommitted changes' if dirty else ''}) vs previous release {commit}")
-    print(f"machine: {machine()}; load average at start {load()}; {opts.reps} alternated repetitions, median")
+    print(f"machine: {machine()}; load average at start {load()}; {opts.reps} alternated repetitions, median "
+          f"(closed loops: the fastest of {INNER_REPS} in each process)")
     if prev_src is None:
         print(f"previous release {commit} is not in this clone (shallow?): only this checkout is measured")
     sides = [("this", this_src)] + ([("prev", prev_src)] if prev_src else [])
