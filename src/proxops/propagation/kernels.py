@@ -20,7 +20,6 @@ test checks), with scipy's error norm and step-size control (safety 0.9, factor 
 from __future__ import annotations
 
 import math
-import types
 
 import numpy as np
 from numba import njit
@@ -402,10 +401,10 @@ def initial_step_orbit(y, p, rtol) -> float:
     return rtol ** (1.0 / 8.0) / n_local
 
 
-def _dop853_step(t, y, f0, h, u, args, K, work, y_new) -> None:
-    """One DOP853 step of size h from (t, y, f0): y_new and all 13 stage derivatives in K
-    (K[12] = f(y_new), the FSAL derivative). ``RHS(t, y, u, args, out)``: the right-hand side
-    bound by :func:`dop853_for` (template: never called itself)."""
+@njit(cache=True)
+def dop853_step(y, f0, h, u, p, K, work, y_new) -> None:
+    """One DOP853 step of size h from (y, f0): y_new and all 13 stage derivatives in K
+    (K[12] = f(y_new), the FSAL derivative)."""
     n = y.size
     for i in range(n):
         K[0, i] = f0[i]
@@ -415,13 +414,13 @@ def _dop853_step(t, y, f0, h, u, args, K, work, y_new) -> None:
             for j in range(s):
                 acc += A[s, j] * K[j, i]
             work[i] = y[i] + h * acc
-        RHS(t + C[s] * h, work, u, args, K[s])  # noqa: F821 (bound per right-hand side)
+        rhs_relative(work, u, p, K[s])
     for i in range(n):
         acc = 0.0
         for j in range(N_STAGES):
             acc += B[j] * K[j, i]
         y_new[i] = y[i] + h * acc
-    RHS(t + h, y_new, u, args, K[N_STAGES])  # noqa: F821
+    rhs_relative(y_new, u, p, K[N_STAGES])
 
 
 @njit(cache=True)
@@ -445,13 +444,13 @@ def dop853_error_norm(y, y_new, K, h, rtol, atol) -> float:
     return abs(h) * err5 / math.sqrt(denom * n)
 
 
-def _accepted_step(y, f0, t, h_abs, t_end, u, args, safety, rtol, atol, K, work, y_new, n_done, keep_proposal) -> tuple:
+@njit(cache=True)
+def _accepted_step(y, f0, t, h_abs, t_end, u, p, rtol, atol, K, work, y_new, n_done, keep_proposal) -> tuple:
     """One accepted DOP853 step from ``t`` (s) starting with the proposal ``h_abs`` (s), shortened
     to end on ``t_end`` if it would pass it; the step is left in ``y_new`` and ``K``. ``n_done``:
-    steps and rejections so far (against MAX_STEPS). ``safety``: the step-size safety factor.
-    ``keep_proposal``: after a shortened step the next proposal is the larger of the controller's
-    and the current one (sample landing of :func:`integrate_grid`). Returns (status, h, clipped,
-    next proposal, rejections in this call). ``STEP``: the step of :func:`dop853_for` (template)."""
+    steps and rejections so far (against MAX_STEPS). ``keep_proposal``: after a shortened step the
+    next proposal is the larger of the controller's and the current one (sample landing of
+    :func:`integrate_grid`). Returns (status, h, clipped, next proposal, rejections in this call)."""
     rejected = False
     n_rej = 0
     while True:
@@ -462,7 +461,7 @@ def _accepted_step(y, f0, t, h_abs, t_end, u, args, safety, rtol, atol, K, work,
             return STATUS_STEP_TOO_SMALL, 0.0, False, h_abs, n_rej
         clipped = t + h_abs >= t_end
         h = t_end - t if clipped else h_abs
-        STEP(t, y, f0, h, u, args, K, work, y_new)  # noqa: F821 (bound per right-hand side)
+        dop853_step(y, f0, h, u, p, K, work, y_new)
         err = dop853_error_norm(y, y_new, K, h, rtol, atol)
         if not math.isfinite(err):
             return STATUS_NOT_FINITE, h, clipped, h_abs, n_rej
@@ -470,49 +469,14 @@ def _accepted_step(y, f0, t, h_abs, t_end, u, args, safety, rtol, atol, K, work,
             if err == 0.0:
                 factor = MAX_FACTOR
             else:
-                factor = min(MAX_FACTOR, safety * err**ERROR_EXPONENT)
+                factor = min(MAX_FACTOR, SAFETY * err**ERROR_EXPONENT)
             if rejected:
                 factor = min(1.0, factor)
             h_next = max(h * factor, h_abs) if clipped and keep_proposal else h * factor
             return STATUS_OK, h, clipped, h_next, n_rej
-        h_abs = h * max(MIN_FACTOR, safety * err**ERROR_EXPONENT)
+        h_abs = h * max(MIN_FACTOR, SAFETY * err**ERROR_EXPONENT)
         rejected = True
         n_rej += 1
-
-
-def dop853_for(name: str, rhs) -> tuple:
-    """The DOP853 step and accept/reject loop (:func:`_dop853_step`, :func:`_accepted_step`, written
-    once) compiled for the right-hand side ``rhs(t, y, u, args, out)`` (a jitted function; ``args``: a
-    tuple of its arrays): (step, accepted_step), named ``<name>_step`` and ``<name>_accepted_step``.
-
-    Each is a copy of the template's code whose globals bind RHS / STEP (not a closure, not a
-    function argument: numba 0.68 keys a closure's or a function argument's cache entry by the
-    pickled dispatcher, which holds a uuid4 drawn anew in every process, so those were compiled
-    again in every process (benchmarks/bench_truth_dop853_cache.py)). The copies are cached on
-    disk under their own names and compile to the same arithmetic as a hand-written copy
-    (bit-identical trajectories, tests/test_propagation_dop853_generated.py). The step is inlined
-    into the loop at numba's IR level, as is each module's thin ``rhs`` wrapper into the step (timing
-    against the copies: benchmarks/bench_truth_dop853_ab.py)."""
-    step = _bind(_dop853_step, f"{name}_step", inline=True, RHS=rhs)
-    return step, _bind(_accepted_step, f"{name}_accepted_step", STEP=step)
-
-
-def _bind(template, name: str, inline: bool = False, **bound):
-    """njit(cache=True) copy of ``template`` named ``name`` whose globals also hold ``bound``."""
-    g = dict(template.__globals__, **bound)
-    f = types.FunctionType(template.__code__, g, name, template.__defaults__)
-    f.__qualname__ = name  # numba's cache file name: one per bound copy
-    f.__doc__ = template.__doc__
-    return njit(cache=True, inline="always" if inline else "never")(f)
-
-
-@njit(cache=True, inline="always")
-def _rhs_relative_t(t, y, u, args, out) -> None:
-    """:func:`rhs_relative` (autonomous) in the form of :func:`dop853_for`, ``args`` = (p,)."""
-    rhs_relative(y, u, args[0], out)
-
-
-dop853_step, _accepted_relative = dop853_for("relative", _rhs_relative_t)
 
 
 @njit(cache=True)
@@ -548,8 +512,8 @@ def integrate_grid(y0, times, u, p, rtol, atol, out) -> tuple:
         t_end = times[k]
         while t < t_end:
             # a step shortened to hit a sample time keeps the current proposal
-            status, h, clipped, h_abs, rej = _accepted_relative(y, f0, t, h_abs, t_end, u, (p,), SAFETY, rtol, atol, K,
-                                                                work, y_new, n_steps + n_rej, True)  # fmt: skip
+            status, h, clipped, h_abs, rej = _accepted_step(y, f0, t, h_abs, t_end, u, p, rtol, atol, K, work, y_new,
+                                                            n_steps + n_rej, True)  # fmt: skip
             n_rej += rej
             if status != STATUS_OK:
                 return status, n_steps, n_rej
@@ -664,8 +628,8 @@ def integrate_dense(y0, times, u, p, rtol, atol, out) -> tuple:
     n_steps = 0
     n_rej = 0
     while k < m:
-        status, h, clipped, h_abs, rej = _accepted_relative(y, f0, t, h_abs, t_final, u, (p,), SAFETY, rtol, atol, K,
-                                                            work, y_new, n_steps + n_rej, False)  # fmt: skip
+        status, h, clipped, h_abs, rej = _accepted_step(y, f0, t, h_abs, t_final, u, p, rtol, atol, K, work, y_new,
+                                                        n_steps + n_rej, False)  # fmt: skip
         n_rej += rej
         if status != STATUS_OK:
             return status, n_steps, n_rej

@@ -10,11 +10,10 @@ depend on it through the Earth's rotation and the Sun and Moon).
              - a_p(t, r_t, v_t, target) + C^T u
 
 where ``a_p`` sums the enabled perturbations (J2 or spherical harmonics n >= 2, drag,
-Sun, Moon, SRP), evaluated at both spacecraft and differenced. The DOP853 step and
-accept/reject loop are those of :mod:`proxops.propagation.kernels`, written once and
-compiled for this right-hand side (:func:`proxops.propagation.kernels.dop853_for`; same
-tableau, error norm and step control, the safety factor from ``p``); this module's loop
-adds the shadow-crossing restarts.
+Sun, Moon, SRP), evaluated at both spacecraft and differenced. The DOP853 loop is the
+one of :mod:`proxops.propagation.kernels` (same tableau, error norm and step control;
+only the right-hand side differs, which now takes ``t`` and the model arrays), kept as a
+separate copy so that the J2-only fast path is untouched (bit-identical, same speed).
 
 Model arrays (built by :mod:`proxops.propagation.forces`): ``p`` (float parameters, indices
 below), ``C``, ``S``, ``K`` (harmonic coefficients and recursion factors), ``V``, ``W``
@@ -61,9 +60,19 @@ from proxops.environment.forces import accel_drag, accel_srp, accel_third_body
 from proxops.environment.harmonics import accel_harmonics, accel_harmonics_pair, pair_arrays_fit
 from proxops.propagation.kernels import (
     SAFETY,
+    A,
+    B,
+    C as C_NODES,
+    ERROR_EXPONENT,
+    MAX_FACTOR,
+    MAX_STEPS,
+    MIN_FACTOR,
     N_STAGES,
+    STATUS_NOT_FINITE,
     STATUS_OK,
-    dop853_for,
+    STATUS_STEP_TOO_SMALL,
+    STATUS_TOO_MANY_STEPS,
+    dop853_error_norm,
     hill_axes,
     initial_step_orbit,
 )
@@ -513,14 +522,24 @@ def _first_shadow_crossing(t, h, y0, f0, y1, f1, p, mask0) -> float:
 
 
 # ---------------------------------------------------------------- DOP853 loop (time-dependent RHS)
-@njit(cache=True, inline="always")
-def _rhs_full_args(t, y, u, args, out) -> None:
-    """:func:`rhs_full` with its arrays as one tuple (p, npm, C, S, K, V, W, dens)."""
-    rhs_full(t, y, u, args[0], args[1], args[2], args[3], args[4], args[5], args[6], args[7], out)
-
-
-# the DOP853 step and accept/reject loop of proxops.propagation.kernels, compiled for rhs_full
-_step, _accepted_step = dop853_for("full", _rhs_full_args)
+@njit(cache=True)
+def _step(t, y, f0, h, u, p, npm, C, S, K, V, W, dens, Kst, work, y_new) -> None:
+    n = y.size
+    for i in range(n):
+        Kst[0, i] = f0[i]
+    for s in range(1, N_STAGES):
+        for i in range(n):
+            acc = 0.0
+            for j in range(s):
+                acc += A[s, j] * Kst[j, i]
+            work[i] = y[i] + h * acc
+        rhs_full(t + C_NODES[s] * h, work, u, p, npm, C, S, K, V, W, dens, Kst[s])
+    for i in range(n):
+        acc = 0.0
+        for j in range(N_STAGES):
+            acc += B[j] * Kst[j, i]
+        y_new[i] = y[i] + h * acc
+    rhs_full(t + h, y_new, u, p, npm, C, S, K, V, W, dens, Kst[N_STAGES])
 
 
 @njit(cache=True)
@@ -564,7 +583,6 @@ def integrate_full_crossings(y0, times, u, p, npm, C, S, K, V, W, dens, rtol, at
     n_steps = 0
     n_rej = 0
     n_cross = 0
-    args = (p, npm, C, S, K, V, W, dens)
     shadow = p[I_SRP] != 0.0
     side = _shadow_side(t, 0.0, 0.0, y, f0, y, f0, p) if shadow else 0
     t_event = math.inf  # a located crossing the next step ends at
@@ -572,11 +590,31 @@ def integrate_full_crossings(y0, times, u, p, npm, C, S, K, V, W, dens, rtol, at
         t_end = times[k]
         while t < t_end:
             t_stop = min(t_end, t_event)
-            status, h, clipped, h_abs, rej = _accepted_step(y, f0, t, h_abs, t_stop, u, args, p[I_SAFETY], rtol, atol,
-                                                            Kst, work, y_new, n_steps + n_rej, True)  # fmt: skip
-            n_rej += rej
-            if status != STATUS_OK:
-                return status, n_steps, n_rej, n_cross
+            rejected = False
+            while True:
+                if n_steps + n_rej >= MAX_STEPS:
+                    return STATUS_TOO_MANY_STEPS, n_steps, n_rej, n_cross
+                min_step = 10.0 * (np.nextafter(abs(t), np.inf) - abs(t))
+                if h_abs < min_step:
+                    return STATUS_STEP_TOO_SMALL, n_steps, n_rej, n_cross
+                clipped = t + h_abs >= t_stop
+                h = t_stop - t if clipped else h_abs
+                _step(t, y, f0, h, u, p, npm, C, S, K, V, W, dens, Kst, work, y_new)
+                err = dop853_error_norm(y, y_new, Kst, h, rtol, atol)
+                if not math.isfinite(err):
+                    return STATUS_NOT_FINITE, n_steps, n_rej, n_cross
+                if err < 1.0:
+                    if err == 0.0:
+                        factor = MAX_FACTOR
+                    else:
+                        factor = min(MAX_FACTOR, p[I_SAFETY] * err**ERROR_EXPONENT)
+                    if rejected:
+                        factor = min(1.0, factor)
+                    h_abs = max(h * factor, h_abs) if clipped else h * factor
+                    break
+                h_abs = h * max(MIN_FACTOR, p[I_SAFETY] * err**ERROR_EXPONENT)
+                rejected = True
+                n_rej += 1
             if shadow:
                 tau = _first_shadow_crossing(t, h, y, f0, y_new, Kst[N_STAGES], p, side)
                 if tau > 0.0 and h - tau > SHADOW_TOL_S:  # a crossing inside: step to it instead
