@@ -146,10 +146,10 @@ def references(
     st["paper"] = PAPER_5_1_1
     files = []
     if out is not None and figures:
-        from proxops.plotting.cortex import campaign_figures  # matplotlib: only with figures
+        from proxops.plotting.cortex import references_figures  # matplotlib: only with figures
 
         camp = load_campaign(out)
-        files = [str(p) for p in campaign_figures(camp, _campaign_system(camp.manifest).scenario, PAPER_5_1_1, Path(out))]
+        files = [str(p) for p in references_figures(camp, _campaign_system(camp.manifest).scenario, PAPER_5_1_1, Path(out))]
         st["files"] = files
     if out is not None:
         st["out"] = str(out)

@@ -114,7 +114,7 @@ def fig12_histograms(table, path: Path, paper: dict) -> Path:
     return save(fig, path)
 
 
-def campaign_figures(camp, sc, paper: dict, out: Path) -> list[Path]:
+def references_figures(camp, sc, paper: dict, out: Path) -> list[Path]:
     """Figs. 11-12 of a ``proxops cortex references`` campaign (``camp``: its loaded
     :class:`proxops.analysis.campaign.CampaignResult`, ``sc`` its scenario, ``paper`` the §5.1.1
     medians) into the folder ``out``."""
