@@ -45,7 +45,7 @@ BEFORE = {
 
 
 def test_every_builtin_of_before_the_change_is_checked():
-    from proxops.scenarios.loader import builtin_names
+    from proxops.scenarios.catalog import builtin_names
 
     assert set(BEFORE) <= set(builtin_names())  # scenarios added since have no "before"
 

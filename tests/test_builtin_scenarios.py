@@ -12,7 +12,7 @@ import math
 import pytest
 
 from proxops import api
-from proxops.scenarios.loader import builtin_names
+from proxops.scenarios.catalog import builtin_names
 
 TIMING = ("wall_time", "solve_time", "solve_ms", "compute_time", "cpu_time", "elapsed", "setup_time",
           "time_ms", "_time_s")

@@ -15,7 +15,8 @@ from scipy.stats import chi2
 from typer.testing import CliRunner
 
 from proxops.cli import app
-from proxops.scenarios.loader import BUILTIN_DIR, load_scenario
+from proxops.scenarios.catalog import BUILTIN_DIR
+from proxops.scenarios.loader import load_scenario
 
 REDUCED = ["truth.model=cw", "navigation.process_model=cw", "eclipse.model=none"]  # CW truth: CW process model
 TABLE3_HIGH = ["errors.p_misthrust=0.1", "errors.sigma_dv=0.2", "errors.sigma_beta_deg=1.0",

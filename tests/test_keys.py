@@ -14,7 +14,8 @@ from proxops.analysis.dispersions import parse_dispersions
 from proxops.cli import app
 from proxops.errors import ProxopsInputError
 from proxops.scenarios import reference as ref
-from proxops.scenarios.loader import BUILTIN_DIR, load_scenario
+from proxops.scenarios.catalog import BUILTIN_DIR
+from proxops.scenarios.loader import load_scenario
 from proxops.scenarios.registry import SYSTEM_MODULES
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -193,7 +194,8 @@ def test_bad_dispersion_overrides_are_one_line_errors(override, message):
 
 def test_set_on_a_nested_table_dispersion():
     """[dispersions.initial] position_m = {...} (nested tables) takes the same --set forms."""
-    from proxops.scenarios.loader import read_toml, resolve, validate_scenario
+    from proxops.scenarios.catalog import read_toml, resolve
+    from proxops.scenarios.loader import validate_scenario
 
     data = read_toml(resolve("station-keeping-mc"))
     data["dispersions"] = {"initial": {"position_m": {"percent": 10, "min_abs": 1.0}}}

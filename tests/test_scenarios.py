@@ -5,7 +5,8 @@ import math
 import pytest
 
 from proxops.errors import ProxopsInputError
-from proxops.scenarios.loader import builtin_names, load_scenario, read_toml, resolve, validate_scenario
+from proxops.scenarios.catalog import builtin_names, read_toml, resolve
+from proxops.scenarios.loader import load_scenario, validate_scenario
 
 
 def base():

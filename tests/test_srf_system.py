@@ -7,7 +7,8 @@ import numpy as np
 import pytest
 
 from proxops.errors import ProxopsInputError
-from proxops.scenarios.loader import builtin_names, load_scenario
+from proxops.scenarios.catalog import builtin_names
+from proxops.scenarios.loader import load_scenario
 
 SRF_SCENARIOS = [n for n in builtin_names() if n.startswith("srf-")]
 

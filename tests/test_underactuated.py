@@ -326,7 +326,7 @@ def test_model_input_errors():
 def _scenario_data(**changes):
     import tomllib
 
-    from proxops.scenarios.loader import resolve
+    from proxops.scenarios.catalog import resolve
 
     data = tomllib.loads(resolve("underactuated-case1").read_text())
     for dotted, value in changes.items():

@@ -50,7 +50,8 @@ import numpy as np
 import pandas as pd
 
 from proxops.scenarios.dispersions import DispersionPlan, apply_values, parse_dispersions
-from proxops.scenarios.loader import LoadedScenario, read_toml, resolve, validate_scenario
+from proxops.scenarios.catalog import read_toml, resolve
+from proxops.scenarios.loader import LoadedScenario, validate_scenario
 from proxops.sim.result import SimResult
 from proxops.analysis.runs import check_scenario
 from proxops.analysis.metric_order import ordered_metrics

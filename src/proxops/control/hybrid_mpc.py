@@ -135,7 +135,7 @@ from proxops.control.hybrid_kernels import (
     post_model_kernel,
     shifted_face_rows,
 )
-from proxops.core.quaternion import dcm_kernel, quat_to_dcm, skew
+from proxops.core.quaternion import dcm_kernel, skew
 from proxops.dynamics.hybrid_relative import (
     S_OM,
     S_OMC,
@@ -320,16 +320,6 @@ def _solve_box_qp(solver, name: str, H, f, lb, ub, max_iter: int, kappa, A=None,
     out = {"status": res.status, "kappa": kappa, "iterations": res.iterations,
            "solver_time_s": time.perf_counter() - t_solver, "detail": str(res.info.get("raw_status", ""))}
     return solver, res, out
-
-
-def _rate_rows(G, free, N: int, first: int, rate_max_deg_s):
-    """(A, bl, bu) of the soft rate rows -w <= x_k[first:first+3] <= w, k = 1..N, on the
-    condensed prediction X = free + G U (all None without a bound)."""
-    if rate_max_deg_s is None:
-        return None, None, None
-    w = math.radians(rate_max_deg_s)
-    idx = (np.arange(N)[:, None] * N_DX + first + np.arange(3)[None, :]).ravel()
-    return G[idx], -w - free[idx], w - free[idx]
 
 
 def capture_weights(config: CaptureMPCConfig, collisions: int):

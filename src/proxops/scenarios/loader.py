@@ -13,7 +13,7 @@ from typing import Any
 from pydantic import BaseModel, ValidationError
 
 from proxops.errors import ProxopsInputError
-from proxops.scenarios.catalog import BUILTIN_DIR, builtin_names, list_builtin, read_toml, resolve  # noqa: F401
+from proxops.scenarios.catalog import read_toml, resolve
 from proxops.scenarios.dispersion_spec import SPEC_KEYS, flatten_table
 from proxops.scenarios.registry import get_system, scenario_model
 

@@ -26,7 +26,7 @@ import math
 import numpy as np
 
 from proxops.errors import input_error
-from proxops.scenarios.loader import read_toml, resolve
+from proxops.scenarios.catalog import read_toml, resolve
 from proxops.scenarios.registry import register_system
 from proxops.sim.result import SimResult
 from proxops.status import Status

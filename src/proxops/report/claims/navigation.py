@@ -7,7 +7,8 @@ the summary has them, ``nav_nees_mean`` / ``att_nees_mean`` and the mean navigat
 from __future__ import annotations
 
 from proxops.report.claims.common import Context, run
-from proxops.scenarios.loader import builtin_names, load_scenario
+from proxops.scenarios.catalog import builtin_names
+from proxops.scenarios.loader import load_scenario
 
 
 TERMINAL_KEYS = ("terminal_position_error_m", "final_position_error_m", "arrival_error_m", "final_tracking_error_m",
