@@ -197,7 +197,10 @@ class EnergyDrift:
         return k
 
     def invariant(self, t: float, x) -> float:
-        return float(self.invariants(np.array([t]), np.asarray(x, dtype=float)[None, :6])[0])
+        """:meth:`invariants` of one state (the same kernel on the same row: the same number)."""
+        k = self._index(t)
+        x6 = np.ascontiguousarray(np.asarray(x, dtype=float)[None, :6])
+        return float(energy_invariants(self.states[k:k + 1], x6, self._params())[0])
 
     def invariants(self, t: np.ndarray, xs: np.ndarray) -> np.ndarray:
         """:meth:`invariant` of Hill states (n, 6) at times (n,) on the ephemeris grid, one jitted
@@ -404,6 +407,35 @@ def _drift_check_kernel(xs, center, radius, alpha):
 
 
 @njit(cache=True)
+def _drift_verdict_kernel(xs, center, radius, alpha, d_ok, g_ok):
+    """:func:`_drift_check_kernel` and its verdict in one pass: (all dist >= d_ok and all g >= g_ok,
+    min g, min dist) with numpy's min (NaN if any value is NaN; a NaN fails the verdict)."""
+    dist, g = _drift_check_kernel(xs, center, radius, alpha)
+    ok = True
+    g_min = math.inf
+    d_min = math.inf
+    nan_g = False
+    nan_d = False
+    for f in range(dist.shape[0]):
+        d, gf = dist[f], g[f]
+        if not (d >= d_ok and gf >= g_ok):
+            ok = False
+        if d != d:
+            nan_d = True
+        elif d < d_min:
+            d_min = d
+        if gf != gf:
+            nan_g = True
+        elif gf < g_min:
+            g_min = gf
+    if nan_d:
+        d_min = math.nan
+    if nan_g:
+        g_min = math.nan
+    return ok, g_min, d_min
+
+
+@njit(cache=True)
 def _csc_matvec(indptr, indices, data, n_rows, z):
     """A z for a CSC matrix, column by column (scipy's csc_matvec order: the same sums)."""
     y = np.zeros(n_rows)
@@ -521,6 +553,44 @@ class _Solve:
     events: list = field(default_factory=list)
 
 
+class _Samples:
+    """Growing (time, value) samples in preallocated arrays (the drift invariant's navigation samples):
+    ``values(t_lo)`` is the contiguous array of the values (those at times >= t_lo), whose mean is the mean
+    numpy takes of the same values in a list (the same pairwise sum)."""
+
+    def __init__(self, capacity: int = 256) -> None:
+        self._t = np.empty(capacity)
+        self._v = np.empty(capacity)
+        self.n = 0
+
+    def _room(self, extra: int) -> None:
+        need = self.n + extra
+        if need > self._t.size:
+            size = max(need, 2 * self._t.size)
+            self._t = np.concatenate([self._t[:self.n], np.empty(size - self.n)])
+            self._v = np.concatenate([self._v[:self.n], np.empty(size - self.n)])
+
+    def append(self, t: float, v: float) -> None:
+        self._room(1)
+        self._t[self.n] = t
+        self._v[self.n] = v
+        self.n += 1
+
+    def extend(self, t: np.ndarray, v: np.ndarray) -> None:
+        m = len(t)
+        self._room(m)
+        self._t[self.n:self.n + m] = t
+        self._v[self.n:self.n + m] = v
+        self.n += m
+
+    def clear(self) -> None:
+        self.n = 0
+
+    def values(self, t_lo: float | None = None) -> np.ndarray:
+        v = self._v[:self.n]
+        return v if t_lo is None else v[self._t[:self.n] >= t_lo]
+
+
 class SrfMpc:
     """SRF MPC controller (Controller protocol) issuing impulses at its nodes.
 
@@ -611,8 +681,7 @@ class SrfMpc:
         self.finished = False
         self.last_drift = None  # (tau, states) of the last accepted free drift
         self.solve_log: list[dict] = []
-        self._c_times: list[float] = []  # navigation samples of c since the last impulse: times (s)
-        self._c_values: list[float] = []  # ... and values (m/s)
+        self._c_samples = _Samples()  # navigation samples of c since the last impulse: times (s), values (m/s)
         self.trim_log: list[dict] = []  # per trim node: t, samples used, estimate of c, trim impulse
 
     def drift_estimate(self, t: float, x) -> tuple[float, int]:
@@ -623,13 +692,10 @@ class SrfMpc:
         its error is the single-sample error / sqrt(samples) for white navigation noise (0.5 m /
         0.5 mm/s per axis: 1.0 mm/s per sample). Without samples: the invariant of ``x``."""
         w = self.cfg.drift_estimator_window_s
-        if w is None:
-            vals = self._c_values
-        else:
-            vals = [c for (tc, c) in zip(self._c_times, self._c_values) if tc >= t - w - 1e-9]
-        if not vals:
+        vals = self._c_samples.values(None if w is None else t - w - 1e-9)
+        if not vals.size:
             return self.drift_invariant(t, x), 1
-        return float(np.mean(vals)), len(vals)
+        return float(vals.mean()), int(vals.size)
 
     def drift_invariant(self, t: float, x) -> float:
         """c (m/s): constant on the free motion, zero for a drift-free one (CW: vy + 2 n x)."""
@@ -665,8 +731,7 @@ class SrfMpc:
     def step(self, t: float, x_est) -> Command:
         x = np.asarray(x_est, dtype=float)
         if self.cfg.drift_free_tol_mps is not None and x.size == 6 and np.all(np.isfinite(x)):
-            self._c_times.append(float(t))
-            self._c_values.append(self.drift_invariant(t, x))
+            self._c_samples.append(float(t), self.drift_invariant(t, x))
         k = int(round(t / self.dt))
         N = self.sched.n
         if k > self.sched.steps[-1] or self.finished:
@@ -696,7 +761,7 @@ class SrfMpc:
                                   "samples": n_samples, "c_estimate_mps": c_hat, "u": u.copy()})
         self.used_l1 += float(np.abs(u).sum())
         if np.any(u) and float(np.linalg.norm(u)) >= self.cfg.min_impulse_mps:  # below the bit nothing fires
-            self._c_times, self._c_values = [], []
+            self._c_samples.clear()
         if node == N:
             self.finished = True
         info = {"solved": 1.0, "node": float(node), "relax": float(res.relax), "qp_iterations": float(res.iterations),
@@ -721,11 +786,10 @@ class SrfMpc:
         ok = np.all(np.isfinite(xs), axis=1)
         times = np.asarray(t, dtype=float)[ok]
         if self.drift_model is not None:
-            values = self.drift_model.invariants(times, xs[ok]).tolist()
+            values = self.drift_model.invariants(times, xs[ok])
         else:
-            values = [float(x[4] + 2.0 * self.n_orb * x[0]) for x in xs[ok]]
-        self._c_times.extend(times.tolist())
-        self._c_values.extend(values)
+            values = np.array([float(x[4] + 2.0 * self.n_orb * x[0]) for x in xs[ok]])
+        self._c_samples.extend(times, values)
 
     def drift_band(self) -> tuple[float, float]:
         """Band (m/s) of the drift invariant c after a hop-start or trim impulse: ONE-SIDED, on the side of a
@@ -914,7 +978,7 @@ class SrfMpc:
             probe.indptr.flags.writeable = False
             tmpl = self._csc_patterns[key] = (probe.data.astype(np.intp) - 1, probe)
         perm, mat = tmpl
-        np.take(values, perm, out=mat.data)
+        np.take(values, perm, out=mat.data, mode="clip")  # indices in range: no buffered copy (mode "raise" makes one)
         return mat
 
     def _row_bounds(self, i: int, x: np.ndarray, relax: int, fN: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -1135,12 +1199,10 @@ class SrfMpc:
         self.last_drift = xs
         if self.koz is None:
             return True, math.nan, float(np.min(np.linalg.norm(xs[:, :3], axis=1)))
-        dist, g = _drift_check_kernel(xs, self.koz.center_m, float(self.koz.radius_m), float(self.cfg.cbf_alpha_per_s))
-        if not self.cfg.cbf:
-            return True, float(g.min()), float(dist.min())
-        g_tol = 1e-6 * self.cfg.cbf_alpha_per_s * self.koz.radius_m**2
-        ok = bool(np.all(dist >= self.koz.radius_m * (1 - 1e-9)) and np.all(g >= -g_tol))
-        return ok, float(g.min()), float(dist.min())
+        r = float(self.koz.radius_m)
+        alpha = float(self.cfg.cbf_alpha_per_s)
+        ok, g_min, d_min = _drift_verdict_kernel(xs, self.koz.center_m, r, alpha, r * (1 - 1e-9), -(1e-6 * alpha * r**2))
+        return (bool(ok) if self.cfg.cbf else True), g_min, d_min
 
     def hold_impulse(self, x: np.ndarray) -> np.ndarray:
         """Impulse that leaves a drift-free CW state (closed ellipse about the current along-track

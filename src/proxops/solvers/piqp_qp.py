@@ -23,6 +23,7 @@ import math
 import time
 
 import numpy as np
+from numba import njit
 
 from proxops.errors import input_error
 from proxops.solvers import _util
@@ -49,6 +50,66 @@ _FORM_NAMES = {"P": "P", "q": "c", "A_eq": "A", "b_eq": "b", "A": "G", "bl": "h_
 _VECTORS = ("c", "b", "h_l", "h_u", "x_lb", "x_ub")
 
 
+@njit(cache=True)
+def _has_nonfinite(a) -> int:
+    for v in a:
+        if not math.isfinite(v):
+            return 1
+    return 0
+
+
+@njit(cache=True)
+def _has_nan(a) -> int:
+    for v in a:
+        if v != v:
+            return 1
+    return 0
+
+
+@njit(cache=True)
+def _scan_fast(A, G, c, b, h_l, h_u, x_lb, x_ub, free_now, free_out):
+    """One pass over the data of :meth:`PiqpQP.update_fast` (matrix values and vectors as stored): what
+    ``BadData.check`` of each field, ``_check_crossed`` and ``_free_variables`` compute separately.
+    Returns (bad, crossed, at, n_free, same_free, shifted): ``bad`` bit k set when field k (A, G, c, b,
+    h_l, h_u, x_lb, x_ub) holds NaN (or inf in A, G, c, b); ``crossed`` 1 for the first h_l > h_u at
+    row ``at``, else 2 for the first x_lb > x_ub, else 0; ``free_out[:n_free]`` the variables not fixed by
+    a finite x_lb == x_ub (in order); ``same_free`` whether they equal ``free_now``; ``shifted`` whether
+    a fixed variable sits at a nonzero value."""
+    bad = (_has_nonfinite(A) | _has_nonfinite(G) << 1 | _has_nonfinite(c) << 2 | _has_nonfinite(b) << 3
+           | _has_nan(h_l) << 4 | _has_nan(h_u) << 5 | _has_nan(x_lb) << 6 | _has_nan(x_ub) << 7)
+    crossed, at = 0, -1
+    for r in range(h_l.shape[0]):
+        if h_l[r] > h_u[r]:
+            crossed, at = 1, r
+            break
+    if crossed == 0:
+        for r in range(x_lb.shape[0]):
+            if x_lb[r] > x_ub[r]:
+                crossed, at = 2, r
+                break
+    n_free = 0
+    shifted = False
+    for j in range(x_lb.shape[0]):
+        lo = x_lb[j]
+        if lo == x_ub[j] and math.isfinite(lo):
+            if lo != 0.0:
+                shifted = True
+        else:
+            free_out[n_free] = j
+            n_free += 1
+    same = n_free == free_now.shape[0]
+    if same:
+        for q in range(n_free):
+            if free_out[q] != free_now[q]:
+                same = False
+                break
+    return bad, crossed, at, n_free, same, shifted
+
+
+_FAST_FIELDS = ("A", "G", "c", "b", "h_l", "h_u", "x_lb", "x_ub")
+_NO_FREE = np.empty(0, dtype=np.int64)
+
+
 _KEPT: dict = {}  # (role, pattern, free set) -> (slots, matrix) of _kept, shared by every PiqpQP of the process
 
 
@@ -69,7 +130,7 @@ def _kept(role: str, M, free: np.ndarray):
             _KEPT.clear()
         hit = _KEPT[key] = (R.data.astype(np.intp), R)
     slots, R = hit
-    np.take(M.data, slots, out=R.data)
+    np.take(M.data, slots, out=R.data, mode="clip")  # slots in range: no buffered copy (mode "raise" makes one)
     return R
 
 
@@ -110,6 +171,7 @@ class PiqpQP(SolverAdapter):
         self._piqp = _util.import_solver("piqp", "piqp")
         self._drop_fixed = bool(drop_fixed)
         self._free = None  # indices of the variables PIQP sees (None: all of them)
+        self._shifted = False  # with _free: a fixed variable is nonzero (PIQP's objective then lacks its terms)
         if certify_after is not None and not int(certify_after) >= 1:
             raise input_error("certify_after", certify_after, "must be an iteration count >= 1 (or None)")
         if not (certify_margin >= 0.0 and math.isfinite(certify_margin)):
@@ -183,9 +245,10 @@ class PiqpQP(SolverAdapter):
         self._build()
         self._rebuilt = False
 
-    def _build(self, free=False) -> None:
+    def _build(self, free=False, shifted: bool | None = None) -> None:
         """(Re)create the PIQP solver from the stored data (``free``: the free set when the caller just
-        computed it after checking the bounds, else both are done here)."""
+        computed it after checking the bounds, else both are done here; ``shifted``: whether a fixed
+        variable is nonzero, when the caller knows)."""
         if free is False:
             self._check_crossed()
             free = self._free_variables()
@@ -197,7 +260,8 @@ class PiqpQP(SolverAdapter):
             for key, value in self._native.items():
                 setattr(solver.settings, key, value)
             self._free = free
-            r = self._piqp_data(("P", "c", "A", "b", "G", "h_l", "h_u", "x_lb", "x_ub"))
+            r = self._piqp_data(("P", "c", "A", "b", "G", "h_l", "h_u", "x_lb", "x_ub"),
+                                None if free is None else shifted)
             solver.setup(
                 r["P"], r["c"],
                 r["A"] if self.p else None, r["b"] if self.p else None,
@@ -221,21 +285,23 @@ class PiqpQP(SolverAdapter):
             return None
         return np.flatnonzero(~fixed)
 
-    def _fixed_mask(self) -> np.ndarray:
-        mask = np.ones(self.n, dtype=bool)
-        mask[self._free] = False
-        return mask
-
-    def _piqp_data(self, keys) -> dict:
+    def _piqp_data(self, keys, shifted: bool | None = None) -> dict:
         """The stored data named ``keys`` as PIQP gets them: without the fixed variables when
         ``_free`` is set (their values moved to the right-hand sides: c += P_sym[:, fixed] x_fixed,
-        b -= A x_fixed, h -= G x_fixed)."""
+        b -= A x_fixed, h -= G x_fixed). ``shifted`` (whether a fixed value is nonzero) when the caller
+        computed it from the stored bounds; recorded for :meth:`solve`."""
         d, free = self._data, self._free
         if free is None:
             return {k: d[k] for k in keys}
-        x_fixed = d["x_lb"].copy()
-        x_fixed[free] = 0.0
-        shifted = bool(np.any(x_fixed))
+        x_fixed = None
+        if shifted is None:
+            x_fixed = d["x_lb"].copy()
+            x_fixed[free] = 0.0
+            shifted = bool(np.any(x_fixed))
+        self._shifted = shifted
+        if shifted and x_fixed is None:
+            x_fixed = d["x_lb"].copy()
+            x_fixed[free] = 0.0
         out = {}
         for k in keys:
             v = d[k]
@@ -298,7 +364,7 @@ class PiqpQP(SolverAdapter):
         if not fast:
             self.update_native(c=c, A=A, b=b, G=G, h_l=h_l, h_u=h_u, x_lb=x_lb, x_ub=x_ub, **others)
             return
-        changed = {}
+        given = {}
         for key, value in (("A", A), ("G", G), ("c", c), ("b", b), ("h_l", h_l), ("h_u", h_u), ("x_lb", x_lb),
                            ("x_ub", x_ub)):
             if value is None:
@@ -307,9 +373,32 @@ class PiqpQP(SolverAdapter):
                 d[key].data[:] = value.data
                 value = d[key]
             d[key] = value
-            if self._bad.check(key, value, allow_inf=key in ("h_l", "h_u", "x_lb", "x_ub")):
-                changed[key] = value
-        self._apply(changed, False)
+            given[key] = value
+        # one jitted pass for the NaN checks, crossed bounds and the free set of the stored data (_scan_fast);
+        # any bad field (now or before) takes the per-field checks of update_native's path
+        free_out = np.empty(self.n, dtype=np.intp)
+        bad, crossed, at, n_free, same, shifted = _scan_fast(
+            d["A"].data, d["G"].data, d["c"], d["b"], d["h_l"], d["h_u"], d["x_lb"], d["x_ub"],
+            _NO_FREE if self._free is None else self._free, free_out)
+        if bad or self._bad.fields:
+            changed = {k: v for k, v in given.items()
+                       if self._bad.check(k, v, allow_inf=k in ("h_l", "h_u", "x_lb", "x_ub"))}
+            self._apply(changed, False)
+            return
+        self._crossed = None if not crossed else (
+            f"h_l > h_u on G row {at}" if crossed == 1 else f"x_lb > x_ub on bound of x {at}")
+        free = False
+        rebuild = False
+        if self._drop_fixed and ("x_lb" in given or "x_ub" in given):
+            free = None if n_free in (0, self.n) else free_out[:n_free]
+            if (free is None) != (self._free is None) or (free is not None and not same):
+                rebuild = True  # another set of fixed variables: another problem for PIQP
+            elif free is not None:
+                given.update(dict.fromkeys(("c", "b", "h_l", "h_u"), None))  # the fixed values may have moved
+        if rebuild or self._solver is None:
+            self._build(free, shifted)
+            return
+        self._pass(given)
 
     def _apply(self, changed: dict, rebuild: bool) -> None:
         """Pass the stored fields named in ``changed`` to PIQP (in place), or set it up again when the
@@ -327,6 +416,10 @@ class PiqpQP(SolverAdapter):
         if rebuild or self._solver is None:
             self._build(free)
             return
+        self._pass(changed)
+
+    def _pass(self, changed: dict) -> None:
+        """Hand the stored fields named in ``changed`` to PIQP's in-place update."""
         if not changed:
             return
         changed = self._piqp_data(tuple(changed))
@@ -395,7 +488,7 @@ class PiqpQP(SolverAdapter):
                 x_full = self._data["x_lb"].copy()
                 x_full[self._free] = x
                 x = x_full
-                if np.any(self._data["x_lb"][self._fixed_mask()]):  # PIQP's objective lacks the fixed terms
+                if self._shifted:  # a fixed variable is nonzero: PIQP's objective lacks the fixed terms
                     d = self._data
                     objective = float(d["c"] @ x + 0.5 * x @ _util.symmetric_upper_product(d["P"], x))
             iterations = spent + int(info.iter)
@@ -407,6 +500,6 @@ class PiqpQP(SolverAdapter):
             return self._result(SolveStatus.INFEASIBLE, None, math.nan, iterations, wall,
                                 {"raw_status": "farkas_certificate", "rebuilt": rebuilt, "dual": dual,
                                  "infeasibility_margin": margin, **extra})
-        raw_name = getattr(raw, "name", str(raw))
+        raw_name = raw.name if hasattr(raw, "name") else str(raw)
         return self._result(STATUS_MAP.get(raw_name, SolveStatus.NUMERICAL_ERROR), x, objective, iterations, wall,
                             {"raw_status": raw_name, "rebuilt": rebuilt, "dual": dual, **extra})
