@@ -124,7 +124,7 @@ from proxops.control.relaxation import climb
 from proxops.core.cw import cw_stm
 from proxops.core.memo import memo_get
 from proxops.core.twobody import accel_gravity_vec
-from proxops.errors import input_error
+from proxops.errors import ProxopsInputError, input_error
 from proxops.propagation.kernels import energy_gains, energy_invariants
 from proxops.contracts import Command
 from proxops.solvers import QuadraticProgram, SolveStatus, make_solver, solve_qp, successive_convexification
@@ -722,9 +722,17 @@ class SrfMpc:
         if last > i:  # predicted states at nodes i+1..last, then their gains in one jitted call
             xs[1:] = np.einsum("lij,j->li", self._phi[i + 1:last + 1, i], x) + self._S[i + 1:last + 1] @ flat
 
-        targets = self._per_node.get(("targets", i))
-        if targets is None:  # the target states at nodes i..last (EnergyDrift._targets): made once per node
-            targets = self._per_node[("targets", i)] = self.drift_model._targets(self.sched.times[i:last + 1])
+        every = self._per_node.get("targets")
+        if every is None:  # the target states at nodes 0..last (EnergyDrift._targets), once; rows i..last are node i's
+            try:
+                every = self.drift_model._targets(self.sched.times[:last + 1])
+            except ProxopsInputError:
+                every = False  # a node off the ephemeris grid: each node's own call raises when it is reached
+            self._per_node["targets"] = every
+        if every is False:
+            targets = self.drift_model._targets(self.sched.times[i:last + 1])
+        else:
+            targets = every[i:last + 1]
         k[i:last + 1] = energy_gains(targets, xs, self._drift_params)  # = drift_model.gains(times, xs)
         return k
 
@@ -923,6 +931,15 @@ class SrfMpc:
         r, col = np.nonzero(wsel)
         self._wsel_coo = (r + eq.shape[0], col)
         self._n_eq = eq.shape[0] + 3
+        # values of [eq entries, w-selection entries] at node i (SrfMpc._build): the entry of row k on column
+        # 3 i + k (z+_i) is -1, on nu + 3 i + k (z-_i) +1, on the w columns 1, else 0
+        wr_k, wc_ = r, col
+        base = np.concatenate([self._eq_coo[2], np.where(wc_ >= self._iw, 1.0, 0.0)])
+        where = {(int(k), int(cc)): q + len(self._eq_coo[2]) for q, (k, cc) in enumerate(zip(wr_k, wc_))}
+        minus = np.array([[where[(k, 3 * i + k)] for k in range(3)] for i in range(N + 1)], dtype=np.intp)
+        plus = np.array([[where[(k, nu + 3 * i + k)] for k in range(3)] for i in range(N + 1)], dtype=np.intp)
+        base.flags.writeable = False
+        self._eq_template = (base, minus, plus)
         r, col = np.nonzero(g_static)
         self._g_coo = (r, col, g_static[r, col])
         # entries of the drift rows: value = sign * u_max * k_l[comp] for column (sign, l, comp)
@@ -935,6 +952,10 @@ class SrfMpc:
         self._cbf_rows = np.repeat(np.arange(2 * F), 3) + self._n_g_static
         self._cbf_cols = np.tile(np.arange(self._iw, self._iw + 3), 2 * F)
         self._csc_patterns: dict[str, tuple] = {}  # fixed CSC patterns of A_eq and G (see _csc)
+        self._g_dynamic: dict[str, tuple] = {}  # CSC positions of G's per-build entries (see _g_matrix)
+        self._inf_tail = np.full(2 * F, np.inf)  # upper bounds of the CBF rows
+        self._inf_tail.flags.writeable = False
+        self._koz_off_centre = self.koz is not None and bool(np.any(self.koz.center_m))
         self._per_node: dict = {}  # A_eq values and variable bounds, which depend on the node only (see _build)
         # index maps of the rows whose bounds depend on the node (see _row_bounds): row numbers and
         # node (or hop) of every kind, so one build sets them with array operations
@@ -957,6 +978,7 @@ class SrfMpc:
         self._row_args = (rows_of("hop_r")[0], rows_of("hop_w")[0], rows_of("hop_r")[1], *rows_of("drift"),
                           *rows_of("hold"), *rows_of("dist"), *rows_of("len"), *rows_of("dec"), targets, dist_tol)
         self._n_rows_static = len(kinds)
+        self._drift_js_max = int(rows_of("drift")[1].max()) if rows_of("drift")[1].size else -1
         self._boundaries = np.array(self._hop_boundaries, dtype=np.intp)
 
     def _csc(self, key: str, entries, shape: tuple[int, int], values: np.ndarray) -> sp.csc_matrix:
@@ -981,6 +1003,41 @@ class SrfMpc:
         np.take(values, perm, out=mat.data, mode="clip")  # indices in range: no buffered copy (mode "raise" makes one)
         return mat
 
+    def _g_matrix(self, drift_values: np.ndarray | None, half: np.ndarray | None, lin: np.ndarray | None) -> sp.csc_matrix:
+        """G of :meth:`_build` (rows with constant coefficients, then the CBF rows when ``half`` and ``lin`` are
+        given), the same matrix as :meth:`_csc` of the full COO values ``[gv with the drift entries set,
+        half.ravel(), lin.ravel()]``: the first build of each pattern gathers them all; later builds write
+        only the entries that change (drift gains, CBF rows) at their CSC positions, since the other values
+        of the shared matrix are the constant ones that build wrote."""
+        gr, gc, gv = self._g_coo
+        key = "G" if half is None else "G_cbf"
+        dynamic = self._g_dynamic.get(key)
+        if dynamic is None:
+            sel = self._drift_coo[0]
+            values = gv.copy()
+            if drift_values is not None:
+                values[sel] = drift_values
+            if half is None:
+                mat = self._csc(key, (gr, gc), (self._n_g_static, self._nz), values)
+            else:
+                values = np.concatenate([values, half.ravel(), lin.ravel()])
+                mat = self._csc(key, (np.concatenate([gr, self._cbf_rows]), np.concatenate([gc, self._cbf_cols])),
+                                (self._n_g_static + 2 * self._n_cbf, self._nz), values)
+            perm = self._csc_patterns[key][0]
+            at = np.empty_like(perm)
+            at[perm] = np.arange(len(perm))  # CSC position of every COO entry
+            n_half = 3 * self._n_cbf
+            self._g_dynamic[key] = (at[sel], at[len(gv):len(gv) + n_half], at[len(gv) + n_half:])
+            return mat
+        mat = self._csc_patterns[key][1]
+        at_drift, at_half, at_lin = dynamic
+        if drift_values is not None:
+            mat.data[at_drift] = drift_values
+        if half is not None:
+            mat.data[at_half] = half.ravel()
+            mat.data[at_lin] = lin.ravel()
+        return mat
+
     def _row_bounds(self, i: int, x: np.ndarray, relax: int, fN: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Bounds (g_lo, g_hi) of the rows with constant coefficients at node ``i`` (scaled units) and the
         constant part of a . p at node 0 and every hop end (m: the prediction a . (Phi(t_j - t_i) x)[:3] for a node
@@ -994,7 +1051,7 @@ class SrfMpc:
         rx_past = np.array([self.rx_hist.get(int(j), ax) if j <= i else 0.0 for j in nodes])
         drift = (math.nan, math.nan)
         d_rows, d_js = self._row_sets.get("drift", (_NO_ROWS, _NO_ROWS))
-        if relax < 3 and d_js.size and d_js.max() >= i:  # the same estimate for every drift row of this node
+        if relax < 3 and d_js.size and self._drift_js_max >= i:  # the same estimate for every drift row of this node
             v = self.drift_estimate(float(self.sched.times[i]), x)[0]
             c_lo, c_hi = self.drift_band()
             drift = (c_lo - v, c_hi - v)
@@ -1013,24 +1070,24 @@ class SrfMpc:
         wr, wc = self._wsel_coo
         er, ec, ev = self._eq_coo
         eq_values = self._per_node.get(("eq", i))
-        if eq_values is None:
-            axis = wr - (self._n_eq - 3)
-            wv = np.where(wc >= self._iw, 1.0, 0.0)
-            wv[wc == 3 * i + axis] = -1.0
-            wv[wc == nu + 3 * i + axis] = 1.0
-            eq_values = self._per_node[("eq", i)] = np.concatenate([ev, wv])
+        if eq_values is None:  # [ev, w-selection row values]: 1 on w, -1 on z+_i, +1 on z-_i, 0 elsewhere
+            base, minus, plus = self._eq_template
+            eq_values = base.copy()
+            eq_values[minus[i]] = -1.0
+            eq_values[plus[i]] = 1.0
+            self._per_node[("eq", i)] = eq_values
         A_eq = self._csc("A_eq", lambda: (np.concatenate([er, wr]), np.concatenate([ec, wc])), (self._n_eq, nz),
                          eq_values)
         g_lo, g_hi, rxv = self._row_bounds(i, x, relax, fN)
         r_rhs = rxv[1:] / KM if self._n_r else []
         b_eq = np.concatenate([(self.p_d - fN[:3]) / KM, r_rhs, np.zeros(3)])
-        gr, gc, gv = self._g_coo
+        drift_values = None
         if len(self._drift_coo[0]):
-            sel, node, comp, sign = self._drift_coo
+            _sel, node, comp, sign = self._drift_coo
             gains = self._drift_gains(i, x)
-            gv = gv.copy()
-            gv[sel] = sign * gains[node, comp]
+            drift_values = sign * gains[node, comp]
         n_cbf = self._n_cbf if with_cbf else 0
+        half = lin = None
         if n_cbf:  # (29j) about the reference drift, one jitted pass (_cbf_rows_kernel)
             ur = np.zeros(3) if u_ref is None else u_ref
             koz = self.koz
@@ -1041,12 +1098,11 @@ class SrfMpc:
                 1e-12 * max(1.0, koz.radius_m))
             if not ok:  # a reference point at the KOZ centre: KeepOutSphere.halfspace's one-line error
                 koz.halfspace(xr[:, :3])
-            if np.any(koz.center_m):  # b = r + n . c with numpy's sum (the kernel's is for c = 0)
+            if self._koz_off_centre:  # b = r + n . c with numpy's sum (the kernel's is for c = 0)
                 half_lo = (koz.radius_m + n_hat @ koz.center_m - np.einsum("fk,fk->f", n_hat, cx[:, :3])) / KM
             lin_lo = (gu @ ur - g_ref) / scale
-            gv = np.concatenate([gv, half.ravel(), lin.ravel()])
             g_lo = np.concatenate([g_lo, half_lo, lin_lo])
-            g_hi = np.concatenate([g_hi, np.full(2 * self._n_cbf, np.inf)])
+            g_hi = np.concatenate([g_hi, self._inf_tail])
         boxed = relax < 2 and i < N
         bounds = self._per_node.get(("bounds", i, boxed))
         if bounds is None:  # depend on (i, boxed) only: made once, read-only
@@ -1062,11 +1118,7 @@ class SrfMpc:
             lb.flags.writeable = ub.flags.writeable = False
             bounds = self._per_node[("bounds", i, boxed)] = (lb, ub)
         lb, ub = bounds
-        if n_cbf:
-            G = self._csc("G_cbf", lambda: (np.concatenate([gr, self._cbf_rows]), np.concatenate([gc, self._cbf_cols])),
-                          (self._n_g_static + 2 * n_cbf, nz), gv)
-        else:
-            G = self._csc("G", lambda: (gr, gc), (self._n_g_static, nz), gv)
+        G = self._g_matrix(drift_values, half, lin)
         return _Qp(self._P, self._c, A_eq, b_eq, G, g_lo, g_hi, lb, ub, N - i + 1)
     def _run_solver(self, qp: _Qp, i: int, persistent: bool = True):
         """Solve with the persistent adapter of ``cfg.solver`` (``setup(problem)`` once, ``update``
