@@ -265,6 +265,7 @@ def _drift_stms(n_orb: float, tau: np.ndarray) -> np.ndarray:
 
 
 _NO_ROWS = np.empty(0, dtype=np.intp)
+_PATTERN_CACHE: dict = {}  # fixed CSC patterns of the QP matrices by (shape, COO rows, COO cols) (SrfMpc._csc)
 
 
 @njit(cache=True)
@@ -991,14 +992,22 @@ class SrfMpc:
         tmpl = self._csc_patterns.get(key)
         if tmpl is None:
             rows, cols = entries() if callable(entries) else entries
-            probe = sp.csc_matrix((np.arange(1.0, len(rows) + 1.0), (rows, cols)), shape=shape)
-            if probe.nnz != len(rows):
-                raise AssertionError(f"{key}: repeated entries in a fixed QP pattern")
-            probe.has_sorted_indices = True
-            probe.has_canonical_format = True
-            probe.indices.flags.writeable = False  # the pattern is fixed: solver adapters may rely on it
-            probe.indptr.flags.writeable = False
-            tmpl = self._csc_patterns[key] = (probe.data.astype(np.intp) - 1, probe)
+            rows = np.ascontiguousarray(rows, dtype=np.intp)
+            cols = np.ascontiguousarray(cols, dtype=np.intp)
+
+            def pattern():  # (perm, indices, indptr), shared read-only by every controller with this pattern
+                probe = sp.csc_matrix((np.arange(1.0, len(rows) + 1.0), (rows, cols)), shape=shape)
+                if probe.nnz != len(rows):
+                    raise AssertionError(f"{key}: repeated entries in a fixed QP pattern")
+                return probe.data.astype(np.intp) - 1, probe.indices, probe.indptr
+
+            perm, indices, indptr = memo_get(_PATTERN_CACHE, (shape, rows.tobytes(), cols.tobytes()), pattern,
+                                             read_only=True)
+            # the pattern is fixed and read-only: solver adapters may rely on it (PiqpQP.update_fast)
+            mat = sp.csc_matrix((np.empty(len(perm)), indices, indptr), shape=shape, copy=False)
+            mat.has_sorted_indices = True
+            mat.has_canonical_format = True
+            tmpl = self._csc_patterns[key] = (perm, mat)
         perm, mat = tmpl
         np.take(values, perm, out=mat.data, mode="clip")  # indices in range: no buffered copy (mode "raise" makes one)
         return mat

@@ -106,7 +106,13 @@ def _scan_fast(A, G, c, b, h_l, h_u, x_lb, x_ub, free_now, free_out):
     return bad, crossed, at, n_free, same, shifted
 
 
-_FAST_FIELDS = ("A", "G", "c", "b", "h_l", "h_u", "x_lb", "x_ub")
+def _on_pattern(d: dict, key: str, m) -> bool:
+    """``m`` is None or carries the read-only index arrays the stored matrix ``d[key]`` was last refilled
+    from (:func:`_util.refill_same_pattern`): its values may be copied in place."""
+    if m is None:
+        return True
+    src = getattr(d[key], "_pattern_source", None)
+    return src is not None and src[0] is m.indices and src[1] is m.indptr
 _NO_FREE = np.empty(0, dtype=np.int64)
 
 
@@ -357,10 +363,8 @@ class PiqpQP(SolverAdapter):
         bounds are still caught, and PIQP gets the calls :meth:`update_native` would make. Anything else
         (P, another pattern, a first update) takes :meth:`update_native`."""
         d = self._data
-        mats = {"A": A, "G": G}
-        fast = d is not None and not others and all(
-            (src := getattr(d[k], "_pattern_source", None)) is not None and src[0] is m.indices and src[1] is m.indptr
-            for k, m in mats.items() if m is not None)
+        mats = ("A", "G")
+        fast = d is not None and not others and _on_pattern(d, "A", A) and _on_pattern(d, "G", G)
         if not fast:
             self.update_native(c=c, A=A, b=b, G=G, h_l=h_l, h_u=h_u, x_lb=x_lb, x_ub=x_ub, **others)
             return
