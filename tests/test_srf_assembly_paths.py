@@ -196,3 +196,13 @@ def test_g_entries_written_in_place_equal_a_fresh_gather():
             half = np.array([nf @ cw_stm(n, tau)[:3, 3:6] for nf, tau in zip(nrm, ctrl.tau)]) * 3.0 / 1000.0
             rows = dense[ctrl._n_g_static:ctrl._n_g_static + F, ctrl._iw:ctrl._iw + 3]
             np.testing.assert_allclose(rows, half, rtol=1e-9, atol=1e-15)
+
+
+def test_target_rows_equal_numpys_gather_and_refuse_every_off_grid_time():
+    model = _ephemeris(n_pts=500)
+    t = 10.0 * np.arange(0, 500, 7) + 1e-9 * np.arange(0, 500, 7)  # on the grid within the 1e-6 tolerance
+    k = np.rint(t / model.dt).astype(int)
+    assert np.array_equal(model._targets(t), np.ascontiguousarray(model.states[k]))
+    for bad in (np.array([0.0, 10.0, 15.0]), np.array([-10.0]), np.array([5000.0]), np.array([20.0, 30.0, 35.0])):
+        with pytest.raises(ProxopsInputError):
+            model._targets(bad)

@@ -169,6 +169,27 @@ class SrfMpcConfig:
     solver: str = "piqp"
 
 
+@njit(cache=True)
+def _grid_rows(states, dt, t):
+    """(states[k_j] for k_j = rint(t_j / dt), index of the first t_j off the grid or -1): off the grid when
+    k_j is outside the table or |k_j dt - t_j| > 1e-6 max(1, t_j) (or t_j is NaN), as numpy's
+    ``np.rint(t / dt).astype(int)`` and its mask compute it."""
+    n = t.shape[0]
+    out = np.empty((n, states.shape[1]))
+    for j in range(n):
+        tj = t[j]
+        if tj != tj:
+            return out, j
+        kf = np.rint(tj / dt)
+        if not (0.0 <= kf < states.shape[0]):
+            return out, j
+        k = int(kf)
+        if abs(k * dt - tj) > 1e-6 * max(1.0, tj):
+            return out, j
+        out[j] = states[k]
+    return out, -1
+
+
 @dataclass
 class EnergyDrift:
     """J2-aware drift invariant from an onboard target ephemeris (Hill frame with the J2 frame rate).
@@ -211,12 +232,13 @@ class EnergyDrift:
         return np.array([self.mu, self.j2, self.re])
 
     def _targets(self, t) -> np.ndarray:
-        t = np.asarray(t, dtype=float)
-        k = np.rint(t / self.dt).astype(int)
-        bad = (k < 0) | (k >= len(self.states)) | (np.abs(k * self.dt - t) > 1e-6 * np.maximum(1.0, t))
-        if bad.any():
-            self._index(float(t[np.argmax(bad)]))  # raises the one-line error
-        return np.ascontiguousarray(self.states[k])
+        """The ephemeris rows at times ``t`` (s, on the grid: ``k = rint(t / dt)``, within 1e-6 relative), one
+        jitted gather (:func:`_grid_rows`); a time off the grid raises :meth:`_index`'s one-line error."""
+        t = np.ascontiguousarray(t, dtype=float)
+        rows, bad = _grid_rows(self.states, float(self.dt), t)
+        if bad >= 0:
+            self._index(float(t[bad]))  # raises the one-line error
+        return rows
 
     def gains(self, t, xs) -> np.ndarray:
         """:meth:`gain` of Hill states (n, 6) at times (n,), one jitted call
