@@ -206,3 +206,18 @@ def test_target_rows_equal_numpys_gather_and_refuse_every_off_grid_time():
     for bad in (np.array([0.0, 10.0, 15.0]), np.array([-10.0]), np.array([5000.0]), np.array([20.0, 30.0, 35.0])):
         with pytest.raises(ProxopsInputError):
             model._targets(bad)
+
+
+def test_gain_at_the_node_is_the_row_of_the_predicted_gains():
+    ctrl0, n, a = _vbar_controller()
+    sched = ctrl0.sched
+    mu, r = 3.986004418e14, 8100e3
+    w = math.sqrt(mu / r**3)
+    t = np.arange(sched.steps[-1] + 10) * sched.dt
+    states = np.column_stack([r * np.cos(w * t), r * np.sin(w * t), 0 * t, -r * w * np.sin(w * t), r * w * np.cos(w * t), 0 * t])
+    ctrl, _, _ = _vbar_controller(drift_model=EnergyDrift(sched.dt, states, mu, 1.08263e-3, 6378.137e3))
+    rng = np.random.default_rng(8)
+    ctrl.plan[:] = rng.normal(scale=0.02, size=ctrl.plan.shape)
+    for i in (0, 2, 5, ctrl._drift_last, ctrl._drift_last + 1):
+        x = np.concatenate([2000.0 * a, np.zeros(3)]) + rng.normal(scale=[5, 5, 1, 1e-3, 1e-3, 1e-4])
+        assert np.array_equal(ctrl._drift_gain_at(i, x), ctrl._drift_gains(i, x)[i])

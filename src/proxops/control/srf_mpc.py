@@ -759,6 +759,20 @@ class SrfMpc:
         k[i:last + 1] = energy_gains(targets, xs, self._drift_params)  # = drift_model.gains(times, xs)
         return k
 
+    def _drift_gain_at(self, i: int, x: np.ndarray) -> np.ndarray:
+        """Row i of :meth:`_drift_gains` (i, x): the gain at the current state alone (the same kernel on the same
+        row; the predicted rows after it are not needed)."""
+        if self.drift_model is None:
+            return np.array([0.0, 1.0, 0.0])
+        if self._drift_last < i:
+            return np.zeros(3)
+        every = self._per_node.get("targets")
+        target = every[i:i + 1] if every is not None and every is not False else \
+            self.drift_model._targets(self.sched.times[i:i + 1])
+        xs = np.empty((1, 6))
+        xs[0] = x
+        return energy_gains(target, xs, self._drift_params)[0]
+
     def step(self, t: float, x_est) -> Command:
         x = np.asarray(x_est, dtype=float)
         if self.cfg.drift_free_tol_mps is not None and x.size == 6 and np.all(np.isfinite(x)):
@@ -846,7 +860,7 @@ class SrfMpc:
         norm = float(np.linalg.norm(u))
         if bit <= 0.0 or norm == 0.0 or norm >= bit:
             return u
-        k = self._drift_gains(node, x)[node]
+        k = self._drift_gain_at(node, x)
         lo, hi = self.drift_band()
         c_now = self.drift_estimate(float(self.sched.times[node]), x)[0]
         if abs(float(k @ u)) <= self.cfg.drift_free_tol_mps and lo <= c_now <= hi:
