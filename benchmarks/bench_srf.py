@@ -4,6 +4,7 @@ ten times more" fuel), hop timing checks, and the 50-run campaign wall times on 
 
     python benchmarks/bench_srf.py            # single runs + campaigns
     python benchmarks/bench_srf.py --quick    # single runs only
+    python benchmarks/bench_srf.py --loop-ratios  # srf-vbar loop: assembly / PIQP and solver share
 
 Goals (issue 4): median solve < 3 ms; a 50-run campaign < 30 s on 2 cores. The machine is
 shared: the load average is printed with the numbers.
@@ -104,6 +105,73 @@ def assembly_share(n_runs: int = 10) -> None:
           f"{solver / acc['node']:.0%} (load average {os.getloadavg()[0]:.2f})")
 
 
+def loop_ratios(name: str = "srf-vbar", reps: int = 30) -> None:
+    """In-process ratios of one closed loop (``simulate`` of the built-in's set-up), thread CPU time, best and
+    median of ``reps`` loops: PIQP's own calls (SparseSolver setup/update/solve), the adapter's calls (what
+    benchmarks/_ab_probe.py counts as solver time), SrfMpc._build. Assembly = _build + the adapter's own
+    Python (adapter - PIQP); goal (issue 32 item 3) <= 30 % of PIQP; solver share = adapter / loop >= 50 %."""
+    import piqp
+
+    from proxops import api
+    from proxops.control import srf_mpc
+    from proxops.solvers import piqp_qp
+
+    clock = time.thread_time
+    acc: dict = {}
+    depth: dict = {}
+
+    def timed(fn, key):
+        def wrapper(*a, **k):
+            outer = depth.setdefault(key, 0) == 0
+            depth[key] += 1
+            t0 = clock()
+            try:
+                return fn(*a, **k)
+            finally:
+                depth[key] -= 1
+                if outer:
+                    acc[key] = acc.get(key, 0.0) + clock() - t0
+        return wrapper
+
+    base = piqp.SparseSolver
+
+    class TimedPiqp(base):
+        setup = timed(base.setup, "piqp")
+        update = timed(base.update, "piqp")
+        solve = timed(base.solve, "piqp")
+
+    methods = ("setup", "setup_native", "update", "update_native", "update_fast", "solve")
+    own = {m: piqp_qp.PiqpQP.__dict__.get(m) for m in methods}
+    saved_build = srf_mpc.SrfMpc._build
+    loaded = api.load_scenario(name, [])
+    api.run(loaded)  # warm-up
+    rows = []
+    try:
+        piqp.SparseSolver = TimedPiqp
+        srf_mpc.SrfMpc._build = timed(saved_build, "build")
+        for m in methods:
+            setattr(piqp_qp.PiqpQP, m, timed(getattr(piqp_qp.PiqpQP, m), "adapter"))
+        for _ in range(reps):
+            setup = loaded.system.build(loaded.scenario)
+            acc.clear()
+            t0 = clock()
+            api.simulate(setup, seed=0)
+            rows.append((clock() - t0, acc.get("piqp", 0.0), acc.get("adapter", 0.0), acc.get("build", 0.0)))
+    finally:
+        piqp.SparseSolver, srf_mpc.SrfMpc._build = base, saved_build
+        for m, fn in own.items():
+            if fn is None:
+                delattr(piqp_qp.PiqpQP, m)
+            else:
+                setattr(piqp_qp.PiqpQP, m, fn)
+    a = np.array(rows)
+    for label, (wall, pq, ad, bu) in (("best", a[np.argmin(a[:, 0])]), ("median", np.median(a, axis=0))):
+        print(f"{name} loop ({label} of {reps}, thread CPU): {wall * 1e3:.1f} ms; PIQP {pq * 1e3:.1f} ms, adapter "
+              f"{ad * 1e3:.1f} ms (solver share {ad / wall:.0%}, goal >= 50 %), _build {bu * 1e3:.1f} ms; assembly "
+              f"(_build + adapter's own) {(bu + ad - pq) / pq:.0%} of PIQP (goal <= 30 %)")
+    print(f"load average {os.getloadavg()[0]:.2f}")
+
+
 def main(quick: bool = False) -> None:
     from proxops.guidance.hop_times import rbar_phi
 
@@ -156,4 +224,7 @@ def main(quick: bool = False) -> None:
 
 
 if __name__ == "__main__":
-    main(quick="--quick" in sys.argv)
+    if "--loop-ratios" in sys.argv:
+        loop_ratios()
+    else:
+        main(quick="--quick" in sys.argv)
