@@ -200,27 +200,25 @@ class LosGuidanceController(Supervisor):
         mpc = self.mpc
         if mpc is None:
             u_body, status, solve_time = self._nominal_body(mode, t, x, theta, v_ref, v_achv), Status.OK, 0.0
-            info = {"range_m": r, "r_ref_m": self.r_ref}
+            b0, b1, b2 = u_body.tolist()
+            info = {"range_m": r, "r_ref_m": self.r_ref, "u_body_0": b0, "u_body_1": b1, "u_body_2": b2}
         else:
             if mode == "far":  # the limited spiral state in F_B (one state held over the horizon)
                 x_ref = self._far_reference(v_ref, v_achv)
             else:
                 x_ref = self._axis_trajectory(v_ref)
-            sol = mpc.solve(t, x, x_ref, self.u_prev)
-            status, solve_time = sol.status, sol.solve_time_s
-            info = {"range_m": r, "r_ref_m": self.r_ref, "mpc_iterations": sol.iterations,
-                    "mpc_build_ms": sol.build_time_s * 1e3, "slack_m": sol.max_slack_m}
-            if sol.ok:
-                u_body = sol.u0
-            elif mpc.soft:
-                u_body = self._nominal_body(mode, t, x, theta, v_ref, v_achv)
-            else:
-                u_body = sol.u0  # shifted previous plan
-                if self.g.stop_on_infeasible:
+            # MpcSolution's fields without building it (LosMpc.solve_raw)
+            status, u_body, _, _, solve_time, build_time, iterations, slack, _ = mpc.solve_raw(t, x, x_ref, self.u_prev)
+            if not status.ok:
+                if mpc.soft:
+                    u_body = self._nominal_body(mode, t, x, theta, v_ref, v_achv)
+                elif self.g.stop_on_infeasible:  # u_body: the shifted previous plan
                     stop = True
                     mode = "qp_infeasible"
-        b0, b1, b2 = u_body.tolist()
-        info["u_body_0"], info["u_body_1"], info["u_body_2"] = b0, b1, b2
+            b0, b1, b2 = u_body.tolist()
+            info = {"range_m": r, "r_ref_m": self.r_ref, "mpc_iterations": iterations,
+                    "mpc_build_ms": build_time * 1e3, "slack_m": slack, "u_body_0": b0, "u_body_1": b1,
+                    "u_body_2": b2}
         self.u_prev = u_body
         events = _NO_EVENTS
         if mode == "hold" and not self.hold_reached:
