@@ -165,8 +165,12 @@ class LosGuidanceController(Supervisor):
 
     def step(self, t: float, x_est: np.ndarray) -> Command:
         """:meth:`Supervisor.step` with the regime's command computed here (each sub-controller only forwards
-        to :meth:`_regime_step`, which always names the mode)."""
-        return self._regime_step(self.select(t, x_est), t, x_est)
+        to :meth:`_regime_step`, which always names the mode). Once in ``hold`` (absorbing, no dwell time)
+        :meth:`Supervisor.select` returns it without asking the rule: that shortcut is taken here."""
+        mode = self.mode
+        if mode != "hold":
+            mode = self.select(t, x_est)
+        return self._regime_step(mode, t, x_est)
 
     def regime_rule(self, t: float, x: np.ndarray, mode: str | None) -> str:
         """§7: hold when |r - r_h| <= eps_h and |v_B| < v_switch (latched: ``hold`` is absorbing),

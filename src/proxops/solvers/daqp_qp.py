@@ -363,6 +363,10 @@ class DaqpQP(SolverAdapter):
                 or not self.warm_start_enabled):
             res = self.solve()
             return res.status, res.x, res.iterations, res.solve_time_s, res.info
+        return self._solve_lean()
+
+    def _solve_lean(self) -> tuple:
+        """The lean path of :meth:`solve_fast` (healthy model, warm start): one DAQP solve, timed."""
         try:
             t0 = time.perf_counter()
             x, _, flag, info = self._model.solve()
@@ -392,7 +396,7 @@ class DaqpQP(SolverAdapter):
     def solve_bounds_fast(self) -> tuple:
         """:meth:`update_fast` of the bounds written in place into :meth:`bound_vectors` (finite, the
         same conditions as update_fast: no row or variable turning into or out of an equality),
-        then :meth:`solve_fast`; the same (status, x, iterations, wall_s, info). DAQP re-reads the
+        then :meth:`solve_fast` (one call, one health check); the same (status, x, iterations, wall_s, info). DAQP re-reads the
         vectors in its update (O(m) without a linear term). After a failed set-up/update the bounds
         go through :meth:`update_native` (copies; it rebuilds the model)."""
         if (self._model is None or self._solver_error is not None or self._solver_flag < 0 or self._bad.fields
@@ -401,12 +405,15 @@ class DaqpQP(SolverAdapter):
             upper, lower = self._upper, self._lower
             self.update_native(bu=upper[off:].copy(), bl=lower[off:].copy(),
                                **({"ub": upper[:off].copy(), "lb": lower[:off].copy()} if off else {}))
-        else:
-            try:
-                self._solver_flag = int(self._model.update(bupper=self._upper, blower=self._lower))
-            except Exception as exc:
-                self._solver_error = error_message(exc)
-        return self.solve_fast()
+            return self.solve_fast()
+        try:
+            self._solver_flag = int(self._model.update(bupper=self._upper, blower=self._lower))
+        except Exception as exc:
+            self._solver_error = error_message(exc)
+            return self.solve_fast()
+        if self._solver_flag < 0 or not self.warm_start_enabled:
+            return self.solve_fast()
+        return self._solve_lean()
 
     def _solve_checked(self) -> SolverResult:
         """:meth:`solve` when something is off (bad data, crossed bounds, a failed set-up) or the
