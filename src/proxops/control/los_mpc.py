@@ -273,6 +273,7 @@ class LosMpc:
         self._solver = None  # the QP solver's adapter (proxops.solvers.base.SolverAdapter), made at the first solve
         self._fast = False  # DAQP: bounds (and f) through update_fast
         self._lean = False  # DAQP in hard mode: bounds only, written into DAQP's own bound vectors
+        self._lean_step = False  # _lean and no refinements: solve_raw's short path
         self._staged = False  # the kernel's bounds are in DAQP's vectors, not yet re-read (_solve_qp)
         self._form = True  # set up with the QuadraticProgram form (update takes its names)
         self._plan: np.ndarray | None = None  # (3N,) last planned body-axes inputs (a fresh array per solve)
@@ -430,6 +431,19 @@ class LosMpc:
         ref = (x_ref if x_ref.__class__ is np.ndarray and x_ref.shape == self._ref_shape
                else self._reference(x_ref))
         plan = self._plan
+        if self._lean_step and plan is not None:  # DAQP, hard mode, one QP per step: every step but the first
+            solver = self._solver
+            upper, lower = solver.bound_vectors()
+            if _qp_data(theta_k, _SHIFT_PLAN, x_body, u_prev, ref, plan, *self._kernel_data, self._basis, self._work,
+                        upper, lower):
+                build_time = _perf_counter() - t_build
+                status, x, iterations, solve_time, info = solver.solve_bounds_fast()
+                if status is _OPTIMAL:
+                    x += self._u_c  # w + x_c (DAQP's x is a fresh array)
+                    self._plan = x
+                    return status, x[:3], theta_k, x, solve_time, build_time, iterations, 0.0, {} if info is None else info
+                return self._finish(status, x, iterations, solve_time, build_time, info, theta_k)
+            # a NaN/inf state: the general path below (the kernel runs again on the same data, then the checked update)
         if plan is None:
             self._load(theta_k, x_body, ref, u_prev, self._zeros_n, _HOLD_U_PREV)
         else:
@@ -443,6 +457,11 @@ class LosMpc:
             status, x, its, dt, info = self._solve_qp()
             solve_time += dt
             iterations += its
+        return self._finish(status, x, iterations, solve_time, build_time, info, theta_k)
+
+    def _finish(self, status, x, iterations: int, solve_time: float, build_time: float, info, theta_k: float) -> tuple:
+        """:meth:`solve_raw`'s result from the solver's (status, x in its variables, ...): the plan U = x + x_c
+        (slacks split off in soft mode), or after a failed solve the previous plan shifted."""
         if x is None or (status is not _OPTIMAL and not status.ok):
             u0 = self._shifted_plan()
             return (status, u0, theta_k, None, solve_time, build_time, iterations, 0.0,
@@ -529,6 +548,7 @@ class LosMpc:
             self._form = True
         self._fast = name == "daqp"
         self._lean = self._fast and f is None  # bounds-only updates (hard mode)
+        self._lean_step = self._lean and self.cfg.refinements == 0
         self._solver = solver
 
     def _shifted_plan(self) -> np.ndarray:
@@ -544,7 +564,7 @@ class LosMpc:
     def reset(self) -> None:
         """Forget the warm start and the stored plan."""
         self._solver = None
-        self._lean = self._staged = False
+        self._lean = self._lean_step = self._staged = False
         self._plan = None
 
 
