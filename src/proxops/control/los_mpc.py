@@ -48,7 +48,8 @@ G (S w)_pos,j <= h - G (p_g + S (U_c - g))_pos,j. This is the same LDP DAQP buil
 (H, f) (its u = R (U - U_c) either way), but DAQP then keeps no linear term, so a step
 only rewrites bound vectors (O(m)) instead of DAQP recomputing R^-T f and d = b + M v
 (O(m n), ~40 us at N = 40). One jitted kernel (:func:`_qp_data`) forms g, computes p_g, f,
-U_c and the bounds in place in preallocated buffers (the corridor rows G S_pos and H never change),
+U_c and the bounds in place (the corridor rows G S_pos and H never change; no per-step allocation but DAQP's
+fresh solution): in hard mode on DAQP straight into the bound vectors DAQP reads, else into preallocated buffers,
 using that S is block lower-triangular Toeplitz (block (j, i) = K_(j-i), see
 ``LosMpc._geometry_blocks``): its products read the N blocks K_d, not S; U = w + U_c. Soft mode
 keeps the linear term (the QP in dU with f, DAQP's own update): shifting the slack to its
@@ -69,7 +70,10 @@ Solver: the one named by ``LosMpcConfig.solver`` through :func:`proxops.solvers.
 (the :class:`proxops.solvers.forms.QuadraticProgram` P = H, q, A = corridor rows, bu, lb, ub; data
 updated in place each step by the form's field names). Default DAQP, warm-started from the previous
 active set, with its lean paths: no linear term in hard mode (``setup_native`` with f = None),
-``update_fast`` (bounds only in hard mode) and ``solve_fast`` (no SolverResult per step). PIQP and Clarabel (interior point) start cold every step.
+in hard mode the kernel's bounds written into DAQP's own bound vectors (``DaqpQP.bound_vectors``), re-read and
+solved by ``solve_bounds_fast`` (no copies, no keyword update, no SolverResult per step); soft mode through
+``update_fast`` and ``solve_fast``. PIQP and Clarabel (interior point) start cold every step. The closed loop
+calls :meth:`LosMpc.solve_raw` (MpcSolution's fields as a tuple, no solution object per step).
 
 Per-step cost (benchmarks/bench_los.py prints it for N = 20..160): the kernel reads H^-1 (3N x 3N) and
 O(N) data, ~22 N^2 multiply-adds, below one DAQP iteration (its constraint check reads M = A R^-1,
@@ -153,7 +157,7 @@ class MpcSolution:
     theta_rad: float
     inputs: np.ndarray | None  # (N, 3) planned body-axes inputs (m/s^2; the MPC's own plan: do not modify)
     solve_time_s: float  # QP solver's solve call(s)
-    build_time_s: float  # QP data update (kernel + solver update; DAQP in hard mode re-reads its bounds in the solve call)
+    build_time_s: float  # QP data update: kernel + solver update (DAQP, hard mode: its update is in the solve call)
     iterations: int
     max_slack_m: float = 0.0  # soft mode: largest corridor slack used
     info: dict = field(default_factory=dict)
@@ -271,7 +275,7 @@ class LosMpc:
         self._A = A
         self._lb, self._ub = lb, ub
         self._solver = None  # the QP solver's adapter (proxops.solvers.base.SolverAdapter), made at the first solve
-        self._fast = False  # DAQP: bounds (and f) through update_fast
+        self._fast = False  # DAQP: bounds (and f) through update_fast / solve_fast (soft) or its bound vectors (hard)
         self._lean = False  # DAQP in hard mode: bounds only, written into DAQP's own bound vectors
         self._lean_step = False  # _lean and no refinements: solve_raw's short path
         self._staged = False  # the kernel's bounds are in DAQP's vectors, not yet re-read (_solve_qp)
@@ -441,7 +445,8 @@ class LosMpc:
                 if status is _OPTIMAL:
                     x += self._u_c  # w + x_c (DAQP's x is a fresh array)
                     self._plan = x
-                    return status, x[:3], theta_k, x, solve_time, build_time, iterations, 0.0, {} if info is None else info
+                    return (status, x[:3], theta_k, x, solve_time, build_time, iterations, 0.0,
+                            {} if info is None else info)
                 return self._finish(status, x, iterations, solve_time, build_time, info, theta_k)
             # a NaN/inf state: the general path below (the kernel runs again on the same data, then the checked update)
         if plan is None:
@@ -528,7 +533,8 @@ class LosMpc:
     def _make_solver(self, f: np.ndarray | None) -> None:
         """The QP solver named by ``config.solver`` (proxops.solvers.make_solver) for the problem in the
         buffers. DAQP in hard mode is set up without a linear term (``setup_native`` with f = None: it keeps
-        no v, so a bound update costs O(m); module doc) and updated through ``update_fast``; every other
+        no v, so a bound update costs O(m); module doc) and its bounds written into its own vectors (``_lean``:
+        ``DaqpQP.bound_vectors``, ``solve_bounds_fast``); soft mode on DAQP through ``update_fast``; every other
         case is the :class:`QuadraticProgram` form, updated by its field names (bu, lb, ub, and q in soft mode)."""
         name = self.cfg.solver
         settings = dict(self.cfg.solver_settings)

@@ -396,8 +396,8 @@ class DaqpQP(SolverAdapter):
     def solve_bounds_fast(self) -> tuple:
         """:meth:`update_fast` of the bounds written in place into :meth:`bound_vectors` (finite, the
         same conditions as update_fast: no row or variable turning into or out of an equality),
-        then :meth:`solve_fast` (one call, one health check); the same (status, x, iterations, wall_s, info). DAQP re-reads the
-        vectors in its update (O(m) without a linear term). After a failed set-up/update the bounds
+        then :meth:`solve_fast` (one call, one health check); the same (status, x, iterations, wall_s, info).
+        DAQP re-reads the vectors in its update (O(m) without a linear term). After a failed set-up/update the bounds
         go through :meth:`update_native` (copies; it rebuilds the model)."""
         if (self._model is None or self._solver_error is not None or self._solver_flag < 0 or self._bad.fields
                 or self._crossed is not None or self._p_eq):
