@@ -27,8 +27,11 @@ ADAPTERS = {  # module -> adapter classes (present in every release since the so
 _clock = {"solver_s": 0.0, "calls": 0, "depth": 0}
 
 
-SOLVER_METHODS = ("setup", "setup_native", "update", "update_native", "update_fast", "warm_start", "solve", "solve_fast")
-SOLVE_METHODS = ("solve", "solve_fast")  # one solve each (solve_fast's fallback to solve is nested: counted once)
+SOLVER_METHODS = ("setup", "setup_native", "update", "update_native", "update_fast", "warm_start", "solve",
+                  "solve_fast", "solve_bounds_fast")
+# one solve each (solve_fast's fallback to solve is nested: counted once); solve_bounds_fast = DAQP's update of the
+# bounds written in place into its vectors + solve_fast
+SOLVE_METHODS = ("solve", "solve_fast", "solve_bounds_fast")
 
 
 def _wrap(cls, method: str) -> None:

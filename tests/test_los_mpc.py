@@ -289,3 +289,32 @@ def test_averaged_input_map_is_block_toeplitz(N):
     lag = np.arange(N)[:, None] - np.arange(N)[None, :]  # j - i
     expected = np.where((lag >= 0)[:, :, None, None], S[:, :, 0:3][np.clip(lag, 0, None)], 0.0)
     assert np.all(np.abs(blocks - expected) <= 1e-13 * scale[None, None, :, None])
+
+
+def test_kernel_writes_the_shifted_bounds_into_daqps_vectors():
+    """Hard mode on DAQP: from the second solve on, the kernel writes the bounds of the QP in w = U - U_c straight
+    into the vectors DAQP reads (DaqpQP.bound_vectors). They equal a plain numpy build from the direct QP
+    (_direct_qp: exact rollout, H and f): U_c = g - H^-1 f, lb = -a_max - U_c, ub = a_max - U_c, corridor rows
+    h - G p_g - G S (U_c - g); the row lower bounds stay DAQP's -1e30."""
+    model, a_max = _model(), 0.05
+    mpc = LosMpc(model, LosCorridor(), a_max, LosMpcConfig.single_run())
+    N, nu = mpc.N, mpc.n_u
+    x0 = np.array([12.0, 60.0, -3.0, 0.3, -0.4, 0.05])
+    ref = np.array([0.0, 10.0, 0.0, 0.0, 0.0, 0.0])
+    u_prev = np.array([0.01, -0.02, 0.0])
+    first = mpc.solve(36.0, x0, ref, u_prev)
+    assert first.ok
+    x1 = np.array([11.0, 59.5, -2.9, 0.25, -0.35, 0.04])
+    second = mpc.solve(37.0, x1, ref, first.u0)
+    assert second.ok and mpc._lean
+    plan = first.inputs.ravel()
+    g = np.concatenate([plan[3:], plan[-3:]])  # the previous plan shifted by one step, its last input held
+    qp = _direct_qp(mpc, 37.0, x1, ref, first.u0, g)
+    U_c = g - np.linalg.solve(qp.P, qp.q)
+    upper, lower = mpc._solver.bound_vectors()
+    scale = np.abs(qp.bu).max()
+    np.testing.assert_allclose(upper[:nu], a_max - U_c, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(lower[:nu], -a_max - U_c, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(upper[nu:], qp.bu - qp.A @ (U_c - g), rtol=0, atol=1e-9 * scale)
+    assert np.all(lower[nu:] == -1e30)
+    np.testing.assert_allclose(second.inputs.ravel()[:3], second.u0, rtol=0, atol=0)

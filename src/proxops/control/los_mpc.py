@@ -48,7 +48,8 @@ G (S w)_pos,j <= h - G (p_g + S (U_c - g))_pos,j. This is the same LDP DAQP buil
 (H, f) (its u = R (U - U_c) either way), but DAQP then keeps no linear term, so a step
 only rewrites bound vectors (O(m)) instead of DAQP recomputing R^-T f and d = b + M v
 (O(m n), ~40 us at N = 40). One jitted kernel (:func:`_qp_data`) forms g, computes p_g, f,
-U_c and the bounds in place in preallocated buffers (the corridor rows G S_pos and H never change),
+U_c and the bounds in place (the corridor rows G S_pos and H never change; no per-step allocation but DAQP's
+fresh solution): in hard mode on DAQP straight into the bound vectors DAQP reads, else into preallocated buffers,
 using that S is block lower-triangular Toeplitz (block (j, i) = K_(j-i), see
 ``LosMpc._geometry_blocks``): its products read the N blocks K_d, not S; U = w + U_c. Soft mode
 keeps the linear term (the QP in dU with f, DAQP's own update): shifting the slack to its
@@ -69,7 +70,10 @@ Solver: the one named by ``LosMpcConfig.solver`` through :func:`proxops.solvers.
 (the :class:`proxops.solvers.forms.QuadraticProgram` P = H, q, A = corridor rows, bu, lb, ub; data
 updated in place each step by the form's field names). Default DAQP, warm-started from the previous
 active set, with its lean paths: no linear term in hard mode (``setup_native`` with f = None),
-``update_fast`` (bounds only in hard mode) and ``solve_fast`` (no SolverResult per step). PIQP and Clarabel (interior point) start cold every step.
+in hard mode the kernel's bounds written into DAQP's own bound vectors (``DaqpQP.bound_vectors``), re-read and
+solved by ``solve_bounds_fast`` (no copies, no keyword update, no SolverResult per step); soft mode through
+``update_fast`` and ``solve_fast``. PIQP and Clarabel (interior point) start cold every step. The closed loop
+calls :meth:`LosMpc.solve_raw` (MpcSolution's fields as a tuple, no solution object per step).
 
 Per-step cost (benchmarks/bench_los.py prints it for N = 20..160): the kernel reads H^-1 (3N x 3N) and
 O(N) data, ~22 N^2 multiply-adds, below one DAQP iteration (its constraint check reads M = A R^-1,
@@ -153,7 +157,7 @@ class MpcSolution:
     theta_rad: float
     inputs: np.ndarray | None  # (N, 3) planned body-axes inputs (m/s^2; the MPC's own plan: do not modify)
     solve_time_s: float  # QP solver's solve call(s)
-    build_time_s: float  # QP data update (kernel + solver update)
+    build_time_s: float  # QP data update: kernel + solver update (DAQP, hard mode: its update is in the solve call)
     iterations: int
     max_slack_m: float = 0.0  # soft mode: largest corridor slack used
     info: dict = field(default_factory=dict)
@@ -271,8 +275,10 @@ class LosMpc:
         self._A = A
         self._lb, self._ub = lb, ub
         self._solver = None  # the QP solver's adapter (proxops.solvers.base.SolverAdapter), made at the first solve
-        self._fast = False  # DAQP: bounds (and f) through update_fast
-        self._lean = False  # DAQP in hard mode: bounds only
+        self._fast = False  # DAQP: bounds (and f) through update_fast / solve_fast (soft) or its bound vectors (hard)
+        self._lean = False  # DAQP in hard mode: bounds only, written into DAQP's own bound vectors
+        self._lean_step = False  # _lean and no refinements: solve_raw's short path
+        self._staged = False  # the kernel's bounds are in DAQP's vectors, not yet re-read (_solve_qp)
         self._form = True  # set up with the QuadraticProgram form (update takes its names)
         self._plan: np.ndarray | None = None  # (3N,) last planned body-axes inputs (a fresh array per solve)
         self._zeros_n = np.zeros(nu)  # the "plan" argument before the first solve
@@ -282,16 +288,20 @@ class LosMpc:
         self._consts = np.concatenate([[model.w_rel, self.a_max, float(self._shift), self.cfg.slack_penalty,
                                         float(self.n_var)], np.cos(self._offsets), np.sin(self._offsets), self._r_u,
                                        self._r_d, np.asarray(self._h, float)])
-        # persistent outputs of the kernel, rewritten in place every step and handed to the solver (which
-        # copies the bounds): [f, x_c, lb - x_c, ub - x_c (n_var each), corridor bounds b (N r)]
+        # persistent outputs of the kernel, rewritten in place every step: work = [f, x_c (n_var each)] and the
+        # bounds in DAQP's layout, upper = [ub - x_c (n_var), corridor bounds b (N r)], lower = [lb - x_c (n_var),
+        # -1e30 (N r)]. DAQP in hard mode: the kernel writes the bounds straight into the vectors DAQP reads
+        # (DaqpQP.bound_vectors); else into these buffers, handed to the solver (which copies them)
         nv = self.n_var
-        self._work = np.empty(4 * nv + self._n_rows * N)
+        self._work = np.empty(2 * nv)
         self._f = self._work[:nv]  # linear term in dU (soft mode: the solver's f)
         self._u_c = self._work[nv : 2 * nv]  # x = the solver's solution + this (U_c or g; slack: 0)
-        self._lb_w = self._work[2 * nv : 3 * nv]
-        self._ub_w = self._work[3 * nv : 4 * nv]
-        self._b = self._work[4 * nv :]
-        self._n_basis = 9 * N  # per solve, fresh: [g (3N), p_g (6N)] (MpcSolution.prediction)
+        self._upper = np.empty(nv + self._n_rows * N)
+        self._lower = np.full(nv + self._n_rows * N, -DAQP_INF)
+        self._lb_w = self._lower[:nv]
+        self._ub_w = self._upper[:nv]
+        self._b = self._upper[nv:]
+        self._basis = np.empty(9 * N)  # [g (3N), p_g (6N)] of the last solve (MpcSolution.prediction: a copy)
         self._kernel_data = (self._consts, self._PB, self._KK, self._H_inv, self._G)  # the kernel's read-only inputs
 
     # ------------------------------------------------------------------ prediction
@@ -401,31 +411,66 @@ class LosMpc:
     # ------------------------------------------------------------------ solve
     def solve(self, t: float, x_body: np.ndarray, x_ref, u_prev: np.ndarray | None = None) -> MpcSolution:
         """Solve eq. (11) from body-frame state ``x_body`` (m, m/s) at time ``t`` (s)."""
-        t_build = time.perf_counter()
-        theta_k = self.model.theta0_rad + self.model.w_rel * t
-        if x_body.__class__ is not np.ndarray or x_body.dtype != np.float64:
+        status, u0, theta_k, U, solve_time, build_time, iterations, slack, info = self.solve_raw(t, x_body, x_ref,
+                                                                                                 u_prev)
+        if U is None:
+            return MpcSolution(status, u0, theta_k, None, solve_time, build_time, iterations, info=info)
+        return MpcSolution(status, u0, theta_k, U.reshape(self._plan_shape), solve_time, build_time, iterations, slack,
+                           info, self._basis.copy(), self._S_flat)
+
+    def solve_raw(self, t: float, x_body: np.ndarray, x_ref, u_prev: np.ndarray | None = None) -> tuple:
+        """:meth:`solve` without building the :class:`MpcSolution` (the closed loop's per-step call):
+        (status, u0, theta_k, U (3N,) or None after a failed solve, solve_time_s, build_time_s, iterations,
+        max_slack_m, info), i.e. MpcSolution's fields with the plan flat and no basis (it stays in a buffer
+        rewritten every step)."""
+        t_build = _perf_counter()
+        model = self.model
+        theta_k = model.theta0_rad + model.w_rel * t
+        if x_body.__class__ is not np.ndarray or x_body.dtype != _F64:
             x_body = np.asarray(x_body, float)
-        u_prev = _ZERO3 if u_prev is None else u_prev
-        if u_prev.__class__ is not np.ndarray or u_prev.dtype != np.float64:
+        if u_prev is None:
+            u_prev = _ZERO3
+        elif u_prev.__class__ is not np.ndarray or u_prev.dtype != _F64:
             u_prev = np.asarray(u_prev, float)
         ref = (x_ref if x_ref.__class__ is np.ndarray and x_ref.shape == self._ref_shape
                else self._reference(x_ref))
         plan = self._plan
-        basis = self._load(theta_k, x_body, ref, u_prev, self._zeros_n if plan is None else plan,
-                           _HOLD_U_PREV if plan is None else _SHIFT_PLAN)
-        build_time = time.perf_counter() - t_build
+        if self._lean_step and plan is not None:  # DAQP, hard mode, one QP per step: every step but the first
+            solver = self._solver
+            upper, lower = solver.bound_vectors()
+            if _qp_data(theta_k, _SHIFT_PLAN, x_body, u_prev, ref, plan, *self._kernel_data, self._basis, self._work,
+                        upper, lower):
+                build_time = _perf_counter() - t_build
+                status, x, iterations, solve_time, info = solver.solve_bounds_fast()
+                if status is _OPTIMAL:
+                    x += self._u_c  # w + x_c (DAQP's x is a fresh array)
+                    self._plan = x
+                    return (status, x[:3], theta_k, x, solve_time, build_time, iterations, 0.0,
+                            {} if info is None else info)
+                return self._finish(status, x, iterations, solve_time, build_time, info, theta_k)
+            # a NaN/inf state: the general path below (the kernel runs again on the same data, then the checked update)
+        if plan is None:
+            self._load(theta_k, x_body, ref, u_prev, self._zeros_n, _HOLD_U_PREV)
+        else:
+            self._load(theta_k, x_body, ref, u_prev, plan, _SHIFT_PLAN)
+        build_time = _perf_counter() - t_build
         status, x, iterations, solve_time, info = self._solve_qp()
         for _ in range(self.cfg.refinements):
             if x is None or not status.ok:
                 break
-            basis = self._load(theta_k, x_body, ref, u_prev, x[: self.n_u] + self._u_c[: self.n_u], _PLAN_AS_IS)
+            self._load(theta_k, x_body, ref, u_prev, x[: self.n_u] + self._u_c[: self.n_u], _PLAN_AS_IS)
             status, x, its, dt, info = self._solve_qp()
             solve_time += dt
             iterations += its
+        return self._finish(status, x, iterations, solve_time, build_time, info, theta_k)
+
+    def _finish(self, status, x, iterations: int, solve_time: float, build_time: float, info, theta_k: float) -> tuple:
+        """:meth:`solve_raw`'s result from the solver's (status, x in its variables, ...): the plan U = x + x_c
+        (slacks split off in soft mode), or after a failed solve the previous plan shifted."""
         if x is None or (status is not _OPTIMAL and not status.ok):
             u0 = self._shifted_plan()
-            return MpcSolution(status, u0, theta_k, None, solve_time, build_time, iterations,
-                               info={"raw_status": (info or {}).get("raw_status")})
+            return (status, u0, theta_k, None, solve_time, build_time, iterations, 0.0,
+                    {"raw_status": (info or {}).get("raw_status")})
         if self._fast:
             x += self._u_c  # w + x_c (DAQP's x is a fresh array)
         else:
@@ -437,12 +482,13 @@ class LosMpc:
             U = self._plan = x
             slack = 0.0
         # the plan is never modified in place (the next guess is written into a new array)
-        return MpcSolution(status, U[:3], theta_k, U.reshape(self._plan_shape), solve_time, build_time,
-                           iterations, slack, {} if info is None else info, basis, self._S_flat)
+        return status, U[:3], theta_k, U, solve_time, build_time, iterations, slack, {} if info is None else info
 
     def _solve_qp(self) -> tuple:
         """One solve of the QP in the buffers: (status, x in the solver's variables, iterations, solve wall
         time s, info dict or None). DAQP through its lean ``solve_fast`` (no SolverResult per step)."""
+        if self._staged:  # DAQP re-reads the bounds the kernel wrote into its vectors (DaqpQP.solve_bounds_fast)
+            return self._solver.solve_bounds_fast()
         if self._fast:
             return self._solver.solve_fast()
         res = self._solver.solve()
@@ -453,13 +499,22 @@ class LosMpc:
         """Write the data of the QP in w = x - x_c (hard) or dU (soft) into the persistent buffers and hand
         them to the solver (module doc). The QP is centred on the plan guess g: ``u_prev`` held
         (``how`` = 0), ``plan`` (3N,) shifted by one step (1), or ``plan`` itself (2). Returns the new
-        array [g (3N), p_g (6N)], p_g the exact prediction of g (body frame, m, m/s)."""
-        basis = np.empty(self._n_basis)
-        finite = _qp_data(theta_k, how, x_body, u_prev, ref, plan, *self._kernel_data, basis, self._work)
+        buffer [g (3N), p_g (6N)], p_g the exact prediction of g (body frame, m, m/s). DAQP in hard mode
+        (``_lean``): the kernel writes the bounds into the vectors DAQP reads and :meth:`_solve_qp` has DAQP
+        re-read them (``_staged``)."""
+        basis = self._basis
         solver = self._solver
-        if finite and self._lean:  # DAQP in hard mode, finite data: only the bounds change
-            solver.update_fast(bu=self._b, lb=self._lb_w, ub=self._ub_w)
+        if self._lean:  # DAQP in hard mode: only the bounds change, written where DAQP reads them
+            upper, lower = solver.bound_vectors()
+            if _qp_data(theta_k, how, x_body, u_prev, ref, plan, *self._kernel_data, basis, self._work, upper, lower):
+                self._staged = True
+                return basis
+            nv = self.n_var  # a NaN/inf state: the checked path turns it into a NUMERICAL_ERROR status
+            self._staged = False
+            solver.update(bu=upper[nv:].copy(), lb=lower[:nv].copy(), ub=upper[:nv].copy())
             return basis
+        finite = _qp_data(theta_k, how, x_body, u_prev, ref, plan, *self._kernel_data, basis, self._work,
+                          self._upper, self._lower)
         f = None if self._shift else self._f
         if solver is None:
             self._make_solver(f)
@@ -478,7 +533,8 @@ class LosMpc:
     def _make_solver(self, f: np.ndarray | None) -> None:
         """The QP solver named by ``config.solver`` (proxops.solvers.make_solver) for the problem in the
         buffers. DAQP in hard mode is set up without a linear term (``setup_native`` with f = None: it keeps
-        no v, so a bound update costs O(m); module doc) and updated through ``update_fast``; every other
+        no v, so a bound update costs O(m); module doc) and its bounds written into its own vectors (``_lean``:
+        ``DaqpQP.bound_vectors``, ``solve_bounds_fast``); soft mode on DAQP through ``update_fast``; every other
         case is the :class:`QuadraticProgram` form, updated by its field names (bu, lb, ub, and q in soft mode)."""
         name = self.cfg.solver
         settings = dict(self.cfg.solver_settings)
@@ -498,6 +554,7 @@ class LosMpc:
             self._form = True
         self._fast = name == "daqp"
         self._lean = self._fast and f is None  # bounds-only updates (hard mode)
+        self._lean_step = self._lean and self.cfg.refinements == 0
         self._solver = solver
 
     def _shifted_plan(self) -> np.ndarray:
@@ -513,17 +570,20 @@ class LosMpc:
     def reset(self) -> None:
         """Forget the warm start and the stored plan."""
         self._solver = None
-        self._lean = False
+        self._lean = self._lean_step = self._staged = False
         self._plan = None
 
 
 _ZERO3 = np.zeros(3)
+_F64 = np.dtype(np.float64)
+_perf_counter = time.perf_counter
 _HOLD_U_PREV, _SHIFT_PLAN, _PLAN_AS_IS = 0, 1, 2  # how the kernel forms the plan guess g
 _OPTIMAL = Status.OPTIMAL
 
 
 @njit(cache=True)
-def _qp_data(theta_k, how, x_body, u_prev, plan_ref, plan, consts, PB, KK, H_inv, G, basis, work):  # pragma: no cover
+def _qp_data(theta_k, how, x_body, u_prev, plan_ref, plan, consts, PB, KK, H_inv, G, basis, work, upper,
+             lower):  # pragma: no cover
     """Per-step data of the QP (module doc), written into ``basis`` and ``work``: in w = U - U_c
     without a linear term (hard mode) or in dU = U - g with the linear term f (soft mode). Returns
     True when every output is finite.
@@ -535,7 +595,8 @@ def _qp_data(theta_k, how, x_body, u_prev, plan_ref, plan, consts, PB, KK, H_inv
     diag R_u (3N), diag R_du (3N), h (r)]; PB = [Phi | B_d] (6, 9) CW ZOH step; KK (15, 3N) the
     Toeplitz blocks K_d of S (LosMpc._geometry_blocks); H_inv (3N, 3N) symmetric; G (r, 3) corridor rows.
     basis = [g (3N), p_g (6N)]; work = [f (n_var; [:3N] the linear term in dU), x_c (n_var; [:3N] = U_c
-    (shift) or g), lb_w, ub_w (n_var; [:3N] = -+a_max - x_c), b (N r) = h - G (p_g + S (x_c - g))_pos].
+    (shift) or g)]; upper = [ub_w (n_var; [:3N] = a_max - x_c), b (N r) = h - G (p_g + S (x_c - g))_pos] and
+    lower[:n_var] = lb_w ([:3N] = -a_max - x_c): DAQP's full bound vectors (lower's row part is not written).
     Every sum runs over the nonzero blocks of S only (x_j+1 depends on u_0..u_j) as contiguous sweeps
     that vectorise (one sweep per block row/column); the O(N^2) part reads H^-1 and O(N) data."""
     n3 = H_inv.shape[0]
@@ -556,9 +617,9 @@ def _qp_data(theta_k, how, x_body, u_prev, plan_ref, plan, consts, PB, KK, H_inv
     pred = basis[n3 : n3 + 6 * N]
     f = work[0:n_var]
     x_c = work[n_var : 2 * n_var]
-    lb_w = work[2 * n_var : 3 * n_var]
-    ub_w = work[3 * n_var : 4 * n_var]
-    b = work[4 * n_var :]
+    lb_w = lower[0:n_var]
+    ub_w = upper[0:n_var]
+    b = upper[n_var:]
     # 0. the plan guess g
     if how == 0:
         for j in range(N):

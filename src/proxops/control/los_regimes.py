@@ -165,8 +165,12 @@ class LosGuidanceController(Supervisor):
 
     def step(self, t: float, x_est: np.ndarray) -> Command:
         """:meth:`Supervisor.step` with the regime's command computed here (each sub-controller only forwards
-        to :meth:`_regime_step`, which always names the mode)."""
-        return self._regime_step(self.select(t, x_est), t, x_est)
+        to :meth:`_regime_step`, which always names the mode). Once in ``hold`` (absorbing, no dwell time)
+        :meth:`Supervisor.select` returns it without asking the rule: that shortcut is taken here."""
+        mode = self.mode
+        if mode != "hold":
+            mode = self.select(t, x_est)
+        return self._regime_step(mode, t, x_est)
 
     def regime_rule(self, t: float, x: np.ndarray, mode: str | None) -> str:
         """§7: hold when |r - r_h| <= eps_h and |v_B| < v_switch (latched: ``hold`` is absorbing),
@@ -200,27 +204,25 @@ class LosGuidanceController(Supervisor):
         mpc = self.mpc
         if mpc is None:
             u_body, status, solve_time = self._nominal_body(mode, t, x, theta, v_ref, v_achv), Status.OK, 0.0
-            info = {"range_m": r, "r_ref_m": self.r_ref}
+            b0, b1, b2 = u_body.tolist()
+            info = {"range_m": r, "r_ref_m": self.r_ref, "u_body_0": b0, "u_body_1": b1, "u_body_2": b2}
         else:
             if mode == "far":  # the limited spiral state in F_B (one state held over the horizon)
                 x_ref = self._far_reference(v_ref, v_achv)
             else:
                 x_ref = self._axis_trajectory(v_ref)
-            sol = mpc.solve(t, x, x_ref, self.u_prev)
-            status, solve_time = sol.status, sol.solve_time_s
-            info = {"range_m": r, "r_ref_m": self.r_ref, "mpc_iterations": sol.iterations,
-                    "mpc_build_ms": sol.build_time_s * 1e3, "slack_m": sol.max_slack_m}
-            if sol.ok:
-                u_body = sol.u0
-            elif mpc.soft:
-                u_body = self._nominal_body(mode, t, x, theta, v_ref, v_achv)
-            else:
-                u_body = sol.u0  # shifted previous plan
-                if self.g.stop_on_infeasible:
+            # MpcSolution's fields without building it (LosMpc.solve_raw)
+            status, u_body, _, _, solve_time, build_time, iterations, slack, _ = mpc.solve_raw(t, x, x_ref, self.u_prev)
+            if not status.ok:
+                if mpc.soft:
+                    u_body = self._nominal_body(mode, t, x, theta, v_ref, v_achv)
+                elif self.g.stop_on_infeasible:  # u_body: the shifted previous plan
                     stop = True
                     mode = "qp_infeasible"
-        b0, b1, b2 = u_body.tolist()
-        info["u_body_0"], info["u_body_1"], info["u_body_2"] = b0, b1, b2
+            b0, b1, b2 = u_body.tolist()
+            info = {"range_m": r, "r_ref_m": self.r_ref, "mpc_iterations": iterations,
+                    "mpc_build_ms": build_time * 1e3, "slack_m": slack, "u_body_0": b0, "u_body_1": b1,
+                    "u_body_2": b2}
         self.u_prev = u_body
         events = _NO_EVENTS
         if mode == "hold" and not self.hold_reached:

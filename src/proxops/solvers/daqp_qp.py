@@ -87,6 +87,7 @@ class DaqpQP(SolverAdapter):
         self.warm_start_enabled = bool(warm_start)
         self._model = None
         self._p_eq = 0
+        self._views_of = None  # the upper bound vector the per-field views point into (bound_vectors)
 
     # ------------------------------------------------------------------ set-up
     def _setup_form(self, problem: QuadraticProgram) -> None:
@@ -362,6 +363,10 @@ class DaqpQP(SolverAdapter):
                 or not self.warm_start_enabled):
             res = self.solve()
             return res.status, res.x, res.iterations, res.solve_time_s, res.info
+        return self._solve_lean()
+
+    def _solve_lean(self) -> tuple:
+        """The lean path of :meth:`solve_fast` (healthy model, warm start): one DAQP solve, timed."""
         try:
             t0 = time.perf_counter()
             x, _, flag, info = self._model.solve()
@@ -374,6 +379,41 @@ class DaqpQP(SolverAdapter):
         status = STATUS_MAP.get(flag, SolveStatus.NUMERICAL_ERROR)
         raw = {"raw_status": RAW_STATUS.get(flag) or f"{flag} (unknown)", "soft_relaxed": flag == 2}
         return status, (x if status in HAS_X else None), info["iterations"], wall, raw
+
+    def bound_vectors(self) -> tuple[np.ndarray, np.ndarray]:
+        """(upper, lower): the full bound vectors DAQP reads, [ub (n); bu (m)] and [lb (n); bl (m)]
+        (without variable bounds at set-up: [bu], [bl]), for a caller that writes its per-step bounds
+        into them in place and then calls :meth:`solve_bounds_fast` (no copies, no keyword update).
+        Ask for them before every write: a rebuild after a failed set-up/update makes new ones. The
+        per-field bounds (lb, ub, bl, bu) are views of them from here on."""
+        upper, lower = self._upper, self._lower
+        if self._views_of is not upper:  # once per set of vectors (a rebuild replaces them)
+            off = self.n if self.has_bounds else 0
+            self._ub, self._bu, self._lb, self._bl = upper[:off], upper[off:], lower[:off], lower[off:]
+            self._views_of = upper
+        return upper, lower
+
+    def solve_bounds_fast(self) -> tuple:
+        """:meth:`update_fast` of the bounds written in place into :meth:`bound_vectors` (finite, the
+        same conditions as update_fast: no row or variable turning into or out of an equality),
+        then :meth:`solve_fast` (one call, one health check); the same (status, x, iterations, wall_s, info).
+        DAQP re-reads the vectors in its update (O(m) without a linear term). After a failed set-up/update the bounds
+        go through :meth:`update_native` (copies; it rebuilds the model)."""
+        if (self._model is None or self._solver_error is not None or self._solver_flag < 0 or self._bad.fields
+                or self._crossed is not None or self._p_eq):
+            off = self.n if self.has_bounds else 0
+            upper, lower = self._upper, self._lower
+            self.update_native(bu=upper[off:].copy(), bl=lower[off:].copy(),
+                               **({"ub": upper[:off].copy(), "lb": lower[:off].copy()} if off else {}))
+            return self.solve_fast()
+        try:
+            self._solver_flag = int(self._model.update(bupper=self._upper, blower=self._lower))
+        except Exception as exc:
+            self._solver_error = error_message(exc)
+            return self.solve_fast()
+        if self._solver_flag < 0 or not self.warm_start_enabled:
+            return self.solve_fast()
+        return self._solve_lean()
 
     def _solve_checked(self) -> SolverResult:
         """:meth:`solve` when something is off (bad data, crossed bounds, a failed set-up) or the
