@@ -179,12 +179,13 @@ def navigation_consistency(table: pd.DataFrame, probability: float = 0.95, max_o
     bounds that of N time means -- derivation in that module), ``epochs_in_band`` = the fraction of all
     epochs of all runs inside their per-epoch chi^2(d) band, and the verdict ``consistent`` = mean inside
     its band and at most ``max_outside`` of the epochs outside theirs."""
-    # Kept local: the navigation package's __init__ imports numba (core.quaternion), which a campaign's
-    # parent process (it imports this module) must not load
-    from proxops.navigation.consistency import chi2_band, mean_band
-
     if METRIC_PREFIX + "nav_nees_mean" not in table:
         return None
+    # Kept local and after the test above: the navigation package's __init__ imports numba
+    # (core.quaternion), which a campaign's parent process (it imports this module) must not load
+    # for a campaign without a filter (0.25-0.4 s after the last run, measured)
+    from proxops.navigation.consistency import chi2_band, mean_band
+
     rows = table[table["outcome"] != "error"] if "outcome" in table else table
     out = {}
     for name in ("nees", "nis"):

@@ -216,11 +216,14 @@ class _PoolBackend:
     def wait(self, futures, timeout):
         return cf_wait(futures, timeout=timeout, return_when=FIRST_COMPLETED)
 
-    def check(self, func) -> bool:
+    def check(self, func, meanwhile: Callable[[], None] | None = None) -> bool:
         """Run ``func(context)`` once per worker slot before any work (each task warms a worker) and
         wait for the first to finish: True if it returned, its exception re-raised if it raised,
-        False if the pool broke (the caller then checks by itself)."""
+        False if the pool broke (the caller then checks by itself). ``meanwhile()`` runs in this
+        process once the tasks are submitted, while the workers start."""
         pending = {self.submit(func, [None], "raise") for _ in range(self.slots)}
+        if meanwhile is not None:
+            meanwhile()
         while pending:
             done, pending = cf_wait(pending, timeout=0.1, return_when=FIRST_COMPLETED)
             for fut in done:

@@ -8,8 +8,9 @@ during which the server still holds the parent's stderr open: ``proxops mc ... |
 ``subprocess.run`` capturing the output waited that long after ``proxops`` itself had exited.
 Imported in the server, this module registers an atexit handler (the first registered, so the last
 run) that ends the server with ``os._exit(0)``. The server writes no files: the socket it listens on
-lives in the parent's temporary folder, which the parent removes. Imported anywhere else (a worker,
-a test) it does nothing.
+lives in the parent's temporary folder, which the parent removes. In the server it also defers
+numpy's unused submodules (:func:`proxops.exec.startup.defer_when_numpy_is_imported`) before the
+other preload modules import numpy. Imported anywhere else (a worker, a test) it does nothing.
 
 Dying with the parent: a pool worker holds the write ends of its own task queue and of the fork
 server's "alive" pipe, and the server and the workers hold the resource tracker's pipe, so after a
@@ -85,6 +86,12 @@ if _in_fork_server():
 
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # as forkserver.main does after the imports: Ctrl-C is the parent's
     SERVER_PID = os.getpid()
+    # numpy.f2py and numpy.testing deferred before the other preload modules import numpy (scipy, through
+    # numba, reads every numpy attribute): 60-100 ms of CPU off the server's start, the critical path of a
+    # campaign's start; the workers forked from it inherit the deferred modules (importlib only here)
+    from proxops.exec.startup import defer_when_numpy_is_imported
+
+    defer_when_numpy_is_imported()
     atexit.register(_exit_now, SERVER_PID)
     _parent = os.environ.pop(PARENT_ENV, None)  # set by the pool's creator when it started us from its main thread
     if _parent is not None and _parent.isdigit():
