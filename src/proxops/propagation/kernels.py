@@ -297,12 +297,19 @@ def hill_frame_rate(y: np.ndarray, p: np.ndarray):
 def hill_from_y(y: np.ndarray, p: np.ndarray) -> np.ndarray:
     """Exact Hill relative state (6,) of the chaser: rho = C dr, rho' = C dv - w x rho
     (frame rate w incl. the J2 x part; see proxops.frames.hill)."""
+    out = np.empty(6)
+    hill_into(y, p, out)
+    return out
+
+
+@njit(cache=True)
+def hill_into(y: np.ndarray, p: np.ndarray, out: np.ndarray) -> None:
+    """:func:`hill_from_y` written into ``out`` (6,), e.g. a row of a preallocated array (no allocation)."""
     xx, xy, xz, yx, yy, yz, zx, zy, zz = hill_axes(y)
     wx, wz = hill_frame_rate(y, p)
     px = xx * y[6] + xy * y[7] + xz * y[8]
     py = yx * y[6] + yy * y[7] + yz * y[8]
     pz = zx * y[6] + zy * y[7] + zz * y[8]
-    out = np.empty(6)
     out[0] = px
     out[1] = py
     out[2] = pz
@@ -310,7 +317,6 @@ def hill_from_y(y: np.ndarray, p: np.ndarray) -> np.ndarray:
     out[3] = xx * y[9] + xy * y[10] + xz * y[11] + wz * py
     out[4] = yx * y[9] + yy * y[10] + yz * y[11] - (wz * px - wx * pz)
     out[5] = zx * y[9] + zy * y[10] + zz * y[11] - wx * py
-    return out
 
 
 @njit(cache=True)
@@ -670,7 +676,5 @@ def free_drift_hill(y0, times, p, rtol, atol) -> tuple:
     status, _, _ = integrate_dense(y0, times, u, p, rtol, atol, ys)
     out = np.empty((times.size, 6))
     for k in range(times.size):
-        rel = hill_from_y(ys[k], p)
-        for i in range(6):
-            out[k, i] = rel[i]
+        hill_into(ys[k], p, out[k])
     return out, status
