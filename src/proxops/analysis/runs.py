@@ -4,6 +4,7 @@ shared by ``proxops run``, ``validate`` and the campaign workers."""
 from __future__ import annotations
 
 from proxops.scenarios.dispersions import parse_dispersions
+from proxops.scenarios.registry import check_without_build
 from proxops.sim.result import SimResult
 from proxops.status import Status
 
@@ -31,6 +32,9 @@ def execute(loaded, seed: int | None = None, progress: bool = False) -> tuple[di
 def check_scenario(loaded) -> None:
     """Every check a run makes before its first step: the schema (done when loading), the
     system's build (geometry, feasibility of the hop ladder, KOZ vs start...) and the
-    dispersions table. Raises ProxopsInputError with one line; ``validate`` and ``mc`` call it."""
-    loaded.system.check(loaded.scenario)  # default: build; planners without a closed loop check without building
+    dispersions table. Raises ProxopsInputError with one line; ``validate`` and ``mc`` call it. The
+    schema's build-free check (:func:`proxops.scenarios.registry.check_without_build`: no numba, no
+    solver) when it covers the scenario, else the system's (default: build)."""
+    if not check_without_build(loaded.scenario):
+        loaded.system.check(loaded.scenario)  # default: build; planners without a closed loop check without building
     parse_dispersions(loaded.scenario, loaded.scenario.dispersions)
