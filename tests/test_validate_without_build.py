@@ -1,4 +1,4 @@
-"""``proxops validate`` checks srf and station-keeping scenarios without building them (issue 32 item 5):
+"""``proxops validate`` checks srf, station-keeping, los and underactuated scenarios without building them (issue 32 item 5):
 the schema's build-free check (:func:`proxops.scenarios.registry.check_without_build`) must raise the
 very line the build raises (the system's ``check``: plant, controller, navigation and the engine's step
 count) for every bad input, and pass every input the build passes. The reference here is the build
@@ -75,6 +75,21 @@ CASES = [
     ("srf-glideslope-40", ["approach.angle_deg=20", "approach.hops=5"], "shorter than the 5-hop approach"),
     ("srf-glideslope-250", [], None),
     ("srf-cbf-demo", [], None),
+    # los: an ECI truth, the PD frequency 2 pi / pd_period_s, the step count on sim.dt_s (default 1 s)
+    ("los-tumble", [], None),
+    ("los-tumble", ["truth.model='cw'"], "needs an ECI truth"),
+    ("los-tumble", ["truth.model='two-body'"], None),
+    ("los-tumble", ["guidance.pd_period_s=1e-150"], None),  # kp = (2 pi / 1e-150)^2 = 3.9e301
+    ("los-tumble", ["guidance.pd_period_s=1e-154"], "kp = (2 pi / pd_period_s)^2 overflows"),  # an OverflowError before
+    ("los-tumble", ["guidance.pd_period_s=1e-310"], "kp = (2 pi / pd_period_s)^2 overflows"),
+    ("los-tumble", ["sim.duration_s=1.0"], None),  # one step of sim.dt_s = 1 s
+    ("los-tumble", ["sim.dt_s=0.001", "sim.duration_s=2000.0"], None),  # 2,000,000 steps
+    ("los-tumble", ["sim.dt_s=0.001", "sim.duration_s=2000.01"], "at most 2,000,000"),
+    # underactuated: the planar model objects and plant, the step count on controller.dt_s
+    ("underactuated-case1", [], None),
+    ("underactuated-case1", ["sim.duration_s=1.999"], "shorter than the step of the closed loop (2 s"),
+    ("underactuated-case1", ["controller.dt_s=0.0001", "sim.duration_s=200.01"], "at most 2,000,000"),
+    ("underactuated-compare", ["deputy.mean_motion_rad_s=0.0", "deputy.damping_Nms=0.0"], None),
 ]
 
 
@@ -109,15 +124,16 @@ def test_build_free_check_says_what_the_build_says(name, overrides, fragment):
 
 
 def test_builtins_the_check_covers_and_those_it_leaves_to_the_build():
-    """Every built-in srf and station-keeping scenario is valid either way; the ekf and the full truth are
-    left to the build (their filter, force models and data check themselves)."""
-    names = [n for n in builtin_names() if n.startswith(("srf", "station-keeping"))]
-    assert len(names) >= 12
+    """Every built-in srf, station-keeping, los and underactuated scenario is valid either way; the ekf
+    and the full truth are left to the build (their filter, force models and data check themselves)."""
+    names = [n for n in builtin_names() if n.startswith(("srf", "station-keeping", "los", "underactuated"))]
+    assert len(names) >= 19
     for name in names:
         loaded = load_scenario(name)
         sc = loaded.scenario
         covered = check_without_build(sc)
-        assert covered is not (sc.navigation.model == "ekf" or sc.truth.model == "full"), name
+        full = getattr(getattr(sc, "truth", None), "model", None) == "full"
+        assert covered is not (sc.navigation.model == "ekf" or full), name
         assert _build_says(loaded) is None, name
 
 
