@@ -239,8 +239,8 @@ def test_light_coercion_still_rejects_and_converts_like_typer():
 
 
 def test_validate_and_run_import_no_dataframes_plots_or_solvers():
-    """validate builds the system (its checks need the plant and controller: numba, scipy), a
-    station-keeping run adds no dataframe, plotting or solver library either."""
+    """validate (its schema's build-free check: tests/test_validate_without_build.py) and a
+    station-keeping run import no dataframe, plotting or solver library."""
     for argv in (("validate", "station-keeping"),
                  ("run", "station-keeping", "--set", "truth.model=cw", "--set", "sim.duration_s=100")):
         modules = _all_modules_after(*argv)
@@ -305,8 +305,9 @@ def test_validating_a_scenario_imports_its_schema_not_its_system():
                                   f"for name in {names!r}:\n    load_scenario(name)\n")
     systems = {m for m in modules if m.startswith("proxops.systems.")}
     assert systems == {"proxops.systems.schema", *(f"proxops.systems.schema.{s}" for s in
-                                                   ("srf", "los", "station_keeping", "underactuated", "cortex"))}
-    assert not {m for m in modules if m.startswith("proxops.sim")}
+                                                   ("srf", "los", "station_keeping", "underactuated", "cortex",
+                                                    "_build_free"))}  # the build-free checks' light pieces
+    assert {m for m in modules if m.startswith("proxops.sim")} <= {"proxops.sim", "proxops.sim.steps"}  # no engine
     assert not {m.split(".")[0] for m in modules} & set(HEAVY), sorted({m.split(".")[0] for m in modules} & set(HEAVY))
 
 
@@ -321,13 +322,17 @@ def test_keys_of_a_system_reads_no_system_module():
 
 def test_validate_of_a_planner_imports_no_numba_scipy_or_solvers():
     """`validate cortex-reference`: schema plus the planner's own checks (no closed loop to build), so
-    nothing heavy; `validate station-keeping` builds its closed loop (the default check: plant,
-    controller, navigation and the engine's step count), so it loads its system module."""
+    nothing heavy; `validate station-keeping` runs its schema's build-free check (plant, actuator and
+    the step count without building: proxops.sim.steps), so neither its system module nor the engine;
+    `validate station-keeping-ekf` (the filter checks itself) builds its closed loop."""
     planner = _all_modules_after("validate", "cortex-reference")
     assert "proxops.systems.cortex" in planner and "proxops.sim.engine" not in planner
     top = {m.split(".")[0] for m in planner}
     assert not top & set(HEAVY), sorted(top & set(HEAVY))
-    closed_loop = _all_modules_after("validate", "station-keeping")
+    build_free = _all_modules_after("validate", "station-keeping")
+    assert "proxops.systems.station_keeping" not in build_free and "proxops.sim.engine" not in build_free
+    assert not {m.split(".")[0] for m in build_free} & set(HEAVY), sorted({m.split(".")[0] for m in build_free} & set(HEAVY))
+    closed_loop = _all_modules_after("validate", "station-keeping-ekf")
     assert "proxops.systems.station_keeping" in closed_loop and "proxops.sim.engine" in closed_loop
 
 

@@ -9,9 +9,8 @@ from typing import Annotated
 
 import typer
 
-from proxops.analysis.runs import check_scenario
 from proxops.cli_common import emit
-from proxops.scenarios.loader import load_scenario
+from proxops.scenarios.loader import check_scenario, load_scenario
 
 
 def validate(

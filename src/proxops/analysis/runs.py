@@ -3,7 +3,7 @@ shared by ``proxops run``, ``validate`` and the campaign workers."""
 
 from __future__ import annotations
 
-from proxops.scenarios.dispersions import parse_dispersions
+from proxops.scenarios.loader import check_scenario  # noqa: F401 (re-exported: one home, light for validate)
 from proxops.sim.result import SimResult
 from proxops.status import Status
 
@@ -26,11 +26,3 @@ def execute(loaded, seed: int | None = None, progress: bool = False) -> tuple[di
                                        Status.NONE))
     summary["success"] = bool(system.success(sc, summary))
     return summary, results
-
-
-def check_scenario(loaded) -> None:
-    """Every check a run makes before its first step: the schema (done when loading), the
-    system's build (geometry, feasibility of the hop ladder, KOZ vs start...) and the
-    dispersions table. Raises ProxopsInputError with one line; ``validate`` and ``mc`` call it."""
-    loaded.system.check(loaded.scenario)  # default: build; planners without a closed loop check without building
-    parse_dispersions(loaded.scenario, loaded.scenario.dispersions)

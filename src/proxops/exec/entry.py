@@ -8,7 +8,7 @@ import signal
 import sys
 
 from proxops import __version__
-from proxops.exec.startup import defer_when_numpy_is_imported  # importlib only
+from proxops.exec.startup import defer_when_numpy_is_imported, skip_pydantic_plugin_scan  # importlib, os only
 
 
 def main() -> None:
@@ -16,6 +16,7 @@ def main() -> None:
         sys.stdout.write(f"proxops {__version__}\n")
         sys.exit(0)
     code = 130
+    skip_pydantic_plugin_scan()
     try:
         if "mc" in sys.argv[1:]:  # a campaign's workers start before the CLI is imported (0.13-0.25 s)
             # Kept local: only a campaign needs the pool's start (multiprocessing, the scenario catalog)

@@ -15,7 +15,8 @@ from pydantic import BaseModel, ValidationError
 from proxops.errors import ProxopsInputError
 from proxops.scenarios.catalog import read_toml, resolve
 from proxops.scenarios.dispersion_spec import SPEC_KEYS, flatten_table
-from proxops.scenarios.registry import get_system, scenario_model
+from proxops.scenarios.dispersions import parse_dispersions
+from proxops.scenarios.registry import check_without_build, get_system, scenario_model
 
 UNIT_SUFFIXES = (  # longest first: "_deg_s2" before "_deg_s" before "_s"
     ("_m_per_orbit", "m/orbit"),  # a drift per orbital period (passive_safety.drift_median_m_per_orbit)
@@ -96,6 +97,18 @@ def validate_scenario(data: dict, overrides=(), source: str = "<dict>") -> Loade
     except ValidationError as exc:
         raise ProxopsInputError(f"{source}: {format_validation_error(exc, data)}") from None
     return LoadedScenario(scenario=scenario, source=source)
+
+
+def check_scenario(loaded: LoadedScenario) -> None:
+    """Every check a run makes before its first step: the schema (done when loading), the
+    system's build (geometry, feasibility of the hop ladder, KOZ vs start...) and the
+    dispersions table. Raises ProxopsInputError with one line; ``validate`` and ``mc`` call it. The
+    schema's build-free check (:func:`proxops.scenarios.registry.check_without_build`: no numba, no
+    solver) when it covers the scenario, else the system's (default: build). Here, not beside
+    ``execute`` in :mod:`proxops.analysis.runs`, so ``validate`` imports no result type (numpy arrays)."""
+    if not check_without_build(loaded.scenario):
+        loaded.system.check(loaded.scenario)  # default: build; planners without a closed loop check without building
+    parse_dispersions(loaded.scenario, loaded.scenario.dispersions)
 
 
 def parse_value(text: str) -> Any:

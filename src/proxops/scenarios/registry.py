@@ -60,6 +60,7 @@ SCHEMA_MODULES = _discover(SCHEMA_PACKAGE)
 
 _SYSTEMS: dict[str, object] = {}
 _SCENARIOS: dict[str, type] = {}
+_CHECKS: dict[str, object] = {}
 
 
 def register_scenario(name: str):
@@ -70,6 +71,29 @@ def register_scenario(name: str):
         return cls
 
     return decorate
+
+
+def register_check(name: str):
+    """Function decorator (in a schema module): the build-free check of system ``name``'s scenarios,
+    ``check(sc) -> bool``. It raises the same one-line ProxopsInputError as the system's build (and
+    its step count) would for every check it covers, and returns True when it covered all the checks
+    the build makes for ``sc``, False when ``sc`` uses a part only the build checks (then
+    :func:`check_without_build` says so and the caller builds). Plain Python and numpy: no numba,
+    no plant, no solver."""
+
+    def decorate(fn):
+        _CHECKS[name] = fn
+        return fn
+
+    return decorate
+
+
+def check_without_build(sc) -> bool:
+    """Run the build-free check of ``sc``'s system (:func:`register_check`); True when it covered
+    every check of the build, False when the system has none or ``sc`` needs the build."""
+    scenario_model(sc.system)  # imports the schema module, which registers the check
+    check = _CHECKS.get(sc.system)
+    return bool(check(sc)) if check is not None else False
 
 
 def register_system(name: str):

@@ -10,31 +10,15 @@ import math
 
 import numpy as np
 
-from proxops.actuators import IdealActuator, thruster_from_values
 from proxops.constraints.passive_safety import certify_free_drift
 from proxops.core.cw import mean_motion
 from proxops.core.layout import HILL_LAYOUT
 from proxops.environment.epochs import parse_epoch
 from proxops.errors import input_error
-from proxops.frames.elements import OrbitalElements
-from proxops.frames.lvlh import lvlh_to_hill
 from proxops.navigation import GaussianNavigation, PerfectNavigation
 from proxops.propagation.truth import CWPlant, RelativeTruth
-from proxops.scenarios.schema import ActuatorSection, InitialSection, NavigationSection, OrbitSection, TruthSection
-
-
-def initial_hill_state(initial: InitialSection) -> np.ndarray:
-    """Initial relative state in Hill/RTN from the scenario's [initial] section."""
-    x0 = np.array(list(initial.position_m) + list(initial.velocity_mps), dtype=float)
-    if initial.frame == "lvlh-srf":
-        x0 = lvlh_to_hill(x0)
-    return x0
-
-
-def target_elements(orbit: OrbitSection):
-    """Osculating target elements from the scenario's [orbit] section."""
-
-    return OrbitalElements.from_deg(orbit.sma_m, orbit.ecc, orbit.inc_deg, orbit.raan_deg, orbit.argp_deg, orbit.nu_deg)
+from proxops.scenarios.schema import NavigationSection, OrbitSection, TruthSection
+from proxops.systems.schema._build_free import actuator_model, initial_hill_state, target_elements  # noqa: F401 (re-exported)
 
 
 def translational_plant(orbit: OrbitSection, truth: TruthSection, x0_hill: np.ndarray):
@@ -64,14 +48,6 @@ def navigation_model(nav: NavigationSection, per_state_sigma=None, orbit: OrbitS
     if per_state_sigma is not None:
         return GaussianNavigation(sigma=per_state_sigma(nav.position_sigma_m, nav.velocity_sigma_mps))
     return GaussianNavigation(nav.position_sigma_m, nav.velocity_sigma_mps, layout=HILL_LAYOUT)  # noise per block
-
-
-def actuator_model(act: ActuatorSection):
-    """Ideal for the default section, else the thruster model of its values (one declaration:
-    proxops.actuators.THRUSTER_PARAMETERS)."""
-    if act == ActuatorSection():
-        return IdealActuator()
-    return thruster_from_values(act.model_dump())
 
 
 def ekf_navigation(nav: NavigationSection, orbit: OrbitSection | None, control_dt_s: float | None,

@@ -48,7 +48,7 @@ from proxops.sim.engine import Setup, simulate
 from proxops.status import Status
 from proxops.systems.base import SystemBase
 from proxops.systems.common import actuator_model, navigation_model
-from proxops.systems.schema.los import LosScenario
+from proxops.systems.schema.los import LosScenario, check_settings
 
 VIOLATION_TOLERANCE_M = 1e-3  # §9 step 3
 COMPLETED_OUTCOMES = ("completed", "hold_reached")  # ran to T_sim (or stopped at hold on request)
@@ -108,9 +108,7 @@ def build_setup(sc: LosScenario) -> Setup:
         x_hill = model.hill_from_body(0.0, np.concatenate([x0_body[:3], np.zeros(3)]))
         x_hill[3:6] = x0_body[3:6]
         x0_body = model.body_from_hill(0.0, x_hill)
-    if sc.truth.model == "cw":
-        raise input_error("truth.model", "cw", "the los system needs an ECI truth for the target attitude: "
-                          "allowed: j2, two-body")
+    check_settings(sc)  # ECI truth, PD gains
     inner = RelativeTruth(elements, np.zeros(6), j2=sc.truth.model == "j2", integrator=sc.truth.integrator)
     plant = TumblingTargetTruth(inner, target, x0_body)
     corridor = LosCorridor(np.radians(sc.target.corridor_half_angle_deg), sc.target.corridor_floor_m,

@@ -49,48 +49,18 @@ from proxops.control.srf_mpc import EnergyDrift, SrfMpc, SrfMpcConfig, build_sch
 from proxops.core.constants import J2_EARTH, MU_EARTH, R_EARTH
 from proxops.core.cw import mean_motion
 from proxops.core.memo import memo_get
-from proxops.errors import input_error
-from proxops.frames.lvlh import hill_vector_to_lvlh, lvlh_vector_to_hill
+from proxops.frames.lvlh import hill_vector_to_lvlh
 from proxops.guidance.hop_times import plan_hops
 from proxops.propagation.truth import CWPlant, RelativeTruth
 from proxops.scenarios.registry import register_system
 from proxops.sim.engine import Setup, simulate
 from proxops.solvers.stats import solve_time_stats
 from proxops.systems.base import SystemBase
-from proxops.systems.common import (actuator_model, initial_hill_state, navigation_model, target_elements,
+from proxops.systems.common import (actuator_model, navigation_model, target_elements,
                                     translational_plant)
-from proxops.systems.schema.srf import SrfScenario
-
-ENGINE_STEPS_PER_ORBIT = 720
-
-
-# --------------------------------------------------------------------------- geometry
-def _is_vbar(theta: float) -> bool:
-    return abs(math.sin(theta)) < 1e-9
-
-
-def approach_axes_hill(theta: float) -> tuple[np.ndarray, np.ndarray]:
-    """Approach direction e_A and perpendicular e_perp2 of eq. (20), as Hill unit vectors."""
-    a = lvlh_vector_to_hill(np.array([math.cos(theta), 0.0, math.sin(theta)]))
-    b = lvlh_vector_to_hill(np.array([-math.sin(theta), 0.0, math.cos(theta)]))
-    return a, b
-
-
-def initial_state_hill(sc: SrfScenario) -> np.ndarray:
-    if sc.initial is not None:
-        return initial_hill_state(sc.initial)
-    a, _ = approach_axes_hill(math.radians(sc.approach.angle_deg))
-    return np.concatenate([sc.approach.start_m * a, np.zeros(3)])
-
-
-def engine_dt(sc: SrfScenario) -> float:
-    period = 2 * math.pi / mean_motion(sc.orbit.sma_m)
-    return sc.sim.dt_s if sc.sim.dt_s is not None else period / ENGINE_STEPS_PER_ORBIT
-
-
-def keep_out_hill(sc: SrfScenario):
-    return KeepOutSphere(sc.keep_out.radius_m, lvlh_vector_to_hill(np.array(sc.keep_out.center_m)), name="keep_out")
-
+from proxops.systems.schema.srf import (ENGINE_STEPS_PER_ORBIT, SrfScenario, _is_vbar,  # noqa: F401 (re-exported)
+                                        approach_axes_hill, check_mission, engine_dt, initial_state_hill, keep_out_hill,
+                                        mpc_steps_per_hop)
 
 # Per-process caches of what every run of a campaign recomputes identically (srf-*-mc disperse only
 # the initial state): Algorithm 1's plan (root finding: 50 ms per glideslope/R-bar run) and the
@@ -135,40 +105,14 @@ def build_controller(sc: SrfScenario, cbf: bool | None = None):
     theta = math.radians(ap.angle_deg)
     vbar = _is_vbar(theta)
     plan = plan_of(sc)
-    if m.horizon_steps is not None and ap.hops > m.horizon_steps:
-        raise input_error("approach.hops", ap.hops,
-                          f"more hops than the MPC horizon holds (mpc.horizon_steps = {m.horizon_steps}); every hop "
-                          "needs at least one MPC step: lower hops or raise horizon_steps")
-    steps = m.steps_per_hop
-    if steps is None:
-        steps = 6 if m.horizon_steps is None else max(1, min(6, m.horizon_steps // ap.hops))
-    if m.horizon_steps is not None and steps * ap.hops > m.horizon_steps:
-        raise input_error("mpc.steps_per_hop", steps,
-                          f"hops x steps_per_hop = {steps * ap.hops} exceeds mpc.horizon_steps = {m.horizon_steps} "
-                          "(the shrinking horizon must cover the whole approach)")
+    steps = mpc_steps_per_hop(sc)
     dt = engine_dt(sc)
     sched = build_schedule(plan.durations_s, steps, dt)
     mission_s = float(sched.times[-1])
-    if sc.sim.duration_s < mission_s:
-        raise input_error("sim.duration_s", sc.sim.duration_s,
-                          f"shorter than the {ap.hops}-hop approach ({mission_s:.1f} s): use >= {mission_s + 2 * dt:.0f}", "s")
+    check_mission(sc, mission_s, dt)  # duration, keep-out geometry, V-bar ladder, planning margin
     a, b = approach_axes_hill(theta)
     koz = keep_out_hill(sc)
-    x0 = initial_state_hill(sc)
-    if koz.contains(x0[:3]):
-        raise input_error("initial position", np.round(x0[:3], 3).tolist(),
-                          f"starts inside the keep-out zone (radius {koz.radius_m:g} m): move the start or shrink keep_out.radius_m", "m")
-    start_nominal = ap.start_m * a
-    if koz.contains(start_nominal):
-        raise input_error("approach.start_m", ap.start_m,
-                          f"the start point lies inside the keep-out zone (radius {koz.radius_m:g} m)", "m")
     target = ap.end_m * a
-    if koz.contains(target):
-        raise input_error("approach.end_m", ap.end_m,
-                          f"the reference point lies inside the keep-out zone (radius {koz.radius_m:g} m): "
-                          "raise end_m or shrink keep_out.radius_m", "m")
-    if vbar:
-        _check_vbar_hop_lengths(ap, m)
     d = np.array([h.start_m for h in plan.hops] + [plan.hops[-1].end_m])
     frac = m.hop_distance_tol_frac if m.hop_distance_tol_frac is not None else (None if vbar else 0.1)
     use_cbf = ko.cbf if cbf is None else cbf
@@ -190,10 +134,6 @@ def build_controller(sc: SrfScenario, cbf: bool | None = None):
         min_impulse_mps=float(sc.actuator.min_impulse or 0.0),
         cbf=use_cbf, cbf_alpha_per_s=ko.alpha_per_s, free_drift_s=ko.free_drift_orbits * plan.period_s,
         free_drift_nodes=max(4, int(round(ko.free_drift_nodes_per_orbit * ko.free_drift_orbits))), solver=m.solver)
-    if koz.contains(target) or (ko.margin_m > 0 and np.linalg.norm(target - koz.center_m) <= koz.radius_m + ko.margin_m):
-        raise input_error("keep_out.margin_m", ko.margin_m,
-                          f"the reference point ({ap.end_m:g} m out) must lie outside the KOZ radius + margin "
-                          f"({koz.radius_m + ko.margin_m:g} m)", "m")
     planning_koz = KeepOutSphere(koz.radius_m + ko.margin_m, koz.center_m, name="keep_out_planning")
     ctrl = SrfMpc(mean_motion(sc.orbit.sma_m), sched, a, b, target, planning_koz, cfg, hop_distances_m=d)
     return ctrl, plan, sched
@@ -306,24 +246,6 @@ def passive_abort(sc: SrfScenario, result) -> list[dict]:
                     "untrimmed_passive_safety": hop["passive_safety"]}
         out.append(item)
     return out
-
-
-def _check_vbar_hop_lengths(ap, m) -> None:
-    """Rows (29n)-(29o) admit hop lengths L_1..L_N with h_min <= L_j <= h_max, L_{j+1} <= L_j - epsilon and
-    sum L_j = start - end only if N h_min + epsilon N(N-1)/2 <= start - end <= N h_max - epsilon N(N-1)/2
-    (the shortest and longest such sequences); otherwise every MPC step would need relaxed rows."""
-    n, total = ap.hops, ap.start_m - ap.end_m
-    h_max = m.h_max_m if m.h_max_m is not None else ap.start_m
-    ladder = m.epsilon_m * n * (n - 1) / 2.0
-    if n * m.h_min_m + ladder > total:
-        most = (total - n * m.h_min_m) / (n * (n - 1) / 2.0) if n > 1 else math.inf
-        raise input_error("mpc.epsilon_m", m.epsilon_m,
-                          f"{n} V-bar hops over {total:g} m cannot each shrink by {m.epsilon_m:g} m (29o) with "
-                          f"h_min_m = {m.h_min_m:g} m: give epsilon_m <= {most:.4g}, fewer hops or a lower h_min_m", "m")
-    if n * h_max - ladder < total:
-        raise input_error("mpc.h_max_m", h_max,
-                          f"{n} V-bar hops of at most {h_max:g} m shrinking by {m.epsilon_m:g} m cannot cover "
-                          f"{total:g} m: raise h_max_m, add hops or lower epsilon_m", "m")
 
 
 def summarize_result(sc: SrfScenario, result) -> dict:

@@ -27,7 +27,7 @@ import math
 import numpy as np
 
 from proxops.control.nmpc_underactuated import NMPCConfig, UnderactuatedNMPC
-from proxops.dynamics.planar_cubesat import DockingSet, Interval, PlanarCubeSatParams, PlanarCubeSatPlant, PlanarLimits
+from proxops.dynamics.planar_cubesat import PlanarCubeSatPlant
 from proxops.errors import input_error
 from proxops.navigation.mekf import attitude_summary, consistency_keys
 from proxops.navigation.planar_ekf import PlanarPoseEKF
@@ -36,14 +36,8 @@ from proxops.sim.engine import Setup, simulate
 from proxops.solvers.stats import solve_time_stats
 from proxops.systems.base import SystemBase
 from proxops.systems.common import navigation_model
-from proxops.systems.schema.underactuated import InitialStateSection, UnderactuatedScenario
-
-DEG = math.pi / 180.0
-
-
-def initial_vector(s0: InitialStateSection) -> np.ndarray:
-    """The plant's initial state [x, y, theta, vx, vy, omega] (SI, rad) of [initial_state]."""
-    return np.array([s0.x_m, s0.y_m, s0.theta_deg * DEG, s0.vx_mps, s0.vy_mps, s0.omega_deg_s * DEG])
+from proxops.systems.schema.underactuated import (DEG, UnderactuatedScenario, initial_vector,  # noqa: F401 (re-exported)
+                                                  model_objects, run_configs)
 
 
 def planar_sigma(position_sigma_m: float, velocity_sigma_mps: float) -> np.ndarray:
@@ -51,49 +45,6 @@ def planar_sigma(position_sigma_m: float, velocity_sigma_mps: float) -> np.ndarr
     the attitude and its rate are measured exactly."""
     p, v = position_sigma_m, velocity_sigma_mps
     return np.array([p, p, 0.0, v, v, 0.0])
-
-
-def run_configs(sc: UnderactuatedScenario) -> list[dict]:
-    """The closed loops of a scenario: label, variant, horizon, damping (SI)."""
-    c, d = sc.controller, sc.deputy
-    if not sc.runs:
-        return [{"label": c.variant, "variant": c.variant, "horizon": c.horizon, "damping_Nms": d.damping_Nms}]
-    return [
-        {
-            "label": r.label,
-            "variant": r.variant or c.variant,
-            "horizon": r.horizon or c.horizon,
-            "damping_Nms": d.damping_Nms if r.damping_Nms is None else r.damping_Nms,
-        }
-        for r in sc.runs
-    ]
-
-
-def model_objects(sc: UnderactuatedScenario, damping_Nms: float | None = None):
-    """(params, limits, docking set) in SI units from the scenario."""
-    d, lim, dock = sc.deputy, sc.limits, sc.docking
-    params = PlanarCubeSatParams(
-        mass_kg=d.mass_kg,
-        wheel_inertia_kgm2=d.wheel_inertia_kgm2,
-        body_inertia_kgm2=d.body_inertia_kgm2,
-        mean_motion_rad_s=d.mean_motion_rad_s,
-        damping_Nms=d.damping_Nms if damping_Nms is None else damping_Nms,
-    )
-
-    def interval(b, scale=1.0):
-        return Interval(b[0] * scale, b[1] * scale)
-
-    limits = PlanarLimits(
-        thrust=interval(lim.thrust_N),
-        wheel_acc=interval(lim.wheel_acc_deg_s2, DEG),
-        position=interval(lim.position_m),
-        velocity=interval(lim.velocity_mps),
-        angle=interval(lim.angle_deg, DEG),
-        rate=interval(lim.rate_deg_s, DEG),
-        angular_acc=interval(lim.angular_acc_deg_s2, DEG),
-    )
-    docking = DockingSet(dock.position_m, dock.velocity_mps, dock.angle_deg * DEG, dock.rate_deg_s * DEG)
-    return params, limits, docking
 
 
 def build_setup(sc: UnderactuatedScenario, run: dict | None = None) -> Setup:

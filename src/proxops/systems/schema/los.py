@@ -7,8 +7,11 @@ from typing import Annotated, Literal
 
 from pydantic import Field
 
-from proxops.scenarios.registry import register_scenario
+from proxops.errors import input_error
+from proxops.scenarios.registry import register_check, register_scenario
 from proxops.scenarios.schema import OrbitSection, ScenarioBase, Section, TruthSection, Vector3
+from proxops.sim.steps import step_count
+from proxops.systems.schema._build_free import actuator_model, plant_checked
 
 
 class TargetSection(Section):
@@ -76,3 +79,30 @@ class LosScenario(ScenarioBase):
     chaser: ChaserSection = Field(ChaserSection(), description="chaser authority and initial state")
     mpc: MpcSection = Field(MpcSection(), description="eq.-(11) MPC")
     guidance: GuidanceSection = Field(GuidanceSection(), description="§7 guidance regimes")
+
+
+def check_settings(sc: LosScenario) -> None:
+    """What the build needs beyond the schema's ranges: an ECI truth for the target's attitude (not the
+    linear CW one) and PD gains kp = (2 pi / pd_period_s)^2 that are numbers (a period below ~1e-153 s
+    overflowed into an internal error)."""
+    if sc.truth.model == "cw":
+        raise input_error("truth.model", "cw", "the los system needs an ECI truth for the target attitude: "
+                          "allowed: j2, two-body")
+    frequency = 2 * math.pi / sc.guidance.pd_period_s
+    if not math.isfinite(frequency * frequency):
+        raise input_error("guidance.pd_period_s", sc.guidance.pd_period_s,
+                          "too short: the PD gain kp = (2 pi / pd_period_s)^2 overflows", "s")
+
+
+@register_check("los")
+def check(sc: LosScenario) -> bool:
+    """The build's checks (:func:`proxops.systems.los.build_setup`) without building: its
+    :func:`check_settings`, the target orbit (:func:`plant_checked`), the actuator and the run's step
+    count on ``sim.dt_s`` (default 1 s). The corridor, MPC and guidance settings check nothing the
+    schema has not. False (build) with the ekf (the attitude filter) or the full truth (its integrator)."""
+    if sc.navigation.model == "ekf" or sc.truth.model == "full":
+        return False
+    check_settings(sc)
+    plant_checked(sc.orbit, sc.truth)
+    step_count(sc.sim.dt_s or 1.0, None, actuator_model(sc.actuator).period_s, (), sc.sim.duration_s)
+    return True

@@ -3,12 +3,21 @@ not give are documented there)."""
 
 from __future__ import annotations
 
+import math
 from typing import Annotated, Literal
 
+import numpy as np
 from pydantic import Field, model_validator
 
-from proxops.scenarios.registry import register_scenario
+from proxops.constraints.keep_out import KeepOutSphere
+from proxops.core.cw import mean_motion
+from proxops.errors import input_error
+from proxops.frames.lvlh import lvlh_vector_to_hill
+from proxops.guidance.hop_times import plan_hops
+from proxops.scenarios.registry import register_check, register_scenario
 from proxops.scenarios.schema import InitialSection, OrbitSection, ScenarioBase, Section, TruthSection, Vector3
+from proxops.sim.steps import step_count
+from proxops.systems.schema._build_free import actuator_model, initial_hill_state, plant_checked
 
 
 class ApproachSection(Section):
@@ -131,3 +140,144 @@ class SrfScenario(ScenarioBase):
     mpc: SrfMpcSection = Field(SrfMpcSection(), description="hopping MPC, problem (29)")
     keep_out: KeepOutSection = Field(KeepOutSection(), description="keep-out zone and CBF")
     safety: SafetySection = Field(SafetySection(), description="success and passive-abort evaluation")
+
+
+# --------------------------------------------------------------------------- geometry and feasibility
+# (used by the build, proxops.systems.srf, and by the build-free check below: one definition)
+ENGINE_STEPS_PER_ORBIT = 720
+
+
+def _is_vbar(theta: float) -> bool:
+    return abs(math.sin(theta)) < 1e-9
+
+
+def approach_axes_hill(theta: float) -> tuple[np.ndarray, np.ndarray]:
+    """Approach direction e_A and perpendicular e_perp2 of eq. (20), as Hill unit vectors."""
+    a = lvlh_vector_to_hill(np.array([math.cos(theta), 0.0, math.sin(theta)]))
+    b = lvlh_vector_to_hill(np.array([-math.sin(theta), 0.0, math.cos(theta)]))
+    return a, b
+
+
+def initial_state_hill(sc: SrfScenario) -> np.ndarray:
+    if sc.initial is not None:
+        return initial_hill_state(sc.initial)
+    a, _ = approach_axes_hill(math.radians(sc.approach.angle_deg))
+    return np.concatenate([sc.approach.start_m * a, np.zeros(3)])
+
+
+def engine_dt(sc: SrfScenario) -> float:
+    period = 2 * math.pi / mean_motion(sc.orbit.sma_m)
+    return sc.sim.dt_s if sc.sim.dt_s is not None else period / ENGINE_STEPS_PER_ORBIT
+
+
+def keep_out_hill(sc: SrfScenario):
+    return KeepOutSphere(sc.keep_out.radius_m, lvlh_vector_to_hill(np.array(sc.keep_out.center_m)), name="keep_out")
+
+
+
+
+def _check_vbar_hop_lengths(ap, m) -> None:
+    """Rows (29n)-(29o) admit hop lengths L_1..L_N with h_min <= L_j <= h_max, L_{j+1} <= L_j - epsilon and
+    sum L_j = start - end only if N h_min + epsilon N(N-1)/2 <= start - end <= N h_max - epsilon N(N-1)/2
+    (the shortest and longest such sequences); otherwise every MPC step would need relaxed rows."""
+    n, total = ap.hops, ap.start_m - ap.end_m
+    h_max = m.h_max_m if m.h_max_m is not None else ap.start_m
+    ladder = m.epsilon_m * n * (n - 1) / 2.0
+    if n * m.h_min_m + ladder > total:
+        most = (total - n * m.h_min_m) / (n * (n - 1) / 2.0) if n > 1 else math.inf
+        raise input_error("mpc.epsilon_m", m.epsilon_m,
+                          f"{n} V-bar hops over {total:g} m cannot each shrink by {m.epsilon_m:g} m (29o) with "
+                          f"h_min_m = {m.h_min_m:g} m: give epsilon_m <= {most:.4g}, fewer hops or a lower h_min_m", "m")
+    if n * h_max - ladder < total:
+        raise input_error("mpc.h_max_m", h_max,
+                          f"{n} V-bar hops of at most {h_max:g} m shrinking by {m.epsilon_m:g} m cannot cover "
+                          f"{total:g} m: raise h_max_m, add hops or lower epsilon_m", "m")
+
+
+def mpc_steps_per_hop(sc: SrfScenario) -> int:
+    """MPC nodes per hop (``mpc.steps_per_hop`` or its documented default); every hop needs one node
+    and the shrinking horizon must cover the approach."""
+    ap, m = sc.approach, sc.mpc
+    if m.horizon_steps is not None and ap.hops > m.horizon_steps:
+        raise input_error("approach.hops", ap.hops,
+                          f"more hops than the MPC horizon holds (mpc.horizon_steps = {m.horizon_steps}); every hop "
+                          "needs at least one MPC step: lower hops or raise horizon_steps")
+    steps = m.steps_per_hop
+    if steps is None:
+        steps = 6 if m.horizon_steps is None else max(1, min(6, m.horizon_steps // ap.hops))
+    if m.horizon_steps is not None and steps * ap.hops > m.horizon_steps:
+        raise input_error("mpc.steps_per_hop", steps,
+                          f"hops x steps_per_hop = {steps * ap.hops} exceeds mpc.horizon_steps = {m.horizon_steps} "
+                          "(the shrinking horizon must cover the whole approach)")
+    return steps
+
+
+def check_mission(sc: SrfScenario, mission_s: float, dt: float) -> None:
+    """The approach fits the run (``sim.duration_s`` >= the ``mission_s`` of the node schedule) and the
+    keep-out zone: start, start point and reference point outside it, the V-bar hop ladder (29n-o)
+    feasible, the reference point outside the planning radius (KOZ + margin)."""
+    ap, m, ko = sc.approach, sc.mpc, sc.keep_out
+    theta = math.radians(ap.angle_deg)
+    if sc.sim.duration_s < mission_s:
+        raise input_error("sim.duration_s", sc.sim.duration_s,
+                          f"shorter than the {ap.hops}-hop approach ({mission_s:.1f} s): use >= {mission_s + 2 * dt:.0f}", "s")
+    a, _ = approach_axes_hill(theta)
+    koz = keep_out_hill(sc)
+    x0 = initial_state_hill(sc)
+    if koz.contains(x0[:3]):
+        raise input_error("initial position", np.round(x0[:3], 3).tolist(),
+                          f"starts inside the keep-out zone (radius {koz.radius_m:g} m): move the start or shrink keep_out.radius_m", "m")
+    if koz.contains(ap.start_m * a):
+        raise input_error("approach.start_m", ap.start_m,
+                          f"the start point lies inside the keep-out zone (radius {koz.radius_m:g} m)", "m")
+    target = ap.end_m * a
+    if koz.contains(target):
+        raise input_error("approach.end_m", ap.end_m,
+                          f"the reference point lies inside the keep-out zone (radius {koz.radius_m:g} m): "
+                          "raise end_m or shrink keep_out.radius_m", "m")
+    if _is_vbar(theta):
+        _check_vbar_hop_lengths(ap, m)
+    if ko.margin_m > 0 and np.linalg.norm(target - koz.center_m) <= koz.radius_m + ko.margin_m:
+        raise input_error("keep_out.margin_m", ko.margin_m,
+                          f"the reference point ({ap.end_m:g} m out) must lie outside the KOZ radius + margin "
+                          f"({koz.radius_m + ko.margin_m:g} m)", "m")
+
+
+def _schedule_end_s(durations_s, steps_per_hop: int, dt: float) -> float:
+    """The last node time of :func:`proxops.control.srf_mpc.build_schedule` (s) and its check (each hop
+    at least ``steps_per_hop`` engine steps), on plain floats: each hop rounded to whole engine steps."""
+    k = 0
+    for j, dur in enumerate(durations_s):
+        n_eng = int(round(dur / dt))
+        if n_eng < steps_per_hop:
+            raise input_error(
+                "sim.dt_s", dt,
+                f"hop {j + 1} lasts {dur:.1f} s, too short for {steps_per_hop} MPC steps of at least one engine "
+                f"step each: use dt_s <= {dur / steps_per_hop:.3g} or fewer mpc.steps_per_hop", "s")
+        k += n_eng
+    return float(k * dt)
+
+
+@register_check("srf")
+def check(sc: SrfScenario) -> bool:
+    """The build's checks (:func:`proxops.systems.srf.build_setup`) without building: Algorithm 1's
+    plan (:func:`proxops.guidance.hop_times.plan_hops`: its infeasible band), the node schedule, the
+    mission and keep-out geometry (:func:`check_mission`), the drift-trim node, the plant, actuator and
+    the run's step count. False (build) with the ekf or the full truth."""
+    if sc.navigation.model == "ekf" or sc.truth.model == "full":
+        return False
+    ap, m = sc.approach, sc.mpc
+    plan = plan_hops(math.radians(ap.angle_deg), ap.hops, ap.gamma, ap.start_m, ap.end_m, mean_motion(sc.orbit.sma_m),
+                     vbar_period_fraction=ap.vbar_period_fraction)
+    steps = mpc_steps_per_hop(sc)
+    dt = engine_dt(sc)
+    mission_s = _schedule_end_s(plan.durations_s, steps, dt)
+    check_mission(sc, mission_s, dt)
+    if _is_vbar(math.radians(ap.angle_deg)) and m.drift_free and m.drift_trim and not 1 <= m.drift_trim_delay_nodes < steps:
+        raise input_error("mpc.drift_trim_delay_nodes", m.drift_trim_delay_nodes,  # SrfMpc: the first hop fails first
+                          f"the trim must come 1 to {steps - 1} MPC nodes after its hop start (the hop "
+                          f"from node 0 ends at node {steps}): lower it or raise mpc.steps_per_hop")
+    plant_checked(sc.orbit, sc.truth)
+    actuator = actuator_model(sc.actuator)
+    step_count(dt, None, actuator.period_s, (), mission_s + dt)  # the controller's period: the engine step
+    return True

@@ -6,8 +6,10 @@ from typing import Literal
 
 from pydantic import Field
 
-from proxops.scenarios.registry import register_scenario
+from proxops.scenarios.registry import register_check, register_scenario
 from proxops.scenarios.schema import InitialSection, OrbitSection, ScenarioBase, Section, TruthSection, Vector3
+from proxops.sim.steps import step_count
+from proxops.systems.schema._build_free import actuator_model, plant_checked
 
 
 class StationKeepingController(Section):
@@ -29,3 +31,16 @@ class StationKeepingScenario(ScenarioBase):
     truth: TruthSection = Field(TruthSection(), description="truth model")
     initial: InitialSection = Field(description="initial chaser state")
     controller: StationKeepingController = Field(StationKeepingController(), description="station-keeping law")
+
+
+@register_check("station-keeping")
+def check(sc: StationKeepingScenario) -> bool:
+    """The build's checks (:class:`proxops.systems.station_keeping.StationKeepingSystem`) without
+    building: the plant's (:func:`plant_checked`), the actuator's and the run's step count
+    (:func:`proxops.sim.steps.step_count` on ``controller.dt_s``). The control laws check nothing
+    the schema has not (their gains > 0). False (build) with the ekf or the full truth."""
+    if sc.navigation.model == "ekf" or not plant_checked(sc.orbit, sc.truth):
+        return False
+    actuator = actuator_model(sc.actuator)
+    step_count(sc.controller.dt_s, None, actuator.period_s, (), sc.sim.duration_s)  # noise navigation: every sample
+    return True

@@ -5,11 +5,14 @@ from __future__ import annotations
 import math
 from typing import Annotated, Literal
 
+import numpy as np
 from pydantic import Field, field_validator, model_validator
 
+from proxops.dynamics.planar_cubesat import DockingSet, Interval, PlanarCubeSatParams, PlanarCubeSatPlant, PlanarLimits
 from proxops.scenarios.loader import unit_of
-from proxops.scenarios.registry import register_scenario
+from proxops.scenarios.registry import register_check, register_scenario
 from proxops.scenarios.schema import ActuatorSection, ScenarioBase, Section
+from proxops.sim.steps import step_count
 
 
 Bounds = Annotated[list[float], Field(min_length=2, max_length=2)]
@@ -160,3 +163,70 @@ class UnderactuatedScenario(ScenarioBase):
         if len(set(labels)) != len(labels):
             raise ValueError(f"runs: labels must be unique, got {labels}")
         return self
+
+
+# --------------------------------------------------------------------------- model objects and the build-free check
+# (used by the build, proxops.systems.underactuated, and by the check below: one definition)
+DEG = math.pi / 180.0
+
+
+def initial_vector(s0: InitialStateSection) -> np.ndarray:
+    """The plant's initial state [x, y, theta, vx, vy, omega] (SI, rad) of [initial_state]."""
+    return np.array([s0.x_m, s0.y_m, s0.theta_deg * DEG, s0.vx_mps, s0.vy_mps, s0.omega_deg_s * DEG])
+
+
+def run_configs(sc: UnderactuatedScenario) -> list[dict]:
+    """The closed loops of a scenario: label, variant, horizon, damping (SI)."""
+    c, d = sc.controller, sc.deputy
+    if not sc.runs:
+        return [{"label": c.variant, "variant": c.variant, "horizon": c.horizon, "damping_Nms": d.damping_Nms}]
+    return [
+        {
+            "label": r.label,
+            "variant": r.variant or c.variant,
+            "horizon": r.horizon or c.horizon,
+            "damping_Nms": d.damping_Nms if r.damping_Nms is None else r.damping_Nms,
+        }
+        for r in sc.runs
+    ]
+
+
+def model_objects(sc: UnderactuatedScenario, damping_Nms: float | None = None):
+    """(params, limits, docking set) in SI units from the scenario."""
+    d, lim, dock = sc.deputy, sc.limits, sc.docking
+    params = PlanarCubeSatParams(
+        mass_kg=d.mass_kg,
+        wheel_inertia_kgm2=d.wheel_inertia_kgm2,
+        body_inertia_kgm2=d.body_inertia_kgm2,
+        mean_motion_rad_s=d.mean_motion_rad_s,
+        damping_Nms=d.damping_Nms if damping_Nms is None else damping_Nms,
+    )
+
+    def interval(b, scale=1.0):
+        return Interval(b[0] * scale, b[1] * scale)
+
+    limits = PlanarLimits(
+        thrust=interval(lim.thrust_N),
+        wheel_acc=interval(lim.wheel_acc_deg_s2, DEG),
+        position=interval(lim.position_m),
+        velocity=interval(lim.velocity_mps),
+        angle=interval(lim.angle_deg, DEG),
+        rate=interval(lim.rate_deg_s, DEG),
+        angular_acc=interval(lim.angular_acc_deg_s2, DEG),
+    )
+    docking = DockingSet(dock.position_m, dock.velocity_mps, dock.angle_deg * DEG, dock.rate_deg_s * DEG)
+    return params, limits, docking
+
+
+@register_check("underactuated")
+def check(sc: UnderactuatedScenario) -> bool:
+    """The build's checks (:func:`proxops.systems.underactuated.build_setup`, first run) without
+    building: the model objects and the plant (:mod:`proxops.dynamics.planar_cubesat`: their own
+    checks) and the run's step count on ``controller.dt_s``. The NMPC settings check nothing the
+    schema has not. False (build) with the ekf (the planar pose filter)."""
+    if sc.navigation.model == "ekf":
+        return False
+    params, _, _ = model_objects(sc, run_configs(sc)[0]["damping_Nms"])
+    PlanarCubeSatPlant(params, initial_vector(sc.initial_state))
+    step_count(sc.controller.dt_s, None, None, (), sc.sim.duration_s)  # no actuator model: every sample
+    return True
