@@ -18,3 +18,37 @@ def test_closed_loop_campaign_figures_from_saved_series(tmp_path):
     level = 13 if loaded.scenario.errors.delta_r_m < 0.5 else 14  # Fig. 13 low error, Fig. 14 high (§5.2)
     assert names[0] == f"fig{level}_tracking.png" and names[1].startswith("fig15"), names
     assert all(p.is_file() and p.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" for p in files)
+
+
+def test_fig11_draws_every_plan_in_its_panel_with_the_colour_cycle(tmp_path, monkeypatch):
+    # Fig. 11 draws each panel's plans as one line collection: every plan's fly-around nodes (hold 1 + CP1) in
+    # panel (a), its approach nodes in panel (b), in plan order with the axes' colour cycle (C0, C1, ... as one
+    # line per plan got them), and the panels' limits enclose every node
+    from types import SimpleNamespace
+
+    import numpy as np
+    from mpl_toolkits.mplot3d.art3d import Line3DCollection
+
+    sc = api.load_scenario("cortex-reference").scenario
+    rng = np.random.default_rng(3)
+    plans = []
+    for k in (4, 7, 5):
+        x = rng.uniform(-30.0, 30.0, size=(k + 6, 3))
+        plans.append(SimpleNamespace(x_true=x, mode=["hold1"] + ["flyaround"] * (k - 1) + ["approach"] * 6))
+    figs = []
+    monkeypatch.setattr(cortex_figures, "save", lambda fig, path: figs.append(fig) or path)
+    cortex_figures.fig11_trajectories(sc, plans, tmp_path / "f.png")
+    ax1, ax2 = figs[0].axes
+    cycle = cortex_figures.plt.rcParams["axes.prop_cycle"].by_key()["color"]
+    for ax, sl in ((ax1, lambda p: p.x_true[: len(p.mode) - 6]), (ax2, lambda p: p.x_true[len(p.mode) - 6 :])):
+        cols = [c for c in ax.collections if isinstance(c, Line3DCollection) and len(c._segments3d) == len(plans)]
+        assert len(cols) == 1
+        for seg, p in zip(cols[0]._segments3d, plans):
+            np.testing.assert_array_equal(np.asarray(seg), sl(p))
+        from matplotlib.colors import to_rgba_array
+
+        np.testing.assert_array_equal(cols[0].get_colors(), to_rgba_array(cycle[:3]))
+        pts = np.concatenate([sl(p) for p in plans])
+        for lim, c in zip((ax.get_xlim3d(), ax.get_ylim3d(), ax.get_zlim3d()), pts.T):
+            assert lim[0] <= c.min() and c.max() <= lim[1]
+    cortex_figures.plt.close(figs[0])
