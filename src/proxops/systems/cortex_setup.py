@@ -11,6 +11,7 @@ import math
 import numpy as np
 
 from proxops.core.cw import mean_motion
+from proxops.environment.disk_memo import digest, disk_get  # hashlib and numpy only
 from proxops.errors import input_error
 from proxops.guidance.cortex.config import CortexConfig, fibonacci_axes, unit_axis
 from proxops.guidance.cortex.holds import sunlit_flags
@@ -88,8 +89,6 @@ def illumination_profile(orbit, eclipse) -> tuple[np.ndarray, np.ndarray]:
     sections, memoised on disk (:mod:`proxops.environment.disk_memo`: keyed by the inputs and the libraries'
     installs, in a folder of the current sources), so a process that finds it stored imports neither numba
     nor the ephemeris (~1 s of CPU before a campaign's first plan, measured). The same bits either way."""
-    from proxops.environment.disk_memo import digest, disk_get
-
     o, e = orbit, eclipse
     n = int(round(e.samples_per_orbit * e.orbits)) + 1  # eclipse_profile's sample count (both ends)
 
