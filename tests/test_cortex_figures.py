@@ -52,3 +52,32 @@ def test_fig11_draws_every_plan_in_its_panel_with_the_colour_cycle(tmp_path, mon
         for lim, c in zip((ax.get_xlim3d(), ax.get_ylim3d(), ax.get_zlim3d()), pts.T):
             assert lim[0] <= c.min() and c.max() <= lim[1]
     cortex_figures.plt.close(figs[0])
+
+
+def test_fig12_histograms_hold_the_counts_of_the_successful_plans(tmp_path, monkeypatch):
+    # each panel's filled histogram outline rises to numpy's 20-bin counts of the successful plans' values
+    import numpy as np
+    import pandas as pd
+    from matplotlib.path import Path
+
+    rng = np.random.default_rng(5)
+    n = 40
+    table = pd.DataFrame({"success": [True] * (n - 3) + [False] * 3,
+                          "metric.plan_wall_time_s": rng.uniform(0.02, 0.1, n),
+                          "metric.tof_s": rng.uniform(600.0, 900.0, n), "metric.dv_total_mps": rng.uniform(0.3, 0.9, n)})
+    figs = []
+    monkeypatch.setattr(cortex_figures, "save", lambda fig, path: figs.append(fig) or path)
+    cortex_figures.fig12_histograms(table, tmp_path / "f.png", {"tof_median_min": 12.07, "dv_median_mps": 0.6579,
+                                                                "compute_median_s": 30.9})
+    ok = table[table["success"]]
+    for ax, (col, scale) in zip(figs[0].axes, (("metric.plan_wall_time_s", 1.0), ("metric.tof_s", 1 / 60),
+                                               ("metric.dv_total_mps", 1.0))):
+        counts, edges = np.histogram(ok[col].to_numpy() * scale, bins=20)
+        (poly,) = ax.patches
+        outline = Path(poly.get_xy())
+        centres = 0.5 * (edges[:-1] + edges[1:])
+        for c, k in zip(centres, counts):  # filled up to the count in each bin, empty above it
+            assert outline.contains_point((c, k + 0.05)) is False
+            assert k == 0 or outline.contains_point((c, k - 0.05))
+        assert centres.min() > ax.get_xlim()[0] and centres.max() < ax.get_xlim()[1]
+    cortex_figures.plt.close(figs[0])
