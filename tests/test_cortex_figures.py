@@ -18,3 +18,66 @@ def test_closed_loop_campaign_figures_from_saved_series(tmp_path):
     level = 13 if loaded.scenario.errors.delta_r_m < 0.5 else 14  # Fig. 13 low error, Fig. 14 high (§5.2)
     assert names[0] == f"fig{level}_tracking.png" and names[1].startswith("fig15"), names
     assert all(p.is_file() and p.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" for p in files)
+
+
+def test_fig11_draws_every_plan_in_its_panel_with_the_colour_cycle(tmp_path, monkeypatch):
+    # Fig. 11 draws each panel's plans as one line collection: every plan's fly-around nodes (hold 1 + CP1) in
+    # panel (a), its approach nodes in panel (b), in plan order with the axes' colour cycle (C0, C1, ... as one
+    # line per plan got them), and the panels' limits enclose every node
+    from types import SimpleNamespace
+
+    import numpy as np
+    from mpl_toolkits.mplot3d.art3d import Line3DCollection
+
+    sc = api.load_scenario("cortex-reference").scenario
+    rng = np.random.default_rng(3)
+    plans = []
+    for k in (4, 7, 5):
+        x = rng.uniform(-30.0, 30.0, size=(k + 6, 3))
+        plans.append(SimpleNamespace(x_true=x, mode=["hold1"] + ["flyaround"] * (k - 1) + ["approach"] * 6))
+    figs = []
+    monkeypatch.setattr(cortex_figures, "save", lambda fig, path: figs.append(fig) or path)
+    cortex_figures.fig11_trajectories(sc, plans, tmp_path / "f.png")
+    ax1, ax2 = figs[0].axes
+    cycle = cortex_figures.plt.rcParams["axes.prop_cycle"].by_key()["color"]
+    for ax, sl in ((ax1, lambda p: p.x_true[: len(p.mode) - 6]), (ax2, lambda p: p.x_true[len(p.mode) - 6 :])):
+        cols = [c for c in ax.collections if isinstance(c, Line3DCollection) and len(c._segments3d) == len(plans)]
+        assert len(cols) == 1
+        for seg, p in zip(cols[0]._segments3d, plans):
+            np.testing.assert_array_equal(np.asarray(seg), sl(p))
+        from matplotlib.colors import to_rgba_array
+
+        np.testing.assert_array_equal(cols[0].get_colors(), to_rgba_array(cycle[:3]))
+        pts = np.concatenate([sl(p) for p in plans])
+        for lim, c in zip((ax.get_xlim3d(), ax.get_ylim3d(), ax.get_zlim3d()), pts.T):
+            assert lim[0] <= c.min() and c.max() <= lim[1]
+    cortex_figures.plt.close(figs[0])
+
+
+def test_fig12_histograms_hold_the_counts_of_the_successful_plans(tmp_path, monkeypatch):
+    # each panel's filled histogram outline rises to numpy's 20-bin counts of the successful plans' values
+    import numpy as np
+    import pandas as pd
+    from matplotlib.path import Path
+
+    rng = np.random.default_rng(5)
+    n = 40
+    table = pd.DataFrame({"success": [True] * (n - 3) + [False] * 3,
+                          "metric.plan_wall_time_s": rng.uniform(0.02, 0.1, n),
+                          "metric.tof_s": rng.uniform(600.0, 900.0, n), "metric.dv_total_mps": rng.uniform(0.3, 0.9, n)})
+    figs = []
+    monkeypatch.setattr(cortex_figures, "save", lambda fig, path: figs.append(fig) or path)
+    cortex_figures.fig12_histograms(table, tmp_path / "f.png", {"tof_median_min": 12.07, "dv_median_mps": 0.6579,
+                                                                "compute_median_s": 30.9})
+    ok = table[table["success"]]
+    for ax, (col, scale) in zip(figs[0].axes, (("metric.plan_wall_time_s", 1.0), ("metric.tof_s", 1 / 60),
+                                               ("metric.dv_total_mps", 1.0))):
+        counts, edges = np.histogram(ok[col].to_numpy() * scale, bins=20)
+        (poly,) = ax.patches
+        outline = Path(poly.get_xy())
+        centres = 0.5 * (edges[:-1] + edges[1:])
+        for c, k in zip(centres, counts):  # filled up to the count in each bin, empty above it
+            assert outline.contains_point((c, k + 0.05)) is False
+            assert k == 0 or outline.contains_point((c, k - 0.05))
+        assert centres.min() > ax.get_xlim()[0] and centres.max() < ax.get_xlim()[1]
+    cortex_figures.plt.close(figs[0])

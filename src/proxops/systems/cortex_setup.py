@@ -11,6 +11,7 @@ import math
 import numpy as np
 
 from proxops.core.cw import mean_motion
+from proxops.environment.disk_memo import digest, disk_get  # hashlib and numpy only
 from proxops.errors import input_error
 from proxops.guidance.cortex.config import CortexConfig, fibonacci_axes, unit_axis
 from proxops.guidance.cortex.holds import sunlit_flags
@@ -46,7 +47,8 @@ _PROFILES: dict = {}
 
 def eclipse_profile(sc):
     """(t_s, eta) sunlight flags along the CSO orbit from orbit.epoch_utc, or None (model "none").
-    Cached per process (every axis of a campaign shares it)."""
+    Cached per process (every axis of a campaign shares it) and the illumination on disk
+    (:func:`illumination_profile`)."""
     e = sc.eclipse
     if e.model == "none":
         return None
@@ -55,14 +57,53 @@ def eclipse_profile(sc):
            e.orbits, e.sunlit_threshold)
     got = _PROFILES.get(key)
     if got is None:
-        from proxops.environment.eclipse import eclipse_profile as profile  # numba: only when planning
+        t, illum = illumination_profile(o, e)
+        got = (t, sunlit_flags(illum, e.sunlit_threshold))
+        _PROFILES[key] = got
+    return got
+
+
+_LIBRARIES = ("numba", "llvmlite", "erfa")  # compute the profile (kernels, the Sun's series) with numpy
+
+
+def _library_stamp() -> tuple:
+    """Where and which build of the libraries that compute the profile are installed ((path, mtime, size) of
+    their ``__init__.py``, found without importing them, and numpy's version): part of the disk key."""
+    import importlib.util
+    import os
+
+    out: list = [np.__version__]
+    for name in _LIBRARIES:
+        spec = importlib.util.find_spec(name)
+        origin = getattr(spec, "origin", None) if spec is not None else None
+        try:
+            st = os.stat(origin) if origin else None
+        except OSError:
+            st = None
+        out.append((name, origin, st.st_mtime_ns if st else None, st.st_size if st else None))
+    return tuple(out)
+
+
+def illumination_profile(orbit, eclipse) -> tuple[np.ndarray, np.ndarray]:
+    """(t_s, illum) of :func:`proxops.environment.eclipse.eclipse_profile` for the [orbit] and [eclipse]
+    sections, memoised on disk (:mod:`proxops.environment.disk_memo`: keyed by the inputs and the libraries'
+    installs, in a folder of the current sources), so a process that finds it stored imports neither numba
+    nor the ephemeris (~1 s of CPU before a campaign's first plan, measured). The same bits either way."""
+    o, e = orbit, eclipse
+    n = int(round(e.samples_per_orbit * e.orbits)) + 1  # eclipse_profile's sample count (both ends)
+
+    def compute() -> np.ndarray:
+        from proxops.environment.eclipse import eclipse_profile as profile  # numba: only when not stored
         from proxops.systems.common import target_elements
 
         t, illum = profile(target_elements(o), o.epoch_utc, n_per_orbit=e.samples_per_orbit, n_orbits=e.orbits,
                            model=e.model)
-        got = (t, sunlit_flags(illum, e.sunlit_threshold))
-        _PROFILES[key] = got
-    return got
+        return np.stack([t, illum])
+
+    key = digest("cortex_eclipse_profile", o.sma_m, o.ecc, o.inc_deg, o.raan_deg, o.argp_deg, o.nu_deg, o.epoch_utc,
+                 e.model, e.samples_per_orbit, e.orbits, _library_stamp())
+    got = disk_get("eclipse", key, (2, n), compute)
+    return got[0], got[1]
 
 
 def plan_scenario(sc, axis=None):
