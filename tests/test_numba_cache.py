@@ -53,3 +53,17 @@ def test_importing_proxops_points_numba_at_the_stamped_cache_without_importing_n
     folder, numba_loaded = res.stdout.split()
     assert folder == os.path.join(str(tmp_path), source_stamp(Path(proxops.__file__).parent))
     assert numba_loaded == "False"
+
+
+def test_setup_memo_lies_in_the_stamped_cache_folder_once():
+    """The truth set-up memo is ``<NUMBA_CACHE_DIR>/truth-setup`` of this process: the stamp appears once in its
+    path (it was ``<base>/<stamp>/<stamp>/truth-setup`` when the stamped directory was read as the base)."""
+    import os
+
+    from proxops._numba_cache import source_stamp
+    from proxops.environment import disk_memo
+
+    assert os.environ.get("PROXOPS_NUMBA_CACHE_STAMPED") == "1"  # importing proxops stamps the cache
+    path = disk_memo.memo_dir()
+    assert path == os.path.join(os.environ["NUMBA_CACHE_DIR"], "truth-setup")
+    assert path.count(source_stamp()) == 1

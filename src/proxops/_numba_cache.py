@@ -52,6 +52,15 @@ def cache_dir(package_dir: str = PACKAGE_DIR, base: str | None = None) -> str:
     return os.path.join(cache_base() if base is None else base, source_stamp(package_dir))
 
 
+def current_cache_dir() -> str:
+    """The cache directory this process uses: ``NUMBA_CACHE_DIR`` once :func:`stamp_numba_cache` has set it
+    (it already holds the stamp; :func:`cache_dir` would read it as the base and add the stamp twice), else
+    :func:`cache_dir`."""
+    if os.environ.get("PROXOPS_NUMBA_CACHE_STAMPED") == "1" and os.environ.get("NUMBA_CACHE_DIR"):
+        return os.environ["NUMBA_CACHE_DIR"]
+    return cache_dir()
+
+
 def stamp_numba_cache() -> None:
     """Point numba's cache at :func:`cache_dir` (before any kernel is compiled or loaded)."""
     if os.environ.get("PROXOPS_NUMBA_CACHE_STAMPED") == "1":  # once per process tree (workers inherit it)

@@ -1,7 +1,7 @@
 """On-disk memo for deterministic set-up arrays of the full truth (density table, Sun/Moon fit).
 
 A value is stored as ``<dir>/<name>-<key>.npy``, ``<dir>`` = ``truth-setup`` inside the numba cache
-directory of the current sources (:func:`proxops._numba_cache.cache_dir`: a hash of every ``.py``
+directory of the current sources (:func:`proxops._numba_cache.current_cache_dir`: a hash of every ``.py``
 file of proxops, so any source edit starts an empty memo, as it starts a fresh numba cache) and
 ``<key>`` the SHA-1 of everything the value is computed from, which the caller passes (inputs,
 the versions of the libraries that compute it). Only values that are a deterministic function of
@@ -19,13 +19,13 @@ from typing import Callable
 
 import numpy as np
 
-from proxops._numba_cache import cache_dir
+from proxops._numba_cache import current_cache_dir
 
 
 @lru_cache(maxsize=1)
 def memo_dir() -> str:
     """The folder of the memo for the current sources (computed once per process)."""
-    return os.path.join(cache_dir(), "truth-setup")
+    return os.path.join(current_cache_dir(), "truth-setup")
 
 
 def enabled() -> bool:
