@@ -528,7 +528,8 @@ class HybridCapturePlant(PlantBase):
 
     def delta_v(self, u: np.ndarray, kind: str, dt: float) -> float:
         """|F_d| / m_d dt (m/s): the deputy's translational delta-v of the held thrust."""
-        return float(np.linalg.norm(np.asarray(u, float)[0:3])) / self.params.mass_deputy_kg * dt
+        f = np.asarray(u, float)[0:3]
+        return math.sqrt(f.dot(f)) / self.params.mass_deputy_kg * dt  # np.linalg.norm's sqrt(f.dot(f))
 
     def apply_impulse(self, t: float, state: np.ndarray, dv: np.ndarray) -> np.ndarray:
         raise NotImplementedError("HybridCapturePlant takes held thrust/torque commands (kind='acceleration')")
