@@ -598,7 +598,7 @@ class CaptureMPC:
         if collisions is not None:
             self.set_collision_count(collisions)
         x = np.asarray(x_rel, float)
-        if x.shape != (32,) or not np.all(np.isfinite(x)):
+        if x.shape != (32,) or not np.isfinite(x).all():
             return _command(np.zeros(6), Status.INVALID_INPUT, t_start, 0.0, self.mode,
                             [("fallback", "non-finite or mis-shaped relative state; applied u = 0")])
         plan = self.solve(x)
@@ -749,7 +749,7 @@ class CaptureMPC:
         if res.x is None or not res.ok:
             self._plan_rho = None
             return out
-        U = np.clip(res.x, lb, ub)  # DAQP keeps the bounds to its primal tolerance
+        U = np.minimum(np.maximum(res.x, lb), ub)  # np.clip's values (finite x); DAQP keeps the bounds to its tolerance
         X = free + G @ U
         self._plan_rho = X.reshape(N, N_DX)[:, 0:3].copy()
         face = dt * face_penalty_sum(X, N_DX, N, self.v, cfg.face_weight)
@@ -872,7 +872,7 @@ class PostCaptureMPC:
     def step(self, t: float, x_rel) -> Command:
         t_start = time.perf_counter()
         x = np.asarray(x_rel, float)
-        if x.shape != (32,) or not np.all(np.isfinite(x)):
+        if x.shape != (32,) or not np.isfinite(x).all():
             return _command(np.zeros(6), Status.INVALID_INPUT, t_start, 0.0, self.mode,
                             [("fallback", "non-finite or mis-shaped relative state; applied u = 0")])
         plan = self.solve(x)
@@ -900,7 +900,7 @@ class PostCaptureMPC:
                                                kappa, *rows, trusted=rate_w != 0.0)
         if res.x is None or not res.ok:
             return out
-        U = np.clip(res.x, lb, ub)
+        U = np.minimum(np.maximum(res.x, lb), ub)  # np.clip's values (finite x)
         X = free + G @ U
         out.update(u=kappa + U[0:6], du=U.reshape(N, 6), dx=X.reshape(N, N_DX))
         self.last_plan = out
