@@ -20,7 +20,7 @@ import numpy as np
 from numba import njit
 
 from proxops.core.quaternion import dcm_kernel
-from proxops.core.small_linalg import expm_pade13, matmul, matmul_into, matmul_tn_into, matvec
+from proxops.core.small_linalg import expm_pade13, matmul_into, matmul_tn_into
 
 # CasADi opcodes -> ours (casadi.OP_*; checked at Tape construction)
 _OP_NAMES = ("INPUT", "OUTPUT", "CONST", "ADD", "SUB", "MUL", "DIV", "NEG", "SQ", "TWICE", "SQRT", "INV", "ASSIGN")
@@ -128,20 +128,31 @@ def condensed_qp(A, B, dt, N, dx0, W, r_blk, ref, face_a, wf, rate_first, rate_w
     Ad = np.ascontiguousarray(E[:n, :n])
     Bd = np.ascontiguousarray(E[:n, n:])
     nX, nU = N * n, N * m
-    # powers Ad^i Bd (the blocks of G) and the free response
+    # powers Ad^i Bd (the blocks of G) and the free response (element loops: the operations of
+    # matmul / matvec in their order, without their heap arrays)
     PB = np.empty((N, n, m))
     PB[0] = Bd
     for i in range(1, N):
-        PB[i] = matmul(Ad, PB[i - 1])
+        matmul_into(Ad, PB[i - 1], PB[i])
     free = np.empty(nX)
-    x = dx0.copy()
-    for k in range(N):
-        x = matvec(Ad, x)
-        free[k * n:(k + 1) * n] = x
+    for i in range(n):
+        sacc = 0.0
+        for l in range(n):
+            sacc += Ad[i, l] * dx0[l]
+        free[i] = sacc
+    for k in range(1, N):
+        for i in range(n):
+            sacc = 0.0
+            for l in range(n):
+                sacc += Ad[i, l] * free[(k - 1) * n + l]
+            free[k * n + i] = sacc
     G = np.zeros((nX, nU))
     for k in range(N):
         for j in range(k + 1):
-            G[k * n:(k + 1) * n, j * m:(j + 1) * m] = PB[k - j]
+            blk = PB[k - j]
+            for i in range(n):
+                for l in range(m):
+                    G[k * n + i, j * m + l] = blk[i, l]
     # H = G' Wt G and f = G' Wt (free - ref) without forming G' Wt G: with the stage weight
     # Wt_k = diag(W_k) + wf a_k a_k' (face rows on x_k[0:3]), P_j = Wt_j + Ad' P_{j+1} Ad and
     # g_j = Wt_j e_j + Ad' g_{j+1} (e = free - ref), block (i, j >= i) of H is (Ad^(j-i) Bd)' P_j Bd
@@ -195,8 +206,14 @@ def condensed_qp(A, B, dt, N, dx0, W, r_blk, ref, face_a, wf, rate_first, rate_w
             for l in range(n):
                 sacc += BdT[i, l] * g[l]
             f[j * m + i] = sacc
-        for i in range(j + 1):
-            matmul_tn_into(PB[j - i], PBj, H[i * m:(i + 1) * m, j * m:(j + 1) * m])
+        for i in range(j + 1):  # block (i, j) = (Ad^(j-i) Bd)' P_j Bd: matmul_tn_into's sums, into H directly
+            blk = PB[j - i]
+            for a in range(m):
+                for b in range(m):
+                    sacc = 0.0
+                    for l in range(n):
+                        sacc += blk[l, a] * PBj[l, b]
+                    H[i * m + a, j * m + b] = sacc
     for i in range(nU):  # the lower triangle (H symmetric up to round-off: mirrored)
         for l in range(i):
             H[i, l] = H[l, i]

@@ -155,11 +155,13 @@ from proxops.dynamics.two_rigid_bodies import HybridParams
 from proxops.errors import input_error
 from proxops.contracts import Command
 from proxops.solvers import QuadraticProgram, build_conic_problem, make_solver
+from proxops.solvers.daqp_qp import RAW_STATUS
 from proxops.solvers.front import SOLVERS_FOR
 from proxops.status import Status
 
 N_DX = 12  # reduced decision state of both problems
 N_U = 6
+_DAQP_OPTIMAL = RAW_STATUS[1]  # the raw status DaqpQP.solve reports for DAQP's plain "optimal" exit
 
 
 # --------------------------------------------------------------------------------------
@@ -268,6 +270,11 @@ class PostCaptureMPCConfig:
         _solver_name("post_capture_mpc.solver", self.solver, "QP")
 
 
+def _norm(v) -> float:
+    """|v| of a float64 vector as np.linalg.norm computes it (sqrt of v.dot(v)), without its checks."""
+    return math.sqrt(v.dot(v))
+
+
 def _solver_name(field: str, name, kind: str) -> None:
     if name not in SOLVERS_FOR[kind]:
         raise input_error(field, name, f"allowed: {', '.join(SOLVERS_FOR[kind])}")
@@ -307,6 +314,11 @@ def _solve_box_qp(solver, name: str, H, f, lb, ub, max_iter: int, kappa, A=None,
             solver.update_fast(H=H, f=f, lb=lb, ub=ub)
         else:
             solver.update_fast(H=H, f=f, A=A, bl=bl, bu=bu, lb=lb, ub=ub)
+        status, x, iterations, _, raw = solver.solve_fast()  # no SolverResult (the fields used below)
+        out = {"status": status, "kappa": kappa, "iterations": iterations,
+               "solver_time_s": time.perf_counter() - t_solver,
+               "detail": _DAQP_OPTIMAL if raw is None else str(raw.get("raw_status", ""))}
+        return solver, _Solved(status, x), out
     elif name == "daqp":  # native names after setup_native
         if A is None:
             solver.update(H=H, f=f, lb=lb, ub=ub)
@@ -320,6 +332,15 @@ def _solve_box_qp(solver, name: str, H, f, lb, ub, max_iter: int, kappa, A=None,
     out = {"status": res.status, "kappa": kappa, "iterations": res.iterations,
            "solver_time_s": time.perf_counter() - t_solver, "detail": str(res.info.get("raw_status", ""))}
     return solver, res, out
+
+
+class _Solved:
+    """The two fields of a SolverResult that the MPCs read after DAQP's ``solve_fast``."""
+
+    __slots__ = ("status", "x", "ok")
+
+    def __init__(self, status, x):
+        self.status, self.x, self.ok = status, x, status.ok
 
 
 def capture_weights(config: CaptureMPCConfig, collisions: int):
@@ -395,9 +416,11 @@ class CaptureLinearization:
 def reduced_capture_state(x_rel) -> np.ndarray:
     """dx0 = (rho, rho', omega, q_eta) of eq. 62 with q on its scalar-non-negative branch."""
     x = np.asarray(x_rel, float)
+    out = np.empty(N_DX)
+    out[0:9] = x[0:9]  # rho, rho', omega (S_RHO, S_RHOD, S_OM)
     q = x[S_Q]
-    sign = -1.0 if q[3] < 0.0 else 1.0
-    return np.concatenate([x[S_RHO], x[S_RHOD], x[S_OM], sign * q[0:3]])
+    out[9:12] = (-1.0 if q[3] < 0.0 else 1.0) * q[0:3]
+    return out
 
 
 def post_capture_linearization(params: HybridParams, kappa1_force=None):
@@ -438,10 +461,12 @@ def post_capture_linearization(params: HybridParams, kappa1_force=None):
 def reduced_post_capture_state(x_rel) -> np.ndarray:
     """dx1 = (p_eta, omega_c, rho_n - r_des, rho_n' - r_des') with p on its scalar-non-negative branch."""
     x = np.asarray(x_rel, float)
+    out = np.empty(N_DX)
     p = x[S_P]
-    sign = -1.0 if p[3] < 0.0 else 1.0
-    ref = x[S_REF]
-    return np.concatenate([sign * p[0:3], x[S_OMC], x[S_RN] - ref[0:3], x[S_RND] - ref[3:6]])
+    out[0:3] = (-1.0 if p[3] < 0.0 else 1.0) * p[0:3]
+    out[3:6] = x[S_OMC]
+    out[6:12] = x[20:26] - x[26:32]  # (rho_n, rho_n') - x_ref (S_RN, S_RND, S_REF)
+    return out
 
 
 def _post_capture_kappa_pieces(params: HybridParams):
@@ -546,6 +571,11 @@ class CaptureMPC:
         self.target_rho = np.zeros(3)
         self._cond = _Condensed(self.N, N_DX, N_U)
         self._no_plan = np.zeros((self.N, 3))
+        self._no_face = np.zeros((self.N, 3))
+        # per-step constants of the QP form (radians, rate bound, approach-guidance angles)
+        self._rate_w = -1.0 if config.rate_max_deg_s is None else math.radians(config.rate_max_deg_s)
+        self._guide = (math.radians(config.corridor_half_angle_deg), config.retreat_fraction,
+                       math.radians(config.waypoint_step_deg))
         self.collisions = 0
         self._solver = None
         self._solver_form = None
@@ -568,7 +598,7 @@ class CaptureMPC:
         if collisions is not None:
             self.set_collision_count(collisions)
         x = np.asarray(x_rel, float)
-        if x.shape != (32,) or not np.all(np.isfinite(x)):
+        if x.shape != (32,) or not np.isfinite(x).all():
             return _command(np.zeros(6), Status.INVALID_INPUT, t_start, 0.0, self.mode,
                             [("fallback", "non-finite or mis-shaped relative state; applied u = 0")])
         plan = self.solve(x)
@@ -580,7 +610,7 @@ class CaptureMPC:
             events = [("fallback", f"capture MPC {plan['status']}: applied the steady input kappa^0 (clipped)")]
         info = {"collisions": float(self.collisions), "iterations": float(plan["iterations"]),
                 "face_penalty": plan.get("face_penalty", math.nan),
-                "approach_target_m": float(np.linalg.norm(self.target_rho))}
+                "approach_target_m": _norm(self.target_rho)}
         return _command(u, plan["status"], t_start, plan["solver_time_s"], self.mode, events, info,
                         plan.get("detail", ""))
 
@@ -629,10 +659,8 @@ class CaptureMPC:
         of radius ``waypoint_radius_m`` about the chief CoM, ``waypoint_step_deg`` further round
         towards the port axis, or, closer than ``retreat_fraction`` of that radius, the point of
         the sphere straight out from the chief CoM (not in the paper; module doc)."""
-        cfg = self.config
         return approach_target_kernel(np.asarray(rho, float), self.params.P_c, self.v, self.waypoint_radius_m,
-                                      math.radians(cfg.corridor_half_angle_deg), cfg.retreat_fraction,
-                                      math.radians(cfg.waypoint_step_deg))
+                                      *self._guide)
 
     def _approach_target_numpy(self, rho) -> np.ndarray:
         """The numpy form of :meth:`approach_target` (kept for the test of the kernel)."""
@@ -663,7 +691,7 @@ class CaptureMPC:
         cfg, N, dt = self.config, self.N, self.dt
         x = np.asarray(x_rel, float)
         dx0 = reduced_capture_state(x)
-        far = cfg.decouple_beyond_m is not None and float(np.linalg.norm(x[S_RHO])) > cfg.decouple_beyond_m
+        far = cfg.decouple_beyond_m is not None and _norm(x[S_RHO]) > cfg.decouple_beyond_m
         if cfg.face_form == "qp":
             return self._solve_qp(x, dx0, far)
         Ad, Bd, kappa, _, _ = self.model(x[S_P], x[S_OMC], x[S_Q], decouple=far)
@@ -708,9 +736,9 @@ class CaptureMPC:
             has_plan = self._plan_rho is not None
             face_a = shifted_face_rows(self._plan_rho if has_plan else self._no_plan, dx0[0:3], has_plan, self.v, N)
         else:
-            face_a = np.zeros((N, 3))
-        rate_w = -1.0 if cfg.rate_max_deg_s is None else math.radians(cfg.rate_max_deg_s)
-        H, f, G, free, Ar, bl, bu = condensed_qp(A, B, dt, N, dx0, W, r_blk, ref.ravel(), face_a,
+            face_a = self._no_face
+        rate_w = self._rate_w
+        H, f, G, free, Ar, bl, bu = condensed_qp(A, B, dt, N, dx0, W, r_blk, ref.reshape(-1), face_a,
                                                  dt * cfg.face_weight, 6, rate_w)
         if self._solver is not None and self._solver_form != "qp":
             self._solver = None
@@ -721,7 +749,7 @@ class CaptureMPC:
         if res.x is None or not res.ok:
             self._plan_rho = None
             return out
-        U = np.clip(res.x, lb, ub)  # DAQP keeps the bounds to its primal tolerance
+        U = np.minimum(np.maximum(res.x, lb), ub)  # np.clip's values (finite x); DAQP keeps the bounds to its tolerance
         X = free + G @ U
         self._plan_rho = X.reshape(N, N_DX)[:, 0:3].copy()
         face = dt * face_penalty_sum(X, N_DX, N, self.v, cfg.face_weight)
@@ -820,6 +848,7 @@ class PostCaptureMPC:
         self._zero_face = np.zeros((N, 3))
         self._model_key = None
         self._solver = None
+        self._rate_w = -1.0 if config.rate_max_deg_s is None else math.radians(config.rate_max_deg_s)
         self.reset(0.0, None)
 
     def reset(self, t0: float, x_rel0) -> None:
@@ -843,7 +872,7 @@ class PostCaptureMPC:
     def step(self, t: float, x_rel) -> Command:
         t_start = time.perf_counter()
         x = np.asarray(x_rel, float)
-        if x.shape != (32,) or not np.all(np.isfinite(x)):
+        if x.shape != (32,) or not np.isfinite(x).all():
             return _command(np.zeros(6), Status.INVALID_INPUT, t_start, 0.0, self.mode,
                             [("fallback", "non-finite or mis-shaped relative state; applied u = 0")])
         plan = self.solve(x)
@@ -853,7 +882,7 @@ class PostCaptureMPC:
             u = np.clip(plan["kappa"], -self.u_max, self.u_max)
             events = [("fallback", f"post-capture MPC {plan['status']}: applied the steady input kappa^1 (clipped)")]
         info = {"iterations": float(plan["iterations"]),
-                "tracking_error_m": float(np.linalg.norm(x[S_RN] - x[S_REF][0:3]))}  # rho_n - r_des
+                "tracking_error_m": _norm(x[S_RN] - x[S_REF][0:3])}  # rho_n - r_des
         return _command(u, plan["status"], t_start, plan["solver_time_s"], self.mode, events, info,
                         plan.get("detail", ""))
 
@@ -862,7 +891,7 @@ class PostCaptureMPC:
         x = np.asarray(x_rel, float)
         dx0 = reduced_post_capture_state(x)
         A, B, kappa = self.continuous_model(x)
-        rate_w = -1.0 if self.config.rate_max_deg_s is None else math.radians(self.config.rate_max_deg_s)
+        rate_w = self._rate_w
         H, f, G, free, Ar, bl, bu = condensed_qp(A, B, self.dt, N, dx0, self._W, self._r_blk, self._zero_ref,
                                                  self._zero_face, 0.0, 3, rate_w)  # one numba call (hybrid_kernels)
         lb, ub = box_bounds(self.u_max, kappa, N)
@@ -871,7 +900,7 @@ class PostCaptureMPC:
                                                kappa, *rows, trusted=rate_w != 0.0)
         if res.x is None or not res.ok:
             return out
-        U = np.clip(res.x, lb, ub)
+        U = np.minimum(np.maximum(res.x, lb), ub)  # np.clip's values (finite x)
         X = free + G @ U
         out.update(u=kappa + U[0:6], du=U.reshape(N, 6), dx=X.reshape(N, N_DX))
         self.last_plan = out

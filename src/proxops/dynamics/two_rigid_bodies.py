@@ -386,6 +386,13 @@ def truth_rhs_kernel(x, u, m_c, m_d, J_c, J_c_inv, J_d, J_d_inv, n):
     """numba kernel of :func:`truth_rhs` (same layout; plain float64 arrays; scalar form, one
     heap array: dx)."""
     dx = np.empty(26)
+    truth_rhs_into(x, u, m_c, m_d, J_c, J_c_inv, J_d, J_d_inv, n, dx)
+    return dx
+
+
+@njit(cache=True)
+def truth_rhs_into(x, u, m_c, m_d, J_c, J_c_inv, J_d, J_d_inv, n, dx):
+    """:func:`truth_rhs_kernel` written into ``dx[0:26]`` (no heap array; the plant's RK4)."""
     Rc = dcm9(x[12:16])  # C_{T<-C}
     Rd = dcm9(x[19:23])  # C_{T<-D}
     F0, F1, F2 = mv9(Rd, u[0], u[1], u[2])
@@ -393,7 +400,6 @@ def truth_rhs_kernel(x, u, m_c, m_d, J_c, J_c_inv, J_d, J_d_inv, n):
     _cw_scalar(x, dx, 6, F0, F1, F2, m_d, n)  # deputy CoM
     _attitude_rhs(x, dx, 12, 16, Rc, J_c, J_c_inv, 0.0, 0.0, 0.0, n)  # eq. 23
     _attitude_rhs(x, dx, 19, 23, Rd, J_d, J_d_inv, u[3], u[4], u[5], n)  # eq. 24
-    return dx
 
 
 def truth_rhs(t: float, x: np.ndarray, u: np.ndarray, params: HybridParams) -> np.ndarray:
@@ -707,6 +713,19 @@ def cross9(a0, a1, a2, b0, b1, b2):
 def _latch_kernel(x, P_c, P_d, KT, DT, KR, DR, n):
     """Latch pair of :func:`latch_wrench` in scalar form (the port kinematics of
     :func:`port_kinematics_kernel` inline, no heap arrays but the three returned)."""
+    F0, F1, F2, d0, d1, d2, c0, c1, c2 = latch_scalars(x, P_c, P_d, KT, DT, KR, DR, n)
+    tau_d = np.empty(3)
+    tau_d[0], tau_d[1], tau_d[2] = d0, d1, d2
+    tau_c = np.empty(3)
+    tau_c[0], tau_c[1], tau_c[2] = c0, c1, c2
+    F = np.empty(3)
+    F[0], F[1], F[2] = F0, F1, F2
+    return F, tau_d, tau_c
+
+
+@njit(cache=True)
+def latch_scalars(x, P_c, P_d, KT, DT, KR, DR, n):
+    """:func:`_latch_kernel` as nine floats (F_T, tau_d|_D, tau_c|_C; no heap array)."""
     Rc = dcm9(x[12:16])  # C_{T<-C}
     Rd = dcm9(x[19:23])  # C_{T<-D}
     # q = q_c* (x) q_d (scalar >= 0 branch)
@@ -746,17 +765,12 @@ def _latch_kernel(x, P_c, P_d, KT, DT, KR, DR, n):
     ac0, ac1, ac2 = mv9(Rc, P_c[0] + rho0, P_c[1] + rho1, P_c[2] + rho2)
     c0, c1, c2 = cross9(e0, e1, e2, F0, F1, F2)
     b0, b1, b2 = mtv9(Rd, c0, c1, c2)
-    tau_d = np.empty(3)
-    tau_d[0], tau_d[1], tau_d[2] = t0 + b0, t1 + b1, t2 + b2
+    d0, d1, d2 = t0 + b0, t1 + b1, t2 + b2
     g0, g1, g2 = mv9(Rd, t0, t1, t2)
     a0, a1, a2 = mtv9(Rc, g0, g1, g2)  # Q^T tau
     c0, c1, c2 = cross9(ac0, ac1, ac2, -F0, -F1, -F2)
     b0, b1, b2 = mtv9(Rc, c0, c1, c2)
-    tau_c = np.empty(3)
-    tau_c[0], tau_c[1], tau_c[2] = -a0 + b0, -a1 + b1, -a2 + b2
-    F = np.empty(3)
-    F[0], F[1], F[2] = F0, F1, F2
-    return F, tau_d, tau_c
+    return F0, F1, F2, d0, d1, d2, -a0 + b0, -a1 + b1, -a2 + b2
 
 
 def latch_wrench(x, params: HybridParams):

@@ -76,18 +76,16 @@ from proxops.dynamics.plant import PlantBase, locate_guard
 from proxops.dynamics.two_rigid_bodies import (
     N_TRUTH,
     HybridParams,
-    _latch_kernel,
-    _mtv,
-    _mv,
     cross9,
     dcm9,
     mtv9,
     mv9,
     contact_jump,
     contact_normal_velocity,
+    latch_scalars,
     latch_snap_jump,
     port_kinematics_kernel,
-    truth_rhs_kernel,
+    truth_rhs_into,
 )
 from proxops.errors import input_error
 
@@ -167,11 +165,19 @@ def gravity_correction_kernel(r, t, grav):
     r'' = [g(R0 + r) - g(R0)] + a_J2(R0) + n0^2 (x, y, 0) - 2 omega_t x r'  (R0 = a0 e_x),
     and CW is r'' = (3 n0^2 x, 0, -n0^2 z) - 2 omega_t x r'."""
     out = np.zeros(3)
-    mode = int(grav[0])
-    if mode == 0:
+    if int(grav[0]) == 0:
         return out
+    out[0], out[1], out[2] = gravity_point(r[0], r[1], r[2], gravity_frame(t, grav))
+    return out
+
+
+@njit(cache=True)
+def gravity_frame(t, grav):
+    """The part of :func:`gravity_correction_kernel` that depends on the time only (one evaluation
+    serves every point at t; mode 0, CW, is the caller's to skip): (n0, a0, j2, Re, mu, the columns
+    e_x, e_y, e_z of C_{I<-T} (9 floats), a_J2(R0) (3; 0 for two-body))."""
     n, a0, ci, si, j2, re, mu = grav[1], grav[2], grav[3], grav[4], grav[5], grav[6], grav[7]
-    if mode == 1:
+    if int(grav[0]) == 1:
         j2 = 0.0
     u = n * t
     cu, su = math.cos(u), math.sin(u)
@@ -179,19 +185,28 @@ def gravity_correction_kernel(r, t, grav):
     ex0, ex1, ex2 = cu, ci * su, si * su
     ey0, ey1, ey2 = -su, ci * cu, si * cu
     ez0, ez1, ez2 = 0.0, -si, ci
-    dx = ex0 * r[0] + ey0 * r[1] + ez0 * r[2]
-    dy = ex1 * r[0] + ey1 * r[1] + ez1 * r[2]
-    dz = ex2 * r[0] + ey2 * r[1] + ez2 * r[2]
-    ax, ay, az = accel_differential(a0 * ex0, a0 * ex1, a0 * ex2, dx, dy, dz, mu, j2, re)
+    bx = by = bz = 0.0
     if j2 != 0.0:
         bx, by, bz = accel_j2(a0 * ex0, a0 * ex1, a0 * ex2, mu, j2, re)
+    return (n, a0, j2, re, mu, ex0, ex1, ex2, ey0, ey1, ey2, ez0, ez1, ez2, bx, by, bz)
+
+
+@njit(cache=True)
+def gravity_point(r0, r1, r2, fr):
+    """:func:`gravity_correction_kernel` at the T-position (r0, r1, r2) (m) with the time's
+    :func:`gravity_frame` ``fr``, as a tuple (m/s^2)."""
+    n, a0, j2, re, mu, ex0, ex1, ex2, ey0, ey1, ey2, ez0, ez1, ez2, bx, by, bz = fr
+    dx = ex0 * r0 + ey0 * r1 + ez0 * r2
+    dy = ex1 * r0 + ey1 * r1 + ez1 * r2
+    dz = ex2 * r0 + ey2 * r1 + ez2 * r2
+    ax, ay, az = accel_differential(a0 * ex0, a0 * ex1, a0 * ex2, dx, dy, dz, mu, j2, re)
+    if j2 != 0.0:
         ax += bx
         ay += by
         az += bz
-    out[0] = ex0 * ax + ex1 * ay + ex2 * az - 2.0 * n * n * r[0]
-    out[1] = ey0 * ax + ey1 * ay + ey2 * az + n * n * r[1]
-    out[2] = ez0 * ax + ez1 * ay + ez2 * az + n * n * r[2]
-    return out
+    return (ex0 * ax + ex1 * ay + ex2 * az - 2.0 * n * n * r0,
+            ey0 * ax + ey1 * ay + ey2 * az + n * n * r1,
+            ez0 * ax + ez1 * ay + ez2 * az + n * n * r2)
 
 
 STOP_K_N_PER_M = 2.0e4  # latch stop: stiffness per deputy corner (4 on the docking face: 8e4 N/m, 62 um under 5 N)
@@ -205,10 +220,19 @@ def latch_stop_kernel(x, corners_d, v_c, plane_c, k, c, omega_t):
     unilateral spring-damper (k depth + c depth', never pulling) acting at that corner on the
     deputy and its opposite on the chief (momentum conserving). Returns (F_T on the deputy's
     CoM sum (N, T), tau_d (N m, D), tau_c (N m, C), deepest penetration m)."""
+    F0, F1, F2, d0, d1, d2, c0, c1, c2, deepest = latch_stop_scalars(x, corners_d, v_c, plane_c, k, c, omega_t[0],
+                                                                     omega_t[1], omega_t[2])
+    return np.array([F0, F1, F2]), np.array([d0, d1, d2]), np.array([c0, c1, c2]), deepest
+
+
+@njit(cache=True)
+def latch_stop_scalars(x, corners_d, v_c, plane_c, k, c, w0, w1, w2):
+    """:func:`latch_stop_kernel` with omega_t = (w0, w1, w2), as ten floats (F_T, tau_d, tau_c,
+    deepest; no heap array)."""
     Rc = dcm9(x[12:16])
     Rd = dcm9(x[19:23])
     r0, r1, r2 = x[6] - x[0], x[7] - x[1], x[8] - x[2]
-    c0, c1, c2 = cross9(omega_t[0], omega_t[1], omega_t[2], r0, r1, r2)
+    c0, c1, c2 = cross9(w0, w1, w2, r0, r1, r2)
     vr0, vr1, vr2 = x[9] - x[3] + c0, x[10] - x[4] + c1, x[11] - x[5] + c2
     Wc0, Wc1, Wc2 = mv9(Rc, x[16], x[17], x[18])
     Wd0, Wd1, Wd2 = mv9(Rd, x[23], x[24], x[25])
@@ -244,7 +268,23 @@ def latch_stop_kernel(x, corners_d, v_c, plane_c, k, c, omega_t):
         tc0 += c0
         tc1 += c1
         tc2 += c2
-    return np.array([Fs0, Fs1, Fs2]), np.array([td0, td1, td2]), np.array([tc0, tc1, tc2]), deepest
+    return Fs0, Fs1, Fs2, td0, td1, td2, tc0, tc1, tc2, deepest
+
+
+@njit(cache=True)
+def _add_pair(dy, m_c, m_d, J_c_inv, J_d_inv, F0, F1, F2, d0, d1, d2, c0, c1, c2):
+    """An internal force/torque pair into dy: the deputy's acceleration + F/m_d, the chief's - F/m_c,
+    J^-1 tau into both body rates (element by element the array expressions of the former form)."""
+    dy[9] += F0 / m_d
+    dy[10] += F1 / m_d
+    dy[11] += F2 / m_d
+    dy[3] -= F0 / m_c
+    dy[4] -= F1 / m_c
+    dy[5] -= F2 / m_c
+    for i in range(3):
+        dy[23 + i] += J_d_inv[i, 0] * d0 + J_d_inv[i, 1] * d1 + J_d_inv[i, 2] * d2
+    for i in range(3):
+        dy[16 + i] += J_c_inv[i, 0] * c0 + J_c_inv[i, 1] * c1 + J_c_inv[i, 2] * c2
 
 
 @njit(cache=True)
@@ -252,50 +292,78 @@ def _rhs(y, u, latched, t, grav, stop, corners_d, m_c, m_d, J_c, J_c_inv, J_d, J
     """d/dt of truth (26) + x_ref (6) at time t (s); the latch pair of
     two_rigid_bodies.latch_wrench when latched; the CW translation of truth_rhs_kernel
     corrected to the ``grav`` model (:func:`gravity_correction_kernel`) for both CoMs and x_ref."""
-    dy = np.zeros(32)
-    x = y[0:26]
-    dy[0:26] = truth_rhs_kernel(x, u, m_c, m_d, J_c, J_c_inv, J_d, J_d_inv, n)
+    dy = np.empty(32)
+    _rhs_into(y, u, latched, t, grav, stop, corners_d, m_c, m_d, J_c, J_c_inv, J_d, J_d_inv, n, P_c, P_d, KT, DT,
+              KR, DR, dy)
+    return dy
+
+
+@njit(cache=True)
+def _rhs_into(y, u, latched, t, grav, stop, corners_d, m_c, m_d, J_c, J_c_inv, J_d, J_d_inv, n, P_c, P_d, KT, DT,
+              KR, DR, dy):
+    """:func:`_rhs` written into ``dy`` (32) without a heap array (the RK4 calls it 4 times a substep)."""
+    truth_rhs_into(y, u, m_c, m_d, J_c, J_c_inv, J_d, J_d_inv, n, dy)
     if latched:
-        F, tau_d, tau_c = _latch_kernel(x, P_c, P_d, KT, DT, KR, DR, n)
-        dy[9:12] += F / m_d
-        dy[3:6] -= F / m_c
-        dy[23:26] += _mv(J_d_inv, tau_d)
-        dy[16:19] += _mv(J_c_inv, tau_c)
+        F0, F1, F2, d0, d1, d2, c0, c1, c2 = latch_scalars(y, P_c, P_d, KT, DT, KR, DR, n)
+        _add_pair(dy, m_c, m_d, J_c_inv, J_d_inv, F0, F1, F2, d0, d1, d2, c0, c1, c2)
         if stop[0] > 0.0:
-            F, tau_d, tau_c, _ = latch_stop_kernel(x, corners_d, stop[1:4], stop[4], stop[5], stop[6],
-                                                   np.array([0.0, 0.0, n]))
-            dy[9:12] += F / m_d
-            dy[3:6] -= F / m_c
-            dy[23:26] += _mv(J_d_inv, tau_d)
-            dy[16:19] += _mv(J_c_inv, tau_c)
+            F0, F1, F2, d0, d1, d2, c0, c1, c2, _ = latch_stop_scalars(y, corners_d, stop[1:4], stop[4], stop[5],
+                                                                       stop[6], 0.0, 0.0, n)
+            _add_pair(dy, m_c, m_d, J_c_inv, J_d_inv, F0, F1, F2, d0, d1, d2, c0, c1, c2)
     # x_ref: natural motion of a point mass (CW: corrected G2 of eq. 21, hybrid_relative.reference_rhs)
-    dy[26:29] = y[29:32]
+    dy[26] = y[29]
+    dy[27] = y[30]
+    dy[28] = y[31]
     dy[29] = 3.0 * n * n * y[26] + 2.0 * n * y[30]
     dy[30] = -2.0 * n * y[29]
     dy[31] = -n * n * y[28]
-    if grav[0] > 0.5:
-        dy[3:6] += gravity_correction_kernel(y[0:3], t, grav)
-        dy[9:12] += gravity_correction_kernel(y[6:9], t, grav)
-        dy[29:32] += gravity_correction_kernel(y[26:29], t, grav)
-    return dy
+    if grav[0] > 0.5:  # both CoMs and x_ref, with one gravity_frame for the three
+        fr = gravity_frame(t, grav)
+        for i in (3, 9, 29):
+            g0, g1, g2 = gravity_point(y[i - 3], y[i - 2], y[i - 1], fr)
+            dy[i] += g0
+            dy[i + 1] += g1
+            dy[i + 2] += g2
 
 
 @njit(cache=True)
 def _rk4(y, u, latched, t0, grav, stop, corners_d, h, n_steps, m_c, m_d, J_c, J_c_inv, J_d, J_d_inv, n, P_c, P_d, KT, DT, KR, DR):
     """``n_steps`` classical RK4 steps of length h (s) from time t0 (s); quaternions
     renormalised after each."""
-    y = y.copy()
+    out = y[0:32].copy()
+    _rk4_inplace(out, u, latched, t0, grav, stop, corners_d, h, n_steps, m_c, m_d, J_c, J_c_inv, J_d, J_d_inv, n,
+                 P_c, P_d, KT, DT, KR, DR, np.empty((5, 32)))
+    return out
+
+
+@njit(cache=True)
+def _rk4_inplace(y, u, latched, t0, grav, stop, corners_d, h, n_steps, m_c, m_d, J_c, J_c_inv, J_d, J_d_inv, n, P_c,
+                 P_d, KT, DT, KR, DR, work):
+    """:func:`_rk4` on ``y`` (32) in place, with a (5, 32) ``work`` array (k1..k4 and the stage
+    state): element by element the operations of the array form y + h/6 (k1 + 2 k2 + 2 k3 + k4)
+    in the same order, so the same bits (tests/test_hybrid_truth.py)."""
+    k1, k2, k3, k4, z = work[0], work[1], work[2], work[3], work[4]
     a = (m_c, m_d, J_c, J_c_inv, J_d, J_d_inv, n, P_c, P_d, KT, DT, KR, DR)
+    hh = 0.5 * h
+    h6 = h / 6.0
     for i in range(n_steps):
         t = t0 + i * h
-        k1 = _rhs(y, u, latched, t, grav, stop, corners_d, *a)
-        k2 = _rhs(y + 0.5 * h * k1, u, latched, t + 0.5 * h, grav, stop, corners_d, *a)
-        k3 = _rhs(y + 0.5 * h * k2, u, latched, t + 0.5 * h, grav, stop, corners_d, *a)
-        k4 = _rhs(y + h * k3, u, latched, t + h, grav, stop, corners_d, *a)
-        y = y + h / 6.0 * (k1 + 2.0 * k2 + 2.0 * k3 + k4)
-        y[12:16] /= np.sqrt(np.sum(y[12:16] ** 2))
-        y[19:23] /= np.sqrt(np.sum(y[19:23] ** 2))
-    return y
+        _rhs_into(y, u, latched, t, grav, stop, corners_d, *a, k1)
+        for j in range(32):
+            z[j] = y[j] + hh * k1[j]
+        _rhs_into(z, u, latched, t + 0.5 * h, grav, stop, corners_d, *a, k2)
+        for j in range(32):
+            z[j] = y[j] + hh * k2[j]
+        _rhs_into(z, u, latched, t + 0.5 * h, grav, stop, corners_d, *a, k3)
+        for j in range(32):
+            z[j] = y[j] + h * k3[j]
+        _rhs_into(z, u, latched, t + h, grav, stop, corners_d, *a, k4)
+        for j in range(32):
+            y[j] = y[j] + h6 * (k1[j] + 2.0 * k2[j] + 2.0 * k3[j] + k4[j])
+        for q0 in (12, 19):  # renormalise: q / sqrt(sum of squares, summed in order)
+            r = math.sqrt(y[q0] * y[q0] + y[q0 + 1] * y[q0 + 1] + y[q0 + 2] * y[q0 + 2] + y[q0 + 3] * y[q0 + 3])
+            for j in range(q0, q0 + 4):
+                y[j] = y[j] / r
 
 
 @njit(cache=True)
@@ -361,6 +429,8 @@ def advance_kernel(y, u, t, done, dt, h, n_max, latched, armed_from, env, grav, 
     ``y`` (38) is updated in place; returns (done, code): 0 = n_max substeps or dt reached,
     1 = stopped before a contact substep, 2 = latched."""
     y32 = y[0:32].copy()
+    nxt = np.empty(32)
+    work = np.empty((5, 32))  # RK4 stages, reused by every substep
     ytime = y[37]
     for _ in range(n_max):
         if not done < dt - 1e-12:
@@ -369,11 +439,12 @@ def advance_kernel(y, u, t, done, dt, h, n_max, latched, armed_from, env, grav, 
         if not latched:
             if sat_gap_kernel(y32[0:26], hc, hd) <= 0.0:
                 break
-        nxt = _rk4(y32, u, latched, ytime, grav, stop, corners_d, step, 1, m_c, m_d, J_c, J_c_inv, J_d, J_d_inv,
-                   n, P_c, P_d, KT, DT, KR, DR)
+        nxt[:] = y32
+        _rk4_inplace(nxt, u, latched, ytime, grav, stop, corners_d, step, 1, m_c, m_d, J_c, J_c_inv, J_d, J_d_inv,
+                     n, P_c, P_d, KT, DT, KR, DR, work)
         if not latched and sat_gap_kernel(nxt[0:26], hc, hd) <= 0.0:
             break
-        y32 = nxt
+        y32, nxt = nxt, y32
         ytime = ytime + step
         done += step
         if not latched and t + done >= armed_from:
@@ -457,7 +528,8 @@ class HybridCapturePlant(PlantBase):
 
     def delta_v(self, u: np.ndarray, kind: str, dt: float) -> float:
         """|F_d| / m_d dt (m/s): the deputy's translational delta-v of the held thrust."""
-        return float(np.linalg.norm(np.asarray(u, float)[0:3])) / self.params.mass_deputy_kg * dt
+        f = np.asarray(u, float)[0:3]
+        return math.sqrt(f.dot(f)) / self.params.mass_deputy_kg * dt  # np.linalg.norm's sqrt(f.dot(f))
 
     def apply_impulse(self, t: float, state: np.ndarray, dv: np.ndarray) -> np.ndarray:
         raise NotImplementedError("HybridCapturePlant takes held thrust/torque commands (kind='acceleration')")

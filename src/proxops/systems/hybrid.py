@@ -106,6 +106,11 @@ def build_setup(sc: HybridScenario):
                  meta={"system": "hybrid", "control": "thrust N + torque N m in D"})
 
 
+def _norm3(v) -> float:
+    """|v| of a float64 vector as np.linalg.norm computes it (sqrt of v.dot(v)), without its checks."""
+    return math.sqrt(v.dot(v))
+
+
 class Divergence:
     """Stop condition: the run is ended with reason ``diverged: ...`` as soon as the true port
     range |rho| (m), the deputy's rate relative to the chief |omega| or the chief tumble
@@ -124,7 +129,7 @@ class Divergence:
         return cls(rng, math.radians(s.divergence_rate_deg_s), math.radians(wc))
 
     def __call__(self, t: float, x) -> str | None:
-        r, w, wc = (float(np.linalg.norm(x[a:b])) for a, b in ((0, 3), (6, 9), (17, 20)))
+        r, w, wc = (_norm3(x[a:b]) for a, b in ((0, 3), (6, 9), (17, 20)))
         if r > self.range_m:
             return f"diverged: port range {r:.3g} m > {self.range_m:.3g} m"
         if w > self.rate_rad_s:
