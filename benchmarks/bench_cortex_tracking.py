@@ -10,8 +10,9 @@
    process after a warm-up run that pays numba compilation; goal < 10 s).
 3. The thruster chain on the nominal run: delta-v and propellant against the impulsive actuator.
 4. The supervisor's own CPU per engine step (Table 1, reference states, CP_g data: the step minus its
-   CP_g solves) against one CP_g solve, and the solver share of the controller's time (issue 32: the
-   supervisor's step below the CP_g solve), over repeated nominal runs in this process (CW truth).
+   CP_g solves) against one CP_g solve, also summed over the steps of one guidance interval (the own CPU
+   per CP_g solve), and the solver share of the controller's time (issue 32: the supervisor's step below
+   the CP_g solve), over repeated nominal runs in this process (CW truth).
 5. Wall time of the 100-run high-error campaign on 2 workers (``proxops mc cortex-high-mc --runs 100
    --workers 2``, process start included; goal < 5 min). ``--no-campaign`` skips it.
 
@@ -233,8 +234,11 @@ def supervisor_share(repeats: int = 3):
             simulate(setup, seed=0)
             n_solve = len(ctrl.cpg.solve_times)
             own = (acc[0] - solve_cpu[0]) / acc[1]
+            per_solve = solve_cpu[0] / n_solve
+            interval = own * acc[1] / n_solve  # the supervisor's own CPU per guidance interval (one CP_g solve)
             print(f"supervisor run {rep + 1}{' (builds the CP_g structures)' if rep == 0 else ''}: own CPU "
-                  f"{own * 1e6:.1f} us per step over {acc[1]} steps; CP_g solve {solve_cpu[0] / n_solve * 1e3:.3f} ms "
+                  f"{own * 1e6:.1f} us per step over {acc[1]} steps, {interval * 1e3:.3f} ms per CP_g solve "
+                  f"({'below' if interval < per_solve else 'NOT below'} the solve); CP_g solve {per_solve * 1e3:.3f} ms "
                   f"CPU ({n_solve} solves); solver share of the controller {solve_cpu[0] / acc[0]:.0%} ({_load()})")
     finally:
         TrackingSOCP.solve = orig

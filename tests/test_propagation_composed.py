@@ -293,7 +293,7 @@ def test_located_shadow_crossings_match_the_geometry():
     out = np.empty((2, 12))
     found = np.zeros(16)
     status, _, _, n = kf.integrate_full_crossings(y0, np.array([0.0, PERIOD]), np.zeros(3), truth.p, *truth._arrays(),
-                                                  truth._dens, truth.rtol, truth.atol, out, found)  # fmt: skip
+                                                  truth._dens, truth.rtol, truth.atol, out, found, np.empty(0))  # fmt: skip
     assert status == 0 and n == 8
     absolute = np.concatenate([y0[:6], y0[:6] + y0[6:12]])
     p, arrays = truth.p, truth._arrays()

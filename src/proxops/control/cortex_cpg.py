@@ -148,14 +148,21 @@ class CpgGuidance:
             dv, status[0] = run(current[0])
             return dv, (None if dv is not None else status[0])
 
+        last = [None, None]  # (iterate, its predicted positions): the plume-free iterate is checked, then linearised about
+
+        def positions(dv):
+            if last[0] is not dv:
+                last[:] = [dv, free.predicted_states(x_est, dv)[:-1, :3]]
+            return last[1]
+
         def converged(dv, prev):
             if prev is not None:
                 return True
-            r0 = free.predicted_states(x_est, dv)[:-1, :3]
+            r0 = positions(dv)
             return float(self.plume_track.margin_rad(r0, dv, self.plume_min_dv_mps).min()) >= 0.0
 
         def relinearize(dv0, _radius):
-            r0 = free.predicted_states(x_est, dv0)[:-1, :3]
+            r0 = positions(dv0)
             prob = self.problem(n_sub, coned, True)
             prob.set_plume(self.plume_track.rows(r0, self._plume_directions(dv0, seg, t), DV_ZERO_MPS, None)[1])
             current[0] = prob

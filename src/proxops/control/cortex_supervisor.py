@@ -169,9 +169,11 @@ class CortexSupervisor:
             self.queue = list(dv)
         dv = self.queue[0]
         r_true = x_true[:3]
-        r_ref = self.timeline.state(t)[:3]
+        tl = self.timeline  # the reference at t: seg is tl.segment(t) (= tl.state(t), one segment search)
+        r_ref = seg.state(tl.n, min(t, tl.t_end))[:3]
         if self.mode != "retreat":
-            self._rearm(r_true)
+            if self.suspended:
+                self._rearm(r_true)
             # abort conditions at every impulse; recompute conditions at the guidance steps (Algorithm 2
             # lines 11-15 test x_{k+1} after the whole interval) unless recompute_every = "impulse"
             trig = self.triggers.check(self.mode, r_true, r_ref, dv, self.suspended,
@@ -181,8 +183,8 @@ class CortexSupervisor:
         self.queue.pop(0)
         (ax, ay, az), (bx, by, bz) = r_true.tolist(), r_ref.tolist()
         err = math.sqrt((ax - bx) ** 2 + (ay - by) ** 2 + (az - bz) ** 2)
-        return self._cmd(np.array(dv), events, status=status, solve_time_s=solve_time,
-                         info={"track_err_m": err, "phase": PHASE_INDEX[self.mode]})
+        return Command(u=np.array(dv), kind="impulse", status=status, solve_time_s=solve_time, mode=self.mode,
+                       events=events, info={"track_err_m": err, "phase": PHASE_INDEX[self.mode]})
 
     def _rearm(self, r_true) -> None:
         """Re-arm a suspended buffered condition once the true state no longer violates it."""

@@ -74,15 +74,24 @@ class CortexTriggers:
         ``recompute=False``: the abort conditions only. Runs at every impulse: 3-vectors in plain floats
         (the angles as :meth:`PlumeConstraint.angle_rad` and :meth:`ApproachCone.margin` define them)."""
         r = _floats(r)
-        rng = _norm(r)
-        thrusting = dv is not None and _norm(_floats(dv)) > self.plume_min_dv_mps
+        r0, r1, r2 = r
+        rng = math.sqrt(r0 * r0 + r1 * r1 + r2 * r2)  # _norm(r), inline (this runs at every impulse)
+        if dv is None:
+            thrusting = False
+        else:
+            d0, d1, d2 = _floats(dv)
+            nd = math.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
+            thrusting = nd > self.plume_min_dv_mps
         if phase in HOLD_PHASES and rng < self.r_kos_m:
             return "abort", f"C_KOS: range {rng:.3f} m < r_KOS {self.r_kos_m:g} m"
         if phase == "approach":
-            ang = _angle(r, rng, dv) if thrusting else math.nan
+            ang = math.nan  # angle between dv and r (rad); NaN when not thrusting or either is zero
+            if thrusting and rng != 0.0 and nd != 0.0:
+                ang = math.acos(max(-1.0, min(1.0, (d0 * r0 + d1 * r1 + d2 * r2) / (rng * nd))))
             if ang < self.plume.half_angle_rad:
                 return "abort", f"C_plume: thrust {math.degrees(ang):.2f} deg from the target direction < alpha_p"
-            outside = rng * self._cos_cone - _dot(r, self._cone_axis)
+            a0, a1, a2 = self._cone_axis
+            outside = rng * self._cos_cone - (r0 * a0 + r1 * a1 + r2 * a2)
             if outside > 0:
                 return "abort", f"C_cone: outside the approach cone by {outside:.4f} m"
         if not recompute:
@@ -114,12 +123,3 @@ def _dot(a, b) -> float:
 
 def _norm(a) -> float:
     return math.sqrt(_dot(a, a))
-
-
-def _angle(r, rng: float, dv) -> float:
-    """Angle between the impulse dv and r (rad); NaN when either is zero (no plume condition then)."""
-    dv = _floats(dv)
-    nd = _norm(dv)
-    if rng == 0.0 or nd == 0.0:
-        return math.nan
-    return math.acos(max(-1.0, min(1.0, _dot(dv, r) / (rng * nd))))

@@ -68,7 +68,7 @@ import numpy as np
 
 from proxops.core.constants import J2_EARTH, KARMAN_LINE_KM, MU_EARTH, OMEGA_EARTH, R_EARTH
 from proxops.core.memo import memo_get
-from proxops.environment.earth import earth_rotation, geodetic_height
+from proxops.environment.earth import WGS84_A, earth_rotation, geodetic_height
 from proxops.environment.eclipse import shadow_boundaries
 from proxops.environment.ephemeris import AU, GM_MOON, GM_SUN, N_FIT, R_SUN, cached_third_body_fit, fitted_position
 from proxops.environment.epochs import Epoch, check_time_range, parse_epoch
@@ -82,6 +82,7 @@ from proxops.propagation.reference import REFERENCE_ATOL
 from proxops.propagation.truth import RelativeTruth
 from proxops.dynamics.plant import PlantBase
 
+REENTRY_SCREEN = 1e-3  # relative margin of the re-entry check's screen (1 - cos(0.2 deg) = 6e-6; see _end_if_reentering)
 DECAYING_ALTITUDE_KM = 150.0  # km: an integrator failure below this height is the end of a decay (a run ends there)
 # Default relative tolerance of the composed truth: 3e-11, a third of a decade below
 # RelativeTruth's. Measured (one orbit, 100x100 + Sun/Moon, 20 km separation, relative
@@ -204,6 +205,8 @@ class ComposedTruth(PlantBase):
         if models.drag:
             self._ensure_table(float(horizon_s))
         self._zero_u = np.zeros(3)
+        self._hill_ready = False
+        self._hill_of = None  # (state, its Hill state) of the last propagate (relative_state hands it out once)
         chaser = np.ascontiguousarray(chaser_hill, dtype=float)
         if chaser.shape != (6,) or not np.all(np.isfinite(chaser)):
             raise input_error("chaser_hill", chaser.tolist(), "must be a finite Hill state of length 6", "m, m/s")
@@ -271,7 +274,13 @@ class ComposedTruth(PlantBase):
         return self._x0.copy()
 
     def relative_state(self, state: np.ndarray) -> np.ndarray:
-        """Exact Hill relative state (6,) (frame rate from the target's total acceleration)."""
+        """Exact Hill relative state (6,) (frame rate from the target's total acceleration). Of the state
+        :meth:`propagate` returned last, the Hill state that propagation computed with it (the same numbers,
+        :func:`proxops.propagation.kernels_full.integrate_full_hill`), handed out once."""
+        done = self._hill_of
+        if done is not None and done[0] is state:
+            self._hill_of = None
+            return done[1]
         s = np.ascontiguousarray(state, dtype=float)
         return kf.hill_from_y_full(s[12], s[:12].copy(), self.p, *self._arrays(), self._dens)
 
@@ -283,13 +292,19 @@ class ComposedTruth(PlantBase):
         s = np.ascontiguousarray(state, dtype=float)
         uu = self._zero_u if u is None else np.ascontiguousarray(u, dtype=float)
         t0 = float(s[12])
-        y = self._integrate(s[:12].copy(), np.array([t0, t0 + dt]), uu)[-1]
-        return np.append(y, t0 + dt)
+        out = np.empty(13)  # (np.append's numbers, without its concatenate)
+        hill = np.empty(6)
+        out[:12] = self._integrate(s[:12].copy(), np.array([t0, t0 + dt]), uu, hill)[-1]
+        out[12] = t0 + dt
+        self._hill_of = (out, hill) if self._hill_ready else None
+        return out
 
     def apply_impulse(self, t: float, state: np.ndarray, dv: np.ndarray) -> np.ndarray:
         s = np.ascontiguousarray(state, dtype=float)
-        y = kernels.apply_hill_impulse(s[:12].copy(), np.ascontiguousarray(dv, dtype=float))
-        return np.append(y, s[12])
+        out = np.empty(13)
+        out[:12] = kernels.apply_hill_impulse(s[:12], np.ascontiguousarray(dv, dtype=float))  # (the kernel copies)
+        out[12] = s[12]
+        return out
 
     def free_drift(self, state: np.ndarray, times: np.ndarray) -> np.ndarray:
         """Uncontrolled Hill states (len(times), 6) at ``times`` (s after now, increasing, >= 0)."""
@@ -302,13 +317,16 @@ class ComposedTruth(PlantBase):
         rel = np.array([kf.hill_from_y_full(tk, yk, self.p, *self._arrays(), self._dens) for tk, yk in zip(grid, ys)])
         return rel if times[0] == 0.0 else rel[1:]
 
-    def _integrate(self, y0: np.ndarray, grid: np.ndarray, u: np.ndarray) -> np.ndarray:
+    def _integrate(self, y0: np.ndarray, grid: np.ndarray, u: np.ndarray, hill: np.ndarray | None = None) -> np.ndarray:
+        """States (len(grid), 12) at the absolute times ``grid``; with ``hill`` (6,) on the DOP853 path
+        also the Hill state of the last one (``self._hill_ready`` says whether it was written)."""
+        self._hill_ready = False
         if self.models.drag:
             self._ensure_table(float(grid[-1]))
         else:
             check_time_range(self.epoch, float(grid[-1]), "duration")
         if self.integrator != "reference":
-            status, out = self._integrate_numba(y0, grid, u, self.p)
+            status, out = self._integrate_numba(y0, grid, u, self.p, hill)
             if status != kernels.STATUS_OK:
                 self._end_if_reentering(float(grid[0]), y0, DECAYING_ALTITUDE_KM)
                 raise ProxopsError(f"truth propagation failed (status {status})")
@@ -320,7 +338,16 @@ class ComposedTruth(PlantBase):
     def _end_if_reentering(self, t: float, y: np.ndarray, floor_km: float) -> None:
         """Raise :class:`PlantEnded` when the target or the chaser is below ``floor_km`` of geodetic
         height at ``t`` (s): below the Karman line after a step, or below DECAYING_ALTITUDE_KM where the
-        integrator gave up (drag at the end of a decay, not a numerical fault)."""
+        integrator gave up (drag at the end of a decay, not a numerical fault). Screened first: the
+        geodetic height is at least |r| cos(lat - lat_geocentric) - a >= |r| (1 - REENTRY_SCREEN) - a
+        (the two latitudes differ by < 0.2 deg), so positions beyond (a + floor) / (1 - REENTRY_SCREEN)
+        from the centre are above the floor without the iteration (the check runs after every step)."""
+        tx, ty, tz, _, _, _, dx, dy, dz = y[:9].tolist()
+        cx, cy, cz = tx + dx, ty + dy, tz + dz
+        r_min2 = min(tx * tx + ty * ty + tz * tz, cx * cx + cy * cy + cz * cz)
+        r_screen = (WGS84_A + 1e3 * floor_km) / (1.0 - REENTRY_SCREEN)
+        if r_min2 > r_screen * r_screen:
+            return
         for name, r in (("target", y[:3]), ("chaser", y[:3] + y[6:9])):
             h_km = geodetic_height(float(r[0]), float(r[1]), float(r[2])) / 1e3
             if h_km < floor_km:
@@ -334,13 +361,18 @@ class ComposedTruth(PlantBase):
         return (self.integrator == "fast" and self.models.gravity == "harmonics" and not self.models.srp
                 and span_s >= km.MIN_STEPS * self.order * self.step_s)  # fmt: skip
 
-    def _integrate_numba(self, y0: np.ndarray, grid: np.ndarray, u: np.ndarray, p: np.ndarray):
-        """(status, states (len(grid), 12)) from the numba DOP853 or multistep kernel."""
+    def _integrate_numba(self, y0: np.ndarray, grid: np.ndarray, u: np.ndarray, p: np.ndarray,
+                         hill: np.ndarray | None = None):
+        """(status, states (len(grid), 12)) from the numba DOP853 or multistep kernel; on the DOP853 path
+        with ``hill`` given, the Hill state of the last state in it (one call, see integrate_full_hill)."""
         out = np.empty((grid.size, 12))
         if self.uses_multistep(float(grid[-1] - grid[0])):
             split = p[kf.I_GRAV] == 2.0
             status, *_ = km.integrate_multistep(y0, grid, u, p, *self._arrays(), self._dens, self.step_s,
                                                   *self.adams, split, self.rtol, self.atol, out)  # fmt: skip
+        elif hill is not None:
+            status = kf.integrate_full_hill(y0, grid, u, p, *self._arrays(), self._dens, self.rtol, self.atol, out, hill)
+            self._hill_ready = status == kernels.STATUS_OK
         else:
             status, _, _ = kf.integrate_full(y0, grid, u, p, *self._arrays(), self._dens, self.rtol, self.atol, out)
         return status, out

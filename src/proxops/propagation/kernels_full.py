@@ -401,6 +401,13 @@ def target_accel(t, y, p, npm, C, S, K, V, W, dens):
 def hill_from_y_full(t, y, p, npm, C, S, K, V, W, dens) -> np.ndarray:
     """Exact Hill relative state (6,) with the frame rate x part r (a_t . h_hat)/|h| from
     the target's total acceleration (see proxops.frames.hill)."""
+    ax, ay, az = target_accel(t, y, p, npm, C, S, K, V, W, dens)
+    return hill_from_accel(y, ax, ay, az)
+
+
+@njit(cache=True)
+def hill_from_accel(y, ax, ay, az) -> np.ndarray:
+    """:func:`hill_from_y_full` with the target's total acceleration (ax, ay, az) (m/s^2) given."""
     xx, xy, xz, yx, yy, yz, zx, zy, zz = hill_axes(y)
     rn2 = y[0] * y[0] + y[1] * y[1] + y[2] * y[2]
     hx = y[1] * y[5] - y[2] * y[4]
@@ -408,7 +415,6 @@ def hill_from_y_full(t, y, p, npm, C, S, K, V, W, dens) -> np.ndarray:
     hz = y[0] * y[4] - y[1] * y[3]
     h2 = hx * hx + hy * hy + hz * hz
     wz = math.sqrt(h2) / rn2
-    ax, ay, az = target_accel(t, y, p, npm, C, S, K, V, W, dens)
     wx = math.sqrt(rn2) * (ax * hx + ay * hy + az * hz) / h2
     px = xx * y[6] + xy * y[7] + xz * y[8]
     py = yx * y[6] + yy * y[7] + yz * y[8]
@@ -550,16 +556,44 @@ def integrate_full(y0, times, u, p, npm, C, S, K, V, W, dens, rtol, atol, out) -
     every shadow crossing (module doc). Returns (status, n_steps, n_rejected), the rejected
     count including the steps discarded at a crossing."""
     status, n_steps, n_rej, _ = integrate_full_crossings(y0, times, u, p, npm, C, S, K, V, W, dens, rtol, atol, out,
-                                                         np.empty(0))  # fmt: skip
+                                                         np.empty(0), np.empty(0))  # fmt: skip
     return status, n_steps, n_rej
 
 
 @njit(cache=True)
-def integrate_full_crossings(y0, times, u, p, npm, C, S, K, V, W, dens, rtol, atol, out, crossings) -> tuple:
+def integrate_full_hill(y0, times, u, p, npm, C, S, K, V, W, dens, rtol, atol, out, hill) -> int:
+    """:func:`integrate_full` that also writes the Hill state of the final state into ``hill`` (6,):
+    :func:`hill_from_y_full` at ``times[-1]``, whose target acceleration is the last step's FSAL
+    derivative when that was evaluated at ``times[-1]`` exactly (the same right-hand side at the same
+    t and state: the same bits, one evaluation fewer). Returns the status."""
+    f_end = np.empty(13)
+    status, _, _, _ = integrate_full_crossings(y0, times, u, p, npm, C, S, K, V, W, dens, rtol, atol, out,
+                                               np.empty(0), f_end)  # fmt: skip
+    if status != STATUS_OK:
+        return status
+    m = times.size
+    y_end = out[m - 1]
+    if f_end[12] == times[m - 1]:
+        h = hill_from_accel(y_end, f_end[3], f_end[4], f_end[5])
+    else:
+        h = hill_from_y_full(times[m - 1], y_end, p, npm, C, S, K, V, W, dens)
+    for i in range(6):
+        hill[i] = h[i]
+    return status
+
+
+@njit(cache=True)
+def integrate_full_crossings(y0, times, u, p, npm, C, S, K, V, W, dens, rtol, atol, out, crossings, f_end) -> tuple:
     """:func:`integrate_full` that also stores the times (s) of the first ``crossings.size``
-    shadow crossings it restarted at; returns (status, n_steps, n_rejected, n_crossings)."""
+    shadow crossings it restarted at; returns (status, n_steps, n_rejected, n_crossings). With
+    ``f_end.size >= 13``: f_end[:12] = the derivative at the final state from the last step (FSAL)
+    and f_end[12] = the time it was evaluated at (NaN when no step was taken)."""
     n = y0.size
     m = times.size
+    keep_f = f_end.size >= 13
+    if keep_f:
+        f_end[12] = math.nan
+    t_f = math.nan  # time of the last accepted step's FSAL evaluation (t + h)
     Kst = np.empty((N_STAGES + 1, n))
     work = np.empty(n)
     y = y0.copy()
@@ -627,6 +661,7 @@ def integrate_full_crossings(y0, times, u, p, npm, C, S, K, V, W, dens, rtol, at
                         crossings[n_cross] = t + h
                     n_cross += 1
             n_steps += 1
+            t_f = t + h
             t = t_stop if clipped else t + h
             if t >= t_event:
                 t_event = math.inf
@@ -635,4 +670,8 @@ def integrate_full_crossings(y0, times, u, p, npm, C, S, K, V, W, dens, rtol, at
                 f0[i] = Kst[N_STAGES, i]
         for i in range(n):
             out[k, i] = y[i]
+    if keep_f and n_steps > 0:
+        for i in range(n):
+            f_end[i] = f0[i]
+        f_end[12] = t_f
     return STATUS_OK, n_steps, n_rej, n_cross
