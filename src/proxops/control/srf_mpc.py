@@ -124,6 +124,7 @@ from proxops.control.relaxation import climb
 from proxops.core.cw import cw_stm
 from proxops.core.memo import memo_get
 from proxops.core.twobody import accel_gravity_vec
+from proxops.guidance.hop_times import hop_engine_steps
 from proxops.errors import ProxopsInputError, input_error
 from proxops.propagation.kernels import energy_gains, energy_invariants
 from proxops.contracts import Command
@@ -510,13 +511,7 @@ def build_schedule(hop_durations_s, steps_per_hop: int, dt: float) -> NodeSchedu
     if steps_per_hop < 1:
         raise input_error("mpc.steps_per_hop", steps_per_hop, "must be >= 1")
     steps, hop_nodes, k0 = [0], [], 0
-    for m, dur in enumerate(durations):
-        n_eng = int(round(dur / dt))
-        if n_eng < steps_per_hop:
-            raise input_error(
-                "sim.dt_s", dt,
-                f"hop {m + 1} lasts {dur:.1f} s, too short for {steps_per_hop} MPC steps of at least one engine "
-                f"step each: use dt_s <= {dur / steps_per_hop:.3g} or fewer mpc.steps_per_hop", "s")
+    for n_eng in hop_engine_steps(durations, steps_per_hop, dt):
         offsets = np.round(np.linspace(0, n_eng, steps_per_hop + 1)).astype(int)[1:]
         steps += list(k0 + offsets)
         k0 += n_eng

@@ -359,3 +359,19 @@ def fig8b_hops(rho: float = 0.7, angles_deg=(0, 20, 40, 60, 90, 100, 110, 200, 2
         ppx, pvx, _, _ = cw_blocks(sol.phi_rad)
         out.append((a, pp @ p0 + pv @ (sol.velocity_lvlh * d0), ppx @ p0 + pvx @ (sol.velocity_lvlh * d0)))
     return out
+
+
+def hop_engine_steps(durations_s, steps_per_hop: int, dt: float) -> list[int]:
+    """Each hop's duration (s) rounded to whole engine steps of ``dt`` (s), as the MPC's node schedule
+    (:func:`proxops.control.srf_mpc.build_schedule`) and the build-free check of ``proxops validate`` use it;
+    one input error when a hop has fewer engine steps than its ``steps_per_hop`` MPC intervals."""
+    counts = []
+    for j, dur in enumerate(durations_s):
+        n_eng = int(round(float(dur) / dt))
+        if n_eng < steps_per_hop:
+            raise input_error(
+                "sim.dt_s", dt,
+                f"hop {j + 1} lasts {dur:.1f} s, too short for {steps_per_hop} MPC steps of at least one engine "
+                f"step each: use dt_s <= {dur / steps_per_hop:.3g} or fewer mpc.steps_per_hop", "s")
+        counts.append(n_eng)
+    return counts

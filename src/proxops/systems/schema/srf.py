@@ -13,7 +13,7 @@ from proxops.constraints.keep_out import KeepOutSphere
 from proxops.core.cw import mean_motion
 from proxops.errors import input_error
 from proxops.frames.lvlh import lvlh_vector_to_hill
-from proxops.guidance.hop_times import plan_hops
+from proxops.guidance.hop_times import hop_engine_steps, plan_hops
 from proxops.scenarios.registry import register_check, register_scenario
 from proxops.scenarios.schema import InitialSection, OrbitSection, ScenarioBase, Section, TruthSection, Vector3
 from proxops.sim.steps import step_count
@@ -244,18 +244,8 @@ def check_mission(sc: SrfScenario, mission_s: float, dt: float) -> None:
 
 
 def _schedule_end_s(durations_s, steps_per_hop: int, dt: float) -> float:
-    """The last node time of :func:`proxops.control.srf_mpc.build_schedule` (s) and its check (each hop
-    at least ``steps_per_hop`` engine steps), on plain floats: each hop rounded to whole engine steps."""
-    k = 0
-    for j, dur in enumerate(durations_s):
-        n_eng = int(round(dur / dt))
-        if n_eng < steps_per_hop:
-            raise input_error(
-                "sim.dt_s", dt,
-                f"hop {j + 1} lasts {dur:.1f} s, too short for {steps_per_hop} MPC steps of at least one engine "
-                f"step each: use dt_s <= {dur / steps_per_hop:.3g} or fewer mpc.steps_per_hop", "s")
-        k += n_eng
-    return float(k * dt)
+    """The last node time of :func:`proxops.control.srf_mpc.build_schedule` (s), and its check."""
+    return float(sum(hop_engine_steps(durations_s, steps_per_hop, dt)) * dt)
 
 
 @register_check("srf")
