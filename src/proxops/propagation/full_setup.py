@@ -23,7 +23,8 @@ Measured against that table, 2026-11-28 (500 km, 51.6 deg, 2022-05-01, 100x100 +
 two orbits): the tabulated density vs direct pymsis along the propagated pair every 10 s 8.5e-6 /
 7.7e-6 (target / chaser 100 m ahead) instead of 7.8e-6 / 7.9e-6, chaser 20 km ahead + 4 km radial +
 2 km cross-track 3.39e-5 instead of 3.42e-5; the relative position after two orbits moved by
-0.0017 mm at 100 m and 2 km and 0.0018 mm at 20 km. Interpolation errors of the columns against
+0.0086 mm at 100 m, 2 km and 20 km; against Orekit (tests/test_orekit_validation.py, 100x100 +
+drag + Sun/Moon, two orbits) 0.1918 mm at 2 km and 2.6307 mm at 20 km instead of 0.1873 and 2.6265 mm. Interpolation errors of the columns against
 every row computed (the same path, interior rows): ln rho 3.7e-6 at 90 s nodes (1.3e-5 at 120 s,
 2.4e-4 at 180 s: ln rho along the orbit has structure at ~2 min), the cross-track term at 2 km
 3e-7 at 180 s (a 360 s spacing moved the 20 km case by 0.11 mm).
