@@ -39,8 +39,9 @@ def disk(tmp_path, monkeypatch):
 def test_density_table_within_pymsis_noise_along_the_propagated_pair_over_two_orbits():
     """Tabulated density at the propagated target (and the chaser 2 km ahead) every 10 s over two
     orbits (20x20 + drag + Sun/Moon here), against pymsis called there. Measured 2026-11-28 with
-    100x100 (bench_truth.construction_share): max rel. error 7.8e-6 target, 9.5e-6 chaser; pymsis
-    computes in float32 (~1e-6..1e-5), so this is its noise, not the interpolation."""
+    100x100 (bench_truth.construction_share): max rel. error 8.5e-6 target, 8.8e-6 chaser with the table
+    interpolated from 90 s / 180 s nodes (7.8e-6, 9.5e-6 with every 30 s row computed); pymsis computes in
+    float32 (~1e-6..1e-5), so this is mostly its noise."""
     horizon = 2.0 * PERIOD
     truth = ComposedTruth(ORBIT, np.array([0.0, 2000.0, 0.0, 0.0, 0.0, 0.0]), MODELS, horizon_s=horizon)
     grid = np.arange(0.0, horizon + 1.0, 10.0)
@@ -87,3 +88,49 @@ def test_memoised_sun_moon_fit_is_the_fresh_fit(disk):
     assert np.array_equal(ephemeris.cached_third_body_fit("2022-05-01T00:00:00Z"), fresh)
     assert len(list(disk.glob("sunmoon-*.npy"))) == 1
     assert not np.array_equal(ephemeris.cached_third_body_fit("2022-05-02T00:00:00Z"), fresh)
+
+
+def test_density_table_across_a_space_weather_jump_at_midnight():
+    """Two orbits from 22:30 UTC with the shipped CSSI weather: at midnight the day of year and the daily
+    F10.7 (119.7 -> 109.0 sfu) jump, and the table's nodes are interpolated on each side apart. Against
+    pymsis called at the propagated target and chaser (2 km ahead) every 10 s, more than 60 s from the jump
+    (the kernel's Catmull-Rom spans it for +-1 row, as it did with every row computed): < 1.2e-5. Measured
+    2026-11-28: 9.3e-6 / 9.9e-6 (every row computed: 9.8e-6 / 9.7e-6; without all-node segment ends
+    1.2e-5 / 1.3e-5 in the first rows)."""
+    from proxops.environment.spaceweather import weather_history
+
+    epoch = "2022-05-01T22:30:00Z"
+    models = replace(MODELS, epoch=epoch, weather=weather_history(epoch))
+    horizon = 2.0 * PERIOD
+    truth = ComposedTruth(ORBIT, np.array([0.0, 2000.0, 0.0, 0.0, 0.0, 0.0]), models, horizon_s=horizon)
+    f107 = truth.atmosphere.weather.drivers(truth.atmosphere.dates(np.array([5399.0, 5400.0])))[0]
+    assert f107[0] != f107[1]  # the drivers do jump at midnight (5400 s)
+    grid = np.arange(0.0, horizon + 1.0, 10.0)
+    ys = truth._integrate(truth.initial_state()[:12].copy(), grid, np.zeros(3))
+    tabled = np.array([kf.densities(tk, yk, truth.p, truth.npm, truth._dens) for tk, yk in zip(grid, ys)])
+    direct = truth.atmosphere.density(np.concatenate([grid, grid]), np.vstack([ys[:, :3], ys[:, :3] + ys[:, 6:9]]))
+    rel = np.abs(tabled / np.stack(np.split(direct, 2), -1) - 1.0)
+    far = np.abs(grid - 5400.0) > 60.0
+    assert rel[far].max() < 1.2e-5, rel[far].max(axis=0)
+    assert rel[~far].max() > 0.05  # (the jump itself: ~12 % in density)
+
+
+def test_lagrange_rows_reproduce_polynomials_and_keep_to_their_segment():
+    """The interpolation of the table's rows from its nodes: a degree-7 polynomial is reproduced to rounding
+    by 8 points at uneven node spacing (closed form), the nodes' values exactly, and a row never uses a node of
+    another segment (two polynomials with a jump between them)."""
+    t = np.arange(60) * 30.0
+    seg = (t >= 900.0).astype(np.int64)  # segment 1 from row 30
+    heads, ends = np.array([0, 30]), np.array([29, 59])
+    rows = full_setup._node_rows(heads, ends, 3, 6, 1)
+    assert {0, 1, 2, 3, 4, 5, 6, 9, 29, 30, 59}.issubset(set(rows.tolist()))
+
+    def poly(x, s):
+        u = x / 900.0 - 1.0
+        return np.where(s == 0, 1.0 + u - 2 * u**3 + 0.5 * u**7, 40.0 - 3 * u**2 + u**6)
+
+    values = np.ascontiguousarray(np.stack([poly(t[rows], seg[rows]), 2.0 * poly(t[rows], seg[rows])], -1))
+    out = np.empty((t.size, 2))
+    full_setup._lagrange_rows(t, seg, t[rows], seg[rows], values, 8, out)
+    assert np.abs(out[:, 0] - poly(t, seg)).max() < 1e-11 and np.abs(out[:, 1] - 2.0 * poly(t, seg)).max() < 2e-11
+    assert np.array_equal(out[rows], values)

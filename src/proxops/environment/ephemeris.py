@@ -201,16 +201,23 @@ def third_body_fit(epoch: Epoch | str) -> np.ndarray:
     """Per-run correction (N_FIT,) of the kernels' analytic series to erfa: for the Sun
     (entries 0-11) and the Moon (12-23) the cubic c0 + c1 tau + c2 tau^2 + c3 tau^3 (m, tau in
     days from the epoch, entries [4 powers x 3 axes]) least-squares fitted to (erfa - series) at
-    49 nodes over [0, FIT_DAYS] (:func:`fitted_position`)."""
+    the FIT_NODES Chebyshev nodes of [0, FIT_DAYS] (:func:`fitted_position`). (Until 2026-11-28: 49
+    equally spaced nodes, 6x the erfa calls; the fits differ by <= 0.0001" (Sun) and 0.14" (Moon),
+    and the Chebyshev fit's worst error against erfa over 23 epochs 1980-2050 is lower: Moon 0.24"
+    instead of 0.38", Sun 0.006" both.)"""
     epoch = parse_epoch(epoch)
-    t = np.linspace(0.0, FIT_DAYS * 86400.0, 49)
-    sun, moon = _erfa_positions(epoch, t)
+    sun, moon = _erfa_positions(epoch, _FIT_T)
     d0 = epoch.days_tt_since_j2000(0.0)
     out = []
     for which, exact in ((0, sun), (1, moon)):
-        corr = exact - _many(which, d0, np.ascontiguousarray(t))
-        out.append(np.polynomial.polynomial.polyfit(t / 86400.0, corr, 3).ravel())
+        corr = exact - _many(which, d0, _FIT_T)
+        out.append((_FIT_SOLVE @ corr).ravel())
     return np.concatenate(out)
+
+
+FIT_NODES = 6  # erfa calls per fit (Chebyshev nodes; 6, 8 and 12 give the same worst error against erfa)
+_FIT_T = 0.5 * FIT_DAYS * 86400.0 * (1.0 - np.cos(np.pi * (np.arange(FIT_NODES) + 0.5) / FIT_NODES))  # s
+_FIT_SOLVE = np.linalg.pinv(np.vander(_FIT_T / 86400.0, 4, increasing=True))  # (4, FIT_NODES): least squares
 
 
 @njit(cache=True, fastmath=False)
