@@ -124,7 +124,7 @@ from proxops.control.relaxation import climb
 from proxops.core.cw import cw_stm
 from proxops.core.memo import memo_get
 from proxops.core.twobody import accel_gravity_vec
-from proxops.guidance.hop_times import hop_engine_steps
+from proxops.guidance.hop_times import check_trim_delay, hop_engine_steps
 from proxops.errors import ProxopsInputError, input_error
 from proxops.propagation.kernels import energy_gains, energy_invariants
 from proxops.contracts import Command
@@ -658,10 +658,7 @@ class SrfMpc:
         if c.drift_trim_delay_nodes is not None and c.drift_free_tol_mps is not None:
             d = int(c.drift_trim_delay_nodes)
             for h, end in zip(hop_starts, schedule.hop_nodes.tolist()):
-                if not 1 <= d < end - h:
-                    raise input_error("mpc.drift_trim_delay_nodes", d,
-                                      f"the trim must come 1 to {end - h - 1} MPC nodes after its hop start (the hop "
-                                      f"from node {h} ends at node {end}): lower it or raise mpc.steps_per_hop")
+                check_trim_delay(d, h, end)
                 self.trim_nodes[h + d] = h
         if c.drift_estimator_window_s is not None and not c.drift_estimator_window_s > 0:
             raise input_error("mpc.drift_estimator_window_s", c.drift_estimator_window_s, "must be > 0", "s")

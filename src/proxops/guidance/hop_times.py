@@ -375,3 +375,13 @@ def hop_engine_steps(durations_s, steps_per_hop: int, dt: float) -> list[int]:
                 f"step each: use dt_s <= {dur / steps_per_hop:.3g} or fewer mpc.steps_per_hop", "s")
         counts.append(n_eng)
     return counts
+
+
+def check_trim_delay(delay_nodes: int, hop_start_node: int, hop_end_node: int) -> None:
+    """The V-bar drift trim comes 1 to (hop's nodes - 1) MPC nodes after its hop start (``mpc.drift_trim_delay_nodes``):
+    one input error otherwise. Used by :class:`proxops.control.srf_mpc.SrfMpc` and validate's build-free check."""
+    if not 1 <= delay_nodes < hop_end_node - hop_start_node:
+        raise input_error("mpc.drift_trim_delay_nodes", delay_nodes,
+                          f"the trim must come 1 to {hop_end_node - hop_start_node - 1} MPC nodes after its hop start "
+                          f"(the hop from node {hop_start_node} ends at node {hop_end_node}): lower it or raise "
+                          f"mpc.steps_per_hop")

@@ -13,7 +13,7 @@ from proxops.constraints.keep_out import KeepOutSphere
 from proxops.core.cw import mean_motion
 from proxops.errors import input_error
 from proxops.frames.lvlh import lvlh_vector_to_hill
-from proxops.guidance.hop_times import hop_engine_steps, plan_hops
+from proxops.guidance.hop_times import check_trim_delay, hop_engine_steps, plan_hops
 from proxops.scenarios.registry import register_check, register_scenario
 from proxops.scenarios.schema import InitialSection, OrbitSection, ScenarioBase, Section, TruthSection, Vector3
 from proxops.sim.steps import step_count
@@ -263,10 +263,8 @@ def check(sc: SrfScenario) -> bool:
     dt = engine_dt(sc)
     mission_s = _schedule_end_s(plan.durations_s, steps, dt)
     check_mission(sc, mission_s, dt)
-    if _is_vbar(math.radians(ap.angle_deg)) and m.drift_free and m.drift_trim and not 1 <= m.drift_trim_delay_nodes < steps:
-        raise input_error("mpc.drift_trim_delay_nodes", m.drift_trim_delay_nodes,  # SrfMpc: the first hop fails first
-                          f"the trim must come 1 to {steps - 1} MPC nodes after its hop start (the hop "
-                          f"from node 0 ends at node {steps}): lower it or raise mpc.steps_per_hop")
+    if _is_vbar(math.radians(ap.angle_deg)) and m.drift_free and m.drift_trim:
+        check_trim_delay(m.drift_trim_delay_nodes, 0, steps)  # SrfMpc: the first hop (nodes 0..steps) fails first
     plant_checked(sc.orbit, sc.truth)
     actuator = actuator_model(sc.actuator)
     step_count(dt, None, actuator.period_s, (), mission_s + dt)  # the controller's period: the engine step
