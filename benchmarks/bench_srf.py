@@ -40,6 +40,29 @@ def run_one(name: str, overrides=()):
     return summary, res, wall, st
 
 
+def _timer(acc: dict):
+    """``timed(fn, key, count=False)``: ``fn`` wrapped to add its thread CPU time (s) to ``acc[key]``; a call made
+    inside another call of the same key (update_fast -> update_native) counts once; ``count`` also adds 1 to
+    ``acc["solves"]`` per call."""
+    depth: dict = {}
+
+    def timed(fn, key, count=False):
+        def wrapper(*a, **k):
+            outer = depth.setdefault(key, 0) == 0
+            depth[key] += 1
+            t0 = time.thread_time()
+            try:
+                return fn(*a, **k)
+            finally:
+                depth[key] -= 1
+                if outer:
+                    acc[key] = acc.get(key, 0.0) + time.thread_time() - t0
+                if count:
+                    acc["solves"] = acc.get("solves", 0) + 1
+        return wrapper
+    return timed
+
+
 def assembly_share(n_runs: int = 10) -> None:
     """QP assembly vs the solver, ``n_runs`` runs of srf-vbar-mc in this process (thread CPU time, so the
     ratio holds on a loaded machine): PIQP's own calls (SparseSolver setup/update/solve) against the
@@ -52,24 +75,7 @@ def assembly_share(n_runs: int = 10) -> None:
     from proxops.solvers import piqp_qp
 
     acc = {"piqp": 0.0, "build": 0.0, "adapter": 0.0, "node": 0.0, "solves": 0}
-    clock = time.thread_time
-
-    depth: dict = {}  # nesting per key
-
-    def timed(fn, key, count=False):
-        def wrapper(*a, **k):
-            outer = depth.setdefault(key, 0) == 0  # an adapter call made inside another (update_fast -> update_native) counts once
-            depth[key] += 1
-            t0 = clock()
-            try:
-                return fn(*a, **k)
-            finally:
-                depth[key] -= 1
-                if outer:
-                    acc[key] += clock() - t0
-                if count:
-                    acc["solves"] += 1
-        return wrapper
+    timed = _timer(acc)
 
     class TimedPiqp(piqp.SparseSolver):
         setup = timed(piqp.SparseSolver.setup, "piqp")
@@ -118,20 +124,7 @@ def loop_ratios(name: str = "srf-vbar", reps: int = 30) -> None:
 
     clock = time.thread_time
     acc: dict = {}
-    depth: dict = {}
-
-    def timed(fn, key):
-        def wrapper(*a, **k):
-            outer = depth.setdefault(key, 0) == 0
-            depth[key] += 1
-            t0 = clock()
-            try:
-                return fn(*a, **k)
-            finally:
-                depth[key] -= 1
-                if outer:
-                    acc[key] = acc.get(key, 0.0) + clock() - t0
-        return wrapper
+    timed = _timer(acc)
 
     base = piqp.SparseSolver
 
