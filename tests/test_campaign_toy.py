@@ -20,7 +20,8 @@ from proxops.scenarios.registry import register_system
 from proxops.systems.base import SystemBase
 from proxops.scenarios.schema import InitialSection, OrbitSection, ScenarioBase, Section, Vector3
 from proxops.sim.engine import Setup
-from proxops.systems.common import actuator_model, initial_hill_state, navigation_model
+from proxops.systems.common import navigation_model
+from proxops.systems.schema._build_free import actuator_model, initial_hill_state
 from proxops.dynamics.plant import PlantBase
 
 TOY_SCENARIO = {

@@ -16,7 +16,7 @@ from proxops.environment.epochs import parse_epoch
 from proxops.frames.elements import elements_to_eci, orbital_period
 from proxops.scenarios.loader import load_scenario
 from proxops.systems import cortex_setup
-from proxops.systems.common import target_elements
+from proxops.systems.schema._build_free import target_elements
 
 
 @pytest.fixture

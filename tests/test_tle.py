@@ -96,7 +96,8 @@ def test_scenario_target_starts_on_the_tle_state():
     the elements' size is the TLE's: osculating a within the J2 short-period band (+-15 km) of the
     mean-motion a (15.72125391 rev/day, mu = 398600.8 km^3/s^2 of WGS-72)."""
     from proxops.scenarios.loader import load_scenario
-    from proxops.systems.common import initial_hill_state, translational_plant
+    from proxops.systems.common import translational_plant
+    from proxops.systems.schema._build_free import initial_hill_state
 
     sc = load_scenario("station-keeping", [tle_set(L1, L2)]).scenario
     plant = translational_plant(sc.orbit, sc.truth, initial_hill_state(sc.initial))

@@ -24,7 +24,7 @@ from proxops.errors import input_error
 from proxops.core.cw import cw_stm
 from proxops.propagation.composed import ForceModels, final_hill, force_contributions
 from proxops.scenarios.loader import load_scenario
-from proxops.systems.common import initial_hill_state, target_elements
+from proxops.systems.schema._build_free import initial_hill_state, target_elements
 from proxops.systems.full_truth import force_models
 from proxops.propagation.truth import RelativeTruth
 

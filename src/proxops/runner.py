@@ -14,7 +14,7 @@ import time
 from pathlib import Path
 
 from proxops.scenarios.loader import LoadedScenario, load_scenario
-from proxops.analysis.runs import check_scenario, execute  # noqa: F401 (re-exported)
+from proxops.analysis.runs import execute  # noqa: F401 (re-exported)
 from proxops.sim.result import SimResult
 from proxops.analysis.formatting import format_quantity
 from proxops.plotting.systems import run_figures

@@ -53,7 +53,7 @@ from proxops.scenarios.dispersions import DispersionPlan, apply_values, parse_di
 from proxops.scenarios.catalog import read_toml, resolve
 from proxops.scenarios.loader import LoadedScenario, validate_scenario
 from proxops.sim.result import SimResult
-from proxops.analysis.runs import check_scenario
+from proxops.scenarios.loader import check_scenario
 from proxops.analysis.metric_order import ordered_metrics
 from proxops.analysis.statistics import (
     METRIC_PREFIX,
@@ -397,7 +397,7 @@ def run_campaign(scenario, n_runs: int | None = None, workers: int | None = None
 
 
 def _check_campaign(backend, prep: _Prepared) -> None:
-    """Every check a run makes (:func:`proxops.analysis.runs.check_scenario`: the system's build and
+    """Every check a run makes (:func:`proxops.scenarios.loader.check_scenario`: the system's build and
     the dispersions), once, before anything is written. On a local pool the workers run the build
     (:func:`check_nominal`, one task per worker: it is their warm-up -- imports, numba kernels,
     per-process caches -- which the first run would do anyway), so this process never builds the

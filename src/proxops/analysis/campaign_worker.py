@@ -64,7 +64,7 @@ def _prepared(spec: CampaignSpec):
 
 def check_nominal(spec: CampaignSpec, _item=None) -> None:
     """The system's check of the campaign's nominal scenario (default: its build) in this process,
-    raising ProxopsInputError as :func:`proxops.analysis.runs.check_scenario` does. Run by each pool
+    raising ProxopsInputError as :func:`proxops.scenarios.loader.check_scenario` does. Run by each pool
     worker before the campaign's runs, it is also the worker's warm-up: imports, numba kernels and
     the per-process caches of the build."""
     system, nominal = _prepared(spec)

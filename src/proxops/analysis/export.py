@@ -27,7 +27,8 @@ from proxops.core.layout import HILL_LAYOUT
 from proxops.errors import ProxopsInputError
 from proxops.orbitdata.ccsds import TRUTH_FRAME, OemSegment, utc_epochs, write_oem
 from proxops.propagation.truth import RelativeTruth
-from proxops.systems.common import target_elements, translational_plant
+from proxops.systems.common import translational_plant
+from proxops.systems.schema._build_free import target_elements
 from proxops.analysis.storage import read_manifest, read_rows, series_dir
 from proxops.scenarios.loader import validate_scenario
 from proxops.sim.result import SimResult

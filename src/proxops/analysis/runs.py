@@ -1,9 +1,8 @@
-"""Run one loaded scenario (``execute``) and check it without running (``check_scenario``):
-shared by ``proxops run``, ``validate`` and the campaign workers."""
+"""Run one loaded scenario (``execute``): shared by ``proxops run`` and the campaign workers (the check
+without running is :func:`proxops.scenarios.loader.check_scenario`)."""
 
 from __future__ import annotations
 
-from proxops.scenarios.loader import check_scenario  # noqa: F401 (re-exported: one home, light for validate)
 from proxops.sim.result import SimResult
 from proxops.status import Status
 

@@ -93,7 +93,7 @@ from proxops.contracts import (
     ViolationsMany,
 )
 from proxops.sim.result import SimResult
-from proxops.sim.steps import MAX_STEPS, PERIOD_QUANTUM_S, schedule, step_count  # noqa: F401 (re-exported)
+from proxops.sim.steps import schedule, step_count
 from proxops.status import NOT_FLAGGED, Status, StopReason
 
 STREAMS = ("navigation", "actuator", "plant", "controller")
@@ -126,7 +126,7 @@ class Setup:
 
 def run_steps(setup: Setup) -> tuple[float, int]:
     """Base step h (s) and number of steps of a run of ``setup`` (:func:`proxops.sim.steps.step_count`:
-    a one-line input error unless the run has 1 to :data:`MAX_STEPS` steps)."""
+    a one-line input error unless the run has 1 to :data:`proxops.sim.steps.MAX_STEPS` steps)."""
     return step_count(float(setup.controller.dt), setup.navigation.period_s, setup.actuator.period_s,
                       [float(c.period_s) for c in setup.periodic], setup.duration_s)
 

@@ -18,7 +18,7 @@ from proxops.errors import input_error
 from proxops.navigation import GaussianNavigation, PerfectNavigation
 from proxops.propagation.truth import CWPlant, RelativeTruth
 from proxops.scenarios.schema import NavigationSection, OrbitSection, TruthSection
-from proxops.systems.schema._build_free import actuator_model, initial_hill_state, target_elements  # noqa: F401 (re-exported)
+from proxops.systems.schema._build_free import target_elements
 
 
 def translational_plant(orbit: OrbitSection, truth: TruthSection, x0_hill: np.ndarray):

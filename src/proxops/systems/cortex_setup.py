@@ -94,7 +94,7 @@ def illumination_profile(orbit, eclipse) -> tuple[np.ndarray, np.ndarray]:
 
     def compute() -> np.ndarray:
         from proxops.environment.eclipse import eclipse_profile as profile  # numba: only when not stored
-        from proxops.systems.common import target_elements
+        from proxops.systems.schema._build_free import target_elements
 
         t, illum = profile(target_elements(o), o.epoch_utc, n_per_orbit=e.samples_per_orbit, n_orbits=e.orbits,
                            model=e.model)

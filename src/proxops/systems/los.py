@@ -47,7 +47,8 @@ from proxops.scenarios.registry import register_system
 from proxops.sim.engine import Setup, simulate
 from proxops.status import Status
 from proxops.systems.base import SystemBase
-from proxops.systems.common import actuator_model, navigation_model
+from proxops.systems.common import navigation_model
+from proxops.systems.schema._build_free import actuator_model
 from proxops.systems.schema.los import LosScenario, check_settings
 
 VIOLATION_TOLERANCE_M = 1e-3  # §9 step 3

@@ -56,11 +56,10 @@ from proxops.scenarios.registry import register_system
 from proxops.sim.engine import Setup, simulate
 from proxops.solvers.stats import solve_time_stats
 from proxops.systems.base import SystemBase
-from proxops.systems.common import (actuator_model, navigation_model, target_elements,
-                                    translational_plant)
-from proxops.systems.schema.srf import (ENGINE_STEPS_PER_ORBIT, SrfScenario, _is_vbar,  # noqa: F401 (re-exported)
-                                        approach_axes_hill, check_mission, engine_dt, initial_state_hill, keep_out_hill,
-                                        mpc_steps_per_hop)
+from proxops.systems.common import navigation_model, translational_plant
+from proxops.systems.schema._build_free import actuator_model, target_elements
+from proxops.systems.schema.srf import (SrfScenario, _is_vbar, approach_axes_hill, check_mission, engine_dt,
+                                        initial_state_hill, keep_out_hill, mpc_steps_per_hop)
 
 # Per-process caches of what every run of a campaign recomputes identically (srf-*-mc disperse only
 # the initial state): Algorithm 1's plan (root finding: 50 ms per glideslope/R-bar run) and the

@@ -13,7 +13,8 @@ from proxops.core.cw import mean_motion
 from proxops.scenarios.registry import register_system
 from proxops.sim.engine import Setup
 from proxops.systems.base import SystemBase
-from proxops.systems.common import actuator_model, initial_hill_state, navigation_model, translational_plant
+from proxops.systems.common import navigation_model, translational_plant
+from proxops.systems.schema._build_free import actuator_model, initial_hill_state
 from proxops.systems.schema.station_keeping import StationKeepingScenario
 
 

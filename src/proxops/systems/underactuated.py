@@ -36,8 +36,8 @@ from proxops.sim.engine import Setup, simulate
 from proxops.solvers.stats import solve_time_stats
 from proxops.systems.base import SystemBase
 from proxops.systems.common import navigation_model
-from proxops.systems.schema.underactuated import (DEG, UnderactuatedScenario, initial_vector,  # noqa: F401 (re-exported)
-                                                  model_objects, run_configs)
+from proxops.systems.schema.underactuated import (UnderactuatedScenario, initial_vector, model_objects,
+                                                  run_configs)
 
 
 def planar_sigma(position_sigma_m: float, velocity_sigma_mps: float) -> np.ndarray:

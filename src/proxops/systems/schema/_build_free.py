@@ -1,5 +1,5 @@
 """Pieces of a system's build that need no numba, no plant and no solver (numpy at most), shared by
-the builders (:mod:`proxops.systems.common` re-exports them) and by the schema modules' build-free
+the system builders (:mod:`proxops.systems`) and by the schema modules' build-free
 checks (:func:`proxops.scenarios.registry.register_check`, run by ``proxops validate``): one
 definition, so both raise the same one-line errors."""
 
