@@ -54,7 +54,6 @@ from numba import njit
 
 from proxops.core.quaternion import (
     dcm_kernel,
-    kinematics_kernel,
     multiply_kernel,
     quat_multiply,
     quat_rotate,
