@@ -4,13 +4,15 @@ References: Table 3's r_sync column; the paper's finding that starts inside r_sy
 approach without corridor violations and starts outside do not (§10.6, checked
 against J2 truth with the corridor's 1e-3 m tolerance)."""
 
+import math
+
 import numpy as np
 import pandas as pd
 import pytest
 
 from proxops.errors import ProxopsInputError
 from proxops.dynamics.tumbling_target import sync_range
-from proxops.control.los_regimes import auto_hold_range, cw_feedforward
+from proxops.control.los_regimes import LosGuidanceConfig, auto_hold_range, cw_feedforward
 from proxops.systems.los import PAPER_TABLE3, SWEEP_A_MAX_MPS2, SWEEP_RATES_DEG_S, run_case, sweep_table
 
 
@@ -212,38 +214,47 @@ def test_qp_infeasible_beyond_r_sync_carries_a_hint():
     assert "beyond r_sync" in s["hint"] and 'constraint_mode = "soft"' in s["hint"]
 
 
-@pytest.mark.parametrize("v_achv", [1e-3, 0.2, 10.0])  # |v| = 6.1 m/s: limited (twice), not limited
-def test_far_reference_in_floats_is_the_spiral_state_seen_from_the_body_frame(v_achv):
-    """The far-approach MPC reference (Python floats, issue 32 item 2) equals the §7 spiral state built with
-    rotation matrices and cross products: p = r_ref y_B, v_L = R_LB ([0, -v_ref, 0] + W x p) limited to
-    v_achv in norm, v_B = R_LB^T v_L - W x p."""
-    from proxops.control.los_regimes import LosGuidanceController
+@pytest.mark.parametrize("v_max", [1e-3, 0.2, 10.0])  # |v| = 6.1-7.4 m/s: limited (twice), not limited
+def test_far_reference_is_the_spiral_state_seen_from_the_body_frame(v_max):
+    """The far-approach guidance (the jitted _guidance, issue 32 item 2): v_achv = min(a_max t_far / 2, v_max),
+    v_ref = min(v_achv, sqrt(a_max (r_ref - r_h))), r_ref' = r_ref - v_ref dt, and the MPC reference (every row)
+    equals the §7 spiral state built with rotation matrices and cross products: p = r_ref' y_B,
+    v_L = R_LB ([0, -v_ref, 0] + W x p) limited to v_achv in norm, v_B = R_LB^T v_L - W x p."""
+    from proxops.control.los_regimes import LosGuidanceController, _guidance
     from proxops.dynamics.tumbling_target import BodyFrameModel
 
     w_t = np.radians(2.0)
     model = BodyFrameModel(0.0011, w_t, 1.0, 0.7)
-    ctrl = LosGuidanceController(model, 0.1)
-    ctrl.r_ref, v_ref = 180.0, 0.05
+    ctrl = LosGuidanceController(model, 0.1, guidance=LosGuidanceConfig(v_max_mps=v_max))
+    a_max, dt, r_h, r_ref = 0.1, 1.0, ctrl.hold_range, 180.0
     W = np.array([0.0, 0.0, model.w_rel])
-    p = np.array([0.0, ctrl.r_ref, 0.0])
-    for theta in (0.0, 1.3, -2.9):
-        c, s = np.cos(theta), np.sin(theta)
-        R = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
-        v_L = R @ (np.array([0.0, -v_ref, 0.0]) + np.cross(W, p))
-        v_L *= min(1.0, v_achv / np.linalg.norm(v_L))
-        expected = np.concatenate([p, R.T @ v_L - np.cross(W, p)])
-        np.testing.assert_allclose(ctrl._far_reference(v_ref, v_achv), expected, rtol=0, atol=1e-14)
+    x = np.array([3.0, 190.0, -1.0, 0.1, -0.2, 0.0])
+    for elapsed in (0.0, 7.0, 500.0):  # t_far = 1 s, 8 s, 501 s: v_achv = 0.05, 0.4, 25.05 m/s before v_max
+        ref = np.full((ctrl.mpc.N, 6), np.nan)
+        r, r_new, v_ref, v_achv = _guidance(0, elapsed, x, r_ref, ctrl._gparams, ref)
+        assert r == math.sqrt(3.0**2 + 190.0**2 + 1.0**2)
+        assert v_achv == min(a_max * (elapsed + dt) / 2, v_max)
+        assert v_ref == min(v_achv, math.sqrt(a_max * (r_ref - r_h))) and r_new == r_ref - v_ref * dt
+        p = np.array([0.0, r_new, 0.0])
+        for theta in (0.0, 1.3, -2.9):  # the body-frame state does not depend on the frame angle
+            c, s = np.cos(theta), np.sin(theta)
+            R = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+            v_L = R @ (np.array([0.0, -v_ref, 0.0]) + np.cross(W, p))
+            v_L *= min(1.0, v_achv / np.linalg.norm(v_L))
+            expected = np.concatenate([p, R.T @ v_L - np.cross(W, p)])
+            np.testing.assert_allclose(ref, np.tile(expected, (ctrl.mpc.N, 1)), rtol=0, atol=1e-14)
 
 
-def test_axis_reference_equals_its_closed_form_through_approach_hold_and_reset():
-    """The close-approach / hold MPC reference (§7: range r_ref - v_ref j dt, not below r_h, moving in at v_ref
-    until r_h), written into one buffer and refilled only when (r_ref, v_ref) changes (issue 32 item 2): every
-    call returns the closed form, including a hold after an approach and a new approach after reset."""
-    from proxops.control.los_regimes import LosGuidanceController
+def test_axis_reference_equals_its_closed_form_through_approach_and_hold():
+    """The close-approach / hold guidance (§7: range r_ref - v_ref j dt, not below r_h, moving in at v_ref
+    until r_h; issue 32 item 2: the jitted _guidance writes every entry of the buffer, also after a far-approach
+    step): the closed form at the boundaries -- the braking limit sqrt(a_max (r_ref - r_h)) binding, r_ref
+    reaching r_h within the step, r_ref at r_h (v_ref = 0) and the hold (r_ref = r_h whatever it was)."""
+    from proxops.control.los_regimes import LosGuidanceController, _guidance
     from proxops.dynamics.tumbling_target import BodyFrameModel
 
     ctrl = LosGuidanceController(BodyFrameModel(0.0011, np.radians(2.0), 1.0), 0.1)
-    N, r_h, dt = ctrl.mpc.N, ctrl.hold_range, ctrl.dt
+    N, r_h, dt, a_max = ctrl.mpc.N, ctrl.hold_range, ctrl.dt, 0.1
     j = np.arange(1, N + 1)
 
     def expected(r_ref, v_ref):
@@ -253,8 +264,15 @@ def test_axis_reference_equals_its_closed_form_through_approach_hold_and_reset()
         out[:, 4] = np.where(rj > r_h, -v_ref, 0.0)
         return out
 
-    for r_ref, v_ref in ((40.0, 0.3), (39.7, 0.3), (r_h + 0.5, 0.05), (r_h, 0.0), (r_h, 0.0), (25.0, 0.2)):
-        if r_ref == 25.0:
-            ctrl.reset(0.0, np.array([0.0, 25.0, 0.0, 0.0, 0.0, 0.0]))
-        ctrl.r_ref = r_ref
-        np.testing.assert_array_equal(ctrl._axis_trajectory(v_ref), expected(r_ref, v_ref))
+    x = np.array([0.0, 30.0, 0.0, 0.0, 0.0, 0.0])
+    ref = ctrl._ref_buffer
+    _guidance(0, 3.0, x, 40.0, ctrl._gparams, ref)  # a far step first: its velocities must not survive
+    for mode, r_ref, elapsed in ((1, 40.0, 100.0), (1, 40.0, 0.0), (1, r_h + 0.001, 100.0), (1, r_h, 100.0),
+                                 (2, 25.0, 0.0)):
+        r, r_new, v_ref, v_achv = _guidance(mode, elapsed, x, r_ref, ctrl._gparams, ref)
+        assert r == 30.0 and v_achv == min(a_max * (elapsed + dt) / 2, 1.0)
+        if mode == 2:
+            assert (r_new, v_ref) == (r_h, 0.0)
+        else:
+            assert v_ref == min(v_achv, math.sqrt(a_max * (r_ref - r_h))) and r_new == max(r_ref - v_ref * dt, r_h)
+        np.testing.assert_array_equal(ref, expected(r_new, v_ref))

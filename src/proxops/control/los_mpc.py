@@ -252,7 +252,7 @@ class LosMpc:
         self._G = np.ascontiguousarray(G, dtype=float)
         self._n_rows = G.shape[0]
         # per-geometry arrays, shared by every run of a campaign (read only)
-        A, self._KK, self._PB = memo_get(
+        A, self._KK, self._PB, self._mats = memo_get(
             _WEIGHTS_CACHE, (key, weights, self._G.tobytes(), np.asarray(self._h, float).tobytes()),
             lambda: self._geometry_blocks(model))
         lb = np.full(self.n_var, -self.a_max)
@@ -282,18 +282,18 @@ class LosMpc:
         self._form = True  # set up with the QuadraticProgram form (update takes its names)
         self._plan: np.ndarray | None = None  # (3N,) last planned body-axes inputs (a fresh array per solve)
         self._zeros_n = np.zeros(nu)  # the "plan" argument before the first solve
-        # constants of the kernel, packed (a jitted call costs ~0.2 us per argument):
-        # [w_rel, a_max, shift (1/0), rho, n_var, cos o_j, sin o_j (N+1 each; o_j = theta_j - theta_k), R_u (3N),
-        #  R_du (3N), h (r)]
+        # constants of the kernel, packed (a jitted call costs ~0.1 us per argument):
+        # [w_rel, a_max, shift (1/0), rho, n_var, N, r, cos o_j, sin o_j (N+1 each; o_j = theta_j - theta_k), R_u (3N),
+        #  R_du (3N), h (r)]; its read-only matrices are packed in self._mats (_geometry_blocks)
         self._consts = np.concatenate([[model.w_rel, self.a_max, float(self._shift), self.cfg.slack_penalty,
-                                        float(self.n_var)], np.cos(self._offsets), np.sin(self._offsets), self._r_u,
-                                       self._r_d, np.asarray(self._h, float)])
-        # persistent outputs of the kernel, rewritten in place every step: work = [f, x_c (n_var each)] and the
+                                        float(self.n_var), float(N), float(self._n_rows)], np.cos(self._offsets),
+                                       np.sin(self._offsets), self._r_u, self._r_d, np.asarray(self._h, float)])
+        # persistent outputs of the kernel, rewritten in place every step: work = [f, x_c (n_var each), scratch] and the
         # bounds in DAQP's layout, upper = [ub - x_c (n_var), corridor bounds b (N r)], lower = [lb - x_c (n_var),
         # -1e30 (N r)]. DAQP in hard mode: the kernel writes the bounds straight into the vectors DAQP reads
         # (DaqpQP.bound_vectors); else into these buffers, handed to the solver (which copies them)
         nv = self.n_var
-        self._work = np.empty(2 * nv)
+        self._work = np.empty(2 * nv + 12 + nu)  # [f, x_c (n_var each), the kernel's scratch (12 + 3N)]
         self._f = self._work[:nv]  # linear term in dU (soft mode: the solver's f)
         self._u_c = self._work[nv : 2 * nv]  # x = the solver's solution + this (U_c or g; slack: 0)
         self._upper = np.empty(nv + self._n_rows * N)
@@ -302,7 +302,7 @@ class LosMpc:
         self._ub_w = self._upper[:nv]
         self._b = self._upper[nv:]
         self._basis = np.empty(9 * N)  # [g (3N), p_g (6N)] of the last solve (MpcSolution.prediction: a copy)
-        self._kernel_data = (self._consts, self._PB, self._KK, self._H_inv, self._G)  # the kernel's read-only inputs
+        self._kernel_data = (self._consts, self._mats)  # the kernel's read-only inputs
 
     # ------------------------------------------------------------------ prediction
     def _prediction_blocks(self, model: BodyFrameModel, N: int):
@@ -324,7 +324,8 @@ class LosMpc:
         return self._Phi_pow, Su, S
 
     def _geometry_blocks(self, model: BodyFrameModel):
-        """(corridor rows G S_pos (N r, 3N), KK (15, 3N), [Phi | Bd] (6, 9)).
+        """(corridor rows G S_pos (N r, 3N), KK (15, 3N), [Phi | Bd] (6, 9), the kernel's matrices packed flat:
+        [PB, KK, H^-1, G] (one argument of :func:`_qp_data` instead of four)).
 
         S is block lower-triangular Toeplitz: its block (j, i) is K_(j-i) = S[j-i, :, 0:3] (6 x 3). The
         rotation average of T(a + o_(j+1)) Phi^(j-i) Bd R(a + o_i) over 16 angles equals the continuous
@@ -343,7 +344,7 @@ class LosMpc:
         KK[6:12] = (self.cfg.terminal_factor * Wq[None, :, None] * rev).transpose(1, 0, 2).reshape(6, nu)
         KK[12:15] = K[:, 0:3, :].transpose(2, 0, 1).reshape(3, nu)
         PB = np.ascontiguousarray(np.hstack([model.Phi, model.Bd]))
-        return A, KK, PB
+        return A, KK, PB, np.concatenate([PB.ravel(), KK.ravel(), self._H_inv.ravel(), self._G.ravel()])
 
     def _weighted_blocks(self):
         """(H (3N, 3N), H^-1 (3N, 3N), exactly symmetric) for this configuration."""
@@ -436,18 +437,10 @@ class LosMpc:
                else self._reference(x_ref))
         plan = self._plan
         if self._lean_step and plan is not None:  # DAQP, hard mode, one QP per step: every step but the first
-            solver = self._solver
-            upper, lower = solver.bound_vectors()
+            upper, lower = self._solver.bound_vectors()
             if _qp_data(theta_k, _SHIFT_PLAN, x_body, u_prev, ref, plan, *self._kernel_data, self._basis, self._work,
                         upper, lower):
-                build_time = _perf_counter() - t_build
-                status, x, iterations, solve_time, info = solver.solve_bounds_fast()
-                if status is _OPTIMAL:
-                    x += self._u_c  # w + x_c (DAQP's x is a fresh array)
-                    self._plan = x
-                    return (status, x[:3], theta_k, x, solve_time, build_time, iterations, 0.0,
-                            {} if info is None else info)
-                return self._finish(status, x, iterations, solve_time, build_time, info, theta_k)
+                return self.solve_staged(theta_k, t_build)
             # a NaN/inf state: the general path below (the kernel runs again on the same data, then the checked update)
         if plan is None:
             self._load(theta_k, x_body, ref, u_prev, self._zeros_n, _HOLD_U_PREV)
@@ -462,6 +455,27 @@ class LosMpc:
             status, x, its, dt, info = self._solve_qp()
             solve_time += dt
             iterations += its
+        return self._finish(status, x, iterations, solve_time, build_time, info, theta_k)
+
+    def lean_inputs(self) -> tuple | None:
+        """The arguments of :func:`_qp_data` after its reference (plan, constants, matrices, basis, work, DAQP's
+        upper and lower bound vectors) when the next step is the staged one (DAQP, hard mode, one QP per step, after
+        the first step), else None: a caller that runs the kernel itself (fused with its guidance,
+        :mod:`proxops.control.los_regimes`) with g = the plan shifted, then :meth:`solve_staged`."""
+        if not self._lean_step or self._plan is None:
+            return None
+        upper, lower = self._solver.bound_vectors()
+        return self._plan, self._consts, self._mats, self._basis, self._work, upper, lower
+
+    def solve_staged(self, theta_k: float, t_build: float) -> tuple:
+        """:meth:`solve_raw`'s result once :func:`_qp_data` wrote finite bounds into DAQP's vectors (the
+        staged path): DAQP re-reads them and solves; ``t_build`` (perf_counter s) the start of the data update."""
+        build_time = _perf_counter() - t_build
+        status, x, iterations, solve_time, info = self._solver.solve_bounds_fast()
+        if status is _OPTIMAL:
+            x += self._u_c  # w + x_c (DAQP's x is a fresh array)
+            self._plan = x
+            return status, x[:3], theta_k, x, solve_time, build_time, iterations, 0.0, {} if info is None else info
         return self._finish(status, x, iterations, solve_time, build_time, info, theta_k)
 
     def _finish(self, status, x, iterations: int, solve_time: float, build_time: float, info, theta_k: float) -> tuple:
@@ -582,7 +596,7 @@ _OPTIMAL = Status.OPTIMAL
 
 
 @njit(cache=True)
-def _qp_data(theta_k, how, x_body, u_prev, plan_ref, plan, consts, PB, KK, H_inv, G, basis, work, upper,
+def _qp_data(theta_k, how, x_body, u_prev, plan_ref, plan, consts, mats, basis, work, upper,
              lower):  # pragma: no cover
     """Per-step data of the QP (module doc), written into ``basis`` and ``work``: in w = U - U_c
     without a linear term (hard mode) or in dU = U - g with the linear term f (soft mode). Returns
@@ -591,23 +605,28 @@ def _qp_data(theta_k, how, x_body, u_prev, plan_ref, plan, consts, PB, KK, H_inv
     theta_k (rad); how: plan guess g = u_prev held (0), ``plan`` shifted by one step (1), ``plan``
     itself (2); x_body (6,) body-frame state (m, m/s); u_prev (3,) previous input (body axes, m/s^2);
     plan_ref (N, 6) reference states; plan (3N,) body-axes inputs (m/s^2);
-    consts = [w_rel (rad/s), a_max (m/s^2), shift (1/0), rho, n_var, cos o_j, sin o_j (N+1 each),
-    diag R_u (3N), diag R_du (3N), h (r)]; PB = [Phi | B_d] (6, 9) CW ZOH step; KK (15, 3N) the
-    Toeplitz blocks K_d of S (LosMpc._geometry_blocks); H_inv (3N, 3N) symmetric; G (r, 3) corridor rows.
+    consts = [w_rel (rad/s), a_max (m/s^2), shift (1/0), rho, n_var, N, r, cos o_j, sin o_j (N+1 each),
+    diag R_u (3N), diag R_du (3N), h (r)]; mats = [PB, KK, H_inv, G] flat: PB = [Phi | B_d] (6, 9) CW ZOH
+    step; KK (15, 3N) the Toeplitz blocks K_d of S (LosMpc._geometry_blocks); H_inv (3N, 3N) symmetric;
+    G (r, 3) corridor rows.
     basis = [g (3N), p_g (6N)]; work = [f (n_var; [:3N] the linear term in dU), x_c (n_var; [:3N] = U_c
-    (shift) or g)]; upper = [ub_w (n_var; [:3N] = a_max - x_c), b (N r) = h - G (p_g + S (x_c - g))_pos] and
+    (shift) or g), scratch (12 + 3N)]; upper = [ub_w (n_var; [:3N] = a_max - x_c), b (N r) = h - G (p_g + S (x_c - g))_pos] and
     lower[:n_var] = lb_w ([:3N] = -a_max - x_c): DAQP's full bound vectors (lower's row part is not written).
     Every sum runs over the nonzero blocks of S only (x_j+1 depends on u_0..u_j) as contiguous sweeps
     that vectorise (one sweep per block row/column); the O(N^2) part reads H^-1 and O(N) data."""
-    n3 = H_inv.shape[0]
-    N = n3 // 3
-    n_rows = G.shape[0]
     w_rel = consts[0]
     a_max = consts[1]
     shift = consts[2] != 0.0
     rho = consts[3]
     n_var = int(consts[4])
-    c0 = 5
+    N = int(consts[5])
+    n_rows = int(consts[6])
+    n3 = 3 * N
+    PB = mats[0:54].reshape((6, 9))
+    KK = mats[54 : 54 + 15 * n3].reshape((15, n3))
+    H_inv = mats[54 + 15 * n3 : 54 + 15 * n3 + n3 * n3].reshape((n3, n3))
+    G = mats[54 + 15 * n3 + n3 * n3 :].reshape((n_rows, 3))
+    c0 = 7
     cos_o = consts[c0 : c0 + N + 1]
     sin_o = consts[c0 + N + 1 : c0 + 2 * N + 2]
     r_u = consts[c0 + 2 * N + 2 : c0 + 2 * N + 2 + n3]
@@ -640,8 +659,8 @@ def _qp_data(theta_k, how, x_body, u_prev, plan_ref, plan, consts, PB, KK, H_inv
     c, s = ck, sk
     v0 = x_body[3] - w_rel * x_body[1]
     v1 = x_body[4] + w_rel * x_body[0]
-    xl = np.empty(6)
-    xn = np.empty(6)
+    xl = work[2 * n_var : 2 * n_var + 6]  # scratch (no allocation per step)
+    xn = work[2 * n_var + 6 : 2 * n_var + 12]
     xl[0] = c * x_body[0] - s * x_body[1]
     xl[1] = s * x_body[0] + c * x_body[1]
     xl[2] = x_body[2]
@@ -705,7 +724,7 @@ def _qp_data(theta_k, how, x_body, u_prev, plan_ref, plan, consts, PB, KK, H_inv
             for i in range(n3):
                 x_c[i] -= h0[i] * f0 + h1[i] * f1 + h2[i] * f2
     # 4. positions of p_g + S (U_c - g): column sweeps, S_pos[3j + a, 3i + c] = K_(j-i)[a, c] = KK[12 + c, 3(j-i) + a]
-    xp = np.empty(n3)
+    xp = work[2 * n_var + 12 : 2 * n_var + 12 + n3]
     for j in range(N):
         xp[3 * j] = pred[6 * j]
         xp[3 * j + 1] = pred[6 * j + 1]

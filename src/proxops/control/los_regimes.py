@@ -35,13 +35,14 @@ v_switch = 0.05 m/s, v_max = 1 m/s, PD natural frequency 0.05 rad/s, damping 1.
 from __future__ import annotations
 
 import math
+import time
 from dataclasses import dataclass
 
 import numpy as np
 from numba import njit
 
 from proxops.constraints.los_corridor import LosCorridor
-from proxops.control.los_mpc import LosMpc, LosMpcConfig
+from proxops.control.los_mpc import LosMpc, LosMpcConfig, _qp_data
 from proxops.control.supervisor import Supervisor
 from proxops.dynamics.tumbling_target import BodyFrameModel, cross3, rot_z, sync_range
 from proxops.errors import input_error
@@ -51,6 +52,8 @@ from proxops.status import Status
 
 _NO_EVENTS = ()  # a step without events (a step with events makes its own list)
 _F64 = np.dtype(np.float64)
+_MODE_CODE = {"far": 0, "close": 1, "hold": 2}  # the regimes as :func:`_guidance` numbers them
+_perf_counter = time.perf_counter
 
 
 def _six(x) -> list:
@@ -146,9 +149,9 @@ class LosGuidanceController(Supervisor):
         self.kp = self.g.pd_natural_frequency_rad_s**2
         self.kd = 2.0 * self.g.pd_damping * self.g.pd_natural_frequency_rad_s
         self.W = np.array([0.0, 0.0, model.w_rel])
-        self._step_numbers = np.arange(1.0, self.mpc.N + 1) if self.mpc is not None else None  # j = 1..N
-        if self.mpc is not None:  # _axis_trajectory's buffers
-            self._ref_buffer = np.zeros((self.mpc.N, 6))
+        # the MPC's reference x_1..x_N (m, m/s), rewritten every step by _guidance (no MPC: no rows)
+        self._ref_buffer = np.zeros((0 if self.mpc is None else self.mpc.N, 6))
+        self._gparams = np.array([self.a_max, self.dt, self.g.v_max_mps, self.hold_range, model.w_rel])  # _guidance's
         super().__init__({name: _Regime(self, name) for name in ("far", "close", "hold")}, self.regime_rule,
                          absorbing=("hold",), dt=self.dt)
         self.reset(0.0, np.zeros(6))
@@ -158,7 +161,6 @@ class LosGuidanceController(Supervisor):
         self.r_ref = max(float(np.linalg.norm(np.asarray(x0, float)[:3])), self.hold_range)
         self.hold_reached = False
         self.u_prev = np.zeros(3)  # body axes
-        self._ref_key = None  # (r_ref, v_ref) of the axis reference in _ref_buffer
         if self.mpc is not None:
             self.mpc.reset()
         super().reset(t0, x0)  # mode undetermined until the first sample
@@ -182,39 +184,35 @@ class LosGuidanceController(Supervisor):
         return "far" if r > self.r_sync else "close"
 
     def _regime_step(self, mode: str, t: float, x_est: np.ndarray) -> Command:
-        """The command of regime ``mode`` (reference, PD law, MPC safety filter). Scalars in Python floats,
-        the horizon's arrays in the MPC's kernel (per-step cost: issue 32 item 2)."""
+        """The command of regime ``mode`` (reference, PD law, MPC safety filter). The reference range and
+        the MPC's reference are one jitted call (:func:`_guidance`); with DAQP in hard mode (the staged path,
+        :meth:`LosMpc.lean_inputs`) that call also writes the QP data (:func:`_guided_qp_data`), so a step makes
+        one kernel call and one solver call (per-step cost: issue 32 item 2)."""
         if self.attitude_source is not None:  # the body frame as estimated: theta^ = theta(t) + psi
             self.model.theta0_rad = self._theta0_rad + self.attitude_source.frame_angle_error()
         x = x_est if x_est.__class__ is np.ndarray and x_est.dtype == _F64 else np.asarray(x_est, float)
-        p0, p1, p2 = _six(x)[:3]
-        r = math.sqrt(p0 * p0 + p1 * p1 + p2 * p2)
-        dt, a_max = self.dt, self.a_max
-        v_achv = min(a_max * (t - self.mode_start + dt) / 2.0, self.g.v_max_mps)
-        r_h = self.hold_range
-        # reference range along +y_B
-        if mode == "hold":
-            self.r_ref, v_ref = r_h, 0.0
-        else:
-            v_ref = min(v_achv, math.sqrt(a_max * max(self.r_ref - r_h, 0.0)))
-            self.r_ref = max(self.r_ref - v_ref * dt, r_h)
         model = self.model
         theta = model.theta0_rad + model.w_rel * t
+        code, ref, mpc = _MODE_CODE[mode], self._ref_buffer, self.mpc
+        lean = None if mpc is None else mpc.lean_inputs()
+        if lean is not None:  # guidance + QP data in one call, then DAQP (LosMpc.solve_staged)
+            t_build = _perf_counter()
+            r, self.r_ref, finite = _guided_qp_data(code, t - self.mode_start, theta, x, self.r_ref, self._gparams, ref,
+                                                    self.u_prev, *lean)
+            out = mpc.solve_staged(theta, t_build) if finite else mpc.solve_raw(t, x, ref, self.u_prev)
+        else:
+            r, self.r_ref, v_ref, v_achv = _guidance(code, t - self.mode_start, x, self.r_ref, self._gparams, ref)
+            out = None if mpc is None else mpc.solve_raw(t, x, ref, self.u_prev)
         stop = False
-        mpc = self.mpc
         if mpc is None:
             u_body, status, solve_time = self._nominal_body(mode, t, x, theta, v_ref, v_achv), Status.OK, 0.0
             b0, b1, b2 = u_body.tolist()
             info = {"range_m": r, "r_ref_m": self.r_ref, "u_body_0": b0, "u_body_1": b1, "u_body_2": b2}
         else:
-            if mode == "far":  # the limited spiral state in F_B (one state held over the horizon)
-                x_ref = self._far_reference(v_ref, v_achv)
-            else:
-                x_ref = self._axis_trajectory(v_ref)
             # MpcSolution's fields without building it (LosMpc.solve_raw)
-            status, u_body, _, _, solve_time, build_time, iterations, slack, _ = mpc.solve_raw(t, x, x_ref, self.u_prev)
+            status, u_body, _, _, solve_time, build_time, iterations, slack, _ = out
             if not status.ok:
-                if mpc.soft:
+                if mpc.soft:  # (soft mode never takes the staged path: v_ref, v_achv are set)
                     u_body = self._nominal_body(mode, t, x, theta, v_ref, v_achv)
                 elif self.g.stop_on_infeasible:  # u_body: the shifted previous plan
                     stop = True
@@ -260,33 +258,58 @@ class LosGuidanceController(Supervisor):
             v_ref_L *= v_achv / speed
         return v_ref_L
 
-    def _far_reference(self, v_ref: float, v_achv: float) -> np.ndarray:
-        """Far-approach MPC reference in F_B (6,): the axis point p = [0, r_ref, 0] with the spiral velocity
-        of :meth:`_spiral_velocity` seen from the body frame, v_B = R_LB^T v_L - W x p. In body axes that
-        velocity is k [-w r_ref, -v_ref, 0] (k = min(1, v_achv / its norm): a rotation keeps the norm), so
-        v_B = [(1 - k) w r_ref, -k v_ref, 0] (m, m/s)."""
-        w, r_ref = self.model.w_rel, self.r_ref
-        a0, a1 = -w * r_ref, -v_ref
+
+@njit(cache=True)
+def _guidance(mode, elapsed, x, r_ref, g, ref):  # pragma: no cover - compiled
+    """§7 reference of regime ``mode`` (0 far, 1 close, 2 hold; module doc) ``elapsed`` s after the regime began,
+    from the body-frame state ``x`` (m, m/s) and the reference range ``r_ref`` (m); g = [a_max (m/s^2), dt (s),
+    v_max (m/s), r_h (m), w_rel (rad/s): the body frame's rate in LVLH].
+    Returns (r, r_ref', v_ref, v_achv) (m, m, m/s, m/s) and writes the MPC's reference x_1..x_N into ``ref``
+    (N, 6): in far approach the axis point [0, r_ref', 0] with the spiral velocity seen from the body frame,
+    v_B = [(1 - k) w r_ref', -k v_ref, 0], k = min(1, v_achv / |[w r_ref', v_ref]|) (the LVLH spiral velocity
+    limited to v_achv; a rotation keeps its norm), one state over the horizon; in close approach and hold the
+    axis trajectory [0, max(r_ref' - v_ref dt j, r_h), 0, 0, -v_ref (0 once at r_h), 0], j = 1..N.
+    min/max written as Python's (the first argument unless the second is smaller/larger)."""
+    a_max, dt, v_max, r_h, w_rel = g[0], g[1], g[2], g[3], g[4]
+    r = math.sqrt(x[0] * x[0] + x[1] * x[1] + x[2] * x[2])
+    v_achv = a_max * (elapsed + dt) / 2.0  # v_achv = min(a_max t_far / 2, v_max), t_far = elapsed + dt
+    if v_max < v_achv:
+        v_achv = v_max
+    if mode == 2:
+        r_ref, v_ref = r_h, 0.0
+    else:
+        gap = r_ref - r_h
+        if 0.0 > gap:
+            gap = 0.0
+        v_ref = math.sqrt(a_max * gap)
+        if not v_ref < v_achv:
+            v_ref = v_achv
+        r_ref = r_ref - v_ref * dt
+        if r_h > r_ref:
+            r_ref = r_h
+    if mode == 0:
+        a0, a1 = -w_rel * r_ref, -v_ref
         speed = math.sqrt(a0 * a0 + a1 * a1)
         k = v_achv / speed if speed > v_achv else 1.0
-        return np.array([0.0, r_ref, 0.0, k * a0 + w * r_ref, k * a1, 0.0])
-
-    def _axis_trajectory(self, v_ref: float) -> np.ndarray:
-        """Reference x_1..x_N along +y_B: range r_ref - v j dt (not below r_h), co-rotating.
-        Written into one buffer per controller (the MPC reads it during its solve only), refilled when (r_ref, v_ref)
-        changes."""
-        key = (self.r_ref, v_ref)
-        if key != self._ref_key:  # unchanged while holding (r_ref = r_h, v_ref = 0): the buffer is still right
-            _fill_axis_reference(self._ref_buffer, self._step_numbers, self.r_ref, v_ref * self.dt, v_ref,
-                                 self.hold_range)
-            self._ref_key = key
-        return self._ref_buffer
+        v0, v1 = k * a0 + w_rel * r_ref, k * a1
+        for j in range(ref.shape[0]):
+            ref[j, 0], ref[j, 1], ref[j, 2], ref[j, 3], ref[j, 4], ref[j, 5] = 0.0, r_ref, 0.0, v0, v1, 0.0
+    else:
+        step_m = v_ref * dt
+        for j in range(ref.shape[0]):
+            rj = r_ref - step_m * (j + 1.0)
+            if r_h > rj:
+                rj = r_h
+            ref[j, 0], ref[j, 1], ref[j, 2], ref[j, 3], ref[j, 5] = 0.0, rj, 0.0, 0.0, 0.0
+            ref[j, 4] = -v_ref if rj > r_h else 0.0
+    return r, r_ref, v_ref, v_achv
 
 
 @njit(cache=True)
-def _fill_axis_reference(ref, steps, r_ref, step_m, v_ref, r_h):  # pragma: no cover - compiled
-    """ref[j] = [0, max(r_ref - step_m j, r_h), 0, 0, -v_ref (0 once at r_h), 0] for j = steps (m, m/s)."""
-    for j in range(steps.shape[0]):
-        rj = max(r_ref - step_m * steps[j], r_h)
-        ref[j, 1] = rj
-        ref[j, 4] = -v_ref if rj > r_h else 0.0
+def _guided_qp_data(mode, elapsed, theta_k, x, r_ref, g, ref, u_prev, plan, consts, mats, basis, work, upper,
+                    lower):  # pragma: no cover - compiled
+    """:func:`_guidance` then :func:`proxops.control.los_mpc._qp_data` on the plan shifted by one step (the staged
+    path of :meth:`LosGuidanceController._regime_step`): returns (r (m), r_ref' (m), True when the QP data are
+    finite)."""
+    r, r_ref, _, _ = _guidance(mode, elapsed, x, r_ref, g, ref)
+    return r, r_ref, _qp_data(theta_k, 1, x, u_prev, ref, plan, consts, mats, basis, work, upper, lower)
