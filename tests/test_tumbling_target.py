@@ -158,3 +158,29 @@ def test_initial_rotation_is_the_attitude_at_t0_and_read_only():
     body = np.array([3.0, 70.0, -2.0, 0.01, -0.02, 0.0])
     np.testing.assert_allclose(target.body_state_from_offset(0.0, target.offset_from_body_state(0.0, body)), body,
                                rtol=0, atol=1e-12)
+
+
+@pytest.mark.parametrize("integrator", ["fast", "reference"])
+def test_one_call_step_equals_inner_step_plus_quaternion_and_reports_failure(integrator):
+    """RelativeTruth.propagate_spinning (the plant's one jitted call with the fast integrator, issue 32 item 2) gives
+    the inner truth's own step of state[:12] bit for bit and the exact eq.-(2) quaternion (closed form
+    q0 (x) exp(0.5 w t), to 1e-12 after 50 steps); a failed step (a NaN input) raises the inner truth's one-line
+    ProxopsError, as RelativeTruth.propagate does (fast integrator)."""
+    from proxops.errors import ProxopsError
+    from proxops.propagation.truth import RelativeTruth
+
+    el = OrbitalElements(SMA, 0.0, np.radians(51.6), 0.0, 0.0, 0.0)
+    tgt = TumblingTarget.aligned_with_hill(W_T, elements_to_eci(el), 0.4)
+    inner = RelativeTruth(el, np.zeros(6), j2=True, integrator=integrator)
+    plant = TumblingTargetTruth(inner, tgt, np.array([5.0, 60.0, -2.0, 0.1, 0.0, 0.0]))
+    s = plant.initial_state()
+    u = np.array([0.02, -0.01, 0.005])
+    for k in range(50 if integrator == "fast" else 3):
+        y12 = inner.propagate(float(k), s[:12], u, 1.0)
+        s = plant.propagate(float(k), s, u, 1.0)
+        assert np.array_equal(s[:12], y12)
+    q = tgt.quaternion(float(k + 1))
+    np.testing.assert_allclose(s[12:16] * np.sign(s[15] * q[3]), q, rtol=0, atol=1e-12)
+    if integrator == "fast":  # (scipy's solve_ivp does not stop on a NaN input)
+        with pytest.raises(ProxopsError, match="truth propagation failed at t = 3.0 s .* non-finite"):
+            plant.propagate(3.0, s, np.array([np.nan, 0.0, 0.0]), 1.0)

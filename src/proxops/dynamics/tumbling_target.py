@@ -372,6 +372,8 @@ class TumblingTargetTruth(PlantBase):
         self._x0 = np.concatenate([y0, target.q0_IB])
         self._q_dt = None
         self._q_step = np.eye(4)
+        # the inner truth steps [y, q] in one call (RelativeTruth.propagate_spinning), else propagate + the quaternion
+        self._spinning = hasattr(inner, "propagate_spinning")
 
     def initial_state(self) -> np.ndarray:
         return self._x0.copy()
@@ -385,11 +387,15 @@ class TumblingTargetTruth(PlantBase):
         return self.inner.relative_state(state[:12])
 
     def propagate(self, t: float, state: np.ndarray, u: np.ndarray, dt: float) -> np.ndarray:
-        y = self.inner.propagate(t, state[:12], u, dt)
+        """The inner truth's step of state[:12] and the exact eq.-(2) step of q_IB (one jitted call with
+        :meth:`proxops.propagation.truth.RelativeTruth.propagate_spinning`)."""
         if dt != self._q_dt:  # exact eq.-(2) step q (x) exp(0.5 w dt) as a 4x4 matrix, cached per dt
             self._q_step = _right_product_matrix(quat_propagate(IDENTITY, self.target.omega_body, dt))
             self._q_dt = dt
-        return _with_quaternion_step(y, np.ascontiguousarray(state, dtype=float), self._q_step)
+        if self._spinning:
+            return self.inner.propagate_spinning(t, state, u, dt, self._q_step)
+        y = self.inner.propagate(t, state[:12], u, dt)
+        return quaternion_stepped(y, np.ascontiguousarray(state, dtype=float), self._q_step)
 
     def apply_impulse(self, t: float, state: np.ndarray, dv: np.ndarray) -> np.ndarray:
         return np.concatenate([self.inner.apply_impulse(t, state[:12], dv), state[12:16]])
@@ -410,8 +416,9 @@ def _body_state(state, w_t):  # pragma: no cover - compiled
 
 
 @njit(cache=True)
-def _with_quaternion_step(y12, state, q_step):  # pragma: no cover - compiled
-    """[y12; q'] (16,): q' = q_step q (the exact eq.-(2) step as a 4x4 matrix) normalised."""
+def quaternion_stepped(y12, state, q_step):  # pragma: no cover - compiled
+    """[y12; q'] (16,): q' = q_step q normalised, q = state[12:16] (q_step: the exact eq.-(2) step as a 4x4
+    matrix, :meth:`TumblingTargetTruth.propagate`)."""
     out = np.empty(16)
     for i in range(12):
         out[i] = y12[i]

@@ -18,6 +18,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from numba import njit
 
 from proxops.core.constants import J2_EARTH, MU_EARTH, R_EARTH
 from proxops.core.cw import cw_discretize_zoh, cw_stm
@@ -27,6 +28,7 @@ from proxops.frames.elements import OrbitalElements, check_perigee_above_surface
 from proxops.propagation import kernels
 from proxops.propagation.reference import REFERENCE_ATOL, REFERENCE_RTOL, propagate_reference
 from proxops.dynamics.plant import PlantBase
+from proxops.dynamics.tumbling_target import quaternion_stepped
 
 _STATUS_TEXT = {
     kernels.STATUS_STEP_TOO_SMALL: "step size fell below the time resolution",
@@ -136,6 +138,20 @@ class RelativeTruth(PlantBase):
             return y_new
         return propagate_reference(y, dt, uu, self.params, self.rtol, self.atol)
 
+    def propagate_spinning(self, t: float, state: np.ndarray, u: np.ndarray | None, dt: float,
+                           q_step: np.ndarray) -> np.ndarray:
+        """:meth:`propagate` of a state [y (12), q (4)] that carries an attitude quaternion q, stepped as
+        q_step q and normalised (q_step 4x4: the exact step of a constant body rate,
+        :class:`proxops.dynamics.tumbling_target.TumblingTargetTruth`); with the fast integrator one jitted call."""
+        dt = _check_dt(dt)
+        y = np.ascontiguousarray(state, dtype=float)
+        if self.integrator == "fast":
+            out, status = _propagate_spinning(y, dt, self._zero_u if u is None else _control(u), self.params,
+                                              self.rtol, self.atol, q_step)
+            if status == kernels.STATUS_OK:
+                return out
+        return quaternion_stepped(self.propagate(t, y[:12], u, dt), y, q_step)  # reference path, or the error
+
     def coast(self, times: np.ndarray, state: np.ndarray, u: np.ndarray, dt: float):
         """The engine's idle-step coast (:meth:`PlantBase.coast`): ``len(times)`` pieces of ``dt`` s,
         one jitted call with the numbers of as many :meth:`propagate` calls."""
@@ -189,6 +205,13 @@ class RelativeTruth(PlantBase):
         """Chaser ECI state (6,) (target + offset; loses ~1e-9 m to rounding)."""
         s = np.asarray(state, dtype=float)
         return s[:6] + s[6:12]
+
+
+@njit(cache=True)
+def _propagate_spinning(state, dt, u, p, rtol, atol, q_step):  # pragma: no cover - compiled
+    """(:func:`kernels.propagate_dop853` of state[:12] with the quaternion state[12:16] stepped by q_step, status)."""
+    y, status, _ = kernels.propagate_dop853(state[:12], dt, u, p, rtol, atol)
+    return quaternion_stepped(y, state, q_step), status
 
 
 class CWPlant(PlantBase):
