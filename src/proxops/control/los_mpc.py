@@ -73,7 +73,9 @@ active set, with its lean paths: no linear term in hard mode (``setup_native`` w
 in hard mode the kernel's bounds written into DAQP's own bound vectors (``DaqpQP.bound_vectors``), re-read and
 solved by ``solve_bounds_fast`` (no copies, no keyword update, no SolverResult per step); soft mode through
 ``update_fast`` and ``solve_fast``. PIQP and Clarabel (interior point) start cold every step. The closed loop
-calls :meth:`LosMpc.solve_raw` (MpcSolution's fields as a tuple, no solution object per step).
+calls :meth:`LosMpc.solve_raw` (MpcSolution's fields as a tuple, no solution object per step); on the staged
+DAQP path its guidance runs this kernel itself, fused with the reference (:meth:`LosMpc.lean_inputs`,
+``los_regimes._guided_qp_data``), then :meth:`LosMpc.solve_staged`: one kernel call and one solver call a step.
 
 Per-step cost (benchmarks/bench_los.py prints it for N = 20..160): the kernel reads H^-1 (3N x 3N) and
 O(N) data, ~22 N^2 multiply-adds, below one DAQP iteration (its constraint check reads M = A R^-1,
