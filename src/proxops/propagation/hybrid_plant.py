@@ -371,37 +371,32 @@ def sat_gap_kernel(x, hc, hd):
     """numba form of :func:`proxops.dynamics.two_rigid_bodies.contact_guard` (the
     separating-axis gap of the two cuboids, m; same 15 axes), with a bounding-sphere early out
     (returns the positive sphere gap when the spheres are apart: same sign, cheaper)."""
-    d = x[6:9] - x[0:3]
-    dist = math.sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2])
+    d0, d1, d2 = x[6] - x[0], x[7] - x[1], x[8] - x[2]
+    dist = math.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
     sphere_gap = dist - math.sqrt(hc[0] ** 2 + hc[1] ** 2 + hc[2] ** 2) - math.sqrt(hd[0] ** 2 + hd[1] ** 2 + hd[2] ** 2)
     if sphere_gap > 0.0:
         return sphere_gap
-    Rc = dcm_kernel(x[12:16])
-    Rd = dcm_kernel(x[19:23])
+    Rc = dcm9(x[12:16])  # row major: R[i, j] = R9[3 i + j] (no heap array: ~40 calls a free-flight step)
+    Rd = dcm9(x[19:23])
     best = -np.inf
-    axes = np.empty((15, 3))
-    valid = np.ones(15, dtype=np.bool_)
-    for i in range(3):
-        axes[i] = Rc[:, i]
-        axes[3 + i] = Rd[:, i]
-    for i in range(3):
-        for j in range(3):
-            a = np.array([Rc[1, i] * Rd[2, j] - Rc[2, i] * Rd[1, j], Rc[2, i] * Rd[0, j] - Rc[0, i] * Rd[2, j],
-                          Rc[0, i] * Rd[1, j] - Rc[1, i] * Rd[0, j]])
-            na = math.sqrt(a[0] * a[0] + a[1] * a[1] + a[2] * a[2])
-            k = 6 + 3 * i + j
-            if na > 1e-9:
-                axes[k] = a / na
-            else:
-                valid[k] = False
-    for k in range(15):
-        if not valid[k]:
-            continue
-        a = axes[k]
-        gap = abs(d[0] * a[0] + d[1] * a[1] + d[2] * a[2])
+    for k in range(15):  # face normals of the chief (columns of Rc), of the deputy, then their cross products
+        if k < 3:
+            a0, a1, a2 = Rc[k], Rc[3 + k], Rc[6 + k]
+        elif k < 6:
+            a0, a1, a2 = Rd[k - 3], Rd[k], Rd[k + 3]
+        else:
+            i, j = (k - 6) // 3, (k - 6) % 3
+            a0 = Rc[3 + i] * Rd[6 + j] - Rc[6 + i] * Rd[3 + j]
+            a1 = Rc[6 + i] * Rd[j] - Rc[i] * Rd[6 + j]
+            a2 = Rc[i] * Rd[3 + j] - Rc[3 + i] * Rd[j]
+            na = math.sqrt(a0 * a0 + a1 * a1 + a2 * a2)
+            if not na > 1e-9:
+                continue
+            a0, a1, a2 = a0 / na, a1 / na, a2 / na
+        gap = abs(d0 * a0 + d1 * a1 + d2 * a2)
         for m in range(3):
-            gap -= (abs(Rc[0, m] * a[0] + Rc[1, m] * a[1] + Rc[2, m] * a[2]) * hc[m]
-                    + abs(Rd[0, m] * a[0] + Rd[1, m] * a[1] + Rd[2, m] * a[2]) * hd[m])
+            gap -= (abs(Rc[m] * a0 + Rc[3 + m] * a1 + Rc[6 + m] * a2) * hc[m]
+                    + abs(Rd[m] * a0 + Rd[3 + m] * a1 + Rd[6 + m] * a2) * hd[m])
         if gap > best:
             best = gap
     return best
