@@ -199,8 +199,13 @@ def gravity_point(r0, r1, r2, fr):
     dx = ex0 * r0 + ey0 * r1 + ez0 * r2
     dy = ex1 * r0 + ey1 * r1 + ez1 * r2
     dz = ex2 * r0 + ey2 * r1 + ez2 * r2
-    ax, ay, az = accel_differential(a0 * ex0, a0 * ex1, a0 * ex2, dx, dy, dz, mu, j2, re)
-    if j2 != 0.0:
+    rx, ry, rz = a0 * ex0, a0 * ex1, a0 * ex2
+    ax, ay, az = accel_differential(rx, ry, rz, dx, dy, dz, mu, 0.0, re)
+    if j2 != 0.0:  # accel_differential's J2 difference, with a_J2(R0) = (bx, by, bz) of the frame (computed once per t)
+        cx, cy, cz = accel_j2(rx + dx, ry + dy, rz + dz, mu, j2, re)
+        ax += cx - bx
+        ay += cy - by
+        az += cz - bz
         ax += bx
         ay += by
         az += bz
