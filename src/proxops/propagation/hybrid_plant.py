@@ -71,7 +71,7 @@ from proxops.core.layout import Block, StateLayout, make_control_layout
 from proxops.core.constants import J2_EARTH, MU_EARTH, R_EARTH
 from proxops.core.quaternion import dcm_kernel
 from proxops.core.twobody import accel_differential, accel_j2
-from proxops.dynamics.hybrid_relative import N_REL, relative_from_truth
+from proxops.dynamics.hybrid_relative import N_REL, relative_from_truth_kernel
 from proxops.dynamics.plant import PlantBase, locate_guard
 from proxops.dynamics.two_rigid_bodies import (
     N_TRUTH,
@@ -508,6 +508,7 @@ class HybridCapturePlant(PlantBase):
                                STOP_C_NS_PER_M])
         env = self.envelope
         self._env = np.array([env.position_m, env.velocity_mps, env.rate_rad_s, env.angle_rad])
+        self._rel_args = (p.P_c, p.P_d, float(p.mass_chief_kg), float(p.mass_deputy_kg), float(p.mean_motion_rad_s))
         self._args = (p.mass_chief_kg, p.mass_deputy_kg, p.J_c, p.J_c_inv, p.J_d, p.J_d_inv, p.mean_motion_rad_s,
                       p.P_c, p.P_d, float(p.latch_KT), float(p.latch_DT), float(p.latch_KR), float(p.latch_DR))
 
@@ -518,7 +519,7 @@ class HybridCapturePlant(PlantBase):
     def relative_state(self, state: np.ndarray) -> np.ndarray:
         y = np.asarray(state, dtype=float)
         out = np.empty(N_MEASURED)
-        out[:N_REL] = relative_from_truth(y[:N_TRUTH], self.params, y[I_REF])
+        relative_from_truth_kernel(y, y[I_REF], out, *self._rel_args)  # relative_from_truth into out[:N_REL]
         out[M_CONTACTS] = y[I_CONTACTS]
         out[M_LATCHED] = y[I_LATCHED]
         return out
