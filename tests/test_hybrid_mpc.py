@@ -27,6 +27,7 @@ from proxops.control.hybrid_mpc import (
     post_capture_linearization,
     post_capture_steady_inputs,
     reduced_capture_state,
+    reduced_post_capture_state,
     zoh_discretize,
 )
 from proxops.core.quaternion import quat_from_axis_angle, quat_rotate, quat_to_dcm
@@ -495,6 +496,27 @@ def test_capture_step_qp_built_in_place_equals_numpy_assembly(cfg, collisions):
             assert np.abs(got - exp).max() <= 1e-9 * np.abs(exp).max()
         if rate is None:
             assert qp.A_rate.shape[0] == 0
+        np.testing.assert_array_equal(qp.dx0, reduced_capture_state(x))
+
+
+def test_post_step_kernel_reduced_state_and_box_on_the_negative_scalar_branch():
+    """The post-capture step kernel's dx1 is reduced_post_capture_state's (p with a negative scalar part
+    flipped to +p: the same attitude) and its box is -u_max - kappa^1 <= du <= u_max - kappa^1 on every stage."""
+    mpc = PostCaptureMPC(PARAMS)
+    y = np.zeros(32)
+    y[S_P] = -quat_from_axis_angle(np.array([0.0, 0.6, 0.8]), 0.5)  # scalar part < 0
+    y[S_Q] = np.array([0.0, 0.0, 0.0, 1.0])
+    y[S_OMC] = (0.001, -0.002, 0.0005)
+    y[S_RN], y[S_RND] = (0.5, -0.2, 0.1), (0.001, 0.0, -0.002)
+    y[S_REF] = (0.1, 0.0, 0.0, 0.0, 0.0, 0.0)
+    out = mpc.solve(y)
+    assert out["status"].ok
+    qp = mpc._qp
+    np.testing.assert_array_equal(qp.dx0, reduced_post_capture_state(y))
+    assert np.all(qp.dx0[0:3] == -y[13:16])
+    kappa = mpc.continuous_model(y)[2]
+    np.testing.assert_array_equal(qp.lb, np.tile(-mpc.u_max - kappa, mpc.N))
+    np.testing.assert_array_equal(qp.ub, np.tile(mpc.u_max - kappa, mpc.N))
 
 
 @pytest.mark.parametrize("solver", ["piqp", "clarabel"])

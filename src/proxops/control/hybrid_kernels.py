@@ -121,9 +121,9 @@ def condensed_qp(A, B, dt, N, dx0, W, r_blk, ref, face_a, wf, rate_first, rate_w
     -rate_w <= x_k[rate_first:rate_first+3] <= rate_w as A_rate (3N, nU), bl, bu (3N) (rate_w < 0:
     not written; nX = N n, nU = N m).
 
-    Every sum is accumulated in the order of the plain dot products (each output element from 0.0
-    over the inner index in turn), with the loops ordered so that independent outputs advance
-    together (vectorisable; the bits of the dot-product form)."""
+    Every sum runs in dot-product order (each output element from 0.0 over the inner index in turn;
+    the free response, g and f with the output index innermost), so the bits do not depend on the
+    loop nesting."""
     n, m = B.shape
     M = np.zeros((n + m, n + m))
     for i in range(n):
