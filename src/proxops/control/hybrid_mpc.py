@@ -775,7 +775,8 @@ class CaptureMPC:
         if res.x is None or not res.ok:
             self._plan_rho = None
             return out
-        U = np.minimum(np.maximum(res.x, qp.lb), qp.ub)  # np.clip's values (finite x); DAQP keeps the bounds to its tolerance
+        # np.clip's values (finite x); DAQP keeps the bounds to its tolerance
+        U = np.minimum(np.maximum(res.x, qp.lb), qp.ub)
         X = qp.free + qp.G @ U
         self._plan_rho = X.reshape(N, N_DX)[:, 0:3].copy()
         face = dt * face_penalty_sum(X, N_DX, N, self.v, cfg.face_weight)

@@ -583,9 +583,9 @@ class HybridCapturePlant(PlantBase):
             if self.snap_enabled and y[I_SNAPPED] < 0.5 and t_snap > t_now - 1e-12:  # stop before the snap substep
                 n_fast = int((t_snap - t_now) / h) - 1  # (the Python path checks the last ones)
             if n_fast > 0:  # plain substeps in one numba call (advance_kernel); only events come back here
-                done, code = advance_kernel(y, u, t, done, dt, h, n_fast, bool(y[I_LATCHED] > 0.5), float(y[I_ARMED_FROM]),
-                                            self._env, self._grav, self._stop, self._corners, self._hc, self._hd,
-                                            *self._args)
+                done, code = advance_kernel(y, u, t, done, dt, h, n_fast, bool(y[I_LATCHED] > 0.5),
+                                            float(y[I_ARMED_FROM]), self._env, self._grav, self._stop, self._corners,
+                                            self._hc, self._hd, *self._args)
                 if code == 2:
                     y[I_LATCHED] = 1.0
                     events.append((t + done, "latch", "free -> latched"))
