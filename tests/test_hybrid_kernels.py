@@ -105,7 +105,10 @@ def test_condensed_qp_matches_explicit_condensing():
     ref = np.zeros(N * 12)
     ref[0::12], ref[1::12] = 0.3, -0.2
     face_a = face_rows(RNG.standard_normal((N, 3)), mpc.v, N)
-    out = condensed_qp(A, B, 1.0, N, x0, W, r_blk, ref, face_a, 100.0, 6, math.radians(10.0))
+    nU, nX = N * 6, N * 12
+    out = (np.empty((nU, nU)), np.empty(nU), np.empty((nX, nU)), np.empty(nX), np.empty((3 * N, nU)), np.empty(3 * N),
+           np.empty(3 * N))
+    condensed_qp(A, B, 1.0, N, x0, W, r_blk, ref, face_a, 100.0, 6, math.radians(10.0), *out)
     expect = _dense_reference(A, B, 1.0, N, x0, W, r_blk, ref, face_a, 100.0, 6, math.radians(10.0))
     for got, exp in zip(out, expect):
         assert np.abs(got - exp).max() <= 1e-12 * max(np.abs(exp).max(), 1e-300)

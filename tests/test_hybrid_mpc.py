@@ -27,6 +27,7 @@ from proxops.control.hybrid_mpc import (
     post_capture_linearization,
     post_capture_steady_inputs,
     reduced_capture_state,
+    reduced_post_capture_state,
     zoh_discretize,
 )
 from proxops.core.quaternion import quat_from_axis_angle, quat_rotate, quat_to_dcm
@@ -430,3 +431,111 @@ def test_post_capture_from_eq78_chief_attitude_with_a_holding_latch():
     assert np.linalg.norm(x[S_P][0:3]) < 1e-3
     assert np.linalg.norm(x[S_RN] - x[S_REF][0:3]) < 1e-3
     assert max_rho < 0.02
+
+
+# ------------------------------------------------------------------------------ the in-place step QP
+def _numpy_capture_qp(mpc: CaptureMPC, x, plan_rho):
+    """The capture QP of one step from numpy / scipy pieces (CasADi model, scipy expm, explicit G' W G),
+    in condensed_qp's scaling: (H, f, lb, ub, A_rate, bl, bu)."""
+    cfg, N, dt = mpc.config, mpc.N, mpc.dt
+    far = cfg.decouple_beyond_m is not None and np.linalg.norm(x[S_RHO]) > cfg.decouple_beyond_m
+    A, B, kappa = mpc._continuous_model_numpy(x[S_P], x[S_OMC], x[S_Q], far)
+    Ad, Bd = zoh_discretize(A, B, dt)
+    Phi, G = mpc._cond.build(Ad, Bd)
+    Qd, Rd, Qf = capture_weights(cfg, mpc.collisions)
+    W = np.tile(dt * Qd, N)
+    W[-12:] = Qf
+    r_blk = np.tile(dt * Rd, N)
+    dx0 = reduced_capture_state(x)
+    free = Phi @ dx0
+    ref = np.zeros((N, 12))
+    if cfg.approach_guidance:
+        ref[:, 0:3] = mpc._approach_target_numpy(x[S_RHO])
+    Wt = np.diag(W)
+    e = free - ref.ravel()
+    if cfg.face_weight > 0.0:  # eq. 66's rows at the shifted plan (stages 0..N-2), on rho itself
+        bar = np.vstack([plan_rho[1:], plan_rho[-1:]]) if plan_rho is not None else np.tile(dx0[0:3], (N, 1))
+        a = face_pointing_linearized(bar, mpc.v)
+        a[N - 1] = 0.0
+        for k in range(N):
+            Wt[12 * k:12 * k + 3, 12 * k:12 * k + 3] += dt * cfg.face_weight * np.outer(a[k], a[k])
+        e_face = np.zeros_like(e)
+        for k in range(N):
+            e_face[12 * k:12 * k + 3] = dt * cfg.face_weight * a[k] * (a[k] @ free[12 * k:12 * k + 3])
+    else:
+        e_face = 0.0
+    s = 1.0 / r_blk.max()
+    H = G.T @ Wt @ G + np.diag(r_blk)
+    f = G.T @ (W * e + e_face)
+    rows = np.array([12 * k + 6 + i for k in range(N) for i in range(3)])
+    w = np.radians(cfg.rate_max_deg_s) if cfg.rate_max_deg_s is not None else None
+    rate = (G[rows], -w - free[rows], w - free[rows]) if w is not None else None
+    return s * (H + H.T), 2.0 * s * f, np.tile(-mpc.u_max - kappa, N), np.tile(mpc.u_max - kappa, N), rate
+
+
+@pytest.mark.parametrize("cfg, collisions", [
+    (CaptureMPCConfig(), 0),
+    (CaptureMPCConfig(approach_guidance=False, rate_max_deg_s=None), 3),
+    (CaptureMPCConfig(face_weight=0.0, decouple_beyond_m=None), 1),
+])
+def test_capture_step_qp_built_in_place_equals_numpy_assembly(cfg, collisions):
+    """The QP that capture_step_kernel writes into the MPC's arrays (reused every step) equals the
+    numpy / scipy assembly of the same step (CasADi model, scipy expm, explicit G' W G, face rows at
+    the previous plan shifted by one step) to 1e-9 relative, on two consecutive steps from 3 m away
+    behind the chief (guidance waypoint, decoupled model) and near the port."""
+    mpc = CaptureMPC(PARAMS, cfg)
+    mpc.set_collision_count(collisions)
+    for x in (_capture_state(rho=(-0.2, -2.9, 1.1), angle=2.5), _capture_state()):
+        plan_rho = None if mpc._plan_rho is None else mpc._plan_rho.copy()
+        out = mpc.solve(x)
+        assert out["status"].ok
+        qp = mpc._qp
+        H, f, lb, ub, rate = _numpy_capture_qp(mpc, x, plan_rho)
+        for got, exp in ((qp.H, H), (qp.f, f), (qp.lb, lb), (qp.ub, ub)) + (
+                tuple(zip((qp.A_rate, qp.bl, qp.bu), rate)) if rate is not None else ()):
+            assert np.abs(got - exp).max() <= 1e-9 * np.abs(exp).max()
+        if rate is None:
+            assert qp.A_rate.shape[0] == 0
+        np.testing.assert_array_equal(qp.dx0, reduced_capture_state(x))
+
+
+def test_post_step_kernel_reduced_state_and_box_on_the_negative_scalar_branch():
+    """The post-capture step kernel's dx1 is reduced_post_capture_state's (p with a negative scalar part
+    flipped to +p: the same attitude) and its box is -u_max - kappa^1 <= du <= u_max - kappa^1 on every stage."""
+    mpc = PostCaptureMPC(PARAMS)
+    y = np.zeros(32)
+    y[S_P] = -quat_from_axis_angle(np.array([0.0, 0.6, 0.8]), 0.5)  # scalar part < 0
+    y[S_Q] = np.array([0.0, 0.0, 0.0, 1.0])
+    y[S_OMC] = (0.001, -0.002, 0.0005)
+    y[S_RN], y[S_RND] = (0.5, -0.2, 0.1), (0.001, 0.0, -0.002)
+    y[S_REF] = (0.1, 0.0, 0.0, 0.0, 0.0, 0.0)
+    out = mpc.solve(y)
+    assert out["status"].ok
+    qp = mpc._qp
+    np.testing.assert_array_equal(qp.dx0, reduced_post_capture_state(y))
+    assert np.all(qp.dx0[0:3] == -y[13:16])
+    kappa = mpc.continuous_model(y)[2]
+    np.testing.assert_array_equal(qp.lb, np.tile(-mpc.u_max - kappa, mpc.N))
+    np.testing.assert_array_equal(qp.ub, np.tile(mpc.u_max - kappa, mpc.N))
+
+
+@pytest.mark.parametrize("solver", ["piqp", "clarabel"])
+def test_reused_step_arrays_reach_a_solver_that_keeps_its_data(solver):
+    """The MPCs rewrite their QP arrays in place every step; a solver other than DAQP's lean path gets
+    copies, so a controller's second solve equals a fresh controller's solve of the same state (no
+    face plan, no history: the QP depends on the state only), for both MPCs."""
+    cfg = CaptureMPCConfig(solver=solver, face_weight=0.0, rate_max_deg_s=None)
+    x1, x2 = _capture_state(rho=(0.3, -0.2, 0.4), angle=0.6), _capture_state()
+    used = CaptureMPC(PARAMS, cfg)
+    used.solve(x1)
+    np.testing.assert_allclose(used.solve(x2)["u"], CaptureMPC(PARAMS, cfg).solve(x2)["u"], rtol=0, atol=1e-6)
+    post_cfg = PostCaptureMPCConfig(solver=solver, rate_max_deg_s=None)
+    y1, y2 = np.zeros(32), np.zeros(32)
+    y1[S_P], y2[S_P] = quat_from_axis_angle(np.array([0.0, 0.0, 1.0]), 0.4), quat_from_axis_angle(
+        np.array([1.0, 0.0, 0.0]), -0.3)
+    y1[S_Q] = y2[S_Q] = np.array([0.0, 0.0, 0.0, 1.0])
+    y1[S_RN], y2[S_RN] = (0.5, -0.2, 0.1), (-0.4, 0.3, 0.2)
+    used = PostCaptureMPC(PARAMS, post_cfg)
+    used.solve(y1)
+    np.testing.assert_allclose(used.solve(y2)["u"], PostCaptureMPC(PARAMS, post_cfg).solve(y2)["u"], rtol=0,
+                               atol=1e-6)

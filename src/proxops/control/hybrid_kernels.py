@@ -109,66 +109,61 @@ def tape_eval(code, a, b, o, c, inp, w, out):
 
 
 @njit(cache=True)
-def condensed_qp(A, B, dt, N, dx0, W, r_blk, ref, face_a, wf, rate_first, rate_w):
-    """Condensed box QP of a linear MPC over N stages with ZOH period dt (s).
+def condensed_qp(A, B, dt, N, dx0, W, r_blk, ref, face_a, wf, rate_first, rate_w, H, f, G, free, A_rate, bl, bu):
+    """Condensed box QP of a linear MPC over N stages with ZOH period dt (s), written into the
+    caller's arrays (no array is returned: numba boxes each returned array at ~1 us).
 
     Model x' = A x + B u (n x n, n x m), discretised exactly (expm of [[A, B], [0, 0]] dt);
     X = [x_1..x_N] = Phi x0 + G U. Cost sum_k (x_k - ref_k)' diag(W_k) (x_k - ref_k) + U' diag(r_blk) U
     + wf sum_k (a_k' rho_k)^2 (face rows a_k = face_a[k] on x_k[0:3], on rho itself, not rho - ref;
-    wf = 0: none), scaled by
-    s = 1 / max(r_blk): returns (H = s (H + H'), f = 2 s f, G, free = Phi x0, A_rate, bl, bu) with the
-    rate rows -rate_w <= x_k[rate_first:rate_first+3] <= rate_w (rate_w < 0: no rows, empty arrays)."""
+    wf = 0: none), scaled by s = 1 / max(r_blk). Outputs: H (nU, nU) = s (H + H'), f (nU) = 2 s f,
+    G (nX, nU), free (nX) = Phi x0 and, for rate_w >= 0, the rate rows
+    -rate_w <= x_k[rate_first:rate_first+3] <= rate_w as A_rate (3N, nU), bl, bu (3N) (rate_w < 0:
+    not written; nX = N n, nU = N m).
+
+    Every sum runs in dot-product order (each output element from 0.0 over the inner index in turn;
+    the free response, g and f with the output index innermost), so the bits do not depend on the
+    loop nesting."""
     n, m = B.shape
-    A = np.ascontiguousarray(A)
-    B = np.ascontiguousarray(B)
     M = np.zeros((n + m, n + m))
-    M[:n, :n] = A * dt
-    M[:n, n:] = B * dt
+    for i in range(n):
+        for j in range(n):
+            M[i, j] = A[i, j] * dt
+        for j in range(m):
+            M[i, n + j] = B[i, j] * dt
     E = expm_pade13(M)
     Ad = np.ascontiguousarray(E[:n, :n])
     Bd = np.ascontiguousarray(E[:n, n:])
-    nX, nU = N * n, N * m
-    # powers Ad^i Bd (the blocks of G) and the free response (element loops: the operations of
-    # matmul / matvec in their order, without their heap arrays)
+    nU = N * m
+    scale = 1.0 / r_blk.max()
+    # powers Ad^i Bd (the blocks of G) and the free response Ad^(k+1) x0
     PB = np.empty((N, n, m))
     PB[0] = Bd
     for i in range(1, N):
         matmul_into(Ad, PB[i - 1], PB[i])
-    free = np.empty(nX)
-    for i in range(n):
-        sacc = 0.0
-        for l in range(n):
-            sacc += Ad[i, l] * dx0[l]
-        free[i] = sacc
-    for k in range(1, N):
-        for i in range(n):
-            sacc = 0.0
-            for l in range(n):
-                sacc += Ad[i, l] * free[(k - 1) * n + l]
-            free[k * n + i] = sacc
-    G = np.zeros((nX, nU))
     for k in range(N):
-        for j in range(k + 1):
-            blk = PB[k - j]
+        for i in range(n):
+            free[k * n + i] = 0.0
+        for l in range(n):
+            c = dx0[l] if k == 0 else free[(k - 1) * n + l]
+            for i in range(n):
+                free[k * n + i] += Ad[i, l] * c
+    for k in range(N):
+        for j in range(N):
             for i in range(n):
                 for l in range(m):
-                    G[k * n + i, j * m + l] = blk[i, l]
+                    G[k * n + i, j * m + l] = PB[k - j, i, l] if j <= k else 0.0
     # H = G' Wt G and f = G' Wt (free - ref) without forming G' Wt G: with the stage weight
     # Wt_k = diag(W_k) + wf a_k a_k' (face rows on x_k[0:3]), P_j = Wt_j + Ad' P_{j+1} Ad and
     # g_j = Wt_j e_j + Ad' g_{j+1} (e = free - ref), block (i, j >= i) of H is (Ad^(j-i) Bd)' P_j Bd
     # and block i of f is Bd' g_i (the backward recursion of the condensed cost).
-    H = np.zeros((nU, nU))
-    f = np.empty(nU)
     P = np.zeros((n, n))
     g = np.zeros(n)
-    AdT = np.ascontiguousarray(Ad.T)
-    BdT = np.ascontiguousarray(Bd.T)
-    # work buffers (each product written in place: the same operations in the same order as the
-    # allocating matmul / matmul_tn / matvec, so the same bits)
     Wt = np.empty((n, n))
     PA = np.empty((n, n))
     PBj = np.empty((n, m))
     gj = np.empty(n)
+    acc = np.empty(n)
     for j in range(N - 1, -1, -1):
         Wt[:, :] = 0.0
         for i in range(n):
@@ -193,20 +188,23 @@ def condensed_qp(A, B, dt, N, dx0, W, r_blk, ref, face_a, wf, rate_first, rate_w
             for i in range(n):
                 for l in range(n):
                     P[i, l] = Wt[i, l] + P[i, l]
-            for i in range(n):  # g = gj + Ad' g
-                sacc = 0.0
-                for l in range(n):
-                    sacc += AdT[i, l] * g[l]
-                PA[0, i] = sacc
-            for i in range(n):
-                g[i] = gj[i] + PA[0, i]
-        matmul_into(P, Bd, PBj)
-        for i in range(m):
-            sacc = 0.0
+            acc[:] = 0.0  # Ad' g
             for l in range(n):
-                sacc += BdT[i, l] * g[l]
-            f[j * m + i] = sacc
-        for i in range(j + 1):  # block (i, j) = (Ad^(j-i) Bd)' P_j Bd: matmul_tn_into's sums, into H directly
+                c = g[l]
+                for i in range(n):
+                    acc[i] += Ad[l, i] * c
+            for i in range(n):
+                g[i] = gj[i] + acc[i]
+        matmul_into(P, Bd, PBj)
+        for i in range(m):  # f_j = Bd' g_j, scaled
+            acc[i] = 0.0
+        for l in range(n):
+            c = g[l]
+            for i in range(m):
+                acc[i] += Bd[l, i] * c
+        for i in range(m):
+            f[j * m + i] = (2.0 * scale) * acc[i]
+        for i in range(j + 1):  # block (i, j) = (Ad^(j-i) Bd)' P_j Bd, straight into H
             blk = PB[j - i]
             for a in range(m):
                 for b in range(m):
@@ -214,26 +212,21 @@ def condensed_qp(A, B, dt, N, dx0, W, r_blk, ref, face_a, wf, rate_first, rate_w
                     for l in range(n):
                         sacc += blk[l, a] * PBj[l, b]
                     H[i * m + a, j * m + b] = sacc
-    for i in range(nU):  # the lower triangle (H symmetric up to round-off: mirrored)
-        for l in range(i):
-            H[i, l] = H[l, i]
-    scale = 1.0 / r_blk.max()
-    for i in range(nU):
-        H[i, i] += r_blk[i]
-    H = scale * (H + H.T)
-    f = (2.0 * scale) * f
-    if rate_w < 0.0:
-        return H, f, G, free, np.empty((0, nU)), np.empty(0), np.empty(0)
-    A_rate = np.empty((3 * N, nU))
-    bl = np.empty(3 * N)
-    bu = np.empty(3 * N)
-    for k in range(N):
-        for i in range(3):
-            r = k * n + rate_first + i
-            A_rate[3 * k + i] = G[r]
-            bl[3 * k + i] = -rate_w - free[r]
-            bu[3 * k + i] = rate_w - free[r]
-    return H, f, G, free, A_rate, bl, bu
+    for i in range(nU):  # the input weight, the lower triangle mirrored, s (H + H')
+        d = H[i, i] + r_blk[i]
+        H[i, i] = scale * (d + d)
+        for l in range(i + 1, nU):
+            v = scale * (H[i, l] + H[i, l])
+            H[i, l] = v
+            H[l, i] = v
+    if rate_w >= 0.0:
+        for k in range(N):
+            for i in range(3):
+                r = k * n + rate_first + i
+                for l in range(nU):
+                    A_rate[3 * k + i, l] = G[r, l]
+                bl[3 * k + i] = -rate_w - free[r]
+                bu[3 * k + i] = rate_w - free[r]
 
 
 @njit(cache=True)
@@ -379,16 +372,22 @@ def shifted_face_rows(plan_rho, rho0, has_plan, v, N):
 @njit(cache=True)
 def box_bounds(u_max, kappa, N):
     """(lb, ub) of the input box around the steady input over N stages: -u_max - kappa <= du_k <= u_max - kappa."""
+    lb = np.empty(N * u_max.shape[0])
+    ub = np.empty(N * u_max.shape[0])
+    _box_bounds_into(u_max, kappa, N, lb, ub)
+    return lb, ub
+
+
+@njit(cache=True)
+def _box_bounds_into(u_max, kappa, N, lb, ub):
+    """:func:`box_bounds` written into lb, ub (N m)."""
     m = u_max.shape[0]
-    lb = np.empty(N * m)
-    ub = np.empty(N * m)
     for i in range(m):
         lo = -u_max[i] - kappa[i]
         hi = u_max[i] - kappa[i]
         for k in range(N):
             lb[k * m + i] = lo
             ub[k * m + i] = hi
-    return lb, ub
 
 
 @njit(cache=True)
@@ -401,3 +400,60 @@ def face_penalty_sum(X, n, N, v, weight):
         d = math.sqrt(r0 * r0 + r1 * r1 + r2 * r2) - (r0 * v[0] + r1 * v[1] + r2 * v[2])
         s += weight * d * d
     return s
+
+
+@njit(cache=True)
+def capture_step_kernel(x, code, a, b, o, c, n_work, n_out, use_tape, mass_d, decouple, thrust, kinematics, guide,
+                        P_c, v, plan_rho, has_plan, face_on, wf, rate_w, u_max, dt, N, W, r_blk,
+                        A, B, kappa, dx0, target, ref, face_a, H, f, G, free, A_rate, bl, bu, lb, ub):
+    """The capture MPC's QP of one step (hybrid_mpc.CaptureMPC._solve_qp) from the relative state x (32),
+    written into the caller's arrays: dx0 (reduced_capture_state), the model (``use_tape``:
+    :func:`capture_model_kernel` into A, B, kappa; else A, B, kappa as given), the approach target
+    (``guide`` = (on, radius m, half-angle rad, retreat fraction, step rad); else 0), the reference
+    rows, the face rows (``face_on``: :func:`shifted_face_rows` of ``plan_rho`` or dx0's rho), the
+    input box and :func:`condensed_qp` (rate rows on omega, x[6:9])."""
+    for i in range(9):
+        dx0[i] = x[i]
+    s = -1.0 if x[12] < 0.0 else 1.0
+    for i in range(3):
+        dx0[9 + i] = s * x[9 + i]
+    if use_tape:
+        A1, B1, k1 = capture_model_kernel(code, a, b, o, c, n_work, n_out, x[13:17], x[17:20], x[9:13], mass_d,
+                                          decouple, thrust, kinematics)
+        A[:, :] = A1
+        B[:, :] = B1
+        kappa[:] = k1
+    if guide[0] > 0.0:
+        t = approach_target_kernel(x[0:3], P_c, v, guide[1], guide[2], guide[3], guide[4])
+        target[:] = t
+    else:
+        target[:] = 0.0
+    n = A.shape[0]
+    ref[:] = 0.0
+    for k in range(N):
+        for i in range(3):
+            ref[k * n + i] = target[i]
+    _box_bounds_into(u_max, kappa, N, lb, ub)
+    if face_on:
+        face_a[:, :] = shifted_face_rows(plan_rho, dx0[0:3], has_plan, v, N)
+    else:
+        face_a[:, :] = 0.0
+    condensed_qp(A, B, dt, N, dx0, W, r_blk, ref, face_a, wf, 6, rate_w, H, f, G, free, A_rate, bl, bu)
+
+
+@njit(cache=True)
+def post_step_kernel(x, A0, B0, G1, G2, gyro, arm, m, kinematics, thrust, rate_w, u_max, dt, N, W, r_blk, ref,
+                     face_a, kappa, dx0, H, f, G, free, A_rate, bl, bu, lb, ub):
+    """The post-capture MPC's QP of one step (hybrid_mpc.PostCaptureMPC.solve) from the relative state
+    x (32), written into the caller's arrays: dx0 (reduced_post_capture_state), :func:`post_model_kernel`
+    (kappa), the input box and :func:`condensed_qp` (rate rows on omega_c, dx0[3:6]; no face rows)."""
+    s = -1.0 if x[16] < 0.0 else 1.0
+    for i in range(3):
+        dx0[i] = s * x[13 + i]
+        dx0[3 + i] = x[17 + i]
+    for i in range(6):
+        dx0[6 + i] = x[20 + i] - x[26 + i]
+    A, B, k1 = post_model_kernel(x, A0, B0, G1, G2, gyro, arm, m, kinematics, thrust)
+    kappa[:] = k1
+    _box_bounds_into(u_max, kappa, N, lb, ub)
+    condensed_qp(A, B, dt, N, dx0, W, r_blk, ref, face_a, 0.0, 3, rate_w, H, f, G, free, A_rate, bl, bu)

@@ -128,12 +128,11 @@ import scipy.sparse as sp
 from proxops.control.hybrid_kernels import (
     Tape,
     approach_target_kernel,
-    box_bounds,
     capture_model_kernel,
-    condensed_qp,
+    capture_step_kernel,
     face_penalty_sum,
     post_model_kernel,
-    shifted_face_rows,
+    post_step_kernel,
 )
 from proxops.core.quaternion import dcm_kernel, skew
 from proxops.dynamics.hybrid_relative import (
@@ -299,9 +298,15 @@ def _solve_box_qp(solver, name: str, H, f, lb, ub, max_iter: int, kappa, A=None,
     bounds) with the QP solver ``name`` (proxops.solvers.make_solver), set up on the first call and
     updated in place after (same structure every step). DAQP is set up natively so that the rate
     rows are soft (DAQP may relax them at a penalty); the others take the QuadraticProgram form
-    (hard rows). ``trusted``: the data are fresh finite kernel arrays with no equality row (rate bound > 0),
-    updated through DAQP's lean path (``update_fast``). Returns (solver, result, info dict)."""
+    (hard rows). ``trusted``: the data are finite kernel arrays with no equality row (rate bound > 0),
+    updated through DAQP's lean path (``update_fast``; the MPC's arrays, rewritten in place before each
+    call: DAQP reads them in the update); the other paths get copies. Returns (solver, result, info dict)."""
     t_solver = time.perf_counter()
+    lean = solver is not None and name == "daqp" and trusted
+    if not lean:  # a solver may keep what it is given: the MPC rewrites its arrays every step
+        H, f, lb, ub = H.copy(), f.copy(), lb.copy(), ub.copy()
+        if A is not None:
+            A, bl, bu = A.copy(), bl.copy(), bu.copy()
     if solver is None:
         solver = make_solver("QP", name, max_iter=max_iter)
         if name == "daqp":
@@ -309,7 +314,7 @@ def _solve_box_qp(solver, name: str, H, f, lb, ub, max_iter: int, kappa, A=None,
             solver.setup_native(H, f, A, bl, bu, lb=lb, ub=ub, soft_rows=soft)
         else:
             solver.setup(QuadraticProgram(P=H, q=f, A=A, bl=bl, bu=bu, lb=lb, ub=ub))
-    elif name == "daqp" and trusted:  # fresh finite kernel arrays, no equality row: DAQP's lean path
+    elif lean:  # finite kernel arrays, no equality row: DAQP's lean path
         if A is None:
             solver.update_fast(H=H, f=f, lb=lb, ub=ub)
         else:
@@ -538,6 +543,24 @@ class _Condensed:
         return Phi, G
 
 
+class _QpArrays:
+    """The QP of one MPC step (N stages, n states, m inputs), filled in place by the MPC's step kernel
+    (hybrid_kernels.capture_step_kernel / post_step_kernel): H, f, G, free (= Phi dx0), the rate rows
+    A_rate, bl, bu (3N of them with ``rates``, else none), the input box lb, ub, kappa and dx0."""
+
+    def __init__(self, N: int, n: int, m: int, rates: bool):
+        nU, nX, r = N * m, N * n, 3 * N if rates else 0
+        self.H, self.f, self.G, self.free = np.empty((nU, nU)), np.empty(nU), np.empty((nX, nU)), np.empty(nX)
+        self.A_rate, self.bl, self.bu = np.empty((r, nU)), np.empty(r), np.empty(r)
+        self.lb, self.ub, self.kappa, self.dx0 = np.empty(nU), np.empty(nU), np.empty(m), np.empty(n)
+
+    def solve(self, solver, name: str, max_iter: int, rate_w: float):
+        """:func:`_solve_box_qp` of these arrays (rate rows for rate_w >= 0); out["kappa"] is a copy."""
+        rows = (self.A_rate, self.bl, self.bu) if rate_w >= 0.0 else (None, None, None)
+        return _solve_box_qp(solver, name, self.H, self.f, self.lb, self.ub, max_iter, self.kappa.copy(), *rows,
+                             trusted=rate_w != 0.0)
+
+
 def _command(u, status, t_start, solver_time, mode, events=None, info=None, status_detail=""):
     return Command(u=u, kind="acceleration", status=status, solve_time_s=time.perf_counter() - t_start, mode=mode,
                    events=events or [], info={"solver_time_s": solver_time, **(info or {})},
@@ -571,11 +594,15 @@ class CaptureMPC:
         self.target_rho = np.zeros(3)
         self._cond = _Condensed(self.N, N_DX, N_U)
         self._no_plan = np.zeros((self.N, 3))
-        self._no_face = np.zeros((self.N, 3))
         # per-step constants of the QP form (radians, rate bound, approach-guidance angles)
         self._rate_w = -1.0 if config.rate_max_deg_s is None else math.radians(config.rate_max_deg_s)
         self._guide = (math.radians(config.corridor_half_angle_deg), config.retreat_fraction,
                        math.radians(config.waypoint_step_deg))
+        self._guide_qp = np.array([1.0 if config.approach_guidance else 0.0, self.waypoint_radius_m, *self._guide])
+        # the QP form's arrays, rewritten in place every step (capture_step_kernel)
+        self._qp = _QpArrays(self.N, N_DX, N_U, self._rate_w >= 0.0)
+        self._A, self._B = np.empty((N_DX, N_DX)), np.empty((N_DX, N_U))
+        self._target, self._ref, self._face_a = np.empty(3), np.empty(self.N * N_DX), np.empty((self.N, 3))
         self.collisions = 0
         self._solver = None
         self._solver_form = None
@@ -690,10 +717,10 @@ class CaptureMPC:
         predicted dx (N, 12), kappa, iterations, solver_time_s."""
         cfg, N, dt = self.config, self.N, self.dt
         x = np.asarray(x_rel, float)
-        dx0 = reduced_capture_state(x)
         far = cfg.decouple_beyond_m is not None and _norm(x[S_RHO]) > cfg.decouple_beyond_m
         if cfg.face_form == "qp":
-            return self._solve_qp(x, dx0, far)
+            return self._solve_qp(x, far)
+        dx0 = reduced_capture_state(x)
         Ad, Bd, kappa, _, _ = self.model(x[S_P], x[S_OMC], x[S_Q], decouple=far)
         Phi, G = self._cond.build(Ad, Bd)
         Qd, Rd, Qf = capture_weights(cfg, self.collisions)
@@ -721,39 +748,39 @@ class CaptureMPC:
             self._weight_cache[key] = (W, np.tile(dt * Rd, N))
         return self._weight_cache[key]
 
-    def _solve_qp(self, x, dx0, far: bool) -> dict:
-        """The QP form (DAQP): the whole QP built by one numba call (hybrid_kernels.condensed_qp):
-        stage weights, the rank-one face terms of stages k = 1..N-1, the input box and the soft
-        rate rows."""
-        cfg, N, dt = self.config, self.N, self.dt
-        A, B, kappa = self.continuous_model(x[S_P], x[S_OMC], x[S_Q], decouple=far)
+    def _solve_qp(self, x, far: bool) -> dict:
+        """The QP form (DAQP): the whole QP built in place by one numba call
+        (hybrid_kernels.capture_step_kernel): the model, stage weights, the rank-one face terms of
+        stages k = 1..N-1 (at the last plan shifted by one step; the measured rho without one), the
+        input box and the soft rate rows."""
+        cfg, N, dt, qp = self.config, self.N, self.dt, self._qp
+        tape = self.linearization._tape
+        if not tape.ok:  # the numpy model into the kernel's model arrays
+            self._A[:], self._B[:], qp.kappa[:] = self._continuous_model_numpy(x[S_P], x[S_OMC], x[S_Q], far)
         W, r_blk = self._weights()
-        self.target_rho = self.approach_target(x[S_RHO]) if cfg.approach_guidance else np.zeros(3)
-        ref = np.zeros((N, N_DX))
-        ref[:, 0:3] = self.target_rho
-        lb, ub = box_bounds(self.u_max, kappa, N)
-        if cfg.face_weight > 0.0:  # rows at the last plan shifted by one step (the measured rho without one)
-            has_plan = self._plan_rho is not None
-            face_a = shifted_face_rows(self._plan_rho if has_plan else self._no_plan, dx0[0:3], has_plan, self.v, N)
-        else:
-            face_a = self._no_face
+        has_plan = self._plan_rho is not None
         rate_w = self._rate_w
-        H, f, G, free, Ar, bl, bu = condensed_qp(A, B, dt, N, dx0, W, r_blk, ref.reshape(-1), face_a,
-                                                 dt * cfg.face_weight, 6, rate_w)
+        capture_step_kernel(x, tape.code, tape.a, tape.b, tape.o, tape.c, tape.n_work, tape.n_out, tape.ok,
+                            float(self.params.mass_deputy_kg), far, bool(cfg.thrust_at_current_attitude),
+                            bool(cfg.kinematics_at_current_attitude), self._guide_qp, self.params.P_c, self.v,
+                            self._plan_rho if has_plan else self._no_plan, has_plan, cfg.face_weight > 0.0,
+                            dt * cfg.face_weight, rate_w, self.u_max, dt, N, W, r_blk, self._A, self._B, qp.kappa,
+                            qp.dx0, self._target, self._ref, self._face_a, qp.H, qp.f, qp.G, qp.free, qp.A_rate,
+                            qp.bl, qp.bu, qp.lb, qp.ub)
+        self.target_rho = self._target.copy()
         if self._solver is not None and self._solver_form != "qp":
             self._solver = None
         self._solver_form = "qp"
-        rows = (Ar, bl, bu) if rate_w >= 0.0 else (None, None, None)
-        self._solver, res, out = _solve_box_qp(self._solver, cfg.solver, H, f, lb, ub, cfg.max_iter, kappa, *rows,
-                                               trusted=rate_w != 0.0)
+        self._solver, res, out = qp.solve(self._solver, cfg.solver, cfg.max_iter, rate_w)
         if res.x is None or not res.ok:
             self._plan_rho = None
             return out
-        U = np.minimum(np.maximum(res.x, lb), ub)  # np.clip's values (finite x); DAQP keeps the bounds to its tolerance
-        X = free + G @ U
+        # np.clip's values (finite x); DAQP keeps the bounds to its tolerance
+        U = np.minimum(np.maximum(res.x, qp.lb), qp.ub)
+        X = qp.free + qp.G @ U
         self._plan_rho = X.reshape(N, N_DX)[:, 0:3].copy()
         face = dt * face_penalty_sum(X, N_DX, N, self.v, cfg.face_weight)
-        out.update(u=kappa + U[0:6], du=U.reshape(N, 6), dx=X.reshape(N, N_DX), face_penalty=face)
+        out.update(u=out["kappa"] + U[0:6], du=U.reshape(N, 6), dx=X.reshape(N, N_DX), face_penalty=face)
         self.last_plan = out
         return out
 
@@ -849,6 +876,7 @@ class PostCaptureMPC:
         self._model_key = None
         self._solver = None
         self._rate_w = -1.0 if config.rate_max_deg_s is None else math.radians(config.rate_max_deg_s)
+        self._qp = _QpArrays(N, N_DX, N_U, self._rate_w >= 0.0)  # rewritten in place every step (post_step_kernel)
         self.reset(0.0, None)
 
     def reset(self, t0: float, x_rel0) -> None:
@@ -887,22 +915,22 @@ class PostCaptureMPC:
                         plan.get("detail", ""))
 
     def solve(self, x_rel) -> dict:
-        N = self.N
+        """One solve of Problem 3 from ``x_rel``: dict with u (6,), status, du plan (N, 6), predicted dx
+        (N, 12), kappa, iterations, solver_time_s. The QP is built in place by one numba call
+        (hybrid_kernels.post_step_kernel)."""
+        N, qp, cfg = self.N, self._qp, self.config
         x = np.asarray(x_rel, float)
-        dx0 = reduced_post_capture_state(x)
-        A, B, kappa = self.continuous_model(x)
-        rate_w = self._rate_w
-        H, f, G, free, Ar, bl, bu = condensed_qp(A, B, self.dt, N, dx0, self._W, self._r_blk, self._zero_ref,
-                                                 self._zero_face, 0.0, 3, rate_w)  # one numba call (hybrid_kernels)
-        lb, ub = box_bounds(self.u_max, kappa, N)
-        rows = (Ar, bl, bu) if rate_w >= 0.0 else (None, None, None)
-        self._solver, res, out = _solve_box_qp(self._solver, self.config.solver, H, f, lb, ub, self.config.max_iter,
-                                               kappa, *rows, trusted=rate_w != 0.0)
+        G1, G2, _, gyro, arm = self._kappa_pieces
+        post_step_kernel(x, self.A, self.B, G1, G2, gyro, arm, float(self.params.mass_total_kg),
+                         cfg.kinematics_at_current_attitude, cfg.thrust_at_current_attitude, self._rate_w, self.u_max,
+                         self.dt, N, self._W, self._r_blk, self._zero_ref, self._zero_face, qp.kappa, qp.dx0, qp.H,
+                         qp.f, qp.G, qp.free, qp.A_rate, qp.bl, qp.bu, qp.lb, qp.ub)
+        self._solver, res, out = qp.solve(self._solver, cfg.solver, cfg.max_iter, self._rate_w)
         if res.x is None or not res.ok:
             return out
-        U = np.minimum(np.maximum(res.x, lb), ub)  # np.clip's values (finite x)
-        X = free + G @ U
-        out.update(u=kappa + U[0:6], du=U.reshape(N, 6), dx=X.reshape(N, N_DX))
+        U = np.minimum(np.maximum(res.x, qp.lb), qp.ub)  # np.clip's values (finite x)
+        X = qp.free + qp.G @ U
+        out.update(u=out["kappa"] + U[0:6], du=U.reshape(N, 6), dx=X.reshape(N, N_DX))
         self.last_plan = out
         return out
 

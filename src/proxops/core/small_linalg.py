@@ -25,7 +25,9 @@ _THETA13 = 5.371920351148152
 
 @njit(cache=True)
 def expm_pade13(M):
-    """exp(M) (square M): scaling and squaring with the [13/13] Pade approximant (Higham 2005)."""
+    """exp(M) (square M): scaling and squaring with the [13/13] Pade approximant (Higham 2005).
+    The polynomial sums are element loops into a few work arrays, each element summed in the order
+    of the array expressions ``b13 A6 + b11 A4 + b9 A2`` etc. (so the bits of that form)."""
     n = M.shape[0]
     M = np.ascontiguousarray(M)
     norm = 0.0
@@ -39,13 +41,31 @@ def expm_pade13(M):
         sq = int(math.ceil(math.log2(norm / _THETA13)))
     A = M / (2.0 ** sq)
     b = _B13
-    ident = np.eye(n)
     A2 = matmul(A, A)
     A4 = matmul(A2, A2)
     A6 = matmul(A4, A2)
-    U = matmul(A, matmul(A6, b[13] * A6 + b[11] * A4 + b[9] * A2) + b[7] * A6 + b[5] * A4 + b[3] * A2 + b[1] * ident)
-    V = matmul(A6, b[12] * A6 + b[10] * A4 + b[8] * A2) + b[6] * A6 + b[4] * A4 + b[2] * A2 + b[0] * ident
-    R = np.ascontiguousarray(np.linalg.solve(V - U, V + U))
+    T = np.empty((n, n))
+    P = np.empty((n, n))
+    for i in range(n):
+        for j in range(n):
+            T[i, j] = b[13] * A6[i, j] + b[11] * A4[i, j] + b[9] * A2[i, j]
+    matmul_into(A6, T, P)
+    for i in range(n):
+        for j in range(n):
+            e = 1.0 if i == j else 0.0  # the identity's element (b1 * 0 = +0 added off the diagonal, as I does)
+            T[i, j] = P[i, j] + b[7] * A6[i, j] + b[5] * A4[i, j] + b[3] * A2[i, j] + b[1] * e
+    U = matmul(A, T)
+    for i in range(n):
+        for j in range(n):
+            T[i, j] = b[12] * A6[i, j] + b[10] * A4[i, j] + b[8] * A2[i, j]
+    matmul_into(A6, T, P)
+    for i in range(n):
+        for j in range(n):
+            e = 1.0 if i == j else 0.0
+            v = P[i, j] + b[6] * A6[i, j] + b[4] * A4[i, j] + b[2] * A2[i, j] + b[0] * e  # V
+            T[i, j] = v - U[i, j]
+            P[i, j] = v + U[i, j]
+    R = np.ascontiguousarray(np.linalg.solve(T, P))
     for _ in range(sq):
         R = matmul(R, R)
     return R

@@ -71,7 +71,7 @@ from proxops.core.layout import Block, StateLayout, make_control_layout
 from proxops.core.constants import J2_EARTH, MU_EARTH, R_EARTH
 from proxops.core.quaternion import dcm_kernel
 from proxops.core.twobody import accel_differential, accel_j2
-from proxops.dynamics.hybrid_relative import N_REL, relative_from_truth
+from proxops.dynamics.hybrid_relative import N_REL, relative_from_truth_kernel
 from proxops.dynamics.plant import PlantBase, locate_guard
 from proxops.dynamics.two_rigid_bodies import (
     N_TRUTH,
@@ -199,8 +199,13 @@ def gravity_point(r0, r1, r2, fr):
     dx = ex0 * r0 + ey0 * r1 + ez0 * r2
     dy = ex1 * r0 + ey1 * r1 + ez1 * r2
     dz = ex2 * r0 + ey2 * r1 + ez2 * r2
-    ax, ay, az = accel_differential(a0 * ex0, a0 * ex1, a0 * ex2, dx, dy, dz, mu, j2, re)
-    if j2 != 0.0:
+    rx, ry, rz = a0 * ex0, a0 * ex1, a0 * ex2
+    ax, ay, az = accel_differential(rx, ry, rz, dx, dy, dz, mu, 0.0, re)
+    if j2 != 0.0:  # accel_differential's J2 difference, with a_J2(R0) = (bx, by, bz) of the frame (computed once per t)
+        cx, cy, cz = accel_j2(rx + dx, ry + dy, rz + dz, mu, j2, re)
+        ax += cx - bx
+        ay += cy - by
+        az += cz - bz
         ax += bx
         ay += by
         az += bz
@@ -371,37 +376,32 @@ def sat_gap_kernel(x, hc, hd):
     """numba form of :func:`proxops.dynamics.two_rigid_bodies.contact_guard` (the
     separating-axis gap of the two cuboids, m; same 15 axes), with a bounding-sphere early out
     (returns the positive sphere gap when the spheres are apart: same sign, cheaper)."""
-    d = x[6:9] - x[0:3]
-    dist = math.sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2])
+    d0, d1, d2 = x[6] - x[0], x[7] - x[1], x[8] - x[2]
+    dist = math.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
     sphere_gap = dist - math.sqrt(hc[0] ** 2 + hc[1] ** 2 + hc[2] ** 2) - math.sqrt(hd[0] ** 2 + hd[1] ** 2 + hd[2] ** 2)
     if sphere_gap > 0.0:
         return sphere_gap
-    Rc = dcm_kernel(x[12:16])
-    Rd = dcm_kernel(x[19:23])
+    Rc = dcm9(x[12:16])  # row major: R[i, j] = R9[3 i + j] (no heap array: ~40 calls a free-flight step)
+    Rd = dcm9(x[19:23])
     best = -np.inf
-    axes = np.empty((15, 3))
-    valid = np.ones(15, dtype=np.bool_)
-    for i in range(3):
-        axes[i] = Rc[:, i]
-        axes[3 + i] = Rd[:, i]
-    for i in range(3):
-        for j in range(3):
-            a = np.array([Rc[1, i] * Rd[2, j] - Rc[2, i] * Rd[1, j], Rc[2, i] * Rd[0, j] - Rc[0, i] * Rd[2, j],
-                          Rc[0, i] * Rd[1, j] - Rc[1, i] * Rd[0, j]])
-            na = math.sqrt(a[0] * a[0] + a[1] * a[1] + a[2] * a[2])
-            k = 6 + 3 * i + j
-            if na > 1e-9:
-                axes[k] = a / na
-            else:
-                valid[k] = False
-    for k in range(15):
-        if not valid[k]:
-            continue
-        a = axes[k]
-        gap = abs(d[0] * a[0] + d[1] * a[1] + d[2] * a[2])
+    for k in range(15):  # face normals of the chief (columns of Rc), of the deputy, then their cross products
+        if k < 3:
+            a0, a1, a2 = Rc[k], Rc[3 + k], Rc[6 + k]
+        elif k < 6:
+            a0, a1, a2 = Rd[k - 3], Rd[k], Rd[k + 3]
+        else:
+            i, j = (k - 6) // 3, (k - 6) % 3
+            a0 = Rc[3 + i] * Rd[6 + j] - Rc[6 + i] * Rd[3 + j]
+            a1 = Rc[6 + i] * Rd[j] - Rc[i] * Rd[6 + j]
+            a2 = Rc[i] * Rd[3 + j] - Rc[3 + i] * Rd[j]
+            na = math.sqrt(a0 * a0 + a1 * a1 + a2 * a2)
+            if not na > 1e-9:
+                continue
+            a0, a1, a2 = a0 / na, a1 / na, a2 / na
+        gap = abs(d0 * a0 + d1 * a1 + d2 * a2)
         for m in range(3):
-            gap -= (abs(Rc[0, m] * a[0] + Rc[1, m] * a[1] + Rc[2, m] * a[2]) * hc[m]
-                    + abs(Rd[0, m] * a[0] + Rd[1, m] * a[1] + Rd[2, m] * a[2]) * hd[m])
+            gap -= (abs(Rc[m] * a0 + Rc[3 + m] * a1 + Rc[6 + m] * a2) * hc[m]
+                    + abs(Rd[m] * a0 + Rd[3 + m] * a1 + Rd[6 + m] * a2) * hd[m])
         if gap > best:
             best = gap
     return best
@@ -508,6 +508,7 @@ class HybridCapturePlant(PlantBase):
                                STOP_C_NS_PER_M])
         env = self.envelope
         self._env = np.array([env.position_m, env.velocity_mps, env.rate_rad_s, env.angle_rad])
+        self._rel_args = (p.P_c, p.P_d, float(p.mass_chief_kg), float(p.mass_deputy_kg), float(p.mean_motion_rad_s))
         self._args = (p.mass_chief_kg, p.mass_deputy_kg, p.J_c, p.J_c_inv, p.J_d, p.J_d_inv, p.mean_motion_rad_s,
                       p.P_c, p.P_d, float(p.latch_KT), float(p.latch_DT), float(p.latch_KR), float(p.latch_DR))
 
@@ -518,7 +519,7 @@ class HybridCapturePlant(PlantBase):
     def relative_state(self, state: np.ndarray) -> np.ndarray:
         y = np.asarray(state, dtype=float)
         out = np.empty(N_MEASURED)
-        out[:N_REL] = relative_from_truth(y[:N_TRUTH], self.params, y[I_REF])
+        relative_from_truth_kernel(y, y[I_REF], out, *self._rel_args)  # relative_from_truth into out[:N_REL]
         out[M_CONTACTS] = y[I_CONTACTS]
         out[M_LATCHED] = y[I_LATCHED]
         return out
@@ -582,9 +583,9 @@ class HybridCapturePlant(PlantBase):
             if self.snap_enabled and y[I_SNAPPED] < 0.5 and t_snap > t_now - 1e-12:  # stop before the snap substep
                 n_fast = int((t_snap - t_now) / h) - 1  # (the Python path checks the last ones)
             if n_fast > 0:  # plain substeps in one numba call (advance_kernel); only events come back here
-                done, code = advance_kernel(y, u, t, done, dt, h, n_fast, y[I_LATCHED] > 0.5, y[I_ARMED_FROM],
-                                            self._env, self._grav, self._stop, self._corners, self._hc, self._hd,
-                                            *self._args)
+                done, code = advance_kernel(y, u, t, done, dt, h, n_fast, bool(y[I_LATCHED] > 0.5),
+                                            float(y[I_ARMED_FROM]), self._env, self._grav, self._stop, self._corners,
+                                            self._hc, self._hd, *self._args)
                 if code == 2:
                     y[I_LATCHED] = 1.0
                     events.append((t + done, "latch", "free -> latched"))

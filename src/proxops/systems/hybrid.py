@@ -129,11 +129,13 @@ class Divergence:
         return cls(rng, math.radians(s.divergence_rate_deg_s), math.radians(wc))
 
     def __call__(self, t: float, x) -> str | None:
-        r, w, wc = (_norm3(x[a:b]) for a, b in ((0, 3), (6, 9), (17, 20)))
+        r = _norm3(x[0:3])
         if r > self.range_m:
             return f"diverged: port range {r:.3g} m > {self.range_m:.3g} m"
+        w = _norm3(x[6:9])
         if w > self.rate_rad_s:
             return f"diverged: relative rate {math.degrees(w):.3g} deg/s > {math.degrees(self.rate_rad_s):.3g} deg/s"
+        wc = _norm3(x[17:20])
         if wc > self.chief_rate_rad_s:
             return (f"diverged: chief tumble {math.degrees(wc):.3g} deg/s > "
                     f"{math.degrees(self.chief_rate_rad_s):.3g} deg/s")
