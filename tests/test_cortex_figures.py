@@ -36,7 +36,7 @@ def test_fig11_draws_every_plan_in_its_panel_with_the_colour_cycle(tmp_path, mon
         x = rng.uniform(-30.0, 30.0, size=(k + 6, 3))
         plans.append(SimpleNamespace(x_true=x, mode=["hold1"] + ["flyaround"] * (k - 1) + ["approach"] * 6))
     figs = []
-    monkeypatch.setattr(cortex_figures, "save", lambda fig, path: figs.append(fig) or path)
+    monkeypatch.setattr(cortex_figures, "save", lambda fig, path, tight=True: figs.append(fig) or path)
     cortex_figures.fig11_trajectories(sc, plans, tmp_path / "f.png")
     ax1, ax2 = figs[0].axes
     cycle = cortex_figures.plt.rcParams["axes.prop_cycle"].by_key()["color"]
@@ -66,7 +66,7 @@ def test_fig12_histograms_hold_the_counts_of_the_successful_plans(tmp_path, monk
                           "metric.plan_wall_time_s": rng.uniform(0.02, 0.1, n),
                           "metric.tof_s": rng.uniform(600.0, 900.0, n), "metric.dv_total_mps": rng.uniform(0.3, 0.9, n)})
     figs = []
-    monkeypatch.setattr(cortex_figures, "save", lambda fig, path: figs.append(fig) or path)
+    monkeypatch.setattr(cortex_figures, "save", lambda fig, path, tight=True: figs.append(fig) or path)
     cortex_figures.fig12_histograms(table, tmp_path / "f.png", {"tof_median_min": 12.07, "dv_median_mps": 0.6579,
                                                                 "compute_median_s": 30.9})
     ok = table[table["success"]]
@@ -81,3 +81,35 @@ def test_fig12_histograms_hold_the_counts_of_the_successful_plans(tmp_path, monk
             assert k == 0 or outline.contains_point((c, k - 0.05))
         assert centres.min() > ax.get_xlim()[0] and centres.max() < ax.get_xlim()[1]
     cortex_figures.plt.close(figs[0])
+
+
+def test_figs_11_and_12_keep_every_label_inside_the_canvas(tmp_path, monkeypatch):
+    # Figs. 11-12 are saved with fixed margins (no tight crop, which draws each figure twice): everything the
+    # Agg renderer draws lies inside the figure, for 100 plans
+    from types import SimpleNamespace
+
+    import numpy as np
+    import pandas as pd
+
+    sc = api.load_scenario("cortex-reference").scenario
+    rng = np.random.default_rng(7)
+    plans = [SimpleNamespace(x_true=rng.uniform(-40.0, 25.0, size=(12, 3)), mode=["flyaround"] * 6 + ["approach"] * 6)
+             for _ in range(100)]
+    table = pd.DataFrame({"success": [True] * 100, "metric.plan_wall_time_s": rng.uniform(0.02, 0.12, 100),
+                          "metric.tof_s": rng.uniform(600.0, 820.0, 100), "metric.dv_total_mps": rng.uniform(0.3, 1.1, 100)})
+    figs = []
+    monkeypatch.setattr(cortex_figures, "save", lambda fig, path, tight=True: figs.append((fig, tight)) or path)
+    cortex_figures.fig11_trajectories(sc, plans, tmp_path / "a.png")
+    cortex_figures.fig12_histograms(table, tmp_path / "b.png", {"tof_median_min": 12.07, "dv_median_mps": 0.6579,
+                                                                 "compute_median_s": 30.9})
+    for fig, tight in figs:
+        assert tight is False
+        fig.canvas.draw()
+        # what the tight crop would keep: the bounding box of every drawn artist (titles, labels, the tick
+        # labels drawn, legends), in inches; inside the canvas means nothing is cut off
+        box = fig.get_tightbbox(fig.canvas.get_renderer())
+        width, height = fig.get_size_inches()
+        assert box.x0 >= -0.01 and box.y0 >= -0.01 and box.x1 <= width + 0.01 and box.y1 <= height + 0.01, box
+        # and the margins are not wasteful: the drawn artists span most of the canvas
+        assert box.width > 0.85 * width and box.height > 0.8 * height, box
+        cortex_figures.plt.close(fig)

@@ -14,9 +14,10 @@ import pytest
 
 from proxops.core.constants import KARMAN_LINE_KM
 from proxops.environment.earth import WGS84_A, geodetic_height, geodetic_to_ecef
-from proxops.errors import PlantEnded
+from proxops.errors import PlantEnded, ProxopsInputError
 from proxops.frames.elements import circular_orbit
 from proxops.propagation import kernels_full as kf
+from proxops.propagation.kernels import apply_hill_impulse
 from proxops.propagation.composed import DECAYING_ALTITUDE_KM, REENTRY_SCREEN, ComposedTruth, ForceModels
 
 ORBIT = circular_orbit(altitude=500e3, inc=math.radians(98.0), raan=0.1, arg_lat=0.2)
@@ -101,3 +102,32 @@ def test_reentry_below_the_karman_line_still_ends_the_run():
         truth._end_if_reentering(0.0, y, KARMAN_LINE_KM)
     y[:3] = geodetic_to_ecef(math.radians(45.0), 0.3, 1e3 * (KARMAN_LINE_KM + 1.0))
     truth._end_if_reentering(0.0, y, KARMAN_LINE_KM)  # 1 km above: no stop (the chaser is 40 m away)
+
+
+@pytest.mark.parametrize("dt", [2.0, 250.0])
+def test_one_call_propagation_is_the_grid_integration_bit_for_bit(dt):
+    """propagate's one kernel call (impulse applied on the 13-state first) gives the numbers of the plain
+    path: the 12-state impulse kernel, then _integrate on the grid [t, t + dt] (integrate_full)."""
+    truth = _truth()
+    state = truth.initial_state()
+    rng = np.random.default_rng(5)
+    for k in range(6):
+        dv = 1e-3 * rng.standard_normal(3)
+        kicked = truth.apply_impulse(k * dt, state, dv)
+        plain = apply_hill_impulse(state[:12].copy(), dv)
+        assert np.array_equal(kicked[:12], plain) and kicked[12] == state[12]
+        state = truth.propagate(k * dt, kicked, np.zeros(3), dt)
+        expect = truth._integrate(plain, np.array([k * dt, k * dt + dt]), np.zeros(3))[-1]
+        assert np.array_equal(state[:12], expect) and state[12] == k * dt + dt
+
+
+def test_time_range_is_checked_past_the_last_checked_time():
+    """Without drag the ephemeris' range is checked once per new end time: a propagation that ends past
+    2099-12-31 still fails after shorter ones passed (the range kept is only the times checked)."""
+    truth = ComposedTruth(ORBIT, X0, ForceModels(epoch="2099-12-31T12:00:00Z", gravity="harmonics", degree=4,
+                                                 order=4))  # fmt: skip
+    state = truth.propagate(0.0, truth.initial_state(), None, 2.0)
+    state = truth.propagate(2.0, state, None, 2.0)  # inside the range checked before: no new check needed
+    assert state[12] == 4.0
+    with pytest.raises(ProxopsInputError, match="supported range"):
+        truth.propagate(4.0, state, None, 12 * 3600.0)  # ends 2100-01-01T00:00:04

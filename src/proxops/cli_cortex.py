@@ -13,8 +13,10 @@ and prints median/IQR of delta-v, TOF and compute time next to §5.1.1.
 
 from __future__ import annotations
 
+import importlib
 import json
 import math
+import threading
 import time
 from pathlib import Path
 from typing import Annotated, Optional
@@ -27,6 +29,8 @@ from proxops.exec.backends import MAX_WORKERS
 from proxops.scenarios.loader import load_scenario
 from proxops.systems.cortex import (PAPER_5_1_1, campaign_statistics, plan_scenario, references_scenario,
                                     statistics_table)
+
+FIGURES_MODULE = "proxops.plotting.cortex"  # Figs. 11-12 of `references` (matplotlib)
 
 cortex_app = typer.Typer(help="CORTEX convex reference generation (fly-around + final approach, eclipse holds).",
                          no_args_is_help=True, rich_markup_mode=None)
@@ -113,6 +117,14 @@ def format_plan(s: dict) -> str:
     return "\n".join(lines)
 
 
+def _import_quietly(module: str) -> None:
+    """Import ``module`` now (a thread's head start); a failure is left to the import that needs it."""
+    try:
+        importlib.import_module(module)
+    except Exception:  # noqa: BLE001 - reported where the figures are drawn
+        pass
+
+
 @cortex_app.command("references")
 @friendly_errors
 def references(
@@ -136,6 +148,9 @@ def references(
     prestart(scenario, n, workers, list(set_))  # warm-up) while this process imports the campaign engine
     # the campaign engine (pandas, pyarrow): this command's, not `cortex reference`'s
     from proxops.analysis.campaign import _campaign_system, load_campaign, run_campaign  # noqa: PLC2701
+    draw = out is not None and figures
+    if draw:  # matplotlib (0.45-0.6 s) imported while the workers plan, not after them
+        threading.Thread(target=_import_quietly, args=(FIGURES_MODULE,), daemon=True).start()
     t0 = time.perf_counter()
     # Fig. 11 is drawn from the plans' node positions in the rows (metric.trace.*): no series saved
     res = run_campaign(data, workers=workers, out=out, resume=resume, progress=not as_json, overrides=list(set_))
@@ -145,8 +160,8 @@ def references(
     st["workers"] = workers
     st["paper"] = PAPER_5_1_1
     files = []
-    if out is not None and figures:
-        from proxops.plotting.cortex import references_figures  # matplotlib: only with figures
+    if draw:
+        from proxops.plotting.cortex import references_figures  # (waits for the import above to finish)
 
         camp = load_campaign(out)
         files = [str(p) for p in references_figures(camp, _campaign_system(camp.manifest).scenario, PAPER_5_1_1, Path(out))]

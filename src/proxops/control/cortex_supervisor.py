@@ -168,9 +168,9 @@ class CortexSupervisor:
                 return self._trigger(t, x_est, ("recompute", f"CP_g {status}"), events, solve_time, status)
             self.queue = list(dv)
         dv = self.queue[0]
-        r_true = x_true[:3]
+        r_true = x_true[:3].tolist()  # 3-vectors as floats once (the triggers and the error use them)
         tl = self.timeline  # the reference at t: seg is tl.segment(t) (= tl.state(t), one segment search)
-        r_ref = seg.state(tl.n, min(t, tl.t_end))[:3]
+        r_ref = seg.state(tl.n, min(t, tl.t_end))[:3].tolist()
         if self.mode != "retreat":
             if self.suspended:
                 self._rearm(r_true)
@@ -181,7 +181,7 @@ class CortexSupervisor:
             if trig is not None:
                 return self._trigger(t, x_est, trig, events, solve_time, status)
         self.queue.pop(0)
-        (ax, ay, az), (bx, by, bz) = r_true.tolist(), r_ref.tolist()
+        (ax, ay, az), (bx, by, bz) = r_true, r_ref
         err = math.sqrt((ax - bx) ** 2 + (ay - by) ** 2 + (az - bz) ** 2)
         return Command(u=np.array(dv), kind="impulse", status=status, solve_time_s=solve_time, mode=self.mode,
                        events=events, info={"track_err_m": err, "phase": PHASE_INDEX[self.mode]})

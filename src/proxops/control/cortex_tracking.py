@@ -272,8 +272,9 @@ class TrackingSOCP:
         phi = self.phi
         x = np.empty((self.n_sub + 1, 6))
         x[0] = x_k
+        xj = np.empty(6)  # x_j + [0; dv_j]
         for j in range(self.n_sub):
-            xj = x[j].copy()
+            xj[:] = x[j]
             xj[3:] += dv[j]
-            x[j + 1] = phi @ xj
+            np.matmul(phi, xj, out=x[j + 1])
         return x

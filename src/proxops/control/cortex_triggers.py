@@ -113,7 +113,10 @@ class CortexTriggers:
 
 
 def _floats(a) -> list:
-    """A 3-vector as Python floats (one conversion, then scalar math at a fraction of numpy's call cost)."""
+    """A 3-vector as Python floats (one conversion, then scalar math at a fraction of numpy's call cost); a
+    list is taken as floats already (``ndarray.tolist()``'s)."""
+    if a.__class__ is list:
+        return a[:3]
     return a.tolist()[:3] if isinstance(a, np.ndarray) else [float(v) for v in a[:3]]
 
 

@@ -20,7 +20,7 @@ import math
 import os
 from typing import Sequence
 
-from proxops.exec.backends import START_METHOD, default_workers, prestart_pool
+from proxops.exec.backends import MAX_WORKERS, START_METHOD, default_workers, prestart_pool
 from proxops.scenarios.catalog import read_toml, resolve  # tomllib only
 from proxops.scenarios.registry import SYSTEM_MODULES  # importlib only: no system is imported
 
@@ -71,11 +71,13 @@ def reach_overrides(duration_s: float) -> list[str]:
 
 
 def prestart_from_argv(argv: Sequence[str]) -> None:
-    """:func:`prestart` for ``proxops [--debug] mc SCENARIO [options]`` or ``proxops reach mc [options]``
-    when ``argv`` (without the program name) reads unambiguously as that with valid numbers, no
+    """:func:`prestart` for ``proxops [--debug] mc SCENARIO [options]``, ``proxops reach mc [options]`` or
+    ``proxops cortex references [options]`` when ``argv`` (without the program name) reads unambiguously as that with valid numbers, no
     ``--scheduler`` (and for reach no ``--resume``); otherwise nothing."""
     argv = _without_global_options(list(argv))
-    parsed = _read_mc_argv(argv) if argv[:1] == ["mc"] else _read_reach_mc_argv(argv)
+    readers = {"mc": _read_mc_argv, "reach": _read_reach_mc_argv, "cortex": _read_cortex_references_argv}
+    reader = readers.get(argv[0]) if argv else None
+    parsed = reader(argv) if reader is not None else None
     if parsed is None:
         return
     try:
@@ -139,6 +141,46 @@ def _read_reach_mc_argv(argv: list[str]):
     n_runs = (len(values["omegas"] or REACH_OMEGAS_DEG_S) * len(values["amaxs"] or REACH_A_MAX_MPS2)
               * values["n_x"] * values["n_y"])
     return REACH_SCENARIO, n_runs, values["workers"], reach_overrides(values["duration"])
+
+
+CORTEX_REFERENCES_SCENARIO = "cortex-reference"  # = the default --scenario of `proxops cortex references`
+CORTEX_REFERENCES_N = 100  # = its default --n
+MAX_FIBONACCI_N = 1_000_000  # = proxops.systems.schema.cortex.MAX_FIBONACCI_N (that module imports pydantic)
+
+
+def _read_cortex_references_argv(argv: list[str]):
+    """(scenario, n, workers, overrides) of ``cortex references [options]`` (the arguments
+    :func:`proxops.cli_cortex.references` starts the pool with) or None when in any doubt."""
+    if argv[:2] != ["cortex", "references"]:
+        return None
+    values: dict = {"--n": CORTEX_REFERENCES_N, "--workers": None, "--scenario": CORTEX_REFERENCES_SCENARIO, "--set": []}
+    rest = argv[2:]
+    k = 0
+    while k < len(rest):
+        name, eq, value = rest[k].partition("=")
+        k += 1
+        if name in ("--resume", "--figures", "--no-figures", "--json") and not eq:
+            continue
+        if name not in values and name != "--out":
+            return None  # --help, a positional, a typo: the command decides
+        if not eq:
+            if k >= len(rest):
+                return None
+            value = rest[k]
+            k += 1
+        if name in ("--n", "--workers"):
+            try:
+                number = int(value)
+            except ValueError:
+                return None
+            if not 1 <= number <= (MAX_WORKERS if name == "--workers" else MAX_FIBONACCI_N):
+                return None
+            values[name] = number
+        elif name == "--set":
+            values["--set"].append(value)
+        elif name == "--scenario":
+            values["--scenario"] = value
+    return values["--scenario"], values["--n"], values["--workers"], values["--set"]
 
 
 def _read_mc_argv(argv: list[str]):

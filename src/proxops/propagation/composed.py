@@ -205,7 +205,8 @@ class ComposedTruth(PlantBase):
         if models.drag:
             self._ensure_table(float(horizon_s))
         self._zero_u = np.zeros(3)
-        self._hill_ready = False
+        self._time_ok = (math.inf, -math.inf)  # [first, last] time (s) check_time_range passed (without drag)
+        self._karman_screen2 = ((WGS84_A + 1e3 * KARMAN_LINE_KM) / (1.0 - REENTRY_SCREEN)) ** 2  # m^2
         self._hill_of = None  # (state, its Hill state) of the last propagate (relative_state hands it out once)
         chaser = np.ascontiguousarray(chaser_hill, dtype=float)
         if chaser.shape != (6,) or not np.all(np.isfinite(chaser)):
@@ -252,9 +253,10 @@ class ComposedTruth(PlantBase):
         p[kf.I_SAFETY] = kf.SAFETY_HARMONICS if m.gravity == "harmonics" else kf.SAFETY
         self.p = p
         self.npm = np.ascontiguousarray(self.rotation.npm)
+        self._model_arrays = (self.npm, self._C, self._S, self._K, self._V, self._W)
 
     def _arrays(self):
-        return self.npm, self._C, self._S, self._K, self._V, self._W
+        return self._model_arrays
 
     def _ensure_table(self, t_end: float) -> None:
         """Density table along the target's predicted path (drag off) over [0, t_end + margin]
@@ -285,26 +287,38 @@ class ComposedTruth(PlantBase):
         return kf.hill_from_y_full(s[12], s[:12].copy(), self.p, *self._arrays(), self._dens)
 
     def propagate(self, t: float, state: np.ndarray, u: np.ndarray | None, dt: float) -> np.ndarray:
-        """State after ``dt`` s with Hill acceleration ``u`` (m/s^2) held constant."""
+        """State after ``dt`` s with Hill acceleration ``u`` (m/s^2) held constant. On the DOP853 path
+        one kernel call (:func:`proxops.propagation.kernels_full.propagate_full_hill`: the same numbers
+        as :meth:`_integrate` on the grid [t, t + dt])."""
         dt = float(dt)
         if not (dt >= 0.0 and math.isfinite(dt)):
             raise input_error("dt", dt, "must be finite and >= 0", "s")
         s = np.ascontiguousarray(state, dtype=float)
         uu = self._zero_u if u is None else np.ascontiguousarray(u, dtype=float)
         t0 = float(s[12])
-        out = np.empty(13)  # (np.append's numbers, without its concatenate)
+        self._hill_of = None
+        if self.integrator == "reference" or self.uses_multistep(dt):
+            out = np.empty(13)  # (np.append's numbers, without its concatenate)
+            out[:12] = self._integrate(s[:12].copy(), np.array([t0, t0 + dt]), uu)[-1]
+            out[12] = t0 + dt
+            return out
+        self._check_span(t0 + dt)
+        out = np.empty(13)
         hill = np.empty(6)
-        out[:12] = self._integrate(s[:12].copy(), np.array([t0, t0 + dt]), uu, hill)[-1]
-        out[12] = t0 + dt
-        self._hill_of = (out, hill) if self._hill_ready else None
+        status, r_min2 = kf.propagate_full_hill(s, uu, dt, self.p, *self._model_arrays, self._dens, self.rtol,
+                                                self.atol, out, hill)  # fmt: skip
+        if status != kernels.STATUS_OK:
+            self._end_if_reentering(t0, s[:12], DECAYING_ALTITUDE_KM)
+            raise ProxopsError(f"truth propagation failed (status {status})")
+        if r_min2 <= self._karman_screen2:
+            self._end_if_reentering(t0 + dt, out, KARMAN_LINE_KM)
+        self._hill_of = (out, hill)
         return out
 
     def apply_impulse(self, t: float, state: np.ndarray, dv: np.ndarray) -> np.ndarray:
-        s = np.ascontiguousarray(state, dtype=float)
-        out = np.empty(13)
-        out[:12] = kernels.apply_hill_impulse(s[:12], np.ascontiguousarray(dv, dtype=float))  # (the kernel copies)
-        out[12] = s[12]
-        return out
+        """Copy of the 13-state with a Hill-axes velocity change ``dv`` (m/s) added to the chaser (the
+        kernel reads the target's 6 entries and copies the rest, the time included)."""
+        return kernels.apply_hill_impulse(np.ascontiguousarray(state, dtype=float), np.ascontiguousarray(dv, dtype=float))
 
     def free_drift(self, state: np.ndarray, times: np.ndarray) -> np.ndarray:
         """Uncontrolled Hill states (len(times), 6) at ``times`` (s after now, increasing, >= 0)."""
@@ -317,16 +331,20 @@ class ComposedTruth(PlantBase):
         rel = np.array([kf.hill_from_y_full(tk, yk, self.p, *self._arrays(), self._dens) for tk, yk in zip(grid, ys)])
         return rel if times[0] == 0.0 else rel[1:]
 
-    def _integrate(self, y0: np.ndarray, grid: np.ndarray, u: np.ndarray, hill: np.ndarray | None = None) -> np.ndarray:
-        """States (len(grid), 12) at the absolute times ``grid``; with ``hill`` (6,) on the DOP853 path
-        also the Hill state of the last one (``self._hill_ready`` says whether it was written)."""
-        self._hill_ready = False
+    def _check_span(self, t_end: float) -> None:
+        """The density table (drag) or the ephemeris' time range (otherwise) covers [0, t_end] (s); the
+        range already checked is kept (the check is monotone in t_end)."""
         if self.models.drag:
-            self._ensure_table(float(grid[-1]))
-        else:
-            check_time_range(self.epoch, float(grid[-1]), "duration")
+            self._ensure_table(t_end)
+        elif not (self._time_ok[0] <= t_end <= self._time_ok[1]):
+            check_time_range(self.epoch, t_end, "duration")
+            self._time_ok = (min(self._time_ok[0], t_end), max(self._time_ok[1], t_end))
+
+    def _integrate(self, y0: np.ndarray, grid: np.ndarray, u: np.ndarray) -> np.ndarray:
+        """States (len(grid), 12) at the absolute times ``grid``."""
+        self._check_span(float(grid[-1]))
         if self.integrator != "reference":
-            status, out = self._integrate_numba(y0, grid, u, self.p, hill)
+            status, out = self._integrate_numba(y0, grid, u, self.p)
             if status != kernels.STATUS_OK:
                 self._end_if_reentering(float(grid[0]), y0, DECAYING_ALTITUDE_KM)
                 raise ProxopsError(f"truth propagation failed (status {status})")
@@ -361,18 +379,13 @@ class ComposedTruth(PlantBase):
         return (self.integrator == "fast" and self.models.gravity == "harmonics" and not self.models.srp
                 and span_s >= km.MIN_STEPS * self.order * self.step_s)  # fmt: skip
 
-    def _integrate_numba(self, y0: np.ndarray, grid: np.ndarray, u: np.ndarray, p: np.ndarray,
-                         hill: np.ndarray | None = None):
-        """(status, states (len(grid), 12)) from the numba DOP853 or multistep kernel; on the DOP853 path
-        with ``hill`` given, the Hill state of the last state in it (one call, see integrate_full_hill)."""
+    def _integrate_numba(self, y0: np.ndarray, grid: np.ndarray, u: np.ndarray, p: np.ndarray):
+        """(status, states (len(grid), 12)) from the numba DOP853 or multistep kernel."""
         out = np.empty((grid.size, 12))
         if self.uses_multistep(float(grid[-1] - grid[0])):
             split = p[kf.I_GRAV] == 2.0
             status, *_ = km.integrate_multistep(y0, grid, u, p, *self._arrays(), self._dens, self.step_s,
                                                   *self.adams, split, self.rtol, self.atol, out)  # fmt: skip
-        elif hill is not None:
-            status = kf.integrate_full_hill(y0, grid, u, p, *self._arrays(), self._dens, self.rtol, self.atol, out, hill)
-            self._hill_ready = status == kernels.STATUS_OK
         else:
             status, _, _ = kf.integrate_full(y0, grid, u, p, *self._arrays(), self._dens, self.rtol, self.atol, out)
         return status, out

@@ -583,6 +583,26 @@ def integrate_full_hill(y0, times, u, p, npm, C, S, K, V, W, dens, rtol, atol, o
 
 
 @njit(cache=True)
+def propagate_full_hill(s, u, dt, p, npm, C, S, K, V, W, dens, rtol, atol, out, hill) -> tuple:
+    """One propagation of the full 13-state ``s`` = [y (12,), t (s)] over ``dt`` s in one call:
+    :func:`integrate_full_hill` on the grid [t, t + dt], the state after it into ``out`` (13,) with
+    its time t + dt, its Hill state into ``hill`` (6,). Returns (status, the smaller squared distance
+    of target and chaser from the Earth's centre at the end (m^2), for the re-entry screen)."""
+    t0 = s[12]
+    times = np.empty(2)
+    times[0] = t0
+    times[1] = t0 + dt
+    ys = np.empty((2, 12))
+    status = integrate_full_hill(s[:12].copy(), times, u, p, npm, C, S, K, V, W, dens, rtol, atol, ys, hill)
+    for i in range(12):
+        out[i] = ys[1, i]
+    out[12] = times[1]
+    tx, ty, tz = out[0], out[1], out[2]
+    cx, cy, cz = tx + out[6], ty + out[7], tz + out[8]
+    return status, min(tx * tx + ty * ty + tz * tz, cx * cx + cy * cy + cz * cz)
+
+
+@njit(cache=True)
 def integrate_full_crossings(y0, times, u, p, npm, C, S, K, V, W, dens, rtol, atol, out, crossings, f_end) -> tuple:
     """:func:`integrate_full` that also stores the times (s) of the first ``crossings.size``
     shadow crossings it restarted at; returns (status, n_steps, n_rejected, n_crossings). With

@@ -45,7 +45,7 @@ class Segment:
         impulse of node k when node k+1 has none. Zero in holds."""
         if self.x_hold is not None:
             return np.zeros(3)
-        k = min(max(0, int(np.searchsorted(self.t, t + 1e-9, side="right")) - 1), len(self.t) - 2)
+        k = min(max(0, bisect_right(self._t, t + 1e-9) - 1), len(self._t) - 2)  # (np.searchsorted's index)
         d = np.array(self.dv[k + 1], float)
         if float(np.linalg.norm(d)) < 1e-9:
             d = np.array(self.dv[k], float)
@@ -74,10 +74,7 @@ class Timeline:
     def __init__(self, n_rad_s: float, segments: list[Segment]):
         self.n = n_rad_s
         self.segments = [s for s in segments if s.t1 > s.t0 + 1e-9]
-
-    @property
-    def t_end(self) -> float:
-        return self.segments[-1].t1
+        self.t_end = self.segments[-1].t1  # (s; the segments are not changed after construction)
 
     def segment(self, t: float) -> Segment:
         for s in self.segments:
