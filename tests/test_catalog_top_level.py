@@ -10,7 +10,7 @@ import tomllib
 import pytest
 
 from proxops.errors import ProxopsInputError
-from proxops.scenarios.catalog import BUILTIN_DIR, list_builtin, read_top_level
+from proxops.scenarios.catalog import BUILTIN_DIR, builtin_heads, list_builtin, read_top_level
 
 
 def _top_level(data: dict) -> dict:
@@ -24,8 +24,17 @@ def test_every_builtin_head_is_the_whole_files_top_level():
     for path in paths:
         whole = tomllib.loads(path.read_text(encoding="utf-8"))
         assert _top_level(read_top_level(path)) == _top_level(whole), path.name
-    assert [i["name"] for i in list_builtin()] == [p.stem for p in paths]
-    assert all(i["system"] and i["description"] for i in list_builtin())
+    assert [i["name"] for i in builtin_heads()] == [p.stem for p in paths]
+    assert all(i["system"] and i["description"] for i in builtin_heads())
+
+
+def test_the_index_proxops_scenarios_lists_is_every_builtin_files_head():
+    """``list_builtin`` reads builtin_index.json: it must be what the files say now, each one parsed whole
+    (a built-in added, removed or re-described without regenerating the index fails here)."""
+    whole = [{"name": p.stem, **{k: tomllib.loads(p.read_text(encoding="utf-8")).get(k, "") for k in ("description", "system")}}
+             for p in sorted(BUILTIN_DIR.glob("*.toml"))]
+    assert list_builtin() == whole, (
+        "regenerate: python -m proxops.scenarios.catalog > src/proxops/scenarios/builtin_index.json")
 
 
 @pytest.mark.parametrize("text", [

@@ -44,26 +44,39 @@ def test_stamped_cache_follows_an_edited_callee(tmp_path):
     assert _run(pkg, second) == "22"
 
 
-def test_importing_proxops_points_numba_at_the_stamped_cache_without_importing_numba(tmp_path):
+def _fresh(code: str, cache: Path) -> list[str]:
     env = {k: v for k, v in os.environ.items() if not k.startswith(("NUMBA_", "PROXOPS_NUMBA"))}
-    env["PROXOPS_NUMBA_CACHE"] = str(tmp_path)
-    code = "import os, sys, proxops; print(os.environ['NUMBA_CACHE_DIR']); print('numba' in sys.modules)"
-    res = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, timeout=60)
+    env["PROXOPS_NUMBA_CACHE"] = str(cache)
+    res = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, timeout=120)
     assert res.returncode == 0, res.stderr
-    folder, numba_loaded = res.stdout.split()
-    assert folder == os.path.join(str(tmp_path), source_stamp(Path(proxops.__file__).parent))
-    assert numba_loaded == "False"
+    return res.stdout.split()
+
+
+def test_numba_imported_after_proxops_reads_the_stamped_cache(tmp_path):
+    """Importing proxops hashes nothing (no NUMBA_CACHE_DIR, no numba, no hashlib: a command without
+    numba skips the stamp); numba's configuration, read when numba is imported, is the stamped folder."""
+    code = ("import os, sys, proxops; print(os.environ.get('NUMBA_CACHE_DIR', '-'), 'numba' in sys.modules, "
+            "'hashlib' in sys.modules)\n"
+            "import numba.core.config as c; print(c.CACHE_DIR, os.environ['NUMBA_CACHE_DIR'])")
+    before, numba_loaded, hashed, config_dir, env_dir = _fresh(code, tmp_path)
+    assert (before, numba_loaded, hashed) == ("-", "False", "False")
+    stamped = os.path.join(str(tmp_path), source_stamp(Path(proxops.__file__).parent))
+    assert config_dir == env_dir == stamped
+
+
+def test_numba_imported_before_proxops_is_pointed_at_the_stamped_cache(tmp_path):
+    code = "import numba.core.config as c, proxops; print(c.CACHE_DIR)"
+    assert _fresh(code, tmp_path) == [os.path.join(str(tmp_path), source_stamp(Path(proxops.__file__).parent))]
 
 
 def test_setup_memo_lies_in_the_stamped_cache_folder_once():
     """The truth set-up memo is ``<NUMBA_CACHE_DIR>/truth-setup`` of this process: the stamp appears once in its
     path (it was ``<base>/<stamp>/<stamp>/truth-setup`` when the stamped directory was read as the base)."""
-    import os
+    import numba  # noqa: F401 (importing numba after proxops stamps the cache)
 
-    from proxops._numba_cache import source_stamp
     from proxops.environment import disk_memo
 
-    assert os.environ.get("PROXOPS_NUMBA_CACHE_STAMPED") == "1"  # importing proxops stamps the cache
+    assert os.environ.get("PROXOPS_NUMBA_CACHE_STAMPED") == "1"
     path = disk_memo.memo_dir()
     assert path == os.path.join(os.environ["NUMBA_CACHE_DIR"], "truth-setup")
     assert path.count(source_stamp()) == 1

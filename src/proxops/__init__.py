@@ -9,4 +9,4 @@ __version__ = "0.1.0"
 
 from proxops._numba_cache import stamp_numba_cache as _stamp_numba_cache
 
-_stamp_numba_cache()  # numba's disk cache keyed by all proxops sources (see proxops._numba_cache)
+_stamp_numba_cache()  # numba's disk cache keyed by all proxops sources, set when numba is imported (proxops._numba_cache)
