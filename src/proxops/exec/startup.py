@@ -9,7 +9,6 @@ expressions) and ``numpy.testing``: about 90 ms of a 1 s ``proxops run`` (measur
 
 from __future__ import annotations
 
-import importlib.machinery
 import importlib.util
 import os
 import sys
@@ -22,44 +21,8 @@ def skip_pydantic_plugin_scan() -> None:
     otherwise reads the entry points of every installed distribution for pydantic plugins
     (``pydantic.plugin._loader.get_plugins``: 10-13 % of pydantic's own import, measured under load)
     for plugins proxops never uses. The console script only (library users keep their plugins);
-    the campaign's worker processes inherit it. ``PYDANTIC_DISABLE_PLUGINS=`` (empty) keeps them.
-    With plugins off, pydantic's plugin loader module is not imported (:class:`_NoPluginLoader`)."""
+    the campaign's worker processes inherit it. ``PYDANTIC_DISABLE_PLUGINS=`` (empty) keeps them."""
     os.environ.setdefault("PYDANTIC_DISABLE_PLUGINS", "__all__")
-    if os.environ["PYDANTIC_DISABLE_PLUGINS"] in _PLUGINS_OFF and not any(
-            isinstance(f, _NoPluginLoader) for f in sys.meta_path):
-        sys.meta_path.insert(0, _NoPluginLoader())
-
-
-_PLUGINS_OFF = ("__all__", "1", "true")  # the values for which pydantic's get_plugins() returns () at once
-
-
-class _NoPluginLoader:
-    """Meta path finder and loader of ``pydantic.plugin._loader`` while plugins are off: a module whose
-    ``get_plugins()`` returns () as pydantic's does then, without the real module's
-    ``import importlib.metadata`` (email, zipfile, csv...: ~3 % of ``proxops validate srf-vbar``'s
-    instructions, callgrind); anything else read from it loads the real module into it."""
-
-    def find_spec(self, name, path=None, target=None):
-        if name != "pydantic.plugin._loader":
-            return None
-        sys.meta_path.remove(self)
-        return importlib.util.spec_from_loader(name, self)
-
-    def create_module(self, spec):
-        return None
-
-    def exec_module(self, module):
-        def __getattr__(attr):
-            if attr.startswith("__"):  # the import system's probes (__path__...): not names of the module
-                raise AttributeError(attr)
-            del module.__getattr__
-            package = sys.modules[module.__name__.rpartition(".")[0]]
-            real = importlib.machinery.PathFinder.find_spec(module.__name__, package.__path__)
-            real.loader.exec_module(module)  # fills the module with the real names
-            return getattr(module, attr)
-
-        module.get_plugins = lambda: ()
-        module.__getattr__ = __getattr__
 
 
 def defer_unused_numpy_submodules() -> None:
