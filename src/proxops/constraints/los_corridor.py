@@ -128,10 +128,10 @@ class LosCorridor:
 
     def violation(self, t: float, x_rel: np.ndarray) -> float:
         """Engine hook: violation (m) of the relative state at time t (s), >0 means outside."""
-        p = np.asarray(x_rel, dtype=float)[:3]
+        p = np.asarray(x_rel, dtype=float)
         if self.frame != "body":
-            p = self.rotation_body_from_frame(t) @ p
-        return _max_row_excess(self.G, self.h, p)  # = violation_body(p), one point, one jitted call
+            p = self.rotation_body_from_frame(t) @ p[:3]
+        return _max_row_excess(self.G, self.h, p)  # = violation_body(p[:3]), one point, one jitted call
 
     def __repr__(self) -> str:
         return (
@@ -142,7 +142,7 @@ class LosCorridor:
 
 @njit(cache=True)
 def _max_row_excess(G, h, p):  # pragma: no cover - compiled
-    """max(0, max_i (G p - h)_i) for one position p (3,) (m)."""
+    """max(0, max_i (G p - h)_i) for the position p[:3] (m); p may be the whole state."""
     worst = 0.0
     for i in range(G.shape[0]):
         e = G[i, 0] * p[0] + G[i, 1] * p[1] + G[i, 2] * p[2] - h[i]

@@ -21,7 +21,11 @@ from proxops.core.layout import HILL_CONTROL, HILL_LAYOUT, StateLayout
 def translational_delta_v(u: np.ndarray, kind: str, dt: float) -> float:
     """Delta-v (m/s) of one applied command: |dv| for an impulse, |a| dt for a held
     acceleration (m/s^2 held over ``dt`` s)."""
-    norm_u = math.sqrt(u @ u)  # = np.linalg.norm(u), without its overhead
+    if len(u) == 3:  # float arithmetic: the same sum order and bits as u @ u (checked), ~4x cheaper
+        x, y, z = u.tolist()
+        norm_u = math.sqrt(x * x + y * y + z * z)
+    else:
+        norm_u = math.sqrt(u @ u)  # = np.linalg.norm(u), without its overhead
     return norm_u if kind == "impulse" else norm_u * dt
 
 
