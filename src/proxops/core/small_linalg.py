@@ -44,31 +44,36 @@ def expm_pade13(M):
     A2 = matmul(A, A)
     A4 = matmul(A2, A2)
     A6 = matmul(A4, A2)
+    W = np.empty((n, n))
     T = np.empty((n, n))
-    P = np.empty((n, n))
-    for i in range(n):
-        for j in range(n):
-            T[i, j] = b[13] * A6[i, j] + b[11] * A4[i, j] + b[9] * A2[i, j]
-    matmul_into(A6, T, P)
-    for i in range(n):
-        for j in range(n):
-            e = 1.0 if i == j else 0.0  # the identity's element (b1 * 0 = +0 added off the diagonal, as I does)
-            T[i, j] = P[i, j] + b[7] * A6[i, j] + b[5] * A4[i, j] + b[3] * A2[i, j] + b[1] * e
+    V = np.empty((n, n))
+    _pade13_half(b, 1, A2, A4, A6, W, T)
     U = matmul(A, T)
+    _pade13_half(b, 0, A2, A4, A6, W, V)
     for i in range(n):
         for j in range(n):
-            T[i, j] = b[12] * A6[i, j] + b[10] * A4[i, j] + b[8] * A2[i, j]
-    matmul_into(A6, T, P)
-    for i in range(n):
-        for j in range(n):
-            e = 1.0 if i == j else 0.0
-            v = P[i, j] + b[6] * A6[i, j] + b[4] * A4[i, j] + b[2] * A2[i, j] + b[0] * e  # V
-            T[i, j] = v - U[i, j]
-            P[i, j] = v + U[i, j]
-    R = np.ascontiguousarray(np.linalg.solve(T, P))
+            T[i, j] = V[i, j] - U[i, j]
+            W[i, j] = V[i, j] + U[i, j]
+    R = np.ascontiguousarray(np.linalg.solve(T, W))
     for _ in range(sq):
         R = matmul(R, R)
     return R
+
+
+@njit(cache=True)
+def _pade13_half(b, k, A2, A4, A6, work, out):
+    """One half of the [13/13] Pade approximant into ``out`` (n, n): A6 (b[k+12] A6 + b[k+10] A4 +
+    b[k+8] A2) + b[k+6] A6 + b[k+4] A4 + b[k+2] A2 + b[k] I, each element summed in that order
+    (k = 1: U / A, k = 0: V of Higham 2005); ``work`` (n, n) is scratch."""
+    n = A2.shape[0]
+    for i in range(n):
+        for j in range(n):
+            work[i, j] = b[k + 12] * A6[i, j] + b[k + 10] * A4[i, j] + b[k + 8] * A2[i, j]
+    matmul_into(A6, work, out)
+    for i in range(n):
+        for j in range(n):
+            e = 1.0 if i == j else 0.0  # the identity's element (b[k] * 0 = +0 added off the diagonal, as I does)
+            out[i, j] = out[i, j] + b[k + 6] * A6[i, j] + b[k + 4] * A4[i, j] + b[k + 2] * A2[i, j] + b[k] * e
 
 
 @njit(cache=True)
