@@ -113,3 +113,36 @@ def test_figs_11_and_12_keep_every_label_inside_the_canvas(tmp_path, monkeypatch
         # and the margins are not wasteful: the drawn artists span most of the canvas
         assert box.width > 0.85 * width and box.height > 0.8 * height, box
         cortex_figures.plt.close(fig)
+
+
+def _write_pid(path, fail_in_child_of=None):
+    import os
+
+    if fail_in_child_of is not None and os.getpid() != fail_in_child_of:
+        raise RuntimeError("child only")
+    path.write_text(str(os.getpid()))
+    return path
+
+
+def _always_fails(path):
+    raise ValueError("bad figure")
+
+
+def test_draw_all_draws_the_later_figures_in_a_child_and_redraws_a_failed_one_here(tmp_path):
+    # plotting.common.draw_all (Figs. 11 and 12 of `cortex references` at once): paths in job order, the first
+    # drawn in this process, the second in a forked child; a job that failed in its child is drawn again here,
+    # and an error of this process's own attempt is raised as usual
+    import os
+
+    import pytest
+
+    from proxops.plotting.common import Drawing, draw_all
+
+    a, b = tmp_path / "a.txt", tmp_path / "b.txt"
+    assert draw_all([Drawing(_write_pid, a), Drawing(_write_pid, b)]) == [a, b]
+    assert a.read_text() == str(os.getpid()) and b.read_text() != str(os.getpid())
+    c = tmp_path / "c.txt"
+    assert draw_all([Drawing(_write_pid, a), Drawing(_write_pid, c, fail_in_child_of=os.getpid())]) == [a, c]
+    assert c.read_text() == str(os.getpid())  # the child failed: redrawn here
+    with pytest.raises(ValueError, match="bad figure"):
+        draw_all([Drawing(_write_pid, a), Drawing(_always_fails, tmp_path / "d.txt")])

@@ -51,4 +51,55 @@ def save(fig, path: Path, tight: bool = True) -> Path:
     return path
 
 
-__all__ = ["plot_run", "save", "plt", "np"]
+def draw_all(jobs) -> list[Path]:
+    """The paths of ``jobs`` (functions of no argument that draw and save one figure each), in order: the
+    jobs after the first in forked child processes while this process draws the first (Agg renders on one
+    core; Figs. 11 and 12 of ``proxops cortex references`` are 0.3 s each). A job whose child did not
+    finish is drawn again here, so its error is raised as usual. Without ``os.fork``: one after another."""
+    import multiprocessing
+    import os
+
+    if len(jobs) < 2 or not hasattr(os, "fork"):
+        return [job() for job in jobs]
+    children = [multiprocessing.get_context("fork").Process(target=_draw_in_child, args=(job,), daemon=True)
+                for job in jobs[1:]]
+    try:
+        for child in children:
+            child.start()
+        paths = [jobs[0]()]
+        for child, job in zip(children, jobs[1:]):
+            child.join()
+            paths.append(job.path if child.exitcode == 0 else job())
+        return paths
+    finally:  # an error or a Ctrl-C here: no child outlives the call
+        for child in children:
+            if child.is_alive():
+                child.terminate()
+                child.join()
+
+
+class Drawing:
+    """One figure for :func:`draw_all`: ``fn(*args, path=path, **kwargs)`` draws and saves it to ``path``."""
+
+    def __init__(self, fn, path: Path, *args, **kwargs):
+        self.fn, self.path, self.args, self.kwargs = fn, Path(path), args, kwargs
+
+    def __call__(self) -> Path:
+        return self.fn(*self.args, path=self.path, **self.kwargs)
+
+
+def _draw_in_child(job) -> None:
+    """A forked child's drawing: a Ctrl-C is the parent's to handle (it ends the child), an error ends the
+    child with exit code 1 and no output (the parent draws the figure again and reports it)."""
+    import os
+    import signal
+
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        job()
+    except BaseException:  # noqa: BLE001 - reported by the parent's own attempt
+        os._exit(1)
+    os._exit(0)
+
+
+__all__ = ["plot_run", "save", "draw_all", "Drawing", "plt", "np"]

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
-from proxops.plotting.common import plt, save
+from proxops.plotting.common import Drawing, draw_all, plt, save
 from proxops.plotting.cortex_loop import campaign_figures, run_figure, table_figures
 
 
@@ -138,10 +138,10 @@ def references_figures(camp, sc, paper: dict, out: Path) -> list[Path]:
             results.append(camp.series(int(rid)))
         except Exception:  # a campaign without series: Fig. 12 only
             break
-    paths = [fig12_histograms(table, Path(out) / "fig12_histograms.png", paper)]
-    if results:
-        paths.insert(0, fig11_trajectories(sc, results, Path(out) / "fig11_trajectories.png"))
-    return paths
+    fig12 = Drawing(fig12_histograms, Path(out) / "fig12_histograms.png", table, paper=paper)
+    if not results:
+        return [fig12()]
+    return draw_all([Drawing(fig11_trajectories, Path(out) / "fig11_trajectories.png", sc, results), fig12])
 
 
 def plan_traces(table) -> list:
