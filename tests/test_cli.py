@@ -70,3 +70,27 @@ def test_readme_scenario_example_validates(tmp_path):
     example.write_text(text[start : text.index("```", start)])
     res = invoke("validate", str(example))
     assert res.exit_code == 0, res.stderr
+
+
+def test_demo_runs_its_scenarios_side_by_side_and_reports_them_in_order(tmp_path, monkeypatch, capsys):
+    # runner.run_demo on 2 worker processes (longest first by DEMO_SECONDS): one stage line per scenario as it
+    # ends, the report's sections in DEMO_SCENARIOS order, each section what that scenario's worker wrote
+    # (its summary.json, its figures): nothing mixed between the workers
+    from proxops import runner
+
+    names = ("srf-rbar", "station-keeping")
+    monkeypatch.setattr(runner, "DEMO_SCENARIOS", names)
+    monkeypatch.setattr(runner, "DEMO_SECONDS", {"station-keeping": 1.0})  # goes first, srf-rbar second
+    report = runner.run_demo(tmp_path, workers=2)
+    err = capsys.readouterr().err
+    assert "[demo] 2 scenarios on 2 worker processes" in err
+    text = report.read_text()
+    assert text.index("## srf-rbar") < text.index("## station-keeping")
+    for k, name in enumerate(names, start=1):
+        summary = json.loads((tmp_path / name / "summary.json").read_text())
+        assert summary["scenario"] == name
+        assert f"[demo {k}/2] {name}: {summary['status']} in " in err
+        section = text.split(f"## {name}")[1].split("\n## ")[0]
+        assert f"| status | {summary['status']} |" in section
+        figures = [line[line.index("(") + 1 : -1] for line in section.splitlines() if line.startswith("![")]
+        assert figures and all((tmp_path / f).is_file() and f.startswith(f"{name}/") for f in figures)

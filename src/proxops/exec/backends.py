@@ -687,7 +687,8 @@ def _lost(on_lost, idx, message, errors, items):
 
 def map_runs(func: Callable, items: Iterable, workers: int | None = None, scheduler=None, *, context: Any = _NO_CONTEXT,
              errors: str = "raise", chunk_size: int | None = None, progress: bool = False,
-             connect_timeout_s: float = 5.0, target_batch_s: float = 0.5, desc: str = "runs") -> list:
+             connect_timeout_s: float = 5.0, target_batch_s: float = 0.5, desc: str = "runs",
+             on_result: Callable[[int, Any], None] | None = None) -> list:
     """``[func(item) for item in items]`` (or ``func(context, item)``) in parallel, in order.
 
     - ``func`` must be picklable (a module-level function); ``context`` (optional) is sent
@@ -698,6 +699,7 @@ def map_runs(func: Callable, items: Iterable, workers: int | None = None, schedu
     - ``errors="raise"`` stops at the first exception; ``"return"`` puts a :class:`RunError`
       in that item's place and goes on.
     - Items go in batches of about ``target_batch_s`` seconds (or ``chunk_size`` items).
+    - ``on_result(index, result)`` (optional) is called in this process as each result arrives.
     """
     items = list(items)
     if errors not in ("raise", "return"):
@@ -715,6 +717,8 @@ def map_runs(func: Callable, items: Iterable, workers: int | None = None, schedu
         for i, r in zip(idx, batch):
             results[i] = r
             state.failed += isinstance(r, RunError)
+            if on_result is not None:
+                on_result(i, r)
         state.done += len(idx)
         bar.update(len(idx))
         if state.failed:
