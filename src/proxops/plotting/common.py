@@ -59,7 +59,7 @@ def draw_all(jobs) -> list[Path]:
     import multiprocessing
     import os
 
-    if len(jobs) < 2 or not hasattr(os, "fork"):
+    if len(jobs) < 2 or not hasattr(os, "fork") or multiprocessing.current_process().daemon:  # (no children)
         return [job() for job in jobs]
     children = [multiprocessing.get_context("fork").Process(target=_draw_in_child, args=(job,), daemon=True)
                 for job in jobs[1:]]

@@ -23,7 +23,7 @@ from pathlib import Path
 
 import numpy as np
 
-from proxops.plotting.common import plt, save
+from proxops.plotting.common import Drawing, draw_all, plt, save
 from proxops.systems.hybrid import envelope_cells
 
 POST = "post-capture"
@@ -200,17 +200,17 @@ def plot_decoupling(result, path: Path, title: str = "") -> Path:
 
 
 def run_figures(sc, results: dict, out_dir: Path) -> list[Path]:
-    """Figs. 5-9 of the main result of a run."""
+    """Figs. 5-9 of the main result of a run (drawn at once: :func:`proxops.plotting.common.draw_all`)."""
     out_dir = Path(out_dir)
     result = next(iter(results.values()))
     name = getattr(sc, "name", "hybrid")
-    return [
-        plot_contact(result, out_dir / "hybrid_fig5_contact.png", name),
-        plot_displacement_controls(result, out_dir / "hybrid_fig6_displacement_controls.png", name),
-        plot_rotation(result, out_dir / "hybrid_fig7_rotation.png", name),
-        plot_tracking(result, out_dir / "hybrid_fig8_tracking.png", name),
-        plot_decoupling(result, out_dir / "hybrid_fig9_decoupling.png", name),
-    ]
+    return draw_all([
+        Drawing(plot_contact, out_dir / "hybrid_fig5_contact.png", result, title=name),
+        Drawing(plot_displacement_controls, out_dir / "hybrid_fig6_displacement_controls.png", result, title=name),
+        Drawing(plot_rotation, out_dir / "hybrid_fig7_rotation.png", result, title=name),
+        Drawing(plot_tracking, out_dir / "hybrid_fig8_tracking.png", result, title=name),
+        Drawing(plot_decoupling, out_dir / "hybrid_fig9_decoupling.png", result, title=name),
+    ])
 
 
 def mc_figures(sc, results: list, out_dir: Path) -> list[Path]:
