@@ -48,6 +48,7 @@ COMMANDS = [
      ["mc", "srf-vbar-mc", "--runs", "50", "--workers", "2", "--out", "{out}"], 4.0),
     ("references", "proxops cortex references --n 100 --workers 2",
      ["cortex", "references", "--n", "100", "--workers", "2", "--out", "{out}"], 5.0),
+    ("demo", "proxops demo (six scenarios, figures, report)", ["demo", "--out", "{out}"], None),
 ]
 
 
