@@ -161,7 +161,10 @@ def references(
     st["paper"] = PAPER_5_1_1
     files = []
     if draw:
+        from proxops.exec.backends import shutdown_pools
         from proxops.plotting.cortex import references_figures  # (waits for the import above to finish)
+
+        shutdown_pools()  # the workers are done: no pool thread left when a figure is drawn in a forked child
 
         camp = load_campaign(out)
         files = [str(p) for p in references_figures(camp, _campaign_system(camp.manifest).scenario, PAPER_5_1_1, Path(out))]
