@@ -206,3 +206,33 @@ def test_ctrl_c_while_starting_gives_one_line_and_leaves_no_process(tmp_path, mo
     if (out / "campaign.json").is_file():  # runs that were in flight finished and were saved whole
         saved = load_campaign(out)
         assert saved.table["outcome"].isin(["success", "failure"]).all()
+
+
+_CHILD_DEMO = """
+import sys
+sys.path[:0] = [{src!r}]
+if __name__ == "__main__":
+    from proxops.exec.entry import main
+    sys.argv = ["proxops", "demo", "--workers", "2", "--out", {out!r}]
+    main()
+"""
+
+
+def test_ctrl_c_stops_the_demo_at_once_with_one_line_and_no_process(tmp_path):
+    # proxops demo runs its scenarios on 2 workers (runner.run_demo, map_runs with finish_in_flight=False): a
+    # Ctrl-C while they run stops them at once (nothing of a demo is worth waiting for: hybrid-capture alone is
+    # 5-9 s), so the scenario in flight leaves no summary and no report is written
+    script = tmp_path / "child_demo.py"
+    out = tmp_path / "demo"
+    script.write_text("import signal\nsignal.signal(signal.SIGINT, signal.default_int_handler)\n"
+                      + _CHILD_DEMO.format(src=str(SRC_DIR), out=str(out)))
+    proc = subprocess.Popen([sys.executable, str(script)], start_new_session=True, stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True)
+    _wait_for(lambda: sum(len(_children(c)) for c in _children(proc.pid)) >= 2, proc, "both demo workers forked")
+    os.killpg(proc.pid, signal.SIGINT)
+    err = _finish(proc)
+    assert proc.returncode == 130, err
+    lines = [ln for ln in err.splitlines() if ln.strip()]
+    assert "Traceback" not in err and "Error" not in err, err
+    assert lines[0].startswith("[demo] 6 scenarios on 2 worker processes") and lines[-1] == "interrupted", err
+    assert not (out / "report.md").exists() and not (out / "hybrid-capture" / "summary.json").exists(), err

@@ -89,7 +89,7 @@ def run_demo(out: Path, workers: int | None = None) -> Path:
         _stage(f"[demo {k}/{n}] {DEMO_SCENARIOS[k - 1]}: {res['status']} in {res['seconds']:.1f} s")
 
     results = map_runs(demo_scenario, [(DEMO_SCENARIOS[k], str(out)) for k in order], workers=workers, chunk_size=1,
-                       on_result=done)
+                       on_result=done, finish_in_flight=False)  # a Ctrl-C stops the demo at once
     sections = dict(zip(order, results))
     lines = ["# proxops demo report", ""]
     for k in range(n):

@@ -525,10 +525,11 @@ class _Progress:
 
 
 def _drive(backend, func, items: Sequence, errors: str, on_batch: Callable, chunk_size: int | None,
-           target_batch_s: float, on_lost: Callable | None = None, on_tick: Callable | None = None) -> None:
+           target_batch_s: float, on_lost: Callable | None = None, on_tick: Callable | None = None,
+           finish_in_flight: bool = True) -> None:
     """Send ``items`` in adaptive batches to ``backend`` and hand each finished batch to
     ``on_batch(indices, results)``. Handles Ctrl-C (:class:`_GracefulStop`: finish and hand over
-    the batches in flight, then raise KeyboardInterrupt), broken local pools (restart, retry
+    the batches in flight, then raise KeyboardInterrupt; without ``finish_in_flight`` stop them at once), broken local pools (restart, retry
     suspects one at a time) and lost Dask batches."""
     queue = _Queue(len(items))
     suspects: set[int] = set()
@@ -622,7 +623,7 @@ def _drive(backend, func, items: Sequence, errors: str, on_batch: Callable, chun
                     backend.restart()
             finished = True
         except KeyboardInterrupt:  # a second Ctrl-C while waiting gives up on the runs in flight
-            forced = not _finish_in_flight(backend, in_flight, harvest)
+            forced = not finish_in_flight or not _finish_in_flight(backend, in_flight, harvest)
             raise
         finally:
             backend.close(cancel=not finished, force=forced)
@@ -688,7 +689,7 @@ def _lost(on_lost, idx, message, errors, items):
 def map_runs(func: Callable, items: Iterable, workers: int | None = None, scheduler=None, *, context: Any = _NO_CONTEXT,
              errors: str = "raise", chunk_size: int | None = None, progress: bool = False,
              connect_timeout_s: float = 5.0, target_batch_s: float = 0.5, desc: str = "runs",
-             on_result: Callable[[int, Any], None] | None = None) -> list:
+             on_result: Callable[[int, Any], None] | None = None, finish_in_flight: bool = True) -> list:
     """``[func(item) for item in items]`` (or ``func(context, item)``) in parallel, in order.
 
     - ``func`` must be picklable (a module-level function); ``context`` (optional) is sent
@@ -700,6 +701,8 @@ def map_runs(func: Callable, items: Iterable, workers: int | None = None, schedu
       in that item's place and goes on.
     - Items go in batches of about ``target_batch_s`` seconds (or ``chunk_size`` items).
     - ``on_result(index, result)`` (optional) is called in this process as each result arrives.
+    - Ctrl-C: the items in flight finish and are handed over (a second Ctrl-C stops them), then
+      KeyboardInterrupt; with ``finish_in_flight=False`` they are stopped at once.
     """
     items = list(items)
     if errors not in ("raise", "return"):
@@ -728,7 +731,8 @@ def map_runs(func: Callable, items: Iterable, workers: int | None = None, schedu
         on_batch([i], [RunError(message)])
 
     try:
-        _drive(backend, func, items, errors, on_batch, chunk_size, target_batch_s, on_lost=on_lost)
+        _drive(backend, func, items, errors, on_batch, chunk_size, target_batch_s, on_lost=on_lost,
+               finish_in_flight=finish_in_flight)
     finally:
         bar.close()
     return results
