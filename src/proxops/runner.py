@@ -61,18 +61,20 @@ def save_run(loaded, summary: dict, results: dict[str, SimResult], out: Path, fi
 
 
 DEMO_SCENARIOS = ("srf-vbar", "srf-rbar", "los-tumble", "cortex-nominal", "hybrid-capture", "underactuated-case1")  # one or more per system
-# Seconds of each demo scenario in one process (run, save, figures; numba cache warm, 2026-11-28, idle):
-# only their order matters, the longest goes first (run_demo)
-DEMO_SECONDS = {"hybrid-capture": 5.4, "underactuated-case1": 2.7, "srf-vbar": 2.5, "los-tumble": 1.4,
-                "srf-rbar": 0.8, "cortex-nominal": 0.8}
+# Seconds of each demo scenario on a fresh install (numba compiles its kernels; `make demo` from a fresh clone on
+# 2 workers, 2026-11-28): only their order matters, the longest goes first (run_demo). With a warm cache the
+# same order also balances the two workers (hybrid-capture 5.4 s, underactuated 2.7, srf-vbar 2.5, los 1.4,
+# srf-rbar and cortex-nominal 0.8 s in one process).
+DEMO_SECONDS = {"hybrid-capture": 78.0, "cortex-nominal": 68.0, "srf-vbar": 35.0, "los-tumble": 12.0,
+                "underactuated-case1": 9.0, "srf-rbar": 2.0}
 
 
 def run_demo(out: Path, workers: int | None = None) -> Path:
     """Run the demonstration scenarios, write each under ``out/<name>`` and a Markdown report (sections in
     :data:`DEMO_SCENARIOS` order). The scenarios run side by side on ``workers`` local processes (default:
     the usable CPUs, at most one per scenario; 1 = one after another in this process), the longest first
-    (:data:`DEMO_SECONDS`), so the workers finish together: on 2 cores the demo takes about half the
-    time of one process (figures are most of it)."""
+    (:data:`DEMO_SECONDS`), so the workers finish together (figures are most of a warm demo, compiling the
+    kernels most of a first one)."""
     from proxops.exec.backends import default_workers, map_runs
 
     out = Path(out)
