@@ -167,6 +167,7 @@ CASES = [
     ("run-out-read-only", ["run", "station-keeping", "--out", "/proc/proxops-test", *SK], "--out"),
     ("demo-out-is-file", ["demo", "--out", "{afile}"], "is a file"),
     ("demo-out-read-only", ["demo", "--out", "/sys/proxops-test"], "--out"),
+    ("demo-workers-zero", ["demo", "--workers", "0", "--out", "{dir}/demo"], "--workers = 0: must be a whole number from 1"),
     ("reach-map-out-is-file", ["reach", "map", "--omega-deg", "2", "--amax", "0.1", "--out", "{afile}"], "is a file"),
     ("reach-map-out-read-only", ["reach", "map", "--omega-deg", "2", "--amax", "0.1", "--out", "/proc/x"], "--out"),
     ("report-dir-read-only", ["report", "{good}", "--report-dir", "/sys/proxops-test"], "--report-dir"),

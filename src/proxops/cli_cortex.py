@@ -25,7 +25,8 @@ import typer
 
 from proxops.cli_common import check_out_dir, emit, friendly_errors, json_default
 from proxops.errors import input_error
-from proxops.exec.backends import MAX_WORKERS
+from proxops.exec.backends import MAX_WORKERS, shutdown_pools
+from proxops.exec.prestart import prestart
 from proxops.scenarios.loader import load_scenario
 from proxops.systems.cortex import (PAPER_5_1_1, campaign_statistics, plan_scenario, references_scenario,
                                     statistics_table)
@@ -143,8 +144,7 @@ def references(
     if out is not None:
         check_out_dir(out, campaign=True)
     data = references_scenario(scenario, n)
-    from proxops.exec.prestart import prestart  # the pool starts now: its fork server plans once (the workers'
-
+    # the pool starts now (if proxops.exec.entry has not started it): its fork server plans once (the workers'
     prestart(scenario, n, workers, list(set_))  # warm-up) while this process imports the campaign engine
     # the campaign engine (pandas, pyarrow): this command's, not `cortex reference`'s
     from proxops.analysis.campaign import _campaign_system, load_campaign, run_campaign  # noqa: PLC2701
@@ -161,7 +161,6 @@ def references(
     st["paper"] = PAPER_5_1_1
     files = []
     if draw:
-        from proxops.exec.backends import shutdown_pools
         from proxops.plotting.cortex import references_figures  # (waits for the import above to finish)
 
         shutdown_pools()  # the workers are done: no pool thread left when a figure is drawn in a forked child

@@ -13,6 +13,7 @@ import sys
 import time
 from pathlib import Path
 
+from proxops.errors import input_error
 from proxops.scenarios.loader import LoadedScenario, load_scenario
 from proxops.analysis.runs import execute  # noqa: F401 (re-exported)
 from proxops.sim.result import SimResult
@@ -75,8 +76,10 @@ def run_demo(out: Path, workers: int | None = None) -> Path:
     the usable CPUs, at most one per scenario; 1 = one after another in this process), the longest first
     (:data:`DEMO_SECONDS`), so the workers finish together (figures are most of a warm demo, compiling the
     kernels most of a first one)."""
-    from proxops.exec.backends import default_workers, map_runs
+    from proxops.exec.backends import MAX_WORKERS, default_workers, map_runs  # (not on `proxops run`'s path)
 
+    if workers is not None and not 1 <= workers <= MAX_WORKERS:
+        raise input_error("--workers", workers, f"must be a whole number from 1 to {MAX_WORKERS} (1 = in this process)")
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     n = len(DEMO_SCENARIOS)
