@@ -146,3 +146,49 @@ def test_draw_all_draws_the_later_figures_in_a_child_and_redraws_a_failed_one_he
     assert c.read_text() == str(os.getpid())  # the child failed: redrawn here
     with pytest.raises(ValueError, match="bad figure"):
         draw_all([Drawing(_write_pid, a), Drawing(_always_fails, tmp_path / "d.txt")])
+
+
+_KILLED_PARENT = """
+import os, sys, time
+sys.path[:0] = [{src!r}]
+from pathlib import Path
+from proxops.plotting.common import Drawing, draw_all
+
+def held(path):  # this process's figure: held until the test has killed it (60 s at most: no orphan if it fails)
+    Path(path).write_text(str(os.getpid()))
+    end = time.monotonic() + 60.0
+    while time.monotonic() < end:
+        time.sleep(0.01)
+
+if __name__ == "__main__":
+    draw_all([Drawing(held, Path({tmp!r}) / "parent"), Drawing(held, Path({tmp!r}) / "child")])
+"""
+
+
+def test_draw_all_child_ends_with_its_parent(tmp_path):
+    # a process killed while its figures are drawn (a campaign or demo worker stopped by a Ctrl-C) leaves no child
+    # drawing on: the child is armed with PR_SET_PDEATHSIG (proxops.exec.forkserver_exit.die_with_parent)
+    import os
+    import signal
+    import subprocess
+    import sys
+    import time
+    from pathlib import Path
+
+    import proxops
+
+    script = tmp_path / "parent.py"
+    script.write_text(_KILLED_PARENT.format(src=str(Path(proxops.__file__).parents[1]), tmp=str(tmp_path)))
+    proc = subprocess.Popen([sys.executable, str(script)])
+    child_file = tmp_path / "child"
+    t0 = time.monotonic()
+    while not (child_file.is_file() and child_file.read_text()):  # wait on state: the child is drawing
+        assert proc.poll() is None and time.monotonic() - t0 < 120, "the child never started"
+        time.sleep(0.01)
+    child = int(child_file.read_text())
+    os.kill(proc.pid, signal.SIGKILL)
+    proc.wait()
+    t0 = time.monotonic()
+    while Path(f"/proc/{child}").exists() and "Z" not in Path(f"/proc/{child}/stat").read_text().rsplit(")", 1)[1][:3]:
+        assert time.monotonic() - t0 < 10, f"child {child} still drawing after its parent was killed"
+        time.sleep(0.01)

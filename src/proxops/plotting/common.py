@@ -6,6 +6,8 @@ from pathlib import Path
 
 import matplotlib
 
+from proxops.exec.forkserver_exit import die_with_parent  # os and sys only
+
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
@@ -61,8 +63,8 @@ def draw_all(jobs) -> list[Path]:
 
     if len(jobs) < 2 or not hasattr(os, "fork") or multiprocessing.current_process().daemon:  # (no children)
         return [job() for job in jobs]
-    children = [multiprocessing.get_context("fork").Process(target=_draw_in_child, args=(job,), daemon=True)
-                for job in jobs[1:]]
+    children = [multiprocessing.get_context("fork").Process(target=_draw_in_child, args=(job, os.getpid()),
+                                                            daemon=True) for job in jobs[1:]]
     try:
         for child in children:
             child.start()
@@ -88,13 +90,15 @@ class Drawing:
         return self.fn(*self.args, path=self.path, **self.kwargs)
 
 
-def _draw_in_child(job) -> None:
+def _draw_in_child(job, parent_pid: int) -> None:
     """A forked child's drawing: a Ctrl-C is the parent's to handle (it ends the child), an error ends the
-    child with exit code 1 and no output (the parent draws the figure again and reports it)."""
+    child with exit code 1 and no output (the parent draws the figure again and reports it); the child ends
+    with its parent (a campaign or demo worker terminated mid-figure leaves no process drawing)."""
     import os
     import signal
 
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+    die_with_parent(parent_pid)
     try:
         job()
     except BaseException:  # noqa: BLE001 - reported by the parent's own attempt
