@@ -89,9 +89,9 @@ def run_demo(out: Path, workers: int | None = None) -> Path:
     _stage(f"[demo] {n} scenarios on {workers} worker process{'es' if workers > 1 else ''} (the first run of each "
            "process loads, or on a fresh install compiles, the numba kernels)")
 
-    def done(i: int, res: dict) -> None:
-        k = order[i] + 1
-        _stage(f"[demo {k}/{n}] {DEMO_SCENARIOS[k - 1]}: {res['status']} in {res['seconds']:.1f} s")
+    def done(i: int, res: dict) -> None:  # i: the position in ``order``
+        k = order[i]
+        _stage(f"[demo {k + 1}/{n}] {DEMO_SCENARIOS[k]}: {res['status']} in {res['seconds']:.1f} s")
 
     results = map_runs(demo_scenario, [(DEMO_SCENARIOS[k], str(out)) for k in order], workers=workers, chunk_size=1,
                        on_result=done, finish_in_flight=False)  # a Ctrl-C stops the demo at once
