@@ -8,6 +8,8 @@ repetition (A B, B A, ...), so load drifts hit both sides alike. A regression sh
 Closed loops: ``simulate`` of a built-in's set-up (the loop alone) and ``api.run`` (set-up, loop,
 summary), after one warm-up run in the same process, the fastest of ``INNER_REPS`` = 5 loops in it; the solver share is the time inside every
 solver adapter's set-up, update and solve calls over the wall time (see ``_ab_probe.py``). Commands: the whole process, as a user sees it.
+Each row also prints the spread of the per-repetition ratios, and a goal is ``met`` only when every
+repetition meets it (``met in k of n repetitions only`` when the goal lies inside their spread).
 
     python benchmarks/ab.py [--reps 3] [--only srf,help] [--json out.json]
 """
@@ -174,26 +176,57 @@ def main(argv: list[str] | None = None) -> int:
     return 0
 
 
+def _values(rows: list[dict], key: str) -> list[float]:
+    return [r[key] for r in rows if r.get(key) is not None]
+
+
+def _ratio_range(this: list[dict], prev: list[dict], key: str = "wall_s") -> str:
+    """The spread of the per-repetition ratios (repetition i of each side ran next to each other), e.g.
+    ``"reps x0.85-1.01"``: a median ratio inside a spread that crosses 1 is not a resolved change."""
+    pairs = [(a[key], b[key]) for a, b in zip(this, prev) if a.get(key) and b.get(key)]
+    if len(pairs) < 2:
+        return ""
+    ratios = [a / b for a, b in pairs]
+    return f"reps x{min(ratios):.2f}-{max(ratios):.2f}"
+
+
+def verdict(values: list[float], goal: float, below: bool) -> str:
+    """A goal's verdict over every repetition, not only the median: ``met`` when every value meets it
+    (below the goal, or at least the goal when ``below`` is False), ``NOT met`` when none does, else
+    ``met in k of n`` (the goal lies inside the repetitions' spread: not resolved by this pass)."""
+    ok = [(v < goal) if below else (v >= goal) for v in values]
+    if all(ok):
+        return "met"
+    if not any(ok):
+        return "NOT met"
+    return f"met in {sum(ok)} of {len(ok)} repetitions only"
+
+
 def _print_row(label: str, rows: dict, goal, share_goal) -> None:
     errors = [r["error"] for side in rows.values() for r in side if "error" in r]
-    this_wall, prev_wall = _median(rows["this"], "wall_s"), _median(rows.get("prev", []), "wall_s")
+    prev_rows = rows.get("prev", [])
+    this_wall, prev_wall = _median(rows["this"], "wall_s"), _median(prev_rows, "wall_s")
     ratio = f"x{this_wall / prev_wall:.2f}" if this_wall and prev_wall else "-"
     text = f"  {label:<48} this {_fmt(this_wall):>9}  prev {_fmt(prev_wall):>9}  this/prev {ratio:>6}"
+    spread = _ratio_range(rows["this"], prev_rows)
+    if spread:
+        text += f" ({spread})"
     if goal is not None and this_wall is not None:
-        text += f"  goal < {goal:g} s: {'met' if this_wall < goal else 'NOT met'}"
-    share, prev_share = _median(rows["this"], "solver_share"), _median(rows.get("prev", []), "solver_share")
+        text += f"  goal < {goal:g} s: {verdict(_values(rows['this'], 'wall_s'), goal, True)}"
+    share, prev_share = _median(rows["this"], "solver_share"), _median(prev_rows, "solver_share")
     if share is not None:
-        step, prev_step = _median(rows["this"], "step_ms"), _median(rows.get("prev", []), "step_ms")
+        step, prev_step = _median(rows["this"], "step_ms"), _median(prev_rows, "step_ms")
         text += (f"\n  {'':<48} solver share {_fmt(share, '%')} (prev {_fmt(prev_share, '%')}),"
                  f" per recorded sample {step:.3f} ms (prev {prev_step:.3f} ms)" if step and prev_step else
                  f"\n  {'':<48} solver share {_fmt(share, '%')} (prev {_fmt(prev_share, '%')})")
         if share_goal is not None:
-            text += f"  goal >= {100 * share_goal:.0f} %: {'met' if share >= share_goal else 'NOT met'}"
-    run, prev_run = _median(rows["this"], "run_wall_s"), _median(rows.get("prev", []), "run_wall_s")
+            text += (f"  goal >= {100 * share_goal:.0f} %: "
+                     f"{verdict(_values(rows['this'], 'solver_share'), share_goal, False)}")
+    run, prev_run = _median(rows["this"], "run_wall_s"), _median(prev_rows, "run_wall_s")
     if run is not None:
         text += (f"\n  {'':<48} whole run (set-up, loop, summary) {_fmt(run)} (prev {_fmt(prev_run)}),"
                  f" solver share {_fmt(_median(rows['this'], 'run_solver_share'), '%')}"
-                 f" (prev {_fmt(_median(rows.get('prev', []), 'run_solver_share'), '%')})")
+                 f" (prev {_fmt(_median(prev_rows, 'run_solver_share'), '%')})")
     if errors:
         text += f"\n  {'':<48} error: {errors[0]}"
     print(text, flush=True)
