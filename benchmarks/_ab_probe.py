@@ -108,7 +108,45 @@ def loop(scenario: str, reps: int, overrides: list[str]) -> dict:
                 "run_wall_s": wall, "run_solver_share": solver / wall if wall > 0 else None,
                 "status": summary.get("status") or summary.get("outcome"),
             }
+    if best:
+        best["plant_share"] = plant_share(loaded)
     return best
+
+
+PLANT_METHODS = ("relative_state", "propagate", "propagate_events", "apply_impulse", "coast", "mode")
+
+
+def plant_share(loaded) -> float | None:
+    """Share of one more closed loop spent in the plant's methods the engine calls (the truth's propagation,
+    its relative state, impulses, coasts), timed on the plant instance (a call inside another counts once).
+    A separate loop, so the wrappers do not touch the timed ones; with the solver share it gives the solver's
+    share of what is left, the loop without its truth."""
+    from proxops import api
+
+    setup = loaded.system.build(loaded.scenario)
+    plant = setup.plant
+    clock = {"s": 0.0, "depth": 0}
+    for name in PLANT_METHODS:
+        fn = getattr(plant, name, None)
+        if fn is None:
+            continue
+
+        def timed(*args, _fn=fn, **kwargs):
+            outer = clock["depth"] == 0
+            clock["depth"] += 1
+            t0 = time.perf_counter()
+            try:
+                return _fn(*args, **kwargs)
+            finally:
+                clock["depth"] -= 1
+                if outer:
+                    clock["s"] += time.perf_counter() - t0
+
+        setattr(plant, name, timed)
+    t0 = time.perf_counter()
+    api.simulate(setup, seed=0)
+    wall = time.perf_counter() - t0
+    return clock["s"] / wall if wall > 0 else None
 
 
 def cli(args: list[str]) -> int:

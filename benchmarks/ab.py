@@ -222,6 +222,10 @@ def _print_row(label: str, rows: dict, goal, share_goal) -> None:
         if share_goal is not None:
             text += (f"  goal >= {100 * share_goal:.0f} %: "
                      f"{verdict(_values(rows['this'], 'solver_share'), share_goal, False)}")
+        plant = _median(rows["this"], "plant_share")
+        if plant is not None and plant < 1.0:
+            text += (f"\n  {'':<48} the plant (truth propagation, relative state) {_fmt(plant, '%')} of the loop;"
+                     f" solver share of the loop without it {_fmt(share / (1.0 - plant), '%')}")
     run, prev_run = _median(rows["this"], "run_wall_s"), _median(prev_rows, "run_wall_s")
     if run is not None:
         text += (f"\n  {'':<48} whole run (set-up, loop, summary) {_fmt(run)} (prev {_fmt(prev_run)}),"

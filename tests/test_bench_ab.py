@@ -24,6 +24,8 @@ def test_probe_counts_every_solver_call_once_and_share_is_a_fraction():
     assert probe["solver_calls"] == summary["solves"] > 0
     assert 0.0 < probe["solver_share"] < 1.0 and 0.0 < probe["run_solver_share"] < 1.0
     assert probe["solver_s"] < probe["wall_s"]  # the solver clock runs inside the loop's clock of the same call
+    # the plant's clock (a loop of its own) and the solver's are disjoint parts of a loop: never more than all of it
+    assert 0.0 < probe["plant_share"] < 1.0 and probe["solver_share"] + probe["plant_share"] < 1.0
 
 
 def test_probe_counts_the_lean_daqp_solves_of_the_los_loop():
