@@ -74,7 +74,9 @@ from proxops.propagation.kernels import (
     STATUS_TOO_MANY_STEPS,
     dop853_error_norm,
     hill_axes,
+    hill_from_rates,
     initial_step_orbit,
+    offset_from_rates,
 )
 
 # ------------------------------------------------------------------ parameter layout of p
@@ -406,26 +408,23 @@ def hill_from_y_full(t, y, p, npm, C, S, K, V, W, dens) -> np.ndarray:
 
 
 @njit(cache=True)
-def hill_from_accel(y, ax, ay, az) -> np.ndarray:
-    """:func:`hill_from_y_full` with the target's total acceleration (ax, ay, az) (m/s^2) given."""
-    xx, xy, xz, yx, yy, yz, zx, zy, zz = hill_axes(y)
+def frame_rates_from_accel(y, ax, ay, az):
+    """(w_x, w_z) (rad/s) of the Hill frame of the target y[0:6] with its total acceleration (ax, ay, az)
+    (m/s^2): w_z = |h| / r^2, w_x = r (a . h) / |h|^2 (w_y = 0)."""
     rn2 = y[0] * y[0] + y[1] * y[1] + y[2] * y[2]
     hx = y[1] * y[5] - y[2] * y[4]
     hy = y[2] * y[3] - y[0] * y[5]
     hz = y[0] * y[4] - y[1] * y[3]
     h2 = hx * hx + hy * hy + hz * hz
-    wz = math.sqrt(h2) / rn2
-    wx = math.sqrt(rn2) * (ax * hx + ay * hy + az * hz) / h2
-    px = xx * y[6] + xy * y[7] + xz * y[8]
-    py = yx * y[6] + yy * y[7] + yz * y[8]
-    pz = zx * y[6] + zy * y[7] + zz * y[8]
+    return math.sqrt(rn2) * (ax * hx + ay * hy + az * hz) / h2, math.sqrt(h2) / rn2
+
+
+@njit(cache=True)
+def hill_from_accel(y, ax, ay, az) -> np.ndarray:
+    """:func:`hill_from_y_full` with the target's total acceleration (ax, ay, az) (m/s^2) given."""
+    wx, wz = frame_rates_from_accel(y, ax, ay, az)
     out = np.empty(6)
-    out[0] = px
-    out[1] = py
-    out[2] = pz
-    out[3] = xx * y[9] + xy * y[10] + xz * y[11] + wz * py
-    out[4] = yx * y[9] + yy * y[10] + yz * y[11] - (wz * px - wx * pz)
-    out[5] = zx * y[9] + zy * y[10] + zz * y[11] - wx * py
+    hill_from_rates(y, wx, wz, out)
     return out
 
 
@@ -436,25 +435,9 @@ def y_from_hill_full(t, target, hill, p, npm, C, S, K, V, W, dens) -> np.ndarray
     y = np.zeros(12)
     for i in range(6):
         y[i] = target[i]
-    xx, xy, xz, yx, yy, yz, zx, zy, zz = hill_axes(y)
-    rn2 = y[0] * y[0] + y[1] * y[1] + y[2] * y[2]
-    hx = y[1] * y[5] - y[2] * y[4]
-    hy = y[2] * y[3] - y[0] * y[5]
-    hz = y[0] * y[4] - y[1] * y[3]
-    h2 = hx * hx + hy * hy + hz * hz
-    wz = math.sqrt(h2) / rn2
     ax, ay, az = target_accel(t, y, p, npm, C, S, K, V, W, dens)
-    wx = math.sqrt(rn2) * (ax * hx + ay * hy + az * hz) / h2
-    px, py, pz = hill[0], hill[1], hill[2]
-    qx = hill[3] - wz * py
-    qy = hill[4] + wz * px - wx * pz
-    qz = hill[5] + wx * py
-    y[6] = xx * px + yx * py + zx * pz
-    y[7] = xy * px + yy * py + zy * pz
-    y[8] = xz * px + yz * py + zz * pz
-    y[9] = xx * qx + yx * qy + zx * qz
-    y[10] = xy * qx + yy * qy + zy * qz
-    y[11] = xz * qx + yz * qy + zz * qz
+    wx, wz = frame_rates_from_accel(y, ax, ay, az)
+    offset_from_rates(y, hill, wx, wz)
     return y
 
 
