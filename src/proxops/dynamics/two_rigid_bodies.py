@@ -320,7 +320,7 @@ def check_not_interpenetrating(params: HybridParams, x, name: str = "initial_sta
 # --------------------------------------------------------------------------------------
 # flow
 # --------------------------------------------------------------------------------------
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _mv(M, v):
     """M @ v for a 3x3 M inside numba code (a loop: numba's ``@`` calls BLAS, ~1 us per call)."""
     out = np.empty(3)
@@ -329,7 +329,7 @@ def _mv(M, v):
     return out
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _mtv(M, v):
     """M.T @ v for a 3x3 M inside numba code."""
     out = np.empty(3)
@@ -338,7 +338,7 @@ def _mtv(M, v):
     return out
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _mtm(A, B):
     """A.T @ B for 3x3 matrices inside numba code."""
     out = np.empty((3, 3))
@@ -348,7 +348,7 @@ def _mtm(A, B):
     return out
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _attitude_rhs(x, dx, iq, iw, R, J, Ji, M0, M1, M2, n):
     """Attitude kinematics relative to T and Euler's equation of one body (quaternion at iq, inertial
     body rate at iw; R = C_{T<-B} as a 9-tuple; torque (M0, M1, M2) in B), written into dx."""
@@ -369,7 +369,7 @@ def _attitude_rhs(x, dx, iq, iw, R, J, Ji, M0, M1, M2, n):
         dx[iw + i] = Ji[i, 0] * t0 + Ji[i, 1] * t1 + Ji[i, 2] * t2
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _cw_scalar(x, dx, i, F0, F1, F2, m, n):
     """CW (eq. 21 with the standard G2 = -2 omega_t^x) for the CoM at index i (velocity at i + 3)."""
     dx[i] = x[i + 3]

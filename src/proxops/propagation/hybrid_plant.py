@@ -191,7 +191,7 @@ def gravity_frame(t, grav):
     return (n, a0, j2, re, mu, ex0, ex1, ex2, ey0, ey1, ey2, ez0, ez1, ez2, bx, by, bz)
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def gravity_point(r0, r1, r2, fr):
     """:func:`gravity_correction_kernel` at the T-position (r0, r1, r2) (m) with the time's
     :func:`gravity_frame` ``fr``, as a tuple (m/s^2)."""
@@ -276,7 +276,7 @@ def latch_stop_scalars(x, corners_d, v_c, plane_c, k, c, w0, w1, w2):
     return Fs0, Fs1, Fs2, td0, td1, td2, tc0, tc1, tc2, deepest
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _add_pair(dy, m_c, m_d, J_c_inv, J_d_inv, F0, F1, F2, d0, d1, d2, c0, c1, c2):
     """An internal force/torque pair into dy: the deputy's acceleration + F/m_d, the chief's - F/m_c,
     J^-1 tau into both body rates (element by element the array expressions of the former form)."""
