@@ -121,8 +121,12 @@ def load() -> str:
         return "?"
 
 
+def _values(rows: list[dict], key: str) -> list[float]:
+    return [r[key] for r in rows if r.get(key) is not None]
+
+
 def _median(rows: list[dict], key: str):
-    vals = [r[key] for r in rows if r.get(key) is not None]
+    vals = _values(rows, key)
     return statistics.median(vals) if vals else None
 
 
@@ -174,10 +178,6 @@ def main(argv: list[str] | None = None) -> int:
         opts.json.write_text(json.dumps({"previous_release": commit, "head": head, "machine": machine(),
                                          "results": results}, indent=1))
     return 0
-
-
-def _values(rows: list[dict], key: str) -> list[float]:
-    return [r[key] for r in rows if r.get(key) is not None]
 
 
 def _ratio_range(this: list[dict], prev: list[dict], key: str = "wall_s") -> str:
