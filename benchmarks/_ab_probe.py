@@ -109,44 +109,105 @@ def loop(scenario: str, reps: int, overrides: list[str]) -> dict:
                 "status": summary.get("status") or summary.get("outcome"),
             }
     if best:
-        best["plant_share"] = plant_share(loaded)
+        best.update(breakdown(loaded) or {})
     return best
 
 
 PLANT_METHODS = ("relative_state", "propagate", "propagate_events", "apply_impulse", "coast", "mode")
 
 
-def plant_share(loaded) -> float | None:
-    """Share of one more closed loop spent in the plant's methods the engine calls (the truth's propagation,
-    its relative state, impulses, coasts), timed on the plant instance (a call inside another counts once).
-    A separate loop, so the wrappers do not touch the timed ones; with the solver share it gives the solver's
-    share of what is left, the loop without its truth."""
-    from proxops import api
+def _timer(fn, pick):
+    """``fn`` timed into the clock ``pick()`` returns at the call (a dict with "s" and "depth"; None: not
+    timed); a call made inside another timed call of the same clock counts once."""
 
-    setup = loaded.system.build(loaded.scenario)
-    plant = setup.plant
-    clock = {"s": 0.0, "depth": 0}
-    for name in PLANT_METHODS:
-        fn = getattr(plant, name, None)
-        if fn is None:
-            continue
-
-        def timed(*args, _fn=fn, **kwargs):
-            outer = clock["depth"] == 0
+    def timed(*args, **kwargs):
+        clock = pick()
+        if clock is None or clock["depth"]:
+            if clock is None:
+                return fn(*args, **kwargs)
             clock["depth"] += 1
-            t0 = time.perf_counter()
             try:
-                return _fn(*args, **kwargs)
+                return fn(*args, **kwargs)
             finally:
                 clock["depth"] -= 1
-                if outer:
-                    clock["s"] += time.perf_counter() - t0
+        clock["depth"] += 1
+        t0 = time.perf_counter()
+        try:
+            return fn(*args, **kwargs)
+        finally:
+            clock["depth"] -= 1
+            clock["s"] += time.perf_counter() - t0
 
-        setattr(plant, name, timed)
-    t0 = time.perf_counter()
-    api.simulate(setup, seed=0)
-    wall = time.perf_counter() - t0
-    return clock["s"] / wall if wall > 0 else None
+    timed._ab_wrapped = True
+    return timed
+
+
+def _wrap_kernels(pick) -> list:
+    """Every numba kernel a proxops module holds as a module attribute, replaced by a timer into the clock
+    ``pick()`` names (numba code calling numba code is compiled and untouched: only the calls from Python
+    are timed, dispatch included). Returns the (module, name, kernel) to put back."""
+    from numba.core.registry import CPUDispatcher
+
+    undo = []
+    for name, mod in list(sys.modules.items()):
+        if not name.startswith("proxops") or mod is None:
+            continue
+        for attr, value in list(vars(mod).items()):
+            if isinstance(value, CPUDispatcher):
+                undo.append((mod, attr, value))
+                setattr(mod, attr, _timer(value, pick))
+    return undo
+
+
+def breakdown(loaded) -> dict | None:
+    """Where one more closed loop's wall goes, in disjoint parts: the solver adapters (as the timed
+    loops count them), the plant's methods the engine calls (the truth's propagation, its relative
+    state, impulses, coasts) and, inside both and outside, the compiled (numba) kernels called from
+    Python. A separate loop, so these wrappers do not touch the timed loops. Keys (shares of this loop):
+
+    - breakdown_solver_share: the solver clock (adapter calls, their Python included);
+    - plant_share: the plant's methods; plant_kernel_share: the compiled part of them;
+    - kernel_share: kernels outside the solver and the plant (the controller's and the engine's
+      numerics: QP construction, guidance, linearisation);
+    - python_share: the rest, with the plant's own Python (plant_share - plant_kernel_share);
+    - compiled_bound: the solver's share if every line of Python outside the solver took no time,
+      solver / (solver + plant kernels + kernels).
+
+    A kernel is found as a proxops module attribute, so one reached another way counts as Python; a
+    kernel's clock includes its dispatch and its wrapper (~0.5 us a call)."""
+    from proxops import api
+
+    plant_clock = {"s": 0.0, "depth": 0}
+    kernel_clock = {"s": 0.0, "depth": 0}
+    plant_kernel_clock = {"s": 0.0, "depth": 0}
+
+    def kernel_clock_now():  # inside a solver call: the solver's; inside a plant call: the plant's kernels
+        if _clock["depth"]:
+            return None
+        return plant_kernel_clock if plant_clock["depth"] else kernel_clock
+
+    undo = _wrap_kernels(kernel_clock_now)
+    try:
+        setup = loaded.system.build(loaded.scenario)
+        plant = setup.plant
+        for name in PLANT_METHODS:
+            fn = getattr(plant, name, None)
+            if fn is not None:
+                setattr(plant, name, _timer(fn, lambda: None if _clock["depth"] else plant_clock))
+        _clock.update(solver_s=0.0, calls=0)
+        t0 = time.perf_counter()
+        api.simulate(setup, seed=0)
+        wall = time.perf_counter() - t0
+    finally:
+        for mod, attr, value in undo:
+            setattr(mod, attr, value)
+    if not wall > 0:
+        return None
+    solver, plant_s = _clock["solver_s"] / wall, plant_clock["s"] / wall
+    kernel, plant_kernel = kernel_clock["s"] / wall, plant_kernel_clock["s"] / wall
+    return {"breakdown_solver_share": solver, "plant_share": plant_s, "plant_kernel_share": plant_kernel,
+            "kernel_share": kernel, "python_share": 1.0 - solver - plant_s - kernel,
+            "compiled_bound": solver / (solver + plant_kernel + kernel) if solver > 0 else None}
 
 
 def cli(args: list[str]) -> int:

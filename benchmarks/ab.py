@@ -202,6 +202,20 @@ def verdict(values: list[float], goal: float, below: bool) -> str:
     return f"met in {sum(ok)} of {len(ok)} repetitions only"
 
 
+def _breakdown_text(rows: list) -> str:
+    """The probe's breakdown of one more loop (``_ab_probe.breakdown``), medians: solver, plant (its compiled
+    part), the controller's and engine's compiled kernels, Python, and the solver's share with no Python
+    outside the solver (the ceiling the compiled numerics set); "" for a row without it."""
+    bound = _median(rows, "compiled_bound")
+    if bound is None:
+        return ""
+    part = {key: _fmt(_median(rows, key), "%") for key in
+            ("breakdown_solver_share", "plant_share", "plant_kernel_share", "kernel_share", "python_share")}
+    return (f"\n  {'':<48} breakdown: solver {part['breakdown_solver_share']}, plant {part['plant_share']}"
+            f" (compiled {part['plant_kernel_share']}), other compiled kernels {part['kernel_share']},"
+            f" Python {part['python_share']}; solver share with no Python outside the solver {_fmt(bound, '%')}")
+
+
 def _print_row(label: str, rows: dict, goal, share_goal) -> None:
     errors = [r["error"] for side in rows.values() for r in side if "error" in r]
     prev_rows = rows.get("prev", [])
@@ -226,6 +240,7 @@ def _print_row(label: str, rows: dict, goal, share_goal) -> None:
         if plant is not None and plant < 1.0:
             text += (f"\n  {'':<48} the plant (truth propagation, relative state) {_fmt(plant, '%')} of the loop;"
                      f" solver share of the loop without it {_fmt(share / (1.0 - plant), '%')}")
+        text += _breakdown_text(rows["this"])
     run, prev_run = _median(rows["this"], "run_wall_s"), _median(prev_rows, "run_wall_s")
     if run is not None:
         text += (f"\n  {'':<48} whole run (set-up, loop, summary) {_fmt(run)} (prev {_fmt(prev_run)}),"

@@ -40,6 +40,57 @@ def test_probe_counts_the_lean_daqp_solves_of_the_los_loop():
     summary, _ = api.run(api.load_scenario("los-tumble", []))
     assert probe["solver_calls"] == summary["steps"] > 0
     assert 0.0 < probe["solver_share"] < 1.0
+    # the breakdown's clocks are disjoint parts of its loop: the truth's kernels (DOP853, body state) inside the
+    # plant's clock, the fused guidance + QP data kernel outside it; none of them inside the solver's
+    b = probe
+    assert 0.0 < b["plant_kernel_share"] <= b["plant_share"] < 1.0
+    assert b["kernel_share"] > 0.0 and b["python_share"] > 0.0
+    assert b["breakdown_solver_share"] + b["plant_share"] + b["kernel_share"] < 1.0
+    assert b["breakdown_solver_share"] < b["compiled_bound"] < 1.0
+
+
+def _probe_module():
+    import importlib.util
+
+    spec = importlib.util.spec_from_file_location("ab_probe", ROOT / "benchmarks" / "_ab_probe.py")
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    return mod
+
+
+def test_timer_counts_a_nested_call_once_into_the_clock_picked_at_the_call(monkeypatch):
+    """_ab_probe._timer against a fake clock that advances 1 s per reading: the outer call reads it twice
+    (2 readings apart: its own start, the nested call's nothing), a call with no clock is not timed."""
+    probe = _probe_module()
+    ticks = iter(range(100))
+    monkeypatch.setattr(probe.time, "perf_counter", lambda: float(next(ticks)))
+    clock = {"s": 0.0, "depth": 0}
+    active = {"on": True}
+    inner = probe._timer(lambda: "inner", lambda: clock if active["on"] else None)
+    outer = probe._timer(lambda: inner(), lambda: clock if active["on"] else None)
+    assert outer() == "inner"
+    assert clock == {"s": 1.0, "depth": 0}  # one interval: the nested call read no clock
+    active["on"] = False
+    assert outer() == "inner" and clock["s"] == 1.0  # not timed at all
+
+
+def test_breakdown_puts_every_kernel_back():
+    """After the breakdown's loop every proxops module holds its numba kernels again (the timed loops and any
+    later code see no wrapper)."""
+    from numba.core.registry import CPUDispatcher
+
+    from proxops import api
+
+    probe = _probe_module()
+    loaded = api.load_scenario("los-tumble", [])
+    api.run(loaded)
+    kernels = {(name, attr) for name, mod in list(sys.modules.items()) if name.startswith("proxops") and mod
+               for attr, value in vars(mod).items() if isinstance(value, CPUDispatcher)}
+    out = probe.breakdown(loaded)
+    assert out is not None and out["kernel_share"] > 0.0 and 0.0 < out["plant_kernel_share"] <= out["plant_share"]
+    after = {(name, attr) for name, mod in list(sys.modules.items()) if name.startswith("proxops") and mod
+             for attr, value in vars(mod).items() if isinstance(value, CPUDispatcher)}
+    assert kernels and kernels <= after
 
 
 def _ab():
