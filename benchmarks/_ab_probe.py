@@ -24,7 +24,7 @@ ADAPTERS = {  # module -> adapter classes (present in every release since the so
     "proxops.solvers.highs_lp": ["HighsLP", "HighsMILP"],
     "proxops.solvers.casadi_nlp": ["CasadiNLP"],
 }
-_clock = {"solver_s": 0.0, "calls": 0, "depth": 0}
+_clock = {"s": 0.0, "calls": 0, "depth": 0}  # the solver clock
 
 
 SOLVER_METHODS = ("setup", "setup_native", "update", "update_native", "update_fast", "warm_start", "solve",
@@ -34,27 +34,38 @@ SOLVER_METHODS = ("setup", "setup_native", "update", "update_native", "update_fa
 SOLVE_METHODS = ("solve", "solve_fast", "solve_bounds_fast")
 
 
+def _timer(fn, pick, count: bool = False):
+    """``fn`` timed into the clock ``pick()`` returns at the call (a dict with "s", "depth" and, with
+    ``count``, "calls"; None: not timed); a call made inside another timed call of the same clock counts
+    once."""
+
+    def timed(*args, **kwargs):
+        clock = pick()
+        if clock is None:
+            return fn(*args, **kwargs)
+        outer = clock["depth"] == 0
+        clock["depth"] += 1
+        t0 = time.perf_counter() if outer else 0.0
+        try:
+            return fn(*args, **kwargs)
+        finally:
+            clock["depth"] -= 1
+            if outer:
+                clock["s"] += time.perf_counter() - t0
+                if count:
+                    clock["calls"] += 1
+
+    timed._ab_wrapped = True
+    return timed
+
+
 def _wrap(cls, method: str) -> None:
     """Time ``cls.method`` into the solver clock: the solver's own work (data loading, factorisation,
     iterations) and its adapter; a call made inside another solver call counts once."""
     fn = cls.__dict__.get(method)
     if fn is None or getattr(fn, "_ab_wrapped", False):
         return
-
-    def timed(self, *args, **kwargs):
-        outer = _clock["depth"] == 0
-        _clock["depth"] += 1
-        t0 = time.perf_counter()
-        try:
-            return fn(self, *args, **kwargs)
-        finally:
-            _clock["depth"] -= 1
-            if outer:
-                _clock["solver_s"] += time.perf_counter() - t0
-                _clock["calls"] += method in SOLVE_METHODS
-
-    timed._ab_wrapped = True
-    setattr(cls, method, timed)
+    setattr(cls, method, _timer(fn, lambda: _clock, count=method in SOLVE_METHODS))
 
 
 def _instrument() -> None:
@@ -72,10 +83,10 @@ def _instrument() -> None:
 
 
 def _timed(fn) -> tuple[float, float, int, object]:
-    _clock.update(solver_s=0.0, calls=0)
+    _clock.update(s=0.0, calls=0)
     t0 = time.perf_counter()
     out = fn()
-    return time.perf_counter() - t0, _clock["solver_s"], _clock["calls"], out
+    return time.perf_counter() - t0, _clock["s"], _clock["calls"], out
 
 
 def loop(scenario: str, reps: int, overrides: list[str]) -> dict:
@@ -88,10 +99,10 @@ def loop(scenario: str, reps: int, overrides: list[str]) -> dict:
 
     def closed_loop():
         setup = loaded.system.build(loaded.scenario)  # set-up (e.g. cortex's reference plan) is not the loop
-        _clock.update(solver_s=0.0, calls=0)
+        _clock.update(s=0.0, calls=0)
         t0 = time.perf_counter()
         res = api.simulate(setup, seed=0)
-        return time.perf_counter() - t0, _clock["solver_s"], _clock["calls"], res
+        return time.perf_counter() - t0, _clock["s"], _clock["calls"], res
 
     api.run(loaded)  # warm-up: numba cache load, lazy imports, solver set-up
     closed_loop()
@@ -114,32 +125,6 @@ def loop(scenario: str, reps: int, overrides: list[str]) -> dict:
 
 
 PLANT_METHODS = ("relative_state", "propagate", "propagate_events", "apply_impulse", "coast", "mode")
-
-
-def _timer(fn, pick):
-    """``fn`` timed into the clock ``pick()`` returns at the call (a dict with "s" and "depth"; None: not
-    timed); a call made inside another timed call of the same clock counts once."""
-
-    def timed(*args, **kwargs):
-        clock = pick()
-        if clock is None or clock["depth"]:
-            if clock is None:
-                return fn(*args, **kwargs)
-            clock["depth"] += 1
-            try:
-                return fn(*args, **kwargs)
-            finally:
-                clock["depth"] -= 1
-        clock["depth"] += 1
-        t0 = time.perf_counter()
-        try:
-            return fn(*args, **kwargs)
-        finally:
-            clock["depth"] -= 1
-            clock["s"] += time.perf_counter() - t0
-
-    timed._ab_wrapped = True
-    return timed
 
 
 def _wrap_kernels(pick) -> list:
@@ -194,7 +179,7 @@ def breakdown(loaded) -> dict | None:
             fn = getattr(plant, name, None)
             if fn is not None:
                 setattr(plant, name, _timer(fn, lambda: None if _clock["depth"] else plant_clock))
-        _clock.update(solver_s=0.0, calls=0)
+        _clock.update(s=0.0, calls=0)
         t0 = time.perf_counter()
         api.simulate(setup, seed=0)
         wall = time.perf_counter() - t0
@@ -203,7 +188,7 @@ def breakdown(loaded) -> dict | None:
             setattr(mod, attr, value)
     if not wall > 0:
         return None
-    solver, plant_s = _clock["solver_s"] / wall, plant_clock["s"] / wall
+    solver, plant_s = _clock["s"] / wall, plant_clock["s"] / wall
     kernel, plant_kernel = kernel_clock["s"] / wall, plant_kernel_clock["s"] / wall
     return {"breakdown_solver_share": solver, "plant_share": plant_s, "plant_kernel_share": plant_kernel,
             "kernel_share": kernel, "python_share": 1.0 - solver - plant_s - kernel,
