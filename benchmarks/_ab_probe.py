@@ -156,7 +156,9 @@ def breakdown(loaded) -> dict | None:
       numerics: QP construction, guidance, linearisation);
     - python_share: the rest, with the plant's own Python (plant_share - plant_kernel_share);
     - compiled_bound: the solver's share if every line of Python outside the solver took no time,
-      solver / (solver + plant kernels + kernels).
+      solver / (solver + plant kernels + kernels);
+    - controller_share: the controller's steps (the onboard computation: its solver calls, kernels and
+      Python), and solver_share_of_controller, the solver's part of them.
 
     A kernel is found as a proxops module attribute, so one reached another way counts as Python; a
     kernel's clock includes its dispatch and its wrapper (~0.5 us a call)."""
@@ -165,6 +167,7 @@ def breakdown(loaded) -> dict | None:
     plant_clock = {"s": 0.0, "depth": 0}
     kernel_clock = {"s": 0.0, "depth": 0}
     plant_kernel_clock = {"s": 0.0, "depth": 0}
+    controller_clock = {"s": 0.0, "depth": 0}
 
     def kernel_clock_now():  # inside a solver call: the solver's; inside a plant call: the plant's kernels
         if _clock["depth"]:
@@ -179,6 +182,7 @@ def breakdown(loaded) -> dict | None:
             fn = getattr(plant, name, None)
             if fn is not None:
                 setattr(plant, name, _timer(fn, lambda: None if _clock["depth"] else plant_clock))
+        setup.controller.step = _timer(setup.controller.step, lambda: controller_clock)
         _clock.update(s=0.0, calls=0)
         t0 = time.perf_counter()
         api.simulate(setup, seed=0)
@@ -192,7 +196,9 @@ def breakdown(loaded) -> dict | None:
     kernel, plant_kernel = kernel_clock["s"] / wall, plant_kernel_clock["s"] / wall
     return {"breakdown_solver_share": solver, "plant_share": plant_s, "plant_kernel_share": plant_kernel,
             "kernel_share": kernel, "python_share": 1.0 - solver - plant_s - kernel,
-            "compiled_bound": solver / (solver + plant_kernel + kernel) if solver > 0 else None}
+            "compiled_bound": solver / (solver + plant_kernel + kernel) if solver > 0 else None,
+            "controller_share": controller_clock["s"] / wall,
+            "solver_share_of_controller": _clock["s"] / controller_clock["s"] if controller_clock["s"] > 0 else None}
 
 
 def cli(args: list[str]) -> int:

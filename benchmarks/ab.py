@@ -213,7 +213,9 @@ def _breakdown_text(rows: list) -> str:
             ("breakdown_solver_share", "plant_share", "plant_kernel_share", "kernel_share", "python_share")}
     return (f"\n  {'':<48} breakdown: solver {part['breakdown_solver_share']}, plant {part['plant_share']}"
             f" (compiled {part['plant_kernel_share']}), other compiled kernels {part['kernel_share']},"
-            f" Python {part['python_share']}; solver share with no Python outside the solver {_fmt(bound, '%')}")
+            f" Python {part['python_share']}; solver share with no Python outside the solver {_fmt(bound, '%')}"
+            f"\n  {'':<48} the controller's steps {_fmt(_median(rows, 'controller_share'), '%')} of the loop, the solver"
+            f" {_fmt(_median(rows, 'solver_share_of_controller'), '%')} of them")
 
 
 def _print_row(label: str, rows: dict, goal, share_goal) -> None:

@@ -47,6 +47,9 @@ def test_probe_counts_the_lean_daqp_solves_of_the_los_loop():
     assert b["kernel_share"] > 0.0 and b["python_share"] > 0.0
     assert b["breakdown_solver_share"] + b["plant_share"] + b["kernel_share"] < 1.0
     assert b["breakdown_solver_share"] < b["compiled_bound"] < 1.0
+    # the solver is called from the controller's step: its share of the step is above its share of the loop
+    assert b["breakdown_solver_share"] < b["controller_share"] < 1.0
+    assert b["breakdown_solver_share"] < b["solver_share_of_controller"] < 1.0
 
 
 def _probe_module():
