@@ -24,6 +24,8 @@ All functions accept a single quaternion/vector or stacks with leading dimension
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from proxops.errors import input_error
@@ -242,4 +244,34 @@ def multiply_kernel(p, q):
     out[1] = p[3] * q[1] + q[3] * p[1] + p[2] * q[0] - p[0] * q[2]
     out[2] = p[3] * q[2] + q[3] * p[2] + p[0] * q[1] - p[1] * q[0]
     out[3] = p[3] * q[3] - p[0] * q[0] - p[1] * q[1] - p[2] * q[2]
+    return out
+
+
+@njit(cache=True)
+def rotation_quaternion_kernel(phi):
+    """Unit quaternion (scalar last) of the rotation vector ``phi`` (rad, 3):
+    [sin(|phi|/2) phi/|phi|, cos(|phi|/2)] (exp(phi / 2); [0, 0, 0, 1] for phi = 0)."""
+    angle = math.sqrt(phi[0] * phi[0] + phi[1] * phi[1] + phi[2] * phi[2])
+    out = np.empty(4)
+    if angle == 0.0:
+        out[0], out[1], out[2], out[3] = 0.0, 0.0, 0.0, 1.0
+        return out
+    s = math.sin(0.5 * angle) / angle
+    out[0], out[1], out[2], out[3] = phi[0] * s, phi[1] * s, phi[2] * s, math.cos(0.5 * angle)
+    return out
+
+
+@njit(cache=True)
+def rotation_vector_kernel(q):
+    """Rotation vector (rad) of the unit quaternion ``q``: angle * axis, angle in [0, pi] (the shorter
+    of +-q); the inverse of :func:`rotation_quaternion_kernel`."""
+    s = -1.0 if q[3] < 0.0 else 1.0
+    x, y, z, w = s * q[0], s * q[1], s * q[2], s * q[3]
+    vn = math.sqrt(x * x + y * y + z * z)
+    out = np.empty(3)
+    if vn < 1e-12:  # 2 atan2(vn, w) / vn -> 2 / w (first order; w ~ 1 here)
+        out[0], out[1], out[2] = 2.0 * x / w, 2.0 * y / w, 2.0 * z / w
+        return out
+    k = 2.0 * math.atan2(vn, w) / vn
+    out[0], out[1], out[2] = k * x, k * y, k * z
     return out

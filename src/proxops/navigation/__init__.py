@@ -18,7 +18,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from proxops.core.layout import StateLayout
-from proxops.core.quaternion import quat_multiply
+from proxops.core.quaternion import quat_multiply, rotation_quaternion_kernel
 
 
 @dataclass
@@ -139,9 +139,6 @@ class GaussianNavigation(NavigationBase):
 
 
 def small_rotation(phi: np.ndarray) -> np.ndarray:
-    """Unit quaternion (scalar-last) of the rotation vector ``phi`` (rad): [sin(|phi|/2) phi/|phi|, cos(|phi|/2)]."""
-    angle = math.sqrt(float(phi @ phi))
-    if angle == 0.0:
-        return np.array([0.0, 0.0, 0.0, 1.0])
-    s = math.sin(0.5 * angle) / angle
-    return np.array([phi[0] * s, phi[1] * s, phi[2] * s, math.cos(0.5 * angle)])
+    """Unit quaternion (scalar-last) of the rotation vector ``phi`` (rad): [sin(|phi|/2) phi/|phi|, cos(|phi|/2)]
+    (:func:`proxops.core.quaternion.rotation_quaternion_kernel`)."""
+    return rotation_quaternion_kernel(np.ascontiguousarray(phi, dtype=float))

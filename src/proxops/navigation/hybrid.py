@@ -71,18 +71,19 @@ class HybridNavigation(NavigationBase):
 
     def _known_inputs(self, x: np.ndarray, dt: float) -> None:
         f = self.filter
-        P = f.P
-        w = f.omega
+        dw = None
         if x[33] > 0.5 and dt > 0.0:  # latched: the pair turns under the commanded wrench
             Q_T = _dcm(x[9:13])  # C_{C<-D} (measured q)
             F, a = Q_T @ self._u[0:3], self.arm_C
             M = Q_T @ self._u[3:6] + np.array([a[1] * F[2] - a[2] * F[1], a[2] * F[0] - a[0] * F[2],
                                                 a[0] * F[1] - a[1] * F[0]])
-            w = w + np.linalg.solve(self.inertia_pair_C, M) * dt
+            dw = np.linalg.solve(self.inertia_pair_C, M) * dt
+        variance = 0.0
         if x[32] > self._contacts:  # a contact impulse: the rate is uncertain by a few deg/s
             self._contacts = float(x[32])
-            P[3:6, 3:6] += math.radians(self.contact_rate_sigma_deg_s) ** 2 * np.eye(3)
-        f.restart(f.q, w, P)  # the filter's own state plus known increments: no re-check of P
+            variance = math.radians(self.contact_rate_sigma_deg_s) ** 2
+        if dw is not None or variance > 0.0:
+            f.add_rate(dw, variance)
 
     def _start(self, x: np.ndarray, rng: np.random.Generator) -> None:
         s_a, s_w = math.radians(self.initial_attitude_sigma_deg), math.radians(self.initial_rate_sigma_deg_s)
@@ -107,19 +108,21 @@ class HybridNavigation(NavigationBase):
         self._t_last = t
         f = self.filter
         p = x[13:17]
-        z = multiply_kernel(p, small_rotation(math.radians(self.chief_attitude_sigma_deg) * rng.standard_normal(3)))
-        f.update_attitude(z, math.radians(self.chief_attitude_sigma_deg))
+        e = rng.standard_normal(21)  # the 7 draws of 3 in the order below (one call: the same numbers)
+        sigma_chief = math.radians(self.chief_attitude_sigma_deg)
+        f.update_attitude(multiply_kernel(p, small_rotation(sigma_chief * e[0:3])), sigma_chief)
         p_hat = f.q
         if p_hat[3] < 0.0:
             p_hat = -p_hat
         out[13:17] = p_hat
         out[17:20] = f.omega - self.mean_motion_rad_s * _dcm(p_hat)[2]  # omega_hat - C_{C<-T}(p_hat) omega_t
-        self.attitude_errors_deg.append(math.degrees(float(np.linalg.norm(attitude_error(p_hat, p)))))
-        out[0:3] += self.position_sigma_m * rng.standard_normal(3)
-        out[3:6] += self.velocity_sigma_mps * rng.standard_normal(3)
-        out[6:9] += math.radians(self.rate_sigma_deg_s) * rng.standard_normal(3)
-        q = multiply_kernel(x[9:13], small_rotation(math.radians(self.attitude_sigma_deg) * rng.standard_normal(3)))
+        err = attitude_error(p_hat, p)
+        self.attitude_errors_deg.append(math.degrees(math.sqrt(float(err @ err))))  # np.linalg.norm's sqrt(err . err)
+        out[0:3] += self.position_sigma_m * e[3:6]
+        out[3:6] += self.velocity_sigma_mps * e[6:9]
+        out[6:9] += math.radians(self.rate_sigma_deg_s) * e[9:12]
+        q = multiply_kernel(x[9:13], small_rotation(math.radians(self.attitude_sigma_deg) * e[12:15]))
         out[9:13] = q if q[3] >= 0.0 else -q
-        out[20:23] += self.com_position_sigma_m * rng.standard_normal(3)
-        out[23:26] += self.com_velocity_sigma_mps * rng.standard_normal(3)
+        out[20:23] += self.com_position_sigma_m * e[15:18]
+        out[23:26] += self.com_velocity_sigma_mps * e[18:21]
         return out

@@ -53,8 +53,9 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
-from proxops.core.quaternion import multiply_kernel, quat_conjugate, quat_normalize
-from proxops.core.small_linalg import expm_pade13
+from proxops.core.quaternion import (multiply_kernel, quat_normalize, rotation_quaternion_kernel,
+                                     rotation_vector_kernel)
+from proxops.core.small_linalg import expm_pade13, matmul, matmul_tn
 from proxops.errors import input_error
 from proxops.navigation import small_rotation
 from proxops.navigation.consistency import chi2_band
@@ -62,25 +63,22 @@ from proxops.navigation.consistency import chi2_band
 
 def rotation_vector(q: np.ndarray) -> np.ndarray:
     """Rotation vector (rad) of unit ``q``: angle * axis, angle in [0, pi] (the shorter of +-q);
-    the inverse of :func:`proxops.navigation.small_rotation` (exp(phi / 2))."""
-    q = np.asarray(q, dtype=float)
-    if q[3] < 0.0:
-        q = -q
-    vn = math.sqrt(float(q[0] * q[0] + q[1] * q[1] + q[2] * q[2]))
-    if vn < 1e-12:  # 2 atan2(vn, w)/vn -> 2/w (first order; w ~ 1 here)
-        return 2.0 * q[:3] / q[3]
-    return (2.0 * math.atan2(vn, q[3]) / vn) * q[:3]
+    the inverse of :func:`proxops.navigation.small_rotation` (exp(phi / 2)); numba:
+    :func:`proxops.core.quaternion.rotation_vector_kernel`."""
+    return rotation_vector_kernel(np.ascontiguousarray(q, dtype=float))
 
 
 def attitude_error(q_est: np.ndarray, q_true: np.ndarray) -> np.ndarray:
     """Body-frame error rotation vector ``dtheta = log(q_est^-1 (x) q_true)`` (rad)."""
-    return rotation_vector(multiply_kernel(quat_conjugate(q_est), np.asarray(q_true, dtype=float)))
+    return _attitude_error_kernel(np.ascontiguousarray(q_est, dtype=float), np.ascontiguousarray(q_true, dtype=float))
 
 
-def _skew(v) -> np.ndarray:
-    """v^x of one 3-vector (:func:`proxops.core.quaternion.skew` without the stacking overhead)."""
-    a, b, c = float(v[0]), float(v[1]), float(v[2])
-    return np.array([[0.0, -c, b], [c, 0.0, -a], [-b, a, 0.0]])
+@njit(cache=True)
+def _attitude_error_kernel(q_est, q_true):  # pragma: no cover - compiled
+    """:func:`attitude_error` inside numba code: the rotation vector of conj(q_est) (x) q_true."""
+    conj = np.empty(4)
+    conj[0], conj[1], conj[2], conj[3] = -q_est[0], -q_est[1], -q_est[2], q_est[3]
+    return rotation_vector_kernel(multiply_kernel(conj, q_true))
 
 
 def euler_rate(omega: np.ndarray, inertia: np.ndarray, inertia_inv: np.ndarray) -> np.ndarray:
@@ -89,30 +87,64 @@ def euler_rate(omega: np.ndarray, inertia: np.ndarray, inertia_inv: np.ndarray) 
 
 
 def error_dynamics(omega: np.ndarray, inertia: np.ndarray, inertia_inv: np.ndarray, bias: bool = False) -> np.ndarray:
-    """Continuous error-state matrix F (6x6 or 9x9) at the body rate ``omega`` (module docstring)."""
-    n = 9 if bias else 6
+    """Continuous error-state matrix F (6x6 or 9x9) at the body rate ``omega`` (module docstring;
+    one numba call, :func:`_error_dynamics_kernel`)."""
+    return _error_dynamics_kernel(np.ascontiguousarray(omega, dtype=float), np.ascontiguousarray(inertia, dtype=float),
+                                  np.ascontiguousarray(inertia_inv, dtype=float), 9 if bias else 6)
+
+
+@njit(cache=True)
+def _error_dynamics_kernel(w, J, J_inv, n):  # pragma: no cover - compiled
+    """F (n x n, n = 6 or 9) of :func:`error_dynamics`: F[:3, :3] = -[w]x, F[:3, 3:6] = I,
+    F[3:6, 3:6] = J^-1 ([J w]x - [w]x J)."""
     F = np.zeros((n, n))
-    sw = _skew(omega)
-    F[:3, :3] = -sw
-    F[:3, 3:6] = np.eye(3)
-    F[3:6, 3:6] = inertia_inv @ (_skew(inertia @ omega) - sw @ inertia)
+    h0 = J[0, 0] * w[0] + J[0, 1] * w[1] + J[0, 2] * w[2]
+    h1 = J[1, 0] * w[0] + J[1, 1] * w[1] + J[1, 2] * w[2]
+    h2 = J[2, 0] * w[0] + J[2, 1] * w[1] + J[2, 2] * w[2]
+    sw = np.array([[0.0, -w[2], w[1]], [w[2], 0.0, -w[0]], [-w[1], w[0], 0.0]])
+    sh = np.array([[0.0, -h2, h1], [h2, 0.0, -h0], [-h1, h0, 0.0]])
+    M = matmul(J_inv, sh - matmul(sw, J))  # J^-1 ([J w]x - [w]x J)
+    for i in range(3):
+        F[i, 3 + i] = 1.0
+        for j in range(3):
+            F[i, j] = -sw[i, j]
+            F[3 + i, 3 + j] = M[i, j]
     return F
 
 
 def van_loan(F: np.ndarray, Qc: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray]:
     """(Phi, Q_d) of x_dot = F x + w, E[w w^T] = Qc delta, over ``dt`` s, F constant: Van Loan,
-    expm([[-F, Qc], [0, F^T]] dt) = [[., E12], [0, E22]] -> Phi = E22^T, Q_d = Phi E12.
-    The exponential is :func:`proxops.core.small_linalg.expm_pade13` (jitted: no BLAS threads on 12x12 matrices)."""
-    F = np.ascontiguousarray(F, dtype=float)
+    expm([[-F, Qc], [0, F^T]] dt) = [[., E12], [0, E22]] -> Phi = E22^T, Q_d = Phi E12 (symmetrised).
+    One numba call (:func:`_van_loan_kernel`; the exponential is
+    :func:`proxops.core.small_linalg.expm_pade13`: no BLAS threads on 12x12 matrices)."""
+    return _van_loan_kernel(np.ascontiguousarray(F, dtype=float), np.ascontiguousarray(Qc, dtype=float), float(dt))
+
+
+@njit(cache=True)
+def _van_loan_kernel(F, Qc, dt):  # pragma: no cover - compiled
+    """:func:`van_loan` inside numba code."""
     n = F.shape[0]
     m = np.zeros((2 * n, 2 * n))
-    m[:n, :n] = -F
-    m[:n, n:] = Qc
-    m[n:, n:] = F.T
-    e = expm_pade13(m * dt)
-    phi = e[n:, n:].T
-    qd = phi @ e[:n, n:]
-    return phi, 0.5 * (qd + qd.T)
+    for i in range(n):
+        for j in range(n):
+            m[i, j] = -F[i, j] * dt
+            m[i, n + j] = Qc[i, j] * dt
+            m[n + i, n + j] = F[j, i] * dt
+    e = expm_pade13(m)
+    phi = np.ascontiguousarray(e[n:, n:].T)
+    return phi, _symmetrised(matmul(phi, np.ascontiguousarray(e[:n, n:])))
+
+
+@njit(cache=True)
+def _symmetrised(X):  # pragma: no cover - compiled
+    """0.5 (X + X^T) of a square X, in place (returned)."""
+    n = X.shape[0]
+    for i in range(n):
+        for j in range(i + 1, n):
+            v = 0.5 * (X[i, j] + X[j, i])
+            X[i, j] = v
+            X[j, i] = v
+    return X
 
 
 @njit(cache=True)
@@ -145,6 +177,85 @@ def _rk4_step(y, h, J, J_inv):  # pragma: no cover - compiled
     for i in range(4):
         out[i] /= nq
     return out
+
+
+@njit(cache=True)
+def _sandwich(A, P):  # pragma: no cover - compiled
+    """A P A^T, symmetrised."""
+    return _symmetrised(matmul(matmul(A, P), np.ascontiguousarray(A.T)))
+
+
+@njit(cache=True)
+def _predict_kernel(q, w, P, dt, J, J_inv, Qc, frame_rate, rotating, max_substep_s,
+                    max_substep_angle_rad):  # pragma: no cover - compiled
+    """:meth:`AttitudeMEKF.predict` for dt > 0 s: (q, omega, P) after ``dt``, in RK4 substeps of at most
+    max_substep_s and max_substep_angle_rad of rotation. Each substep: Phi, Q_d from Van Loan at the
+    substep's mean rate, P <- Phi P Phi^T + Q_d (symmetrised); with ``rotating`` the reference frame turns
+    at ``frame_rate`` (rad/s, its own axes): q <- exp(-w_A h / 2) (x) q; q renormalised."""
+    n = P.shape[0]
+    rate = math.sqrt(w[0] * w[0] + w[1] * w[1] + w[2] * w[2])
+    n_sub = max(1, math.ceil(dt / max_substep_s), math.ceil(rate * dt / max_substep_angle_rad))
+    h = dt / n_sub
+    y = np.empty(7)
+    q, w, P = q.copy(), w.copy(), P.copy()
+    w_mid = np.empty(3)
+    for _ in range(n_sub):
+        y[0:4] = q
+        y[4:7] = w
+        y1 = _rk4_step(y, h, J, J_inv)
+        for i in range(3):
+            w_mid[i] = 0.5 * (w[i] + y1[4 + i])
+        phi, qd = _van_loan_kernel(_error_dynamics_kernel(w_mid, J, J_inv, n), Qc, h)
+        P = _symmetrised(matmul(matmul(phi, P), np.ascontiguousarray(phi.T)) + qd)
+        qn = y1[0:4].copy()
+        if rotating:
+            qn = multiply_kernel(rotation_quaternion_kernel(-h * frame_rate), qn)
+        nq = math.sqrt(qn[0] * qn[0] + qn[1] * qn[1] + qn[2] * qn[2] + qn[3] * qn[3])
+        for i in range(4):
+            q[i] = qn[i] / nq
+        w[:] = y1[4:7]
+    return q, w, P
+
+
+@njit(cache=True)
+def _update_kernel(q, w, b, P, nu, H, R, gate, bias):  # pragma: no cover - compiled
+    """The arithmetic of :meth:`AttitudeMEKF._update`: S = H P H^T + R, NIS = nu^T S^-1 nu; when
+    NIS <= gate, the expanded Joseph form P - K H P - (K H P)^T + K S K^T with K = P H^T S^-1, the
+    correction a = K nu moved into q <- q (x) exp(a / 2) (renormalised), omega (and the bias), and the
+    reset P <- G P G^T (symmetrised), G = blockdiag(I - [a]x / 2, I). Returns (q, omega, b, P, nis,
+    accepted); a rejected update returns its inputs."""
+    HP = matmul(H, P)
+    S = matmul(HP, np.ascontiguousarray(H.T)) + R
+    Sinv = np.linalg.inv(S)
+    Sinv_nu = np.zeros(3)
+    for i in range(3):
+        for j in range(3):
+            Sinv_nu[i] += Sinv[i, j] * nu[j]
+    nis = nu[0] * Sinv_nu[0] + nu[1] * Sinv_nu[1] + nu[2] * Sinv_nu[2]
+    if not nis <= gate:  # NaN is rejected too
+        return q, w, b, P, nis, False
+    K = matmul_tn(HP, Sinv)  # (H P)^T S^-1 = P H^T S^-1 (P symmetric)
+    n = P.shape[0]
+    dx = np.zeros(n)  # (H P)^T S^-1 nu
+    for j in range(3):
+        for i in range(n):
+            dx[i] += HP[j, i] * Sinv_nu[j]
+    KHP = matmul(K, HP)
+    KSK = matmul(matmul(K, S), np.ascontiguousarray(K.T))
+    Pn = np.empty((n, n))
+    for i in range(n):
+        for j in range(n):
+            Pn[i, j] = P[i, j] - KHP[i, j] - KHP[j, i] + KSK[i, j]
+    qn = multiply_kernel(q, rotation_quaternion_kernel(dx[0:3]))
+    nq = math.sqrt(qn[0] * qn[0] + qn[1] * qn[1] + qn[2] * qn[2] + qn[3] * qn[3])
+    for i in range(4):
+        qn[i] /= nq
+    bn = b + dx[6:9] if bias else b.copy()
+    G = np.eye(n)  # I - [a]x / 2 on the attitude block
+    G[0, 1], G[0, 2] = 0.5 * dx[2], -0.5 * dx[1]
+    G[1, 0], G[1, 2] = -0.5 * dx[2], 0.5 * dx[0]
+    G[2, 0], G[2, 1] = 0.5 * dx[1], -0.5 * dx[0]
+    return qn, w + dx[3:6], bn, _sandwich(G, Pn), nis, True
 
 
 def _inertia_matrix(inertia) -> np.ndarray:
@@ -203,6 +314,9 @@ class AttitudeMEKF:
         self.max_substep_s = float(max_substep_s)
         self.max_substep_angle_rad = float(max_substep_angle_rad)
         self.frame_rate = None if frame_rate_rad_s is None else np.asarray(frame_rate_rad_s, dtype=float)
+        self._frame_rate = np.zeros(3) if self.frame_rate is None else np.ascontiguousarray(self.frame_rate, dtype=float)
+        self._H_attitude = np.zeros((3, self.n))  # pose attitude: H = [I 0 (0)]
+        self._H_attitude[:, :3] = np.eye(3)
         self.Qc = np.zeros((self.n, self.n))
         self.Qc[3:6, 3:6] = self.q_accel_psd * np.eye(3)
         if self.gyro_bias:
@@ -227,19 +341,17 @@ class AttitudeMEKF:
         self.updates = 0
         self.events: list[tuple[str, str]] = []
 
-    def restart(self, q0, w0, P0, b0=None) -> None:
-        """:meth:`reset` for a caller that hands back the filter's own state with known changes (a
-        rate increment, a widened rate covariance): the same assignments without re-checking P0
-        (symmetry, positive definiteness), which cost more than the filter's prediction. P0 must be
-        a symmetric positive definite (n, n) array (e.g. :attr:`P` plus a PSD term)."""
-        self._q = quat_normalize(np.asarray(q0, dtype=float))
-        self._w = np.array(w0, dtype=float).reshape(3)
-        self._b = np.zeros(3) if b0 is None else np.array(b0, dtype=float).reshape(3)
-        self._P = np.array(P0, dtype=float)
-        self.nis = []
-        self.rejected = 0
-        self.updates = 0
-        self.events = []
+    def add_rate(self, delta_omega=None, rate_variance: float = 0.0) -> None:
+        """Known changes between two samples (HybridNavigation's): the body rate estimate moves by
+        ``delta_omega`` (rad/s, body axes; a commanded torque's effect) and ``rate_variance`` (rad^2/s^2,
+        >= 0) is added to each rate variance (an impulse of unknown size). In place, counters kept."""
+        if delta_omega is not None:
+            self._w = self._w + np.asarray(delta_omega, dtype=float)
+        if rate_variance > 0.0:
+            P = self._P.copy()
+            for i in range(3, 6):
+                P[i, i] += rate_variance
+            self._P = P
 
     # --- state ------------------------------------------------------------------------
     @property
@@ -269,51 +381,23 @@ class AttitudeMEKF:
             raise input_error("attitude filter dt", dt, "must be finite and >= 0", "s")
         if dt == 0.0:
             return
-        rate = math.sqrt(float(self._w @ self._w))
-        n_sub = max(1, math.ceil(dt / self.max_substep_s), math.ceil(rate * dt / self.max_substep_angle_rad))
-        h = dt / n_sub
-        for _ in range(n_sub):
-            y = _rk4_step(np.concatenate([self._q, self._w]), h, self.J, self.J_inv)
-            w_mid = 0.5 * (self._w + y[4:])
-            phi, qd = van_loan(error_dynamics(w_mid, self.J, self.J_inv, self.gyro_bias), self.Qc, h)
-            P = phi @ self._P @ phi.T + qd
-            self._P = 0.5 * (P + P.T)
-            q = y[:4]
-            if self.frame_rate is not None:  # q_AB(t+h) = exp(-w_A h / 2) (x) q_AB (x) (body step)
-                q = multiply_kernel(small_rotation(-self.frame_rate * h), q)
-            self._q = q / math.sqrt(float(q @ q))
-            self._w = y[4:]
+        self._q, self._w, self._P = _predict_kernel(self._q, self._w, self._P, float(dt), self.J, self.J_inv, self.Qc,
+                                                    self._frame_rate, self.frame_rate is not None, self.max_substep_s,
+                                                    self.max_substep_angle_rad)
 
     # --- updates ----------------------------------------------------------------------
     def _update(self, nu: np.ndarray, H: np.ndarray, R: np.ndarray, kind: str) -> AttitudeUpdate:
         """Linear update of the error state with innovation ``nu`` (3,), H (3 x n), R (3x3):
         chi-square gate, expanded Joseph form (as RelativeEKF.update), then the reset."""
-        P = self._P
-        HP = H @ P
-        S = HP @ H.T + R
-        Sinv = np.linalg.inv(S)
-        Sinv_nu = Sinv @ nu
-        nis = float(nu @ Sinv_nu)
+        q, w, b, P, nis, accepted = _update_kernel(self._q, self._w, self._b, self._P, np.ascontiguousarray(nu, dtype=float),
+                                                   H, R, self.gates[3], self.gyro_bias)
         self.nis.append(nis)
-        if not nis <= self.gates[3]:  # NaN is rejected too
+        if not accepted:
             self.rejected += 1
             self.events.append(("nav-rejected", f"{kind} measurement rejected: NIS {nis:.3g} > {self.gates[3]:.3g} "
                                 f"(chi-square {self.gate_probability:g}, 3 dof)"))
             return AttitudeUpdate(nu, nis, False)
-        K = HP.T @ Sinv
-        dx = HP.T @ Sinv_nu
-        KHP = K @ HP
-        P = P - KHP - KHP.T + K @ S @ K.T
-        a = dx[:3]
-        q = multiply_kernel(self._q, small_rotation(a))
-        self._q = q / math.sqrt(float(q @ q))
-        self._w = self._w + dx[3:6]
-        if self.gyro_bias:
-            self._b = self._b + dx[6:9]
-        G = np.eye(self.n)
-        G[:3, :3] -= 0.5 * _skew(a)
-        P = G @ P @ G.T
-        self._P = 0.5 * (P + P.T)
+        self._q, self._w, self._b, self._P = q, w, b, P
         self.updates += 1
         return AttitudeUpdate(nu, nis, True)
 
@@ -324,9 +408,7 @@ class AttitudeMEKF:
             raise input_error("attitude sigma", sigma_rad, "must be > 0", "rad")
         q_meas = np.asarray(q_meas, dtype=float)
         nu = attitude_error(self._q, q_meas / math.sqrt(float(q_meas @ q_meas)))
-        H = np.zeros((3, self.n))
-        H[:, :3] = np.eye(3)
-        return self._update(nu, H, sigma_rad ** 2 * np.eye(3), "attitude")
+        return self._update(nu, self._H_attitude, sigma_rad ** 2 * np.eye(3), "attitude")
 
     def update_rate(self, w_meas, sigma_rad_s: float) -> AttitudeUpdate:
         """Rate (gyro-like) update: ``w_meas = omega (+ b) + N(0, sigma^2 I)`` (rad/s)."""
