@@ -33,10 +33,11 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from proxops.core.quaternion import dcm_kernel as _dcm
-from proxops.core.quaternion import multiply_kernel, quat_multiply, quat_rotate_inverse
+from numba import njit
+
+from proxops.core.quaternion import dcm_kernel, multiply_kernel, quat_multiply, quat_rotate_inverse, rotation_quaternion_kernel
 from proxops.navigation import NavigationBase, small_rotation
-from proxops.navigation.mekf import AttitudeMEKF, attitude_error
+from proxops.navigation.mekf import AttitudeMEKF, attitude_error_kernel
 
 
 @dataclass
@@ -64,6 +65,8 @@ class HybridNavigation(NavigationBase):
     _t_last: float | None = field(default=None, init=False)
     _u: np.ndarray = field(default_factory=lambda: np.zeros(6), init=False)
     _contacts: float = field(default=0.0, init=False)
+    _sigmas: np.ndarray | None = field(default=None, init=False)  # the measurement sigmas in the draws' order
+    _pair_inertia_inv: np.ndarray | None = field(default=None, init=False)
 
     def command(self, t: float, u: np.ndarray, kind: str) -> None:
         """The deputy's held wrench (F_d, M_d in D; N, N m) from ``t`` on."""
@@ -73,11 +76,13 @@ class HybridNavigation(NavigationBase):
         f = self.filter
         dw = None
         if x[33] > 0.5 and dt > 0.0:  # latched: the pair turns under the commanded wrench
-            Q_T = _dcm(x[9:13])  # C_{C<-D} (measured q)
+            Q_T = dcm_kernel(x[9:13])  # C_{C<-D} (measured q)
             F, a = Q_T @ self._u[0:3], self.arm_C
             M = Q_T @ self._u[3:6] + np.array([a[1] * F[2] - a[2] * F[1], a[2] * F[0] - a[0] * F[2],
                                                 a[0] * F[1] - a[1] * F[0]])
-            dw = np.linalg.solve(self.inertia_pair_C, M) * dt
+            if self._pair_inertia_inv is None:
+                self._pair_inertia_inv = np.linalg.inv(self.inertia_pair_C)
+            dw = (self._pair_inertia_inv @ M) * dt
         variance = 0.0
         if x[32] > self._contacts:  # a contact impulse: the rate is uncertain by a few deg/s
             self._contacts = float(x[32])
@@ -107,22 +112,40 @@ class HybridNavigation(NavigationBase):
             self._known_inputs(x, dt)
         self._t_last = t
         f = self.filter
-        p = x[13:17]
-        e = rng.standard_normal(21)  # the 7 draws of 3 in the order below (one call: the same numbers)
+        e = rng.standard_normal(21)  # the 7 draws of 3 in the order of _noisy_measurement (one call: the same numbers)
         sigma_chief = math.radians(self.chief_attitude_sigma_deg)
-        f.update_attitude(multiply_kernel(p, small_rotation(sigma_chief * e[0:3])), sigma_chief)
-        p_hat = f.q
-        if p_hat[3] < 0.0:
-            p_hat = -p_hat
-        out[13:17] = p_hat
-        out[17:20] = f.omega - self.mean_motion_rad_s * _dcm(p_hat)[2]  # omega_hat - C_{C<-T}(p_hat) omega_t
-        err = attitude_error(p_hat, p)
-        self.attitude_errors_deg.append(math.degrees(math.sqrt(float(err @ err))))  # np.linalg.norm's sqrt(err . err)
-        out[0:3] += self.position_sigma_m * e[3:6]
-        out[3:6] += self.velocity_sigma_mps * e[6:9]
-        out[6:9] += math.radians(self.rate_sigma_deg_s) * e[9:12]
-        q = multiply_kernel(x[9:13], small_rotation(math.radians(self.attitude_sigma_deg) * e[12:15]))
-        out[9:13] = q if q[3] >= 0.0 else -q
-        out[20:23] += self.com_position_sigma_m * e[15:18]
-        out[23:26] += self.com_velocity_sigma_mps * e[18:21]
+        f.update_attitude(multiply_kernel(x[13:17], small_rotation(sigma_chief * e[0:3])), sigma_chief)
+        if self._sigmas is None:
+            self._sigmas = np.array([self.position_sigma_m, self.velocity_sigma_mps, math.radians(self.rate_sigma_deg_s),
+                                     math.radians(self.attitude_sigma_deg), self.com_position_sigma_m,
+                                     self.com_velocity_sigma_mps])
+        out, error_rad = _noisy_measurement(x, e, f.q, f.omega, self._sigmas, self.mean_motion_rad_s)
+        self.attitude_errors_deg.append(math.degrees(error_rad))
         return out
+
+
+@njit(cache=True)
+def _noisy_measurement(x, e, p_hat, omega_hat, sigmas, n0):  # pragma: no cover - compiled
+    """The measured state (34) of :meth:`HybridNavigation.measure` from the truth x and the normal draws
+    e[3:21], with the MEKF's chief attitude p_hat (sign with q_mu >= 0) and omega_c = omega_hat -
+    C_{C<-T}(p_hat) [0, 0, n0]; sigmas = [position (m), velocity (m/s), rate (rad/s), attitude (rad), CoM
+    position (m), CoM velocity (m/s)] in the order of the draws: rho, rho_dot, omega, q (a small rotation),
+    rho_n, rho_n_dot. Returns (measured state, |log(p_hat^-1 (x) p)| (rad), the estimate's attitude error)."""
+    out = x.copy()
+    if p_hat[3] < 0.0:
+        p_hat = -p_hat
+    out[13:17] = p_hat
+    R = dcm_kernel(p_hat)
+    for i in range(3):
+        out[17 + i] = omega_hat[i] - n0 * R[2, i]
+        out[i] += sigmas[0] * e[3 + i]
+        out[3 + i] += sigmas[1] * e[6 + i]
+        out[6 + i] += sigmas[2] * e[9 + i]
+        out[20 + i] += sigmas[4] * e[15 + i]
+        out[23 + i] += sigmas[5] * e[18 + i]
+    q = multiply_kernel(x[9:13], rotation_quaternion_kernel(sigmas[3] * e[12:15]))
+    if q[3] < 0.0:
+        q = -q
+    out[9:13] = q
+    err = attitude_error_kernel(p_hat, x[13:17])
+    return out, math.sqrt(err[0] * err[0] + err[1] * err[1] + err[2] * err[2])

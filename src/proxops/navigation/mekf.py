@@ -70,11 +70,11 @@ def rotation_vector(q: np.ndarray) -> np.ndarray:
 
 def attitude_error(q_est: np.ndarray, q_true: np.ndarray) -> np.ndarray:
     """Body-frame error rotation vector ``dtheta = log(q_est^-1 (x) q_true)`` (rad)."""
-    return _attitude_error_kernel(np.ascontiguousarray(q_est, dtype=float), np.ascontiguousarray(q_true, dtype=float))
+    return attitude_error_kernel(np.ascontiguousarray(q_est, dtype=float), np.ascontiguousarray(q_true, dtype=float))
 
 
 @njit(cache=True)
-def _attitude_error_kernel(q_est, q_true):  # pragma: no cover - compiled
+def attitude_error_kernel(q_est, q_true):  # pragma: no cover - compiled
     """:func:`attitude_error` inside numba code: the rotation vector of conj(q_est) (x) q_true."""
     conj = np.empty(4)
     conj[0], conj[1], conj[2], conj[3] = -q_est[0], -q_est[1], -q_est[2], q_est[3]
