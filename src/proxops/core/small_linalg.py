@@ -7,7 +7,9 @@ MEKF's Van Loan discretisation (:mod:`proxops.navigation.mekf`):
 * :func:`expm_pade13`: exp(M) by scaling and squaring with the [13/13] Pade approximant (Higham
   2005, the top branch of ``scipy.linalg.expm``; relative error ~1e-16 on these blocks);
 * :func:`matmul` (A B), :func:`matmul_tn` (A^T B), :func:`matvec` (A x), :func:`cross3` (a x b of
-  3-vectors; the rigid-body right-hand sides and the hybrid plant).
+  3-vectors; the rigid-body right-hand sides and the hybrid plant);
+* :func:`whitened` (L^-1 v, A = L L^T) and :func:`mahalanobis_squared` (v^T A^-1 v): the navigation
+  filters' whitened innovations and NEES, by Cholesky.
 """
 
 from __future__ import annotations
@@ -145,3 +147,48 @@ def cross3(a, b):
     out[1] = a[2] * b[0] - a[0] * b[2]
     out[2] = a[0] * b[1] - a[1] * b[0]
     return out
+
+
+@njit(cache=True)
+def _cholesky_lower(A):  # pragma: no cover - compiled
+    """Lower Cholesky factor L (A = L L^T) of a symmetric positive definite A (n x n, small); NaN
+    where A is not positive definite (as a NaN NEES or whitened innovation: never accepted)."""
+    n = A.shape[0]
+    L = np.zeros((n, n))
+    for j in range(n):
+        d = A[j, j]
+        for k in range(j):
+            d -= L[j, k] * L[j, k]
+        d = math.sqrt(d) if d > 0.0 else math.nan
+        L[j, j] = d
+        for i in range(j + 1, n):
+            s = A[i, j]
+            for k in range(j):
+                s -= L[i, k] * L[j, k]
+            L[i, j] = s / d
+    return L
+
+
+@njit(cache=True)
+def whitened(A, v):  # pragma: no cover - compiled
+    """L^-1 v with L the lower Cholesky factor of A (forward substitution): the whitened innovation
+    of an innovation v with covariance A, and |L^-1 v|^2 = v^T A^-1 v."""
+    L = _cholesky_lower(A)
+    n = v.shape[0]
+    w = np.empty(n)
+    for i in range(n):
+        s = v[i]
+        for k in range(i):
+            s -= L[i, k] * w[k]
+        w[i] = s / L[i, i]
+    return w
+
+
+@njit(cache=True)
+def mahalanobis_squared(A, v):  # pragma: no cover - compiled
+    """v^T A^-1 v (A symmetric positive definite) by Cholesky: the NEES of an error v with covariance A."""
+    w = whitened(A, v)
+    s = 0.0
+    for i in range(w.shape[0]):
+        s += w[i] * w[i]
+    return s

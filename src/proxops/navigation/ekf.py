@@ -72,6 +72,7 @@ import numpy as np
 from proxops.core.cw import cw_input_matrix_zoh, cw_stm, cw_matrices
 from proxops.core.layout import StateLayout
 from proxops.errors import input_error
+from proxops.core.small_linalg import mahalanobis_squared, whitened
 from proxops.navigation.consistency import WhitenessMonitor
 
 SENSORS = ("range-bearing", "pose")
@@ -467,7 +468,7 @@ class RelativeEKF:
             self.events.append(("nav-rejected", f"{sensor.kind} measurement rejected: NIS {nis:.3g} > "
                                 f"{self.gate:.3g} (chi-square {self.gate_probability:g}, {sensor.m} dof)"))
             return False
-        z = self.monitor.add(np.linalg.solve(np.linalg.cholesky(S), nu))  # whitened innovation
+        z = self.monitor.add(whitened(np.ascontiguousarray(S), np.ascontiguousarray(nu, dtype=float)))  # whitened innovation
         if self.monitor.flagged(z):
             self.overconfident_windows += 1
             self.events.append(("nav-overconfident", f"innovations not white: z = {z:.3g} > {self.monitor.bound:.3g} "
@@ -539,7 +540,7 @@ class RelativeEKF:
         if z is not None:
             self.update(t, z)
         e = x_hill[:6] - self.x
-        self.nees.append(float(e @ np.linalg.solve(self.P, e)))
+        self.nees.append(mahalanobis_squared(np.ascontiguousarray(self.P), e))
         self.nees_t.append(t)
         if self._slices is None:
             return self.x.copy()

@@ -55,7 +55,7 @@ from numba import njit
 
 from proxops.core.quaternion import (multiply_kernel, quat_normalize, rotation_quaternion_kernel,
                                      rotation_vector_kernel)
-from proxops.core.small_linalg import expm_pade13, matmul, matmul_tn
+from proxops.core.small_linalg import expm_pade13, mahalanobis_squared, matmul, matmul_tn
 from proxops.errors import input_error
 from proxops.navigation import small_rotation
 from proxops.navigation.consistency import chi2_band
@@ -434,7 +434,7 @@ class AttitudeMEKF:
         full 9-state error when ``b_true`` is given (the bias marginalised otherwise)."""
         e = self.error(q_true, w_true, b_true)
         P = self._P[: e.size, : e.size]
-        return float(e @ np.linalg.solve(P, e))
+        return mahalanobis_squared(np.ascontiguousarray(P), e)
 
 
 @dataclass

@@ -39,6 +39,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from proxops.core.small_linalg import mahalanobis_squared
 from proxops.dynamics.planar_cubesat import PlanarCubeSatParams, rk4_step, wrap_angle as wrap
 from proxops.errors import input_error
 from proxops.navigation.mekf import van_loan
@@ -167,9 +168,9 @@ class PlanarPoseEKF:
         err[2] = wrap(err[2])
         rec = self.record
         rec["t"].append(float(t))
-        rec["pose_nees"].append(float(err @ np.linalg.solve(self.P, err)))
+        rec["pose_nees"].append(mahalanobis_squared(np.ascontiguousarray(self.P), err))
         ea = err[[2, 5]]
-        rec["nees"].append(float(ea @ np.linalg.solve(self.P[np.ix_([2, 5], [2, 5])], ea)))
+        rec["nees"].append(mahalanobis_squared(self.P[np.ix_([2, 5], [2, 5])], ea))
         rec["att_err_rad"].append(abs(float(err[2])))
         rec["rate_err_rad_s"].append(abs(float(err[5])))
         out = self.x.copy()
