@@ -275,3 +275,21 @@ def rotation_vector_kernel(q):
     k = 2.0 * math.atan2(vn, w) / vn
     out[0], out[1], out[2] = k * x, k * y, k * z
     return out
+
+
+@njit(cache=True)
+def propagate_kernel(q, w, dt):
+    """:func:`quat_propagate` for one quaternion and rate inside numba code, q (x) exp(0.5 w dt), in the
+    numpy form's order of operations (the same bits): its product written as :func:`quat_multiply`
+    sums it, (p_w q_v + q_w p_v) + p_v x q_v and p_w q_w - (p_v . q_v)."""
+    rate = math.sqrt((w[0] * w[0] + w[1] * w[1]) + w[2] * w[2])
+    half = 0.5 * (rate * dt)
+    scale = math.sin(half) / rate if rate > 1e-300 else 0.5 * dt
+    d0, d1, d2, d3 = w[0] * scale, w[1] * scale, w[2] * scale, math.cos(half)
+    p0, p1, p2, p3 = q[0], q[1], q[2], q[3]
+    out = np.empty(4)
+    out[0] = (p3 * d0 + d3 * p0) + (p1 * d2 - p2 * d1)
+    out[1] = (p3 * d1 + d3 * p1) + (p2 * d0 - p0 * d2)
+    out[2] = (p3 * d2 + d3 * p2) + (p0 * d1 - p1 * d0)
+    out[3] = p3 * d3 - ((p0 * d0 + p1 * d1) + p2 * d2)
+    return out

@@ -38,7 +38,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from proxops.dynamics.tumbling_target import cross3
-from proxops.core.quaternion import quat_to_dcm, multiply_kernel
+from proxops.core.quaternion import dcm_kernel, multiply_kernel
 from proxops.navigation.mekf import AttitudeMEKF, PoseAttitudeSensor, attitude_error
 from proxops.navigation import small_rotation
 
@@ -106,7 +106,7 @@ class TargetAttitudeNavigation:
         if f.events:
             self.events.extend(f.events)
             f.events.clear()
-        R = quat_to_dcm(q)
+        R = dcm_kernel(q)  # quat_to_dcm (the same bits)
         dr = R @ x[:3]
         dv = R @ (x[3:6] + cross3(w, x[:3]))
         if self.position_sigma_m > 0.0:
@@ -114,7 +114,7 @@ class TargetAttitudeNavigation:
         if self.velocity_sigma_mps > 0.0:
             dv = dv + self.velocity_sigma_mps * rng.standard_normal(3)
         q_hat, w_hat = f.q, f.omega
-        R_hat = quat_to_dcm(q_hat)
+        R_hat = dcm_kernel(np.ascontiguousarray(q_hat, dtype=float))
         r_hat = R_hat.T @ dr
         v_hat = R_hat.T @ dv - cross3(w_hat, r_hat)
         D = R.T @ R_hat  # estimated body axes in true body components
