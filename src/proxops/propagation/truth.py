@@ -30,7 +30,7 @@ from proxops.propagation.reference import REFERENCE_ATOL, REFERENCE_RTOL, propag
 from proxops.dynamics.plant import PlantBase
 from proxops.dynamics.tumbling_target import quaternion_stepped
 
-_STATUS_TEXT = {
+STATUS_TEXT = {
     kernels.STATUS_STEP_TOO_SMALL: "step size fell below the time resolution",
     kernels.STATUS_TOO_MANY_STEPS: f"more than {kernels.MAX_STEPS} steps",
     kernels.STATUS_NOT_FINITE: "state became non-finite",
@@ -134,7 +134,7 @@ class RelativeTruth(PlantBase):
         if self.integrator == "fast":
             y_new, status, _ = kernels.propagate_dop853(y, dt, uu, self.params, self.rtol, self.atol)
             if status != kernels.STATUS_OK:
-                raise ProxopsError(f"truth propagation failed at t = {t} s over dt = {dt} s: {_STATUS_TEXT[status]}")
+                raise ProxopsError(f"truth propagation failed at t = {t} s over dt = {dt} s: {STATUS_TEXT[status]}")
             return y_new
         return propagate_reference(y, dt, uu, self.params, self.rtol, self.atol)
 
@@ -163,7 +163,7 @@ class RelativeTruth(PlantBase):
                                                   self.rtol, self.atol)
         if status != kernels.STATUS_OK:
             raise ProxopsError(f"truth propagation failed at t = {float(times[k])} s over dt = {dt} s: "
-                               f"{_STATUS_TEXT[status]}")
+                               f"{STATUS_TEXT[status]}")
         return ys, rel
 
     def apply_impulse(self, t: float, state: np.ndarray, dv: np.ndarray) -> np.ndarray:
@@ -181,7 +181,7 @@ class RelativeTruth(PlantBase):
         if self.integrator == "fast":
             rel, status = kernels.free_drift_hill(y, grid, self.params, self.rtol, self.atol)
             if status != kernels.STATUS_OK:
-                raise ProxopsError(f"free-drift propagation failed: {_STATUS_TEXT[status]}")
+                raise ProxopsError(f"free-drift propagation failed: {STATUS_TEXT[status]}")
         else:
             rel = np.empty((grid.size, 6))
             rel[0] = self.relative_state(y)
