@@ -95,6 +95,8 @@ class ThrusterModel(ActuatorBase):
         """The deterministic part of :meth:`apply` (saturations, minimum impulse bit): what the
         vehicle knows it commanded (a navigation filter propagates with it)."""
         u = np.array(u, dtype=float)
+        if not u.any():  # nothing commanded (an idle tick): the zeros the steps below would return
+            return np.zeros_like(u)
         if self.max_per_axis is not None:
             m = self.max_per_axis
             u = np.minimum(np.maximum(u, -m), m)  # = np.clip, without its dispatch overhead

@@ -429,7 +429,7 @@ class RelativeEKF:
         if self._kind == "impulse":
             self._impulse_t = None
             u = self._u if impulse else np.zeros(3)
-            if impulse:
+            if impulse and self._u.any():  # (a zero impulse has no execution error)
                 cu = self.execution_covariance(self._u)
                 if cu is not None:  # execution error of the impulse (m/s), at the burn
                     self.P = self.P.copy()
