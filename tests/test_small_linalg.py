@@ -41,3 +41,33 @@ def test_quaternion_propagate_kernel_has_the_bits_of_the_numpy_form():
         dt = float(rng.uniform(0.0, 1e4))
         np.testing.assert_array_equal(propagate_kernel(q, w, dt), quat_propagate(q, w, dt))
     np.testing.assert_array_equal(propagate_kernel(q, np.zeros(3), 5.0), quat_propagate(q, np.zeros(3), 5.0))
+
+
+def test_gated_kalman_update_is_the_textbook_joseph_form():
+    """core.small_linalg.gated_kalman_update (the EKF's and the MEKF's update) against the Joseph form
+    (I - K H) P (I - K H)^T + K R K^T and x + K nu with K = P H^T (H P H^T + R)^-1 from numpy; a NIS
+    above the gate (and a NaN one) is rejected with P unchanged."""
+    from proxops.core.small_linalg import gated_kalman_update
+
+    rng = np.random.default_rng(2)
+    for n in (6, 9):
+        for _ in range(30):
+            B = rng.standard_normal((n, n))
+            P = B @ B.T + 0.1 * np.eye(n)
+            H = rng.standard_normal((3, n))
+            C = rng.standard_normal((3, 3))
+            R = C @ C.T + 0.01 * np.eye(3)
+            nu = rng.standard_normal(3)
+            S = H @ P @ H.T + R
+            K = P @ H.T @ np.linalg.inv(S)
+            nis = float(nu @ np.linalg.solve(S, nu))
+            I_KH = np.eye(n) - K @ H
+            dx, P_new, S_out, nis_out, ok = gated_kalman_update(P, H, R, nu, 1e9)
+            assert ok and abs(nis_out - nis) <= 1e-10 * nis
+            np.testing.assert_allclose(S_out, S, rtol=1e-13, atol=1e-13)
+            np.testing.assert_allclose(dx, K @ nu, rtol=1e-8, atol=1e-12)
+            np.testing.assert_allclose(P_new, I_KH @ P @ I_KH.T + K @ R @ K.T, rtol=1e-8, atol=1e-11)
+            dx, P_same, _, _, ok = gated_kalman_update(P, H, R, nu, 0.5 * nis)
+            assert not ok and dx.size == 0 and P_same is P
+    _, _, _, nis_nan, ok = gated_kalman_update(np.eye(6), np.zeros((3, 6)), np.eye(3), np.full(3, np.nan), 1e9)
+    assert np.isnan(nis_nan) and not ok

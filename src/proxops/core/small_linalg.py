@@ -9,7 +9,8 @@ MEKF's Van Loan discretisation (:mod:`proxops.navigation.mekf`):
 * :func:`matmul` (A B), :func:`matmul_tn` (A^T B), :func:`matvec` (A x), :func:`cross3` (a x b of
   3-vectors; the rigid-body right-hand sides and the hybrid plant);
 * :func:`whitened` (L^-1 v, A = L L^T) and :func:`mahalanobis_squared` (v^T A^-1 v): the navigation
-  filters' whitened innovations and NEES, by Cholesky.
+  filters' whitened innovations and NEES, by Cholesky; :func:`gated_kalman_update` (their gated
+  Joseph-form update of a 3-dimensional measurement) and :func:`symmetrised`.
 """
 
 from __future__ import annotations
@@ -192,3 +193,53 @@ def mahalanobis_squared(A, v):  # pragma: no cover - compiled
     for i in range(w.shape[0]):
         s += w[i] * w[i]
     return s
+
+
+@njit(cache=True)
+def symmetrised(X):
+    """0.5 (X + X^T) of a square X, in place (returned)."""
+    n = X.shape[0]
+    for i in range(n):
+        for j in range(i + 1, n):
+            v = 0.5 * (X[i, j] + X[j, i])
+            X[i, j] = v
+            X[j, i] = v
+    return X
+
+
+@njit(cache=True)
+def gated_kalman_update(P, H, R, nu, gate):
+    """The linear update of a Kalman filter with a 3-dimensional measurement: S = H P H^T + R (3x3,
+    inverted by its adjugate), NIS = nu^T S^-1 nu and, when NIS <= gate (NaN is rejected), the correction
+    dx = K nu and the expanded Joseph form P - K H P - (K H P)^T + K S K^T (not symmetrised), K = P H^T S^-1
+    (P symmetric). Returns (dx, P after, S, nis, accepted); rejected: (empty, P, S, nis, False)."""
+    HP = matmul(H, P)
+    S = matmul(HP, np.ascontiguousarray(H.T)) + R
+    a00, a01, a02, a10, a11, a12, a20, a21, a22 = (S[0, 0], S[0, 1], S[0, 2], S[1, 0], S[1, 1], S[1, 2],
+                                                   S[2, 0], S[2, 1], S[2, 2])
+    c00, c01, c02 = a11 * a22 - a12 * a21, a12 * a20 - a10 * a22, a10 * a21 - a11 * a20
+    det = a00 * c00 + a01 * c01 + a02 * c02
+    Sinv = np.empty((3, 3))  # the adjugate over the determinant
+    Sinv[0, 0], Sinv[0, 1], Sinv[0, 2] = c00 / det, (a02 * a21 - a01 * a22) / det, (a01 * a12 - a02 * a11) / det
+    Sinv[1, 0], Sinv[1, 1], Sinv[1, 2] = c01 / det, (a00 * a22 - a02 * a20) / det, (a02 * a10 - a00 * a12) / det
+    Sinv[2, 0], Sinv[2, 1], Sinv[2, 2] = c02 / det, (a01 * a20 - a00 * a21) / det, (a00 * a11 - a01 * a10) / det
+    Sinv_nu = np.zeros(3)
+    for i in range(3):
+        for j in range(3):
+            Sinv_nu[i] += Sinv[i, j] * nu[j]
+    nis = nu[0] * Sinv_nu[0] + nu[1] * Sinv_nu[1] + nu[2] * Sinv_nu[2]
+    if not nis <= gate:
+        return np.empty(0), P, S, nis, False
+    K = matmul_tn(HP, Sinv)
+    n = P.shape[0]
+    dx = np.zeros(n)  # (H P)^T S^-1 nu
+    for j in range(3):
+        for i in range(n):
+            dx[i] += HP[j, i] * Sinv_nu[j]
+    KHP = matmul(K, HP)
+    KSK = matmul(matmul(K, S), np.ascontiguousarray(K.T))
+    P_new = np.empty((n, n))
+    for i in range(n):
+        for j in range(n):
+            P_new[i, j] = P[i, j] - KHP[i, j] - KHP[j, i] + KSK[i, j]
+    return dx, P_new, S, nis, True

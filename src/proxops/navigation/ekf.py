@@ -68,11 +68,10 @@ from collections import deque
 from dataclasses import dataclass, field
 
 import numpy as np
-from numba import njit
 
 from proxops.core.cw import cw_input_matrix_zoh, cw_stm, cw_matrices
 from proxops.core.layout import StateLayout
-from proxops.core.small_linalg import mahalanobis_squared, matmul, matmul_tn, whitened
+from proxops.core.small_linalg import gated_kalman_update, mahalanobis_squared, symmetrised, whitened
 from proxops.errors import input_error
 from proxops.navigation.consistency import WhitenessMonitor
 
@@ -114,50 +113,6 @@ def range_bearing_jacobian(rho: np.ndarray) -> np.ndarray:
         [-y / rh2, x / rh2, 0.0],
         [-x * z / (r2 * rh), -y * z / (r2 * rh), rh / r2],
     ])
-
-
-@njit(cache=True)
-def _gated_update(x, P, H, R, nu, gate):  # pragma: no cover - compiled
-    """The arithmetic of :meth:`RelativeEKF.update` once the innovation ``nu`` (3), H (3 x 6) and R (3x3)
-    are known: S = H P H^T + R inverted in closed form (adjugate), NIS = nu^T S^-1 nu and, when
-    NIS <= gate, the whitened innovation L^-1 nu (S = L L^T), x + K nu and the expanded Joseph form
-    P - K H P - (K H P)^T + K S K^T (symmetrised), K = P H^T S^-1. Returns (x, P, nis, accepted,
-    whitened); a rejected update returns the inputs and an empty whitened vector."""
-    HP = matmul(H, P)
-    S = matmul(HP, np.ascontiguousarray(H.T)) + R
-    a00, a01, a02, a10, a11, a12, a20, a21, a22 = (S[0, 0], S[0, 1], S[0, 2], S[1, 0], S[1, 1], S[1, 2],
-                                                   S[2, 0], S[2, 1], S[2, 2])
-    c00, c01, c02 = a11 * a22 - a12 * a21, a12 * a20 - a10 * a22, a10 * a21 - a11 * a20
-    det = a00 * c00 + a01 * c01 + a02 * c02
-    Sinv = np.empty((3, 3))  # the adjugate over the determinant
-    Sinv[0, 0], Sinv[0, 1], Sinv[0, 2] = c00 / det, (a02 * a21 - a01 * a22) / det, (a01 * a12 - a02 * a11) / det
-    Sinv[1, 0], Sinv[1, 1], Sinv[1, 2] = c01 / det, (a00 * a22 - a02 * a20) / det, (a02 * a10 - a00 * a12) / det
-    Sinv[2, 0], Sinv[2, 1], Sinv[2, 2] = c02 / det, (a01 * a20 - a00 * a21) / det, (a00 * a11 - a01 * a10) / det
-    Sinv_nu = np.zeros(3)
-    for i in range(3):
-        for j in range(3):
-            Sinv_nu[i] += Sinv[i, j] * nu[j]
-    nis = nu[0] * Sinv_nu[0] + nu[1] * Sinv_nu[1] + nu[2] * Sinv_nu[2]
-    if not nis <= gate:  # NaN is rejected too
-        return x, P, nis, False, np.empty(0)
-    K = matmul_tn(HP, Sinv)
-    n = P.shape[0]
-    x_new = x.copy()
-    for j in range(3):
-        for i in range(n):
-            x_new[i] += HP[j, i] * Sinv_nu[j]
-    KHP = matmul(K, HP)
-    KSK = matmul(matmul(K, S), np.ascontiguousarray(K.T))
-    P_new = np.empty((n, n))
-    for i in range(n):
-        for j in range(n):
-            P_new[i, j] = P[i, j] - KHP[i, j] - KHP[j, i] + KSK[i, j]
-    for i in range(n):
-        for j in range(i + 1, n):
-            v = 0.5 * (P_new[i, j] + P_new[j, i])
-            P_new[i, j] = v
-            P_new[j, i] = v
-    return x_new, P_new, nis, True, whitened(S, nu)
 
 
 @dataclass
@@ -485,9 +440,8 @@ class RelativeEKF:
             r = math.sqrt(x[0] * x[0] + x[1] * x[1] + x[2] * x[2])
             R = np.eye(3) * sensor.sigma(r) ** 2
             nu = sensor.residual(z, zhat)
-        x_new, P_new, nis, accepted, white = _gated_update(np.ascontiguousarray(x, dtype=float), np.ascontiguousarray(P),
-                                                           H, np.ascontiguousarray(R, dtype=float),
-                                                           np.ascontiguousarray(nu, dtype=float), self.gate)
+        dx, P_new, S, nis, accepted = gated_kalman_update(np.ascontiguousarray(P), H, np.ascontiguousarray(R, dtype=float),
+                                                          np.ascontiguousarray(nu, dtype=float), self.gate)
         self.nis.append(nis)
         self.nis_t.append(t)
         if self.reinit_after_rejections:
@@ -497,13 +451,13 @@ class RelativeEKF:
             self.events.append(("nav-rejected", f"{sensor.kind} measurement rejected: NIS {nis:.3g} > "
                                 f"{self.gate:.3g} (chi-square {self.gate_probability:g}, {sensor.m} dof)"))
             return False
-        z = self.monitor.add(white)  # whitened innovation
+        z = self.monitor.add(whitened(S, np.ascontiguousarray(nu, dtype=float)))  # whitened innovation
         if self.monitor.flagged(z):
             self.overconfident_windows += 1
             self.events.append(("nav-overconfident", f"innovations not white: z = {z:.3g} > {self.monitor.bound:.3g} "
                                 f"over the last {self.monitor.window} measurements (lags 1-{self.monitor.lags}, "
                                 f"one-sided {self.monitor.probability:g}): the covariance is too small"))
-        self.x, self.P = x_new, P_new
+        self.x, self.P = x + dx, symmetrised(P_new)
         self.updates += 1
         return True
 

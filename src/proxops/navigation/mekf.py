@@ -55,7 +55,7 @@ from numba import njit
 
 from proxops.core.quaternion import (multiply_kernel, quat_normalize, rotation_quaternion_kernel,
                                      rotation_vector_kernel)
-from proxops.core.small_linalg import expm_pade13, mahalanobis_squared, matmul, matmul_tn
+from proxops.core.small_linalg import expm_pade13, gated_kalman_update, mahalanobis_squared, matmul, symmetrised
 from proxops.errors import input_error
 from proxops.navigation import small_rotation
 from proxops.navigation.consistency import chi2_band
@@ -132,19 +132,7 @@ def _van_loan_kernel(F, Qc, dt):  # pragma: no cover - compiled
             m[n + i, n + j] = F[j, i] * dt
     e = expm_pade13(m)
     phi = np.ascontiguousarray(e[n:, n:].T)
-    return phi, _symmetrised(matmul(phi, np.ascontiguousarray(e[:n, n:])))
-
-
-@njit(cache=True)
-def _symmetrised(X):  # pragma: no cover - compiled
-    """0.5 (X + X^T) of a square X, in place (returned)."""
-    n = X.shape[0]
-    for i in range(n):
-        for j in range(i + 1, n):
-            v = 0.5 * (X[i, j] + X[j, i])
-            X[i, j] = v
-            X[j, i] = v
-    return X
+    return phi, symmetrised(matmul(phi, np.ascontiguousarray(e[:n, n:])))
 
 
 @njit(cache=True)
@@ -182,7 +170,7 @@ def _rk4_step(y, h, J, J_inv):  # pragma: no cover - compiled
 @njit(cache=True)
 def _sandwich(A, P):  # pragma: no cover - compiled
     """A P A^T, symmetrised."""
-    return _symmetrised(matmul(matmul(A, P), np.ascontiguousarray(A.T)))
+    return symmetrised(matmul(matmul(A, P), np.ascontiguousarray(A.T)))
 
 
 @njit(cache=True)
@@ -206,7 +194,7 @@ def _predict_kernel(q, w, P, dt, J, J_inv, Qc, frame_rate, rotating, max_substep
         for i in range(3):
             w_mid[i] = 0.5 * (w[i] + y1[4 + i])
         phi, qd = _van_loan_kernel(_error_dynamics_kernel(w_mid, J, J_inv, n), Qc, h)
-        P = _symmetrised(matmul(matmul(phi, P), np.ascontiguousarray(phi.T)) + qd)
+        P = symmetrised(matmul(matmul(phi, P), np.ascontiguousarray(phi.T)) + qd)
         qn = y1[0:4].copy()
         if rotating:
             qn = multiply_kernel(rotation_quaternion_kernel(-h * frame_rate), qn)
@@ -224,28 +212,10 @@ def _update_kernel(q, w, b, P, nu, H, R, gate, bias):  # pragma: no cover - comp
     correction a = K nu moved into q <- q (x) exp(a / 2) (renormalised), omega (and the bias), and the
     reset P <- G P G^T (symmetrised), G = blockdiag(I - [a]x / 2, I). Returns (q, omega, b, P, nis,
     accepted); a rejected update returns its inputs."""
-    HP = matmul(H, P)
-    S = matmul(HP, np.ascontiguousarray(H.T)) + R
-    Sinv = np.linalg.inv(S)
-    Sinv_nu = np.zeros(3)
-    for i in range(3):
-        for j in range(3):
-            Sinv_nu[i] += Sinv[i, j] * nu[j]
-    nis = nu[0] * Sinv_nu[0] + nu[1] * Sinv_nu[1] + nu[2] * Sinv_nu[2]
-    if not nis <= gate:  # NaN is rejected too
+    dx, Pn, _, nis, accepted = gated_kalman_update(P, H, R, nu, gate)
+    if not accepted:
         return q, w, b, P, nis, False
-    K = matmul_tn(HP, Sinv)  # (H P)^T S^-1 = P H^T S^-1 (P symmetric)
     n = P.shape[0]
-    dx = np.zeros(n)  # (H P)^T S^-1 nu
-    for j in range(3):
-        for i in range(n):
-            dx[i] += HP[j, i] * Sinv_nu[j]
-    KHP = matmul(K, HP)
-    KSK = matmul(matmul(K, S), np.ascontiguousarray(K.T))
-    Pn = np.empty((n, n))
-    for i in range(n):
-        for j in range(n):
-            Pn[i, j] = P[i, j] - KHP[i, j] - KHP[j, i] + KSK[i, j]
     qn = multiply_kernel(q, rotation_quaternion_kernel(dx[0:3]))
     nq = math.sqrt(qn[0] * qn[0] + qn[1] * qn[1] + qn[2] * qn[2] + qn[3] * qn[3])
     for i in range(4):
