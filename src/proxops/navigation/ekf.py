@@ -440,8 +440,9 @@ class RelativeEKF:
             r = math.sqrt(x[0] * x[0] + x[1] * x[1] + x[2] * x[2])
             R = np.eye(3) * sensor.sigma(r) ** 2
             nu = sensor.residual(z, zhat)
+        nu = np.ascontiguousarray(nu, dtype=float)
         dx, P_new, S, nis, accepted = gated_kalman_update(np.ascontiguousarray(P), H, np.ascontiguousarray(R, dtype=float),
-                                                          np.ascontiguousarray(nu, dtype=float), self.gate)
+                                                          nu, self.gate)
         self.nis.append(nis)
         self.nis_t.append(t)
         if self.reinit_after_rejections:
@@ -451,7 +452,7 @@ class RelativeEKF:
             self.events.append(("nav-rejected", f"{sensor.kind} measurement rejected: NIS {nis:.3g} > "
                                 f"{self.gate:.3g} (chi-square {self.gate_probability:g}, {sensor.m} dof)"))
             return False
-        z = self.monitor.add(whitened(S, np.ascontiguousarray(nu, dtype=float)))  # whitened innovation
+        z = self.monitor.add(whitened(S, nu))  # whitened innovation
         if self.monitor.flagged(z):
             self.overconfident_windows += 1
             self.events.append(("nav-overconfident", f"innovations not white: z = {z:.3g} > {self.monitor.bound:.3g} "

@@ -13,15 +13,13 @@ The target's own trajectory does not depend on the chaser and is cached between 
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 from numba import njit
 
-from proxops.errors import ProxopsError, input_error
+from proxops.errors import ProxopsError
 from proxops.frames.elements import OrbitalElements
 from proxops.propagation import kernels
-from proxops.propagation.truth import STATUS_TEXT, RelativeTruth
+from proxops.propagation.truth import STATUS_TEXT, RelativeTruth, _check_dt
 
 
 class HillPredictor:
@@ -56,10 +54,9 @@ class HillPredictor:
                 y = m.propagate(t0, y, u, dt)
             self._t, self._y = t0 + dt, y
             return m.relative_state(y)
-        if not (dt >= 0.0 and math.isfinite(dt)):
-            raise input_error("dt", dt, "must be finite and >= 0", "s")
+        dt = _check_dt(dt)  # the truth's own check of dt
         y, rel, status = _predict_kernel(self._target_at(t0), np.ascontiguousarray(x_hill[:6], dtype=float),
-                                         np.ascontiguousarray(u, dtype=float), kind == "impulse", float(dt), m.params,
+                                         np.ascontiguousarray(u, dtype=float), kind == "impulse", dt, m.params,
                                          m.rtol, m.atol)
         if status != kernels.STATUS_OK:
             raise ProxopsError(f"filter prediction failed at t = {t0} s over dt = {dt} s: {STATUS_TEXT[status]}")
